@@ -1,0 +1,100 @@
+"""Loading the shipped MJCF models and resolving named elements once (STYLE.md §5).
+
+Python reads rigid-body facts (masses, stroke, timestep, gravity) from ``MjModel`` and never keeps a
+second copy (STYLE.md §2).
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import pathlib
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from hexsim.errors import InputError, PhysicsError
+
+#: Built-in models: name -> MJCF file inside the ``hexsim.models`` package (sources in ``models/``).
+MODELS = {
+    "hexapod": "scene.xml",
+    "actuator": "single_actuator.xml",
+}
+
+
+def model_path(name: str) -> pathlib.Path:
+    """Path of a built-in model's MJCF file. Raises InputError for an unknown name."""
+    if name not in MODELS:
+        raise InputError(f"unknown model {name!r}; built-in models: {', '.join(MODELS)}")
+    return pathlib.Path(str(importlib.resources.files("hexsim.models") / MODELS[name]))
+
+
+def load_model(name: str) -> mujoco.MjModel:
+    """Compile a built-in model (``"hexapod"`` or ``"actuator"``)."""
+    return mujoco.MjModel.from_xml_path(str(model_path(name)))
+
+
+def _id(m: mujoco.MjModel, objtype, name: str) -> int:
+    i = mujoco.mj_name2id(m, objtype, name)
+    if i < 0:
+        raise InputError(f"model {m.names[:40]!r}… has no {objtype.name.removeprefix('mjOBJ_').lower()} {name!r}")
+    return i
+
+
+@dataclass(frozen=True)
+class PlantIndex:
+    """Addresses of the named elements hexsim drives and reads, resolved once with ``mj_name2id``.
+
+    Legs are the slide joints ``leg1`` … ``legN`` (piston position y [m]) with motors ``leg{i}_force``;
+    the platform sensors sit at site ``platform_centre``. Arrays have shape (n_legs,).
+    """
+
+    n_legs: int
+    qpos_adr: np.ndarray  # (n,) qpos address of each slide joint
+    dof_adr: np.ndarray  # (n,) qvel address of each slide joint
+    actuator_id: np.ndarray  # (n,) index into data.ctrl
+    stroke: np.ndarray  # (n, 2) joint range [m]: 0 … L_s
+    neutral_y: np.ndarray  # (n,) piston positions in the `neutral` keyframe [m]
+    sensor: dict[str, slice]  # sensor name -> slice of data.sensordata
+    dt: float  # physics timestep [s]
+
+    @classmethod
+    def from_model(cls, m: mujoco.MjModel) -> "PlantIndex":
+        legs = []
+        while mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{len(legs) + 1}") >= 0:
+            legs.append(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{len(legs) + 1}"))
+        if not legs:
+            raise InputError("model has no slide joint named leg1")
+        joints = np.array(legs)
+        acts = np.array([_id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"leg{i + 1}_force") for i in range(len(legs))])
+        sensors = {}
+        for s in range(m.nsensor):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
+            adr, dim = m.sensor_adr[s], m.sensor_dim[s]
+            sensors[name] = slice(int(adr), int(adr + dim))
+        key = _id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral")
+        qpos_adr = m.jnt_qposadr[joints].astype(int)
+        return cls(
+            n_legs=len(legs),
+            qpos_adr=qpos_adr,
+            dof_adr=m.jnt_dofadr[joints].astype(int),
+            actuator_id=acts.astype(int),
+            stroke=m.jnt_range[joints].copy(),
+            neutral_y=m.key_qpos[key][qpos_adr].copy(),
+            sensor=sensors,
+            dt=float(m.opt.timestep),
+        )
+
+
+def reset_neutral(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """Reset ``d`` to the ``neutral`` keyframe and run ``mj_forward``."""
+    mujoco.mj_resetDataKeyframe(m, d, _id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral"))
+    mujoco.mj_forward(m, d)
+
+
+def check_warnings(d: mujoco.MjData) -> None:
+    """Raise PhysicsError if MuJoCo raised any warning (like dm_control's ``check_invalid_state``)."""
+    counts = d.warning.number
+    if np.any(counts > 0):
+        kinds = [mujoco.mjtWarning(i).name for i in np.flatnonzero(counts)]
+        raise PhysicsError(f"MuJoCo warning {', '.join(kinds)} at t = {d.time:.4f} s")

@@ -1,0 +1,76 @@
+"""The run's figures as a JSON-ready dict and as a short summary table for stdout."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from hexsim.metrics import Smoothness, max_tracking_error
+from hexsim.simulation import SimulationResult
+from hexsim.tables import write_atomic
+
+
+def run_report(result: SimulationResult, sm: Smoothness) -> dict:
+    """The metrics of a run (JSON keys documented in README.md "Outputs"). SI units throughout."""
+    sc, cfg = result.config.scenario, result.config
+    return {
+        "scenario": sc.name,
+        "system": sc.system,
+        "duration_s": sc.duration,
+        "axis": sc.axis_name,
+        "frequency_hz": sc.frequency,
+        "amplitude": sc.amplitude,
+        "compensator": cfg.compensator,
+        "seed": cfg.seed,
+        "flow_area": cfg.hydraulics.flow_area,
+        "kp_V_per_m": cfg.controller.kp,
+        "controller_rate_hz": cfg.controller.rate_hz,
+        "signal": sm.signal,
+        "unit": sm.unit,
+        "window_s": list(sm.window),
+        "fundamental": sm.fundamental_amplitude,
+        "offset": sm.offset,
+        "noise_ratio": sm.noise_ratio,
+        "peak_noise": sm.peak_noise,
+        "peak_noise_g": sm.peak_noise_g,
+        "noise_floor": sm.noise_floor,
+        "reversal_times_s": sm.reversal_times.tolist(),
+        "reversal_peaks": sm.reversal_peaks.tolist(),
+        "mean_reversal_peak": sm.mean_reversal_peak,
+        "max_tracking_error_m": max_tracking_error(result),
+        "max_constraint_violation_m": float(np.max(result.constraint_violation)),
+        "p1_initial_Pa": result.p1_initial.tolist(),
+        "valve_saturated_samples": result.saturated_samples,
+        "realtime_factor": result.realtime_factor,
+        "wall_time_s": result.wall_time_s,
+    }
+
+
+def summary_table(report: dict) -> str:
+    """A few lines for stdout: what ran and the smoothness figures."""
+    unit = report["unit"]
+    g = f" ({report['peak_noise_g']:.4f} g)" if report["peak_noise_g"] is not None else ""
+    peaks = report["reversal_peaks"]
+    rows = [
+        ("scenario", f"{report['scenario']} ({report['system']}, {report['duration_s']:g} s, "
+                     f"{report['frequency_hz']:g} Hz, compensator {report['compensator']})"),
+        ("signal", report["signal"]),
+        ("fundamental", f"{report['fundamental']:.4f} {unit}"),
+        ("noise_ratio", f"{report['noise_ratio']:.4f}"),
+        ("peak_noise", f"{report['peak_noise']:.4f} {unit}{g}"),
+        ("reversal_peaks", f"{len(peaks)} reversals, mean {report['mean_reversal_peak']:.4f} {unit}, "
+                           f"max {max(peaks, default=float('nan')):.4f} {unit}; noise floor {report['noise_floor']:.4f} {unit}"),
+        ("max_tracking_error", f"{report['max_tracking_error_m'] * 1e3:.2f} mm"),
+        ("constraint_violation", f"{report['max_constraint_violation_m'] * 1e3:.4f} mm max"),
+        ("valve_saturated", f"{report['valve_saturated_samples']} controller samples"),
+        ("realtime_factor", f"{report['realtime_factor']:.2f}x ({report['wall_time_s']:.1f} s wall)"),
+    ]
+    width = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def write_json(path: str | os.PathLike, data: dict) -> None:
+    """Write ``data`` as indented JSON, atomically."""
+    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))

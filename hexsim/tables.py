@@ -1,0 +1,92 @@
+"""Reading numeric CSV tables with one clear error per problem (file, column, row, value).
+
+Shared by scenario files (``file:PATH``) and measurement logs (``../shared/measurement-log.md``):
+one header row, then one row per sample, plain decimal or exponent numbers, first column ``time_s``
+strictly increasing. Rows are numbered as a spreadsheet shows them (the header is row 1).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import pathlib
+import tempfile
+from collections.abc import Callable
+
+import numpy as np
+
+from hexsim.errors import InputError
+
+
+def read_numeric_csv(path: str | os.PathLike, *, required: tuple[str, ...] = ("time_s",)) -> dict[str, np.ndarray]:
+    """Columns of a numeric CSV as float arrays of shape (N,), keyed by header name, in file order.
+
+    Raises InputError naming the file (and column, row, value where it applies) when the file is
+    missing or empty, a header is duplicated, a required column is missing, a row has the wrong number
+    of fields, a value is not a finite number, or ``time_s`` is not strictly increasing.
+    """
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not a UTF-8 text CSV file ({exc.reason} at byte {exc.start})") from None
+    rows = [r for r in rows if any(field.strip() for field in r)]
+    if not rows:
+        raise InputError(f"{path}: file is empty (expected a header row starting with time_s)")
+    header = [h.strip() for h in rows[0]]
+    for name in header:
+        if header.count(name) > 1:
+            raise InputError(f"{path}: column {name!r} appears more than once in the header")
+    for name in required:
+        if name not in header:
+            raise InputError(f"{path}: missing column {name!r} (header: {', '.join(header)})")
+    if len(rows) < 3:
+        raise InputError(f"{path}: needs at least two data rows, found {len(rows) - 1}")
+    data = np.empty((len(rows) - 1, len(header)))
+    for r, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise InputError(f"{path}: row {r} has {len(row)} fields, the header has {len(header)}")
+        for c, field in enumerate(row):
+            try:
+                value = float(field)
+            except ValueError:
+                raise InputError(f"{path}: column {header[c]!r}, row {r}: {field.strip()!r} is not a number") from None
+            if not math.isfinite(value):
+                raise InputError(f"{path}: column {header[c]!r}, row {r}: value {field.strip()} is not finite")
+            data[r - 2, c] = value
+    columns = {name: data[:, c].copy() for c, name in enumerate(header)}
+    if "time_s" in columns:
+        steps = np.diff(columns["time_s"])
+        if np.any(steps <= 0):
+            r = int(np.argmax(steps <= 0)) + 3
+            raise InputError(
+                f"{path}: column 'time_s', row {r}: time {columns['time_s'][r - 2]:g} s is not after the previous "
+                f"row's {columns['time_s'][r - 3]:g} s (time must be strictly increasing)"
+            )
+    return columns
+
+
+def write_atomic(path: str | os.PathLike, write: Callable[[pathlib.Path], None]) -> None:
+    """Call ``write(tmp)`` on a temporary file next to ``path`` and rename it into place.
+
+    A failure leaves no partial file behind. Raises InputError if the folder does not exist.
+    """
+    path = pathlib.Path(path)
+    if not path.parent.exists():
+        raise InputError(f"{path}: folder {path.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp_path = pathlib.Path(tmp)
+    try:
+        write(tmp_path)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp_path, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
