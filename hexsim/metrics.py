@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hexsim.signals import fit_fundamental, zero_crossings
 from hexsim.simulation import SimulationResult
 
 #: Half-width [s] of the window around a velocity reversal in which its peak is taken.
@@ -56,21 +57,6 @@ class Smoothness:
     @property
     def mean_reversal_peak(self) -> float:
         return float(np.mean(self.reversal_peaks)) if self.reversal_peaks.size else float("nan")
-
-
-def fit_fundamental(t: np.ndarray, x: np.ndarray, frequency: float) -> tuple[float, float, float, np.ndarray]:
-    """Least-squares fit x ≈ c0 + c1 sin(wt) + c2 cos(wt); returns (offset, amplitude, phase [rad], fit)."""
-    w = 2 * np.pi * frequency
-    basis = np.column_stack([np.ones_like(t), np.sin(w * t), np.cos(w * t)])
-    coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
-    return float(coef[0]), float(np.hypot(coef[1], coef[2])), float(np.arctan2(coef[2], coef[1])), basis @ coef
-
-
-def zero_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Times [s] where x (N,) changes sign, linearly interpolated between samples."""
-    idx = np.flatnonzero(np.sign(x[:-1]) * np.sign(x[1:]) < 0)
-    frac = x[idx] / (x[idx] - x[idx + 1])
-    return t[idx] + frac * (t[idx + 1] - t[idx])
 
 
 def reversal_times(t: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
@@ -142,7 +128,7 @@ def run_smoothness(result: SimulationResult) -> Smoothness:
     t_start = sc.fade_period + 1.0 / sc.frequency
     if sc.system == "actuator":
         sig, name, unit = result.acc[:, 2], "actuator accelerometer (along the axis)", "m/s^2"
-        setpoint, velocity = result.y_ref[:, 0], result.ydot[:, 0]
+        setpoint, velocity = sc.axis_setpoint(result.t), result.ydot[:, 0]
     else:
         setpoint = result.pose_ref[:, sc.axis]
         velocity = np.gradient(result.pose[:, sc.axis], result.t)

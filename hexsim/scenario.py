@@ -19,6 +19,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.kinematics import DOF_NAMES
+from hexsim.signals import dominant_frequency
 from hexsim.tables import read_numeric_csv
 
 SINE_DOFS = {"surge": 0, "sway": 1, "heave": 2, "roll": 3, "pitch": 4, "yaw": 5}
@@ -114,7 +115,7 @@ def make_scenario(name: str, *, duration: float | None = None, amplitude: float 
 def _check_duration(duration: float, minimum: float, why: str) -> None:
     if not (math.isfinite(duration) and duration > 0):
         raise InputError(f"--duration must be a positive number of seconds, got {duration}")
-    if duration < minimum:
+    if duration < minimum * (1 - 1e-6):
         raise InputError(f"--duration {duration:g} s is too short: {why} needs at least {minimum:g} s")
 
 
@@ -133,7 +134,10 @@ def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
     # (roughly the platform radius) so metres and radians compare.
     weights = np.array([1, 1, 1, 0.5, 0.5, 0.5])
     axis = int(np.argmax(np.ptp(values, axis=0) * weights))
-    frequency = _dominant_frequency(times, values[:, axis])
+    try:
+        frequency = dominant_frequency(times, values[:, axis])
+    except ValueError:
+        raise InputError(f"{path}: the setpoints do not move") from None
     period = 1.0 / frequency
     duration = float(times[-1]) if duration is None else duration
     if duration > times[-1] + 1e-12:
@@ -141,15 +145,3 @@ def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
     _check_duration(duration, 3 * period, f"{path.name} (dominant {frequency:.3g} Hz on {DOF_NAMES[axis]})")
     return Scenario(f"file:{path}", "hexapod", duration, axis, frequency, period, None, (times, values))
 
-
-def _dominant_frequency(times: np.ndarray, x: np.ndarray) -> float:
-    """Frequency [Hz] of the largest spectral line of x(t) (resampled uniformly, mean removed)."""
-    if np.ptp(x) == 0:
-        raise InputError("scenario file: the setpoints do not move")
-    n = max(256, times.size)
-    tu = np.linspace(times[0], times[-1], n)
-    xu = np.interp(tu, times, x)
-    spectrum = np.abs(np.fft.rfft((xu - xu.mean()) * np.hanning(n)))
-    freqs = np.fft.rfftfreq(n, tu[1] - tu[0])
-    k = 1 + int(np.argmax(spectrum[1:]))
-    return float(freqs[k])

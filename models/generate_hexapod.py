@@ -132,7 +132,7 @@ def render() -> str:
     </default>
     <!-- Connects stiff enough that the static violation under 600 kg stays well below 0.1 mm
          (time constant 0.5 ms = 5 physics steps, the smallest MuJoCo keeps stable at dt = 1e-4 s). -->
-    <equality solref="0.0005 1" solimp="0.99 0.999 0.001"/>
+    <equality solref="0.0005 1" solimp="0.9999 0.9999 0.001"/>
   </default>
 
   <asset>

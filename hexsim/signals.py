@@ -1,0 +1,45 @@
+"""Small signal helpers shared by scenarios and metrics: fundamental fit and zero crossings."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+
+def fit_fundamental(t: np.ndarray, x: np.ndarray, frequency: float) -> tuple[float, float, float, np.ndarray]:
+    """Least-squares fit x ≈ c0 + c1 sin(wt) + c2 cos(wt), w = 2 pi frequency [Hz].
+
+    t, x: (N,). Returns (offset, amplitude, phase [rad], fit (N,)).
+    """
+    w = 2 * np.pi * frequency
+    basis = np.column_stack([np.ones_like(t), np.sin(w * t), np.cos(w * t)])
+    coef, *_ = np.linalg.lstsq(basis, x, rcond=None)
+    return float(coef[0]), float(np.hypot(coef[1], coef[2])), float(np.arctan2(coef[2], coef[1])), basis @ coef
+
+
+def dominant_frequency(t: np.ndarray, x: np.ndarray) -> float:
+    """Frequency [Hz] of the largest sinusoid in x(t) (N,): the peak of the Hann-windowed spectrum of the
+    uniformly resampled signal, refined by minimising the residual of :func:`fit_fundamental` within
+    ±1 bin. Raises ValueError if x does not move."""
+    if np.ptp(x) == 0:
+        raise ValueError("the signal does not move")
+    n = max(256, t.size)
+    tu = np.linspace(t[0], t[-1], n)
+    xu = np.interp(tu, t, x)
+    spectrum = np.abs(np.fft.rfft((xu - xu.mean()) * np.hanning(n)))
+    freqs = np.fft.rfftfreq(n, tu[1] - tu[0])
+    k = 1 + int(np.argmax(spectrum[1:]))
+    df = freqs[1]
+    best = minimize_scalar(lambda f: np.sum((xu - fit_fundamental(tu, xu, f)[3]) ** 2),
+                           bounds=(max(freqs[k] - df, df / 2), freqs[k] + df), method="bounded",
+                           options={"xatol": 1e-6 * freqs[k]})
+    return float(best.x)
+
+
+def zero_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Times [s] where x (N,) changes sign, linearly interpolated between the nonzero samples around it."""
+    nz = np.flatnonzero(x != 0)
+    t, x = t[nz], x[nz]
+    idx = np.flatnonzero(np.sign(x[:-1]) != np.sign(x[1:]))
+    frac = x[idx] / (x[idx] - x[idx + 1])
+    return t[idx] + frac * (t[idx + 1] - t[idx])
