@@ -63,7 +63,7 @@ def summary_table(report: dict) -> str:
         ("reversal_peaks", f"{len(peaks)} reversals, mean {report['mean_reversal_peak']:.4f} {unit}, "
                            f"max {max(peaks, default=float('nan')):.4f} {unit}; noise floor {report['noise_floor']:.4f} {unit}"),
         ("max_tracking_error", f"{report['max_tracking_error_m'] * 1e3:.2f} mm"),
-        ("constraint_violation", f"{report['max_constraint_violation_m'] * 1e3:.4f} mm max"),
+        ("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (connects)"),
         ("valve_saturated", f"{report['valve_saturated_samples']} controller samples"),
         ("realtime_factor", f"{report['realtime_factor']:.2f}x ({report['wall_time_s']:.1f} s wall)"),
     ]

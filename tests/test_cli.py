@@ -1,0 +1,107 @@
+"""The command line as a user runs it: outputs, exit codes, one-line errors, no partial files."""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import shutil
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hexsim.cli import main
+from hexsim.tables import read_numeric_csv
+
+
+@pytest.fixture(scope="module")
+def heave_outputs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run")
+    code = main(["run", "heave", "--frequency", "1", "--duration", "4", "--quiet",
+                 "--rrd", str(out / "out.rrd"), "--plot", str(out / "out.png"), "--json", str(out / "out.json"),
+                 "--log", str(out / "log.csv")])
+    return code, out
+
+
+def test_run_writes_every_output(heave_outputs):
+    code, out = heave_outputs
+    assert code == 0
+    report = json.loads((out / "out.json").read_text())
+    for key in ("scenario", "duration_s", "fundamental", "noise_ratio", "peak_noise_g", "reversal_peaks",
+                "max_tracking_error_m", "realtime_factor"):
+        assert key in report
+    assert report["scenario"] == "heave" and report["duration_s"] == 4.0
+    assert len(report["reversal_peaks"]) >= 2 and report["peak_noise_g"] > 0
+    assert (out / "out.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rrd = (out / "out.rrd").stat().st_size
+    assert 10_000 < rrd < 50e6 * 4 / 20  # < 50 MB for 20 s, pro rata
+    assert not list(out.glob(".*.tmp"))
+
+
+def test_log_follows_the_measurement_log_format(heave_outputs):
+    _, out = heave_outputs
+    cols = read_numeric_csv(out / "log.csv")
+    side = json.loads((out / "log.json").read_text())
+    assert side["system"] == "hexapod" and side["sample_rate_hz"] == pytest.approx(1000.0)
+    assert side["controller"]["kp_V_per_m"] == 200.0
+    for i in range(1, 7):
+        for c in ("ref_m", "valve_cmd_V", "pos_m", "p1_Pa"):
+            assert f"leg{i}_{c}" in cols
+    assert np.all((cols["leg1_pos_m"] > 0) & (cols["leg1_pos_m"] < 0.2))
+    assert np.median(cols["platform_acc_z_mps2"]) == pytest.approx(9.81, abs=0.2)  # specific force incl. g
+    assert np.all(cols["ps_Pa"] == 7.0e6)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["run", "heave", "--amplitude", "0.15", "--duration", "30"], r"leg\d length .* outside its stroke"),
+        (["run", "heave", "--frequency", "400"], "Nyquist"),
+        (["run", "heave", "--duration", "1"], "too short"),
+        (["run", "hover"], "unknown scenario 'hover'"),
+        (["run", "file:/nonexistent/profile.csv"], "no such file"),
+        (["run", "heave", "--duration", "8", "--json", "/nonexistent/dir/out.json"], "does not exist"),
+        (["run", "heave", "--duration", "8", "--plot", "out.jpg"], "expected a .png"),
+    ],
+)
+def test_bad_input_gives_one_line_and_exit_2(argv, message, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("hexsim: error:") and len(err.splitlines()) == 1
+    assert re.search(message, err), err
+
+
+def test_bad_option_value_exits_2_without_traceback(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "hexsim.cli", "run", "heave", "--duration", "abc"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and "'abc' is not a number" in proc.stderr
+
+
+def test_bad_scenario_file_names_column_and_row(tmp_path):
+    path = tmp_path / "bad.csv"
+    path.write_text("time_s,dof_ref_z_m\n0,0\n0.01,0.001\n0.02,oops\n")
+    with pytest.raises(Exception, match=r"column 'dof_ref_z_m', row 4: 'oops' is not a number"):
+        main_raise(["run", f"file:{path}"])
+
+
+def main_raise(argv):
+    """Run the CLI's command without the error-to-exit-code translation."""
+    from hexsim.cli import build_parser, cmd_run
+
+    return cmd_run(build_parser().parse_args(argv))
+
+
+def test_rrd_is_a_valid_rerun_recording(heave_outputs):
+    _, out = heave_outputs
+    rerun = pathlib.Path(sys.executable).with_name("rerun")
+    if not rerun.exists():
+        rerun = shutil.which("rerun")
+    assert rerun, "rerun-sdk installs the rerun executable"
+    proc = subprocess.run([str(rerun), "rrd", "verify", str(out / "out.rrd")], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "RERUN_ANALYTICS": "off"})
+    assert proc.returncode == 0, proc.stderr
+    assert "verified without error" in proc.stdout + proc.stderr

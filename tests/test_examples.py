@@ -1,0 +1,26 @@
+"""Every example runs in a short setting and writes its PNG (STYLE.md §11)."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.parametrize("script, args", [
+    ("heave_bump.py", ["--duration", "4", "--frequency", "1"]),
+    ("seed_single_actuator.py", ["--duration", "5"]),
+])
+def test_example_runs(script, args, tmp_path):
+    out = tmp_path / "out.png"
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    proc = subprocess.run([sys.executable, str(EXAMPLES / script), *args, "--out", str(out)],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    assert "wrote" in proc.stdout
