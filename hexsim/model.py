@@ -92,9 +92,18 @@ def reset_neutral(m: mujoco.MjModel, d: mujoco.MjData) -> None:
     mujoco.mj_forward(m, d)
 
 
-def check_warnings(d: mujoco.MjData) -> None:
-    """Raise PhysicsError if MuJoCo raised any warning (like dm_control's ``check_invalid_state``)."""
+def check_warnings(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """Raise PhysicsError if MuJoCo raised any warning (like dm_control's ``check_invalid_state``).
+
+    The message names the warning, the time and, for bad controls, the actuator (e.g. ``leg3_force``).
+    """
     counts = d.warning.number
     if np.any(counts > 0):
-        kinds = [mujoco.mjtWarning(i).name for i in np.flatnonzero(counts)]
+        kinds = []
+        for i in np.flatnonzero(counts):
+            kind = mujoco.mjtWarning(i)
+            what = kind.name
+            if kind == mujoco.mjtWarning.mjWARN_BADCTRL:
+                what += f" ({mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(d.warning.lastinfo[i]))})"
+            kinds.append(what)
         raise PhysicsError(f"MuJoCo warning {', '.join(kinds)} at t = {d.time:.4f} s")

@@ -279,7 +279,6 @@ def _divider(rate_hz: float, dt: float, what: str) -> int:
 
 
 def _check_state(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex, coupling: HydraulicCoupling) -> None:
-    check_warnings(d)
     bad_p1 = ~np.isfinite(coupling.p1)
     bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
     if np.any(bad_p1 | bad_q):
@@ -288,3 +287,4 @@ def _check_state(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex, coupling:
         raise PhysicsError(f"non-finite {what} of leg{leg} at t = {d.time:.4f} s")
     if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
         raise PhysicsError(f"non-finite platform state at t = {d.time:.4f} s")
+    check_warnings(m, d)

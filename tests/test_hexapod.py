@@ -105,3 +105,19 @@ def test_scenario_options_are_checked():
         make_scenario("heave", duration=2.0)
     with pytest.raises(InputError, match="unknown scenario"):
         make_scenario("bounce")
+
+
+def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
+    from hexsim import hydraulics
+    from hexsim.errors import PhysicsError
+
+    real = hydraulics.step_pressure
+
+    def poisoned(p1, u_v, y, ydot, dt, p, p_s=None):
+        out = real(p1, u_v, y, ydot, dt, p, p_s)
+        out[2] = np.nan  # leg3's chamber pressure goes bad
+        return out
+
+    monkeypatch.setattr(hydraulics, "step_pressure", poisoned)
+    with pytest.raises(PhysicsError, match=r"non-finite P1 of leg3 at t = 0\.\d+ s"):
+        simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))

@@ -20,7 +20,7 @@ def test_model_loads_and_steps_one_second_without_warnings(xml):
     d = mujoco.MjData(m)
     reset_neutral(m, d)
     mujoco.mj_step(m, d, int(round(1.0 / m.opt.timestep)))
-    check_warnings(d)
+    check_warnings(m, d)
     assert np.all(np.isfinite(d.qpos))
     assert m.opt.timestep == pytest.approx(1e-4)
 
