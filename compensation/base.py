@@ -3,23 +3,92 @@
 from __future__ import annotations
 
 import abc
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.signal import butter, lfilter, lfilter_zi
+
+
+class SettingsError(ValueError):
+    """A compensator setting out of range (names the setting and the value)."""
+
+
+@dataclass(frozen=True)
+class CompensatorSettings:
+    """Settings of the adaptive compensators, defaults from the seed where it gives one (ch. 5, app. C).
+
+    velocity_cutoff_hz: low-pass [Hz] on the differentiated measured position and, for the same phase
+        lag, on u_v (seed §4.4: filter before differentiating; the seed gives no value);
+    velocity_band: k± [m/s], |ẏ| below which u_v counts as "at zero velocity" (seed §5.3: 1e-3);
+    q_threshold: [V] start value of the valve range q before the measured range exceeds it (seed §5.3's
+        threshold for b; no value given: 0.5 V, below the ~0.9 V a 0.05 m / 0.5 Hz motion needs, so the
+        measured range takes over; a threshold above the range used fixes b too small, the function's zero
+        falls short of the range and the iterative table diverges);
+    iterative_gain: [V/(m/s)] look-up table update per visit and velocity error (seed §5.3, no value);
+    table_size: elements of the look-up table over ±u_v,max (seed §5.3: 1001, element 501 = 0 V);
+    buffer_time: [s] time the buffers UV, UC, UY are filled before an update (seed §5.5: 30000 samples
+        of the 10 kHz Simulink model = 3 s);
+    buffer_filter_tau: [s] time constant of appendix C's discrete low-pass 0.003137 / (1 - 0.9969 z^-1)
+        at 10 kHz (-1 / (10^4 ln 0.9969) = 32 ms), re-discretised at the controller rate;
+    fade_time: [s] time constant of the low-pass through which new parameters are faded in (seed §5.5:
+        "filtered again with a low-pass filter"; no value given);
+    direction_rate: [V/s] rate of change of u_v over which the directional compensator blends its two
+        curves (tanh scale);
+    oracle_u_ref: [V] valve setpoint at which the oracle's linear flow curve meets the true one;
+    held_maximum: how the iterative compensators read a off their table, ``"per-side"`` (default) or the
+        seed's ``"seed"`` (see :mod:`compensation.iterative`).
+    """
+
+    velocity_cutoff_hz: float = 20.0
+    velocity_band: float = 1e-3
+    q_threshold: float = 0.5
+    iterative_gain: float = 2.0
+    table_size: int = 1001
+    buffer_time: float = 3.0
+    buffer_filter_tau: float = -1.0 / (1e4 * math.log(0.9969))
+    fade_time: float = 1.0
+    direction_rate: float = 0.5
+    oracle_u_ref: float = 1.0
+    held_maximum: str = "per-side"
+
+    def __post_init__(self) -> None:
+        for name in ("velocity_cutoff_hz", "velocity_band", "q_threshold", "iterative_gain", "buffer_time",
+                     "buffer_filter_tau", "fade_time", "direction_rate", "oracle_u_ref"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise SettingsError(f"compensator setting {name} must be a finite positive number, got {value!r}")
+        if self.held_maximum not in ("per-side", "seed"):
+            raise SettingsError(f"compensator setting held_maximum must be 'per-side' or 'seed', got {self.held_maximum!r}")
+        if self.table_size < 3 or self.table_size % 2 == 0:
+            raise SettingsError(f"compensator setting table_size must be an odd number >= 3, got {self.table_size}")
+
+
+@dataclass
+class PlantTruth:
+    """What only the oracle may read: the plant's true hydraulic parameters (updated by the simulator as
+    the oil warms) and each leg's static bottom-chamber pressure P1 [Pa], shape (n_legs,)."""
+
+    params: object
+    p1_static: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 class Compensator(abc.ABC):
     """Per-leg compensation voltage U_c [V] from the valve setpoint u_v [V] and the measured position [m].
 
-    Subclasses override :meth:`update`. ``n_legs`` legs, called at ``rate_hz`` [Hz] (the motion
+    Subclasses implement :meth:`update`. ``n_legs`` legs, called at ``rate_hz`` [Hz] (the motion
     computer's 500 Hz, seed §2.2.4). A compensator never sees the simulator's true velocity: velocity,
     if needed, comes from differentiating the measured position with a filter (seed §4.4, §5.1).
     """
 
     name = "base"
 
-    def __init__(self, n_legs: int, rate_hz: float) -> None:
+    def __init__(self, n_legs: int, rate_hz: float, u_v_max: float = 10.0,
+                 settings: CompensatorSettings | None = None, plant: PlantTruth | None = None) -> None:
         self.n_legs = int(n_legs)
         self.rate_hz = float(rate_hz)
+        self.u_v_max = float(u_v_max)
+        self.settings = settings or CompensatorSettings()
 
     @abc.abstractmethod
     def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
@@ -37,3 +106,51 @@ class NoCompensator(Compensator):
 
     def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         return np.zeros(self.n_legs)
+
+
+class FlowCurveObserver:
+    """The flow curve a motion computer can see: filtered u_v and velocity from the measured position.
+
+    Velocity = backward difference of the measured position, low-passed by a 2nd-order Butterworth at
+    ``cutoff_hz``; u_v passes the same filter so the pair keeps the same phase (seed §4.4 filters the
+    valve setpoint "with the same filter to obtain a flow-curve as realistic as possible"). Also keeps
+    the seed's online estimate of the desired slope s = (max ẏ - min ẏ) / (max u_v - min u_v) (§5.3).
+    Arrays (n_legs,).
+    """
+
+    def __init__(self, n_legs: int, rate_hz: float, cutoff_hz: float) -> None:
+        if cutoff_hz >= rate_hz / 2:
+            raise SettingsError(f"velocity_cutoff_hz {cutoff_hz} must be below the Nyquist rate {rate_hz / 2}")
+        self.dt = 1.0 / rate_hz
+        self.b, self.a = butter(2, cutoff_hz / (rate_hz / 2))
+        zi = lfilter_zi(self.b, self.a)[:, None]
+        self._zi_u = zi * np.zeros(n_legs)
+        self._zi_v = zi * np.zeros(n_legs)
+        self._y_prev: np.ndarray | None = None
+        self.u_range = np.zeros((2, n_legs))  # running min, max of filtered u_v
+        self.v_range = np.zeros((2, n_legs))
+        self.u_dot = np.zeros(n_legs)  # rate of change of filtered u_v [V/s]
+        self._u_prev = np.zeros(n_legs)
+
+    def update(self, u_v: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u_f, ydot_f): filtered valve setpoint [V] and filtered velocity [m/s], each (n_legs,)."""
+        if self._y_prev is None:
+            self._y_prev = y.copy()
+        v_raw = (y - self._y_prev) / self.dt
+        self._y_prev = y.copy()
+        u_f, self._zi_u = lfilter(self.b, self.a, u_v[None, :], axis=0, zi=self._zi_u)
+        v_f, self._zi_v = lfilter(self.b, self.a, v_raw[None, :], axis=0, zi=self._zi_v)
+        u_f, v_f = u_f[0], v_f[0]
+        self.u_dot = (u_f - self._u_prev) / self.dt
+        self._u_prev = u_f
+        np.minimum(self.u_range[0], u_f, out=self.u_range[0])
+        np.maximum(self.u_range[1], u_f, out=self.u_range[1])
+        np.minimum(self.v_range[0], v_f, out=self.v_range[0])
+        np.maximum(self.v_range[1], v_f, out=self.v_range[1])
+        return u_f, v_f
+
+    @property
+    def slope(self) -> np.ndarray:
+        """s [(m/s)/V] per leg; 0 until u_v has moved by 10 mV."""
+        du = self.u_range[1] - self.u_range[0]
+        return np.where(du > 0.01, (self.v_range[1] - self.v_range[0]) / np.maximum(du, 0.01), 0.0)

@@ -11,10 +11,12 @@ import math
 import pathlib
 import sys
 
-from compensation import COMPENSATORS
+from compensation import COMPENSATORS, CompensatorSettings, SettingsError
 from hexsim.errors import HexsimError, InputError
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
+from hexsim.compare import ORDER
+from hexsim.temperature import WarmUp
 
 
 def _number(text: str) -> float:
@@ -40,39 +42,96 @@ def build_parser() -> argparse.ArgumentParser:
         + ", ".join(SCENARIOS)
         + ", or file:PATH (CSV with time_s and dof_ref_{x,y,z}_m / dof_ref_{roll,pitch,yaw}_rad).",
     )
-    run.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw or file:PATH")
-    run.add_argument("--duration", type=_number, help="simulated time [s] (default: max(20 s, 6 periods); file: its length)")
-    run.add_argument("--amplitude", type=_number,
-                     help=f"sine amplitude [m for actuator/heave/surge/sway, rad for roll/pitch/yaw] "
-                          f"(default {DEFAULT_AMPLITUDE['heave']} m, {DEFAULT_AMPLITUDE['roll']:.4f} rad)")
-    run.add_argument("--frequency", type=_number, help=f"sine frequency [Hz] (default {DEFAULT_FREQUENCY})")
-    run.add_argument("--seed", type=int, default=0, help="seed of the position-sensor noise (default 0)")
+    _scenario_options(run)
     run.add_argument("--compensator", choices=sorted(COMPENSATORS), default="none",
                      help="reversal-bump compensator per leg (default none)")
-    run.add_argument("--kp", type=_number, default=ControllerParams.kp, help="P gain K_p [V/m] (default %(default)s)")
-    run.add_argument("--flow-area", choices=("smooth", "sharp"), default="smooth",
-                     help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) or sharp-edged with "
-                          "overlap (eq. 3.3) (default smooth)")
-    run.add_argument("--sensor-noise", type=_number, default=ControllerParams.position_noise,
-                     help="rms noise on the measured piston position [m] (default %(default)s)")
     run.add_argument("--rrd", type=pathlib.Path, help="write a rerun recording (.rrd)")
     run.add_argument("--plot", type=pathlib.Path, help="write a PNG of acceleration, flow curve, pressures, tracking")
     run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON")
     run.add_argument("--log", type=pathlib.Path, help="write the run as a measurement log (CSV + JSON sidecar)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    cmp = sub.add_parser(
+        "compare",
+        help="run every compensator on one scenario and print a league table",
+        description="Run none, iterative-1, iterative-2, buffered, directional and oracle on the same scenario "
+        "(in parallel worker processes) and print noise ratio, peak noise, reduction of the mean reversal peak "
+        "against none and settling time, measured on the last quarter of the run.",
+    )
+    _scenario_options(cmp)
+    cmp.add_argument("--compensators", default=",".join(ORDER[1:]),
+                     help="comma-separated compensators to compare (none is always included)")
+    cmp.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison PNG (seed Fig. 5.12 layout)")
+    cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON")
     return parser
+
+
+def _scenario_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw or file:PATH")
+    p.add_argument("--duration", type=_number, help="simulated time [s] (default: max(20 s, 6 periods); file: its length)")
+    p.add_argument("--amplitude", type=_number,
+                   help=f"sine amplitude [m for actuator/heave/surge/sway, rad for roll/pitch/yaw] "
+                        f"(default {DEFAULT_AMPLITUDE['heave']} m, {DEFAULT_AMPLITUDE['roll']:.4f} rad)")
+    p.add_argument("--frequency", type=_number, help=f"sine frequency [Hz] (default {DEFAULT_FREQUENCY})")
+    p.add_argument("--seed", type=int, default=0, help="seed of the position-sensor noise (default 0)")
+    p.add_argument("--kp", type=_number, default=ControllerParams.kp, help="P gain K_p [V/m] (default %(default)s)")
+    p.add_argument("--flow-area", choices=("smooth", "sharp"), default="smooth",
+                   help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) or sharp-edged with "
+                        "overlap (eq. 3.3) (default smooth)")
+    p.add_argument("--sensor-noise", type=_number, default=ControllerParams.position_noise,
+                   help="rms noise on the measured piston position [m] (default %(default)s)")
+    p.add_argument("--warm-up", type=_number, metavar="DELTA_C",
+                   help="warm the oil by DELTA_C °C over the run (seed §5.5 uses 15): density, viscous friction "
+                        "and valve null change (see hexsim/temperature.py)")
+    d = CompensatorSettings()
+    g = p.add_argument_group("compensator settings (defaults from the seed where it gives one)")
+    g.add_argument("--buffer-time", type=_number, default=d.buffer_time,
+                   help="buffered/directional: buffer length [s] (seed: 30000 samples at 10 kHz = %(default)s s)")
+    g.add_argument("--velocity-band", type=_number, default=d.velocity_band,
+                   help="|velocity| [m/s] counted as zero for the null estimate (seed k = %(default)s)")
+    g.add_argument("--q-threshold", type=_number, default=d.q_threshold,
+                   help="iterative: start value of the valve range q [V] (default %(default)s)")
+    g.add_argument("--iterative-gain", type=_number, default=d.iterative_gain,
+                   help="iterative: table update per velocity error [V/(m/s)] (default %(default)s)")
+    g.add_argument("--held-maximum", choices=("per-side", "seed"), default=d.held_maximum,
+                   help="iterative: read a off the table per side (default) or as the seed, one signed maximum")
+    g.add_argument("--fade-time", type=_number, default=d.fade_time,
+                   help="buffered/directional: parameter fade-in time constant [s] (default %(default)s)")
+    g.add_argument("--velocity-cutoff", type=_number, default=d.velocity_cutoff_hz,
+                   help="low-pass on the differentiated position [Hz] (default %(default)s)")
+
+
+def _run_config(args: argparse.Namespace, compensator: str):
+    from hexsim.simulation import RunConfig
+
+    controller = ControllerParams(kp=args.kp, position_noise=args.sensor_noise)
+    hydraulics = HydraulicParams(flow_area=args.flow_area)
+    scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
+                             frequency=args.frequency, controller_rate_hz=controller.rate_hz)
+    try:
+        settings = CompensatorSettings(
+            velocity_cutoff_hz=args.velocity_cutoff, velocity_band=args.velocity_band, q_threshold=args.q_threshold,
+            iterative_gain=args.iterative_gain, buffer_time=args.buffer_time, fade_time=args.fade_time,
+            held_maximum=args.held_maximum)
+    except SettingsError as exc:
+        raise InputError(str(exc)) from None
+    warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
+    return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
+                     compensator_settings=settings, warm_up=warm_up, seed=args.seed,
+                     progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
     for flag, suffix in (("rrd", ".rrd"), ("plot", ".png"), ("json", ".json"), ("log", ".csv")):
-        path = getattr(args, flag)
+        path = getattr(args, flag, None)
         if path is None:
             continue
         if path.suffix.lower() != suffix:
             raise InputError(f"--{flag} {path}: expected a {suffix} file name")
         if not path.parent.exists():
             raise InputError(f"--{flag} {path}: folder {path.parent} does not exist")
-    if args.log is not None and args.json is not None and args.log.with_suffix(".json").resolve() == args.json.resolve():
+    if getattr(args, "log", None) is not None and args.json is not None and args.log.with_suffix(".json").resolve() == args.json.resolve():
         raise InputError(f"--json {args.json} would be overwritten by the sidecar of --log {args.log}; choose another name")
 
 
@@ -82,16 +141,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.plotting import plot_run
     from hexsim.report import run_report, summary_table, write_json
     from hexsim.rerun_log import write_rrd
-    from hexsim.simulation import RunConfig, simulate
+    from hexsim.simulation import simulate
 
     _check_outputs(args)
-    controller = ControllerParams(kp=args.kp, position_noise=args.sensor_noise)
-    hydraulics = HydraulicParams(flow_area=args.flow_area)
-    scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
-                             frequency=args.frequency, controller_rate_hz=controller.rate_hz)
-    config = RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller,
-                       compensator=args.compensator, seed=args.seed,
-                       progress=not args.quiet and sys.stderr.isatty())
+    config = _run_config(args, args.compensator)
     result = simulate(config)
     sm = run_smoothness(result)
     report = run_report(result, sm)
@@ -113,11 +166,42 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    from hexsim.compare import compare, league_table
+    from hexsim.plotting import plot_compare
+    from hexsim.report import write_json
+
+    _check_outputs(args)
+    names = tuple(n.strip() for n in args.compensators.split(",") if n.strip())
+    unknown = [n for n in names if n not in COMPENSATORS]
+    if unknown:
+        raise InputError(f"--compensators: unknown compensator {unknown[0]!r}; choose from {', '.join(COMPENSATORS)}")
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    base = _run_config(args, "none")
+    print(f"comparing {', '.join(dict.fromkeys(('none', *names)))} on {base.scenario.name} "
+          f"({base.scenario.duration:g} s) with {args.jobs} worker(s)…", flush=True)
+    entries = compare(base, names, jobs=args.jobs)
+    print(league_table(entries))
+    written = []
+    if args.json:
+        sc = base.scenario
+        write_json(args.json, {"scenario": sc.name, "duration_s": sc.duration, "frequency_hz": sc.frequency,
+                               "compensators": {e.compensator: e.figures() for e in entries}})
+        written.append(args.json)
+    if args.plot:
+        plot_compare(args.plot, entries, base.scenario)
+        written.append(args.plot)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return cmd_run(args)
+        return cmd_compare(args) if args.command == "compare" else cmd_run(args)
     except HexsimError as exc:
         print(f"hexsim: error: {exc}", file=sys.stderr)
         return 2

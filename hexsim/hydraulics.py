@@ -23,10 +23,12 @@ JACOBIAN_DP_FLOOR = 1.0e4
 def spool_position(u_v, p: HydraulicParams):
     """Valve spool position x_v [m] from the valve setpoint u_v [V] (seed eq. 3.2).
 
-    The spool's own position loop has a high bandwidth (seed §3.2.1), so x_v = u_v x_v,max / u_v,max.
-    u_v is expected inside ±u_v,max (the controller saturates it).
+    The spool's own position loop has a high bandwidth (seed §3.2.1), so
+    x_v = (u_v - u_0) x_v,max / u_v,max, with u_0 = ``p.null_offset`` the setpoint at which the spool is
+    centred (0 in the seed; it drifts with temperature, seed §5.3). u_v is expected inside ±u_v,max
+    (the controller saturates it).
     """
-    return np.asarray(u_v, dtype=float) * (p.x_v_max / p.u_v_max)
+    return (np.asarray(u_v, dtype=float) - p.null_offset) * (p.x_v_max / p.u_v_max)
 
 
 def flow_areas(x_v, p: HydraulicParams):

@@ -119,13 +119,14 @@ def smoothness(t: np.ndarray, signal: np.ndarray, frequency: float, t_start: flo
     )
 
 
-def run_smoothness(result: SimulationResult) -> Smoothness:
+def run_smoothness(result: SimulationResult, t_start: float | None = None) -> Smoothness:
     """Smoothness of a run on its motion axis (Scenario.axis): the actuator's accelerometer for
     ``actuator``, the platform accelerometer (platform frame, specific force) for translations, the
     platform angular acceleration (world frame) for rotations. The window starts after the fade-in and
-    one more period."""
+    one more period, or at ``t_start`` [s] if given."""
     sc = result.config.scenario
-    t_start = sc.fade_period + 1.0 / sc.frequency
+    if t_start is None:
+        t_start = sc.fade_period + 1.0 / sc.frequency
     if sc.system == "actuator":
         sig, name, unit = result.acc[:, 2], "actuator accelerometer (along the axis)", "m/s^2"
         setpoint, velocity = sc.axis_setpoint(result.t), result.ydot[:, 0]

@@ -55,6 +55,9 @@ class HydraulicParams:
     u_v_max: float = 10.0  # u_v,max [V], seed app. A
     x_v_max: float = 1.1e-3  # x_v,max [m], seed app. A
     overlap: float = 5e-6  # O_l [m], overlap at mid-position, seed app. A
+    null_offset: float = 0.0  # u_0 [V], valve setpoint that centres the spool; 0 in the seed, drifts with
+    # temperature (seed §5.3: "a larger or smaller input voltage is required to reach a specific valve
+    # spool position")
     spool_diameter: float = 1e-2  # d [m], seed app. A
     smooth_area_gain: float = 300.0  # [m^2/m^2 -> 1/m]: a = 300 x_v^2, seed eq. (3.11)
     flow_area: FlowArea = "smooth"  # seed §3.3 uses the smooth (3.11) for all later work
@@ -108,6 +111,8 @@ class HydraulicParams:
                 f"HydraulicParams.rod_diameter ({self.rod_diameter} m) must be smaller than bore_diameter "
                 f"({self.bore_diameter} m)"
             )
+        if not (math.isfinite(self.null_offset) and abs(self.null_offset) < self.u_v_max):
+            raise InputError(f"HydraulicParams.null_offset must be inside ±u_v_max, got {self.null_offset!r}")
         if self.overlap >= self.x_v_max:
             raise InputError(
                 f"HydraulicParams.overlap ({self.overlap} m) must be smaller than the spool stroke x_v_max "
@@ -163,8 +168,8 @@ class ControllerParams:
     # smooth flow area) with 5 mm tracking error at the seed's 0.157 m/s peak speed, and is the value
     # of the measurement-log format's example sidecar.
     rate_hz: float = 500.0  # [Hz], sampling frequency of the motion computer, seed §2.2.4
-    position_noise: float = 1e-6  # [m] rms white noise on the measured piston position (position
-    # transducer resolution of ~1 µm; the seed adds noise to the measured signals in §5.5)
+    position_noise: float = 2e-6  # [m] rms white noise on the measured piston position ("a few µm":
+    # a position transducer's resolution; the seed adds measurement noise in §5.5)
 
     def __post_init__(self) -> None:
         _check_positive(self, "kp", "rate_hz")

@@ -68,3 +68,50 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
 
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
     plt.close(fig)
+
+
+def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:
+    """The comparison PNG in the seed's Fig. 5.12 layout, one column per compensator (leg 1): flow curve
+    with the desired line s u_v, parameter evolution, compensation curve U_c(u_v), u_v - ẏ/s over time,
+    and the acceleration at the end of the run against the uncompensated one. Written atomically."""
+    base = entries[0]
+    cols = [e for e in entries if e.compensator != "none"] or entries
+    fig, ax = plt.subplots(6, len(cols), figsize=(4.2 * len(cols), 20), squeeze=False, constrained_layout=True)
+    fig.suptitle(f"hexsim compare {scenario.name} ({scenario.duration:g} s): leg1, seed Fig. 5.12 layout")
+    for j, e in enumerate(cols):
+        tr = e.traces
+        s = tr["s"]
+        a = ax[0, j]
+        a.plot(tr["u_v"], tr["ydot"], lw=0.4, label="measured")
+        u = np.linspace(tr["u_v"].min(), tr["u_v"].max(), 50)
+        a.plot(u, s * u, "k--", lw=1, label=f"desired s u_v (s = {s:.3f})")
+        a.set(title=f"{e.compensator}: flow curve", xlabel="u_v [V]", ylabel="ẏ [m/s]")
+        a.legend(fontsize=7)
+        a = ax[1, j]
+        for key in ("a", "b", "c"):
+            if f"param_{key}" in tr:
+                a.plot(tr["t"], tr[f"param_{key}"], lw=1, label=key)
+        a.set(title="parameter evolution", xlabel="time [s]")
+        if a.lines:
+            a.legend(fontsize=7)
+        a = ax[2, j]
+        a.plot(tr["u_v"], tr["u_c"], ".", ms=1)
+        a.set(title="compensation curve", xlabel="u_v [V]", ylabel="U_c [V]")
+        a = ax[3, j]
+        a.plot(tr["t"], tr["u_v"] - tr["ydot"] / s, lw=0.5)
+        a.set(title="u_v − ẏ/s", xlabel="time [s]", ylabel="[V]")
+        a = ax[4, j]
+        a.plot(tr["peak_t"], tr["peaks"], "o-", ms=3, lw=0.8, label=e.compensator)
+        a.plot(base.traces["peak_t"], base.traces["peaks"], "o-", ms=2, lw=0.6, color="0.6", label="none")
+        a.set(title="reversal peaks", xlabel="time [s]", ylabel=f"[{e.unit}]",
+              ylim=(0, 1.5 * max(base.traces["peaks"].max(initial=0), 1e-9)))
+        a.legend(fontsize=7)
+        a = ax[5, j]
+        keep = base.traces["acc_t"] >= base.traces["acc_t"][-1] - 2.0 / scenario.frequency
+        a.plot(base.traces["acc_t"][keep], base.traces["acc"][keep], color="0.6", lw=0.7, label="none")
+        keep = tr["acc_t"] >= tr["acc_t"][-1] - 2.0 / scenario.frequency
+        a.plot(tr["acc_t"][keep], tr["acc"][keep], lw=0.8, label=e.compensator)
+        a.set(title="acceleration, last two periods", xlabel="time [s]", ylabel=f"[{e.unit}]")
+        a.legend(fontsize=7)
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=60, format="png"))
+    plt.close(fig)

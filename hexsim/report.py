@@ -43,6 +43,8 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "max_constraint_violation_m": float(np.max(result.constraint_violation)),
         "p1_initial_Pa": result.p1_initial.tolist(),
         "valve_saturated_samples": result.saturated_samples,
+        "compensator_parameters": {k: v[-1].tolist() for k, v in result.compensator_state.items()},
+        "oil_temperature_C": [float(result.oil_temperature[0]), float(result.oil_temperature[-1])],
         "realtime_factor": result.realtime_factor,
         "wall_time_s": result.wall_time_s,
     }

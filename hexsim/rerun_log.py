@@ -33,6 +33,7 @@ def _blueprint(n_legs: int) -> rrb.Blueprint:
                 rrb.TimeSeriesView(origin="/legs", name="piston position and setpoint [m]"),
                 rrb.TimeSeriesView(origin="/valve", name="valve setpoint u_v, compensation U_c [V]"),
                 rrb.TimeSeriesView(origin="/pressure", name="pressures [bar]"),
+                rrb.TimeSeriesView(origin="/compensator", name="compensator parameters a, b, c, s"),
             ),
             column_shares=[2, 3],
         ),
@@ -63,6 +64,9 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
         _scalars(rec, f"/valve/{leg}/U_c", times, result.u_c[:, i])
         _scalars(rec, f"/pressure/{leg}/p1", times, result.p1[:, i] / 1e5)
     _scalars(rec, "/pressure/p_s", times, result.p_s / 1e5)
+    for key, values in result.compensator_state.items():
+        for i in range(n):
+            _scalars(rec, f"/compensator/leg{i + 1}/{key}", times, values[:, i])
     fit_times = rr.TimeColumn("time", duration=sm.t)
     _scalars(rec, "/acceleration/signal", fit_times, sm.fit + sm.noise)
     _scalars(rec, "/acceleration/fundamental", fit_times, sm.fit)

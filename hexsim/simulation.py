@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from compensation import make_compensator
+from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
 from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.errors import InputError, PhysicsError, WorkspaceError
@@ -24,6 +24,7 @@ from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, check_warnings, load_model, reset_neutral
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
+from hexsim.temperature import WarmUp
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,8 @@ class RunConfig:
     hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
     controller: ControllerParams = field(default_factory=ControllerParams)
     compensator: str = "none"
+    compensator_settings: CompensatorSettings = field(default_factory=CompensatorSettings)
+    warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C
     seed: int = 0
     record_rate_hz: float | None = None
     progress: bool = False
@@ -49,7 +52,8 @@ class SimulationResult:
     bottom-chamber pressure [Pa]; p_s: supply pressure [Pa]; force: hydraulic leg force [N]; acc:
     accelerometer, site frame, specific force [m/s^2]; gyro [rad/s] and angacc [rad/s^2] (world) of the
     platform (hexapod only); pose: measured platform pose (N, 6) rel. neutral; pose_ref: commanded pose;
-    constraint_violation: largest connect violation [m] per sample.
+    constraint_violation: largest connect violation [m] per sample; oil_temperature [°C];
+    compensator_state: the compensator's logged parameters, name -> (N, n_legs).
     """
 
     config: RunConfig
@@ -68,6 +72,8 @@ class SimulationResult:
     pose: np.ndarray | None
     pose_ref: np.ndarray | None
     constraint_violation: np.ndarray
+    oil_temperature: np.ndarray
+    compensator_state: dict[str, np.ndarray]
     p1_initial: np.ndarray
     saturated_samples: int
     wall_time_s: float
@@ -94,9 +100,14 @@ class HydraulicCoupling:
     """
 
     def __init__(self, idx: PlantIndex, hyd: HydraulicParams, controller: PController, setpoints: np.ndarray,
-                 noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int) -> None:
+                 noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int, warm_up: WarmUp | None = None,
+                 plant: PlantTruth | None = None) -> None:
         self.idx = idx
         self.hyd = hyd
+        self.base_hyd = hyd
+        self.warm_up = warm_up
+        self.plant = plant
+        self.temperature = float(warm_up.temperature(0.0)) if warm_up else 35.0
         self.controller = controller
         self.setpoints = setpoints
         self.noise = noise
@@ -119,6 +130,11 @@ class HydraulicCoupling:
                 y = d.qpos[self.idx.qpos_adr]
                 ydot = d.qvel[self.idx.dof_adr]
                 if k % self.ctrl_div == 0:
+                    if self.warm_up is not None:
+                        self.temperature = float(self.warm_up.temperature(k * self.dt))
+                        self.hyd = self.warm_up.params_at(self.base_hyd, self.temperature)
+                        if self.plant is not None:
+                            self.plant.params = self.hyd
                     j = min(k // self.ctrl_div, len(self.setpoints) - 1)
                     self.r = self.setpoints[j]
                     self.u_v, self.u_c = self.controller.sample(self.r, y + self.noise[j])
@@ -202,12 +218,14 @@ def simulate(config: RunConfig) -> SimulationResult:
                 f"leg{i + 1} needs P1 = {p / 1e5:.1f} bar to hold the neutral pose, outside tank…supply "
                 f"({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)"
             )
+    plant = PlantTruth(params=hyd, p1_static=p1_0.copy())
     try:
-        compensator = make_compensator(config.compensator, idx.n_legs, cp.rate_hz)
-    except ValueError as exc:
+        compensator = make_compensator(config.compensator, idx.n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
+                                       settings=config.compensator_settings, plant=plant)
+    except SettingsError as exc:
         raise InputError(str(exc)) from None
     controller = PController(cp, hyd.u_v_max, compensator)
-    coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div)
+    coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div, config.warm_up, plant)
 
     n_rec = int(round(sc.duration / dt)) // rec_div
     n = idx.n_legs
@@ -218,6 +236,8 @@ def simulate(config: RunConfig) -> SimulationResult:
     gyro, angacc = (np.empty((n_rec, 3)), np.empty((n_rec, 3))) if hexapod else (None, None)
     pos, quat = (np.empty((n_rec, 3)), np.empty((n_rec, 4))) if hexapod else (None, None)
     viol = np.zeros(n_rec)
+    temperature = np.empty(n_rec)
+    comp_state = {k: np.empty((n_rec, n)) for k in compensator.state()}
     s = idx.sensor
     leg_pos = np.array([s[f"leg{i + 1}_pos"].start for i in range(n)])
     leg_vel = np.array([s[f"leg{i + 1}_vel"].start for i in range(n)])
@@ -242,6 +262,9 @@ def simulate(config: RunConfig) -> SimulationResult:
             rec["u_c"][i] = coupling.u_c
             rec["p1"][i] = coupling.p1
             rec["force"][i] = coupling.force
+            temperature[i] = coupling.temperature
+            for key, value in compensator.state().items():
+                comp_state[key][i] = value
             acc[i] = sd[s["platform_acc"]]
             if hexapod:
                 gyro[i] = sd[s["platform_gyro"]]
@@ -266,7 +289,8 @@ def simulate(config: RunConfig) -> SimulationResult:
         pose_ref = sc.poses(t)
     return SimulationResult(
         config=config, t=t, **rec, p_s=np.full(n_rec, hyd.supply_pressure), acc=acc, gyro=gyro, angacc=angacc,
-        pose=pose, pose_ref=pose_ref, constraint_violation=viol, p1_initial=p1_0,
+        pose=pose, pose_ref=pose_ref, constraint_violation=viol, oil_temperature=temperature,
+        compensator_state=comp_state, p1_initial=p1_0,
         saturated_samples=controller.saturated_samples, wall_time_s=wall, gravity=float(-m.opt.gravity[2]),
     )
 

@@ -1,0 +1,55 @@
+"""Oracle compensator: the yardstick, not a product feature.
+
+The exact static inverse of the plant's true flow curve with the plant's true parameters (read from
+:class:`~compensation.base.PlantTruth`, updated as the oil warms): the static piston velocity of leg i
+at valve setpoint v is F_i(v) = phi_1(x_v(v), P1_static,i) / A1 (seed eq. 3.2, 3.3/3.11, 3.4 with
+dP1/dt = 0, i.e. seed eq. 5.1). The desired curve is linear, s_i u_v, through F_i at ±``oracle_u_ref``
+(mean of the two chords), and U_c = F_i^-1(s_i u_v) - u_v. It shows the best smoothness a static
+compensation of the valve non-linearity can reach; what remains is dynamics (pressure transients,
+friction), which no compensator of this kind removes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from compensation.base import Compensator, SettingsError
+from hexsim import hydraulics
+
+GRID_POINTS = 4001
+
+
+class OracleCompensator(Compensator):
+    name = "oracle"
+
+    def __init__(self, *args, plant=None, **kwargs) -> None:
+        super().__init__(*args, plant=plant, **kwargs)
+        if plant is None:
+            raise SettingsError("the oracle compensator needs the plant's true parameters (PlantTruth)")
+        self.plant = plant
+        self._params = None
+        self._grid = np.linspace(-self.u_v_max, self.u_v_max, GRID_POINTS)
+
+    def _refresh(self) -> None:
+        p = self.plant.params
+        if p is self._params:
+            return
+        self._params = p
+        p1 = np.asarray(self.plant.p1_static, dtype=float)
+        x_v = hydraulics.spool_position(self._grid, p)
+        # (n_legs, grid) static velocity; a vanishing slope keeps it strictly increasing inside the overlap
+        flow = hydraulics.valve_flow(x_v[None, :], p1[:, None], p) / p.area_bottom
+        self._curve = flow + 1e-12 * self._grid[None, :]
+        u_ref = self.settings.oracle_u_ref
+        ends = np.stack([np.interp([-u_ref, u_ref], self._grid, row) for row in self._curve])
+        self.slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)
+
+    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        self._refresh()
+        target = self.slope * u_v
+        v = np.array([np.interp(target[i], self._curve[i], self._grid) for i in range(self.n_legs)])
+        return v - u_v
+
+    def state(self) -> dict[str, np.ndarray]:
+        self._refresh()
+        return {"s": self.slope.copy()}
