@@ -16,9 +16,14 @@ the table's shape:
     (heave, after ~17 s).
   * ``"per-side"`` (default): a+ from the entries at u_v > 0, a- from minus those at u_v < 0, each used
     on its side of the function. A wrong-sign entry is a sign of over-compensation, not a need for more,
-    and is ignored. Function (2) then converges on the hexapod as well; function (1) still over-grows a
-    (its slope near u_v = 0 is 2.3x too small for the same a) and stays far from the linear flow curve,
-    but no longer runs away.
+    and is ignored. For function (2) a is also limited to q/4, the exact amplitude for the seed's
+    quadratic flow area (eq. 5.1: U_c = q [sqrt(u/q) - u/q], maximum q/4), the seed's own advice: "to
+    prevent the compensation being too large, parameter a could be limited" (§5.4). Without the limit
+    the table entries near u_v = 0 keep integrating the plant's lag at every reversal (the velocity
+    follows the valve late, so s u_v - ẏ has the same sign on every pass) and a creeps up: on hexapod
+    heave the peaks end 70 % above uncompensated after 60 s. Function (1) keeps the valve range as its
+    only bound: it over-grows a (its slope near u_v = 0 is 2.3x smaller for the same a) and stays far
+    from the linear flow curve.
 - b = pi/q (function 1) or 1/q (function 2), q the valve range (running max |u_v|), at least
   ``q_threshold`` (the seed's threshold start value);
 - c = b r, r the valve setpoint at zero velocity: here the exponential average of u_v over samples with
@@ -86,8 +91,9 @@ class IterativeCompensator(Compensator):
         else:  # per side: only entries with the sign the function gives there count
             pos = self.table[:, self._half + 1:].max(axis=1)
             neg = -self.table[:, : self._half].min(axis=1)
-            self.a_pos = np.minimum(np.maximum(self.a_pos, pos), self.u_v_max)
-            self.a_neg = np.minimum(np.maximum(self.a_neg, neg), self.u_v_max)
+            limit = self.u_v_max if self.function == 1 else np.maximum(self.q, st.q_threshold) / 4.0
+            self.a_pos = np.minimum(np.maximum(self.a_pos, pos), limit)
+            self.a_neg = np.minimum(np.maximum(self.a_neg, neg), limit)
         self.q = np.maximum(self.q, np.abs(u_f))
         still = np.abs(v_f) < st.velocity_band
         self.r = np.where(still, self.r + self._alpha_r * (u_f - self.r), self.r)

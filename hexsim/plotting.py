@@ -19,7 +19,9 @@ from hexsim.tables import write_atomic  # noqa: E402
 def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
     """Write the six-panel PNG for a run to ``path`` (atomically)."""
     sc = result.config.scenario
-    fig, ax = plt.subplots(3, 2, figsize=(13, 11), constrained_layout=True)
+    compensated = result.config.compensator != "none"
+    rows = 4 if compensated else 3
+    fig, ax = plt.subplots(rows, 2, figsize=(13, 3.7 * rows), constrained_layout=True)
     fig.suptitle(f"hexsim {sc.name}: {sc.system}, {sc.frequency:g} Hz, compensator {result.config.compensator}")
 
     a = ax[0, 0]
@@ -43,6 +45,9 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
     a = ax[1, 0]
     for i in range(result.n_legs):
         a.plot(result.u_v[:, i], result.ydot[:, i], lw=0.6, label=f"leg{i + 1}")
+    if compensated:  # what the P loop sees: its own output u_v - U_c against the velocity
+        a.plot(result.u_v[:, 0] - result.u_c[:, 0], result.ydot[:, 0], "k", lw=0.6,
+               label="leg1 vs P output (compensated)")
     a.set(title="flow curve (seed Fig. 3.10)", xlabel="valve setpoint u_v [V]", ylabel="piston velocity [m/s]")
     a.axhline(0, color="0.6", lw=0.5)
     a.axvline(0, color="0.6", lw=0.5)
@@ -66,6 +71,18 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
     a.set(title="spectrum of the analysed signal", xlabel="frequency [Hz]", ylabel=f"amplitude [{sm.unit}]",
           xlim=(0, min(250.0, sm.spectrum_hz[-1])))
 
+    if compensated:
+        a = ax[3, 0]
+        for key, values in result.compensator_state.items():
+            a.plot(result.t, values[:, 0], lw=1, label=key)
+        a.set(title=f"{result.config.compensator}: parameters, leg1", xlabel="time [s]")
+        if a.lines:
+            a.legend(fontsize=8)
+        a = ax[3, 1]
+        for i in range(result.n_legs):
+            a.plot(result.u_v[:, i] - result.u_c[:, i], result.u_c[:, i], ".", ms=1, label=f"leg{i + 1}")
+        a.set(title="compensation curve U_c(u_v)", xlabel="P output u_v [V]", ylabel="U_c [V]")
+
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
     plt.close(fig)
 
@@ -82,8 +99,9 @@ def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:
         tr = e.traces
         s = tr["s"]
         a = ax[0, j]
-        a.plot(tr["u_v"], tr["ydot"], lw=0.4, label="measured")
-        u = np.linspace(tr["u_v"].min(), tr["u_v"].max(), 50)
+        u_p = tr["u_v"] - tr["u_c"]  # the P controller's output, before compensation (seed Fig. 5.3)
+        a.plot(u_p, tr["ydot"], lw=0.4, label="ẏ vs P output u_v")
+        u = np.linspace(u_p.min(), u_p.max(), 50)
         a.plot(u, s * u, "k--", lw=1, label=f"desired s u_v (s = {s:.3f})")
         a.set(title=f"{e.compensator}: flow curve", xlabel="u_v [V]", ylabel="ẏ [m/s]")
         a.legend(fontsize=7)
@@ -95,10 +113,10 @@ def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:
         if a.lines:
             a.legend(fontsize=7)
         a = ax[2, j]
-        a.plot(tr["u_v"], tr["u_c"], ".", ms=1)
+        a.plot(u_p, tr["u_c"], ".", ms=1)
         a.set(title="compensation curve", xlabel="u_v [V]", ylabel="U_c [V]")
         a = ax[3, j]
-        a.plot(tr["t"], tr["u_v"] - tr["ydot"] / s, lw=0.5)
+        a.plot(tr["t"], u_p - tr["ydot"] / s, lw=0.5)
         a.set(title="u_v − ẏ/s", xlabel="time [s]", ylabel="[V]")
         a = ax[4, j]
         a.plot(tr["peak_t"], tr["peaks"], "o-", ms=3, lw=0.8, label=e.compensator)

@@ -105,3 +105,32 @@ def test_rrd_is_a_valid_rerun_recording(heave_outputs):
                           timeout=120, env={**os.environ, "RERUN_ANALYTICS": "off"})
     assert proc.returncode == 0, proc.stderr
     assert "verified without error" in proc.stdout + proc.stderr
+
+
+def test_run_with_a_compensator_reports_its_parameters(tmp_path):
+    out = tmp_path / "buffered.json"
+    assert main(["run", "actuator", "--duration", "8", "--compensator", "buffered", "--warm-up", "15", "--quiet",
+                 "--json", str(out), "--plot", str(tmp_path / "b.png")]) == 0
+    report = json.loads(out.read_text())
+    assert report["compensator"] == "buffered"
+    assert set(report["compensator_parameters"]) == {"a", "b", "c", "s"}
+    assert report["compensator_parameters"]["a"][0] > 0  # the first 3 s buffer has been used
+    assert report["oil_temperature_C"] == pytest.approx([35.0, 50.0], abs=0.1)
+
+
+def test_compare_prints_a_league_table_and_writes_json_and_png(tmp_path, capsys):
+    code = main(["compare", "actuator", "--duration", "6", "--compensators", "buffered,oracle", "--jobs", "2",
+                 "--json", str(tmp_path / "league.json"), "--plot", str(tmp_path / "league.png")])
+    assert code == 0
+    out = capsys.readouterr().out
+    for name in ("none", "buffered", "oracle"):
+        assert re.search(rf"^{name}\s", out, re.M), out
+    league = json.loads((tmp_path / "league.json").read_text())
+    assert set(league["compensators"]) == {"none", "buffered", "oracle"}
+    assert league["compensators"]["none"]["reversal_peak_reduction_pct"] == 0.0
+    assert (tmp_path / "league.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_compare_refuses_an_unknown_compensator(capsys):
+    assert main(["compare", "heave", "--compensators", "buffered,magic"]) == 2
+    assert "unknown compensator 'magic'" in capsys.readouterr().err
