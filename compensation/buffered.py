@@ -77,7 +77,7 @@ class ParameterBuffers:
         b_new = np.where(q > 0, 1.0 / np.maximum(q, 1e-12), 0.0)
         self.a[legs] = np.maximum(self.a[legs], a_new)
         self.b[legs] = np.maximum(self.b[legs], b_new)
-        for k, leg in enumerate(legs):
+        for leg in legs:
             uy = self.uy[:, leg]
             uy = uy[np.isfinite(uy)]
             if uy.size:

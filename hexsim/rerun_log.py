@@ -24,7 +24,7 @@ from hexsim.tables import write_atomic
 VIEW_RATE_HZ = 50.0  # [Hz] rate of the 3D scene in the recording
 
 
-def _blueprint(n_legs: int) -> rrb.Blueprint:
+def _blueprint() -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(origin="/world", name="hexapod"),
@@ -53,7 +53,7 @@ def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness)
 def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
     sc = result.config.scenario
     rec = rr.RecordingStream("hexsim", recording_id=f"hexsim-{sc.name}-{result.config.seed}")
-    rec.save(tmp, default_blueprint=_blueprint(result.n_legs))
+    rec.save(tmp, default_blueprint=_blueprint())
     times = rr.TimeColumn("time", duration=result.t)
     n = result.n_legs
     for i in range(n):

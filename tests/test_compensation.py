@@ -24,26 +24,26 @@ def _by_name(entries):
 @pytest.fixture(scope="module")
 def seed_league():
     """The iterative compensators with the seed's own rule for a (held maximum of the signed table)."""
-    base = RunConfig(make_scenario("actuator", duration=40.0), compensator_settings=CompensatorSettings(held_maximum="seed"))
+    base = RunConfig(make_scenario("actuator", duration=32.0), compensator_settings=CompensatorSettings(held_maximum="seed"))
     return _by_name(compare(base, ("iterative-1", "iterative-2"), jobs=2))
 
 
 @pytest.fixture(scope="module")
 def actuator_league():
-    base = RunConfig(make_scenario("actuator", duration=24.0))
+    base = RunConfig(make_scenario("actuator", duration=16.0))
     return _by_name(compare(base, ("buffered", "oracle"), jobs=2))
 
 
 @pytest.fixture(scope="module")
 def warm_league():
-    sc = make_scenario("actuator", duration=24.0)
+    sc = make_scenario("actuator", duration=16.0)
     base = RunConfig(sc, warm_up=WarmUp(delta_c=15.0, duration_s=sc.duration))
     return _by_name(compare(base, ("buffered", "oracle"), jobs=2))
 
 
 @pytest.fixture(scope="module")
 def heave_league():
-    base = RunConfig(make_scenario("heave", duration=24.0))
+    base = RunConfig(make_scenario("heave", duration=18.0))
     return _by_name(compare(base, ("iterative-2", "buffered", "directional", "oracle"), jobs=2))
 
 
@@ -66,9 +66,9 @@ def test_iterative_1_first_helps_then_diverges_but_stays_bounded(seed_league):
     assert level[-3:].mean() > 2 * best
     a = it1.traces["param_a"]
     assert a[-1] > 2 * a[np.searchsorted(it1.traces["t"], t[early][np.argmin(level[early])])]
+    assert a[-1] > 1.0  # ran away: the right amplitude is ~0.25 V
     assert np.all(np.isfinite(it1.traces["acc"]))
-    assert a.max() <= 10.0  # bounded by the valve range
-    assert it1.saturated_samples > 0  # and the saturation is reported
+    assert a.max() <= 10.0  # bounded by the valve range (valve saturation is counted: test_controller)
 
 
 def test_iterative_2_converges_and_reduces_the_peaks(seed_league):
@@ -107,7 +107,7 @@ def test_buffered_stays_stable_with_noise_and_warming_oil(warm_league):
     for key in ("param_a", "param_b", "param_c"):
         assert np.all(np.isfinite(buf.traces[key]))
     a = buf.traces["param_a"]
-    assert a[-1] < 1.2 * a[np.searchsorted(buf.traces["t"], 10.0)]  # no drift-away of the amplitude
+    assert a[-1] < 1.2 * a[np.searchsorted(buf.traces["t"], 8.0)]  # no drift-away of the amplitude
 
 
 def test_hexapod_heave_bump_reduced_by_buffered_and_directional(heave_league):
@@ -124,3 +124,25 @@ def test_no_compensator_but_iterative_1_makes_things_worse(seed_league, actuator
         for name, entry in league.items():
             if name != "iterative-1":
                 assert entry.noise_ratio <= league["none"].noise_ratio, name
+
+
+def test_each_leg_adapts_to_its_own_reversals_in_roll():
+    # In roll the legs move by different amounts, so each leg's compensator finds its own valve range.
+    base = RunConfig(make_scenario("roll", frequency=1.0, duration=12.0))
+    league = _by_name(compare(base, ("buffered",), jobs=2))
+    assert league["buffered"].reduction_pct > 40
+    b = np.array(league["buffered"].final_parameters["b"])
+    assert b.shape == (6,) and np.std(b) / np.mean(b) > 0.05
+
+
+def test_combined_heave_and_pitch_from_a_file(tmp_path):
+    t = np.arange(0, 12.0001, 0.01)
+    fade = np.clip(t / 2.0, 0, 1)
+    z = fade * 0.04 * np.sin(2 * np.pi * 0.5 * t)
+    pitch = fade * np.radians(2) * np.sin(2 * np.pi * 1.3 * t)
+    path = tmp_path / "combined.csv"
+    np.savetxt(path, np.column_stack([t, z, pitch]), delimiter=",", header="time_s,dof_ref_z_m,dof_ref_pitch_rad",
+               comments="")
+    league = _by_name(compare(RunConfig(make_scenario(f"file:{path}")), ("buffered",), jobs=2))
+    assert league["buffered"].reduction_pct > 30
+    assert league["buffered"].noise_ratio < league["none"].noise_ratio

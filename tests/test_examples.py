@@ -15,6 +15,7 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
 @pytest.mark.parametrize("script, args", [
     ("heave_bump.py", ["--duration", "4", "--frequency", "1"]),
     ("seed_single_actuator.py", ["--duration", "6"]),
+    ("buffered_compensation.py", ["--duration", "10"]),
 ])
 def test_example_runs(script, args, tmp_path):
     out = tmp_path / "out.png"
