@@ -205,7 +205,7 @@ def simulate(config: RunConfig) -> SimulationResult:
 
     n_ticks = int(math.ceil(sc.duration * cp.rate_hz)) + 1
     t_ticks = np.arange(n_ticks) / cp.rate_hz
-    setpoints, poses_ref = piston_setpoints(m, idx, sc, t_ticks)
+    setpoints, _ = piston_setpoints(m, idx, sc, t_ticks)
     rng = np.random.default_rng(config.seed)
     noise = rng.normal(0.0, cp.position_noise, size=setpoints.shape)
 
