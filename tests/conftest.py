@@ -31,3 +31,4 @@ def actuator_smooth():
 def heave_run():
     """Uncompensated hexapod heave, the product's default controller (500 Hz, ZOH, 1 µm sensor noise)."""
     return simulate(RunConfig(make_scenario("heave", duration=8.0)))
+

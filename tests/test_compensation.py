@@ -15,6 +15,7 @@ from hexsim.compare import compare
 from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
 from hexsim.temperature import WarmUp
+from helpers import write_heave_pitch_profile
 
 
 def _by_name(entries):
@@ -136,13 +137,7 @@ def test_each_leg_adapts_to_its_own_reversals_in_roll():
 
 
 def test_combined_heave_and_pitch_from_a_file(tmp_path):
-    t = np.arange(0, 12.0001, 0.01)
-    fade = np.clip(t / 2.0, 0, 1)
-    z = fade * 0.04 * np.sin(2 * np.pi * 0.5 * t)
-    pitch = fade * np.radians(2) * np.sin(2 * np.pi * 1.3 * t)
-    path = tmp_path / "combined.csv"
-    np.savetxt(path, np.column_stack([t, z, pitch]), delimiter=",", header="time_s,dof_ref_z_m,dof_ref_pitch_rad",
-               comments="")
+    path = write_heave_pitch_profile(tmp_path / "combined.csv", 12.0, 0.04)
     league = _by_name(compare(RunConfig(make_scenario(f"file:{path}")), ("buffered",), jobs=2))
     assert league["buffered"].reduction_pct > 30
     assert league["buffered"].noise_ratio < league["none"].noise_ratio

@@ -13,6 +13,7 @@ from hexsim.metrics import STANDARD_GRAVITY, run_smoothness
 from hexsim.scenario import Scenario, make_scenario
 from hexsim.signals import fit_fundamental
 from hexsim.simulation import RunConfig, simulate
+from helpers import write_heave_pitch_profile
 
 
 def test_platform_at_rest_stays_at_rest():
@@ -79,13 +80,7 @@ def test_roll_reversal_bumps_on_angular_acceleration():
 
 
 def test_file_scenario_heave_plus_pitch(tmp_path):
-    t = np.arange(0, 6.0001, 0.01)
-    fade = np.clip(t / 2.0, 0, 1)
-    z = fade * 0.03 * np.sin(2 * np.pi * 0.5 * t)
-    pitch = fade * math.radians(2) * np.sin(2 * np.pi * 1.3 * t)
-    path = tmp_path / "profile.csv"
-    np.savetxt(path, np.column_stack([t, z, pitch]), delimiter=",", header="time_s,dof_ref_z_m,dof_ref_pitch_rad",
-               comments="")
+    path = write_heave_pitch_profile(tmp_path / "profile.csv", 6.0, 0.03)
     sc = make_scenario(f"file:{path}")
     assert sc.axis_name == "z" and sc.frequency == pytest.approx(0.5, rel=0.02)  # the fade-in bends the fit
     r = simulate(RunConfig(sc))
