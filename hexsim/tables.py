@@ -30,7 +30,7 @@ def read_numeric_csv(path: str | os.PathLike, *, required: tuple[str, ...] = ("t
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # -sig: tolerate a spreadsheet BOM
             rows = list(csv.reader(fh))
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not a UTF-8 text CSV file ({exc.reason} at byte {exc.start})") from None

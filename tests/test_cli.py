@@ -134,3 +134,13 @@ def test_compare_prints_a_league_table_and_writes_json_and_png(tmp_path, capsys)
 def test_compare_refuses_an_unknown_compensator(capsys):
     assert main(["compare", "heave", "--compensators", "buffered,magic"]) == 2
     assert "unknown compensator 'magic'" in capsys.readouterr().err
+
+
+def test_scenario_file_saved_with_a_byte_order_mark_is_read(tmp_path):
+    from helpers import write_heave_pitch_profile
+
+    from hexsim.scenario import make_scenario
+
+    path = write_heave_pitch_profile(tmp_path / "excel.csv", 6.0, 0.03)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    assert make_scenario(f"file:{path}").axis_name == "z"
