@@ -36,10 +36,8 @@ class OracleCompensator(Compensator):
             return
         self._params = p
         p1 = np.asarray(self.plant.p1_static, dtype=float)
-        x_v = hydraulics.spool_position(self._grid, p)
         # (n_legs, grid) static velocity; a vanishing slope keeps it strictly increasing inside the overlap
-        flow = hydraulics.valve_flow(x_v[None, :], p1[:, None], p) / p.area_bottom
-        self._curve = flow + 1e-12 * self._grid[None, :]
+        self._curve = hydraulics.static_velocity(self._grid[None, :], p1[:, None], p) + 1e-12 * self._grid[None, :]
         u_ref = self.settings.oracle_u_ref
         ends = np.stack([np.interp([-u_ref, u_ref], self._grid, row) for row in self._curve])
         self.slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)

@@ -32,7 +32,7 @@ from hexsim.temperature import WarmUp  # noqa: E402
 def ideal_compensation(u: np.ndarray, p: HydraulicParams, p1: float, s: float) -> np.ndarray:
     """U_c with F(u + U_c) = s u, F the static flow curve of eq. (5.1) at bottom pressure p1 [Pa]."""
     grid = np.linspace(-p.u_v_max, p.u_v_max, 8001)
-    curve = hydraulics.valve_flow(hydraulics.spool_position(grid, p), p1, p) / p.area_bottom + 1e-12 * grid
+    curve = hydraulics.static_velocity(grid, p1, p) + 1e-12 * grid
     return np.interp(s * u, curve, grid) - u
 
 

@@ -35,7 +35,7 @@ M = 40.0  # [kg] seed app. A; the same number is in models/single_actuator.xml
 def static_flow_curve(u_v: np.ndarray, p: HydraulicParams, gravity: float) -> np.ndarray:
     """Seed eq. (5.1): piston velocity at zero acceleration, P1 at the static value (eq. 3.8)."""
     p1 = hydraulics.equilibrium_pressure(M * gravity, p)
-    return hydraulics.valve_flow(hydraulics.spool_position(u_v, p), p1, p) / p.area_bottom
+    return hydraulics.static_velocity(u_v, p1, p)
 
 
 def main() -> None:

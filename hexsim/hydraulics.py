@@ -85,6 +85,12 @@ def valve_flow_dp1(x_v, p1, p: HydraulicParams, p_s=None):
     return _orifice(x_v, p1, p, p_s)[1]
 
 
+def static_velocity(u_v, p1, p: HydraulicParams, p_s=None):
+    """Piston velocity [m/s] at valve setpoint u_v [V] in steady state (dP1/dt = 0, bottom pressure p1 [Pa]):
+    phi_1(x_v(u_v), P1) / A1, the static flow curve of seed eq. (5.1). Arrays broadcast."""
+    return valve_flow(spool_position(u_v, p), p1, p, p_s) / p.area_bottom
+
+
 def chamber_volume(y, p: HydraulicParams):
     """Oil volume [m^3] between valve and piston: y A1 + V_pl (seed eq. 3.7), y clipped at 0."""
     return np.maximum(np.asarray(y, dtype=float), 0.0) * p.area_bottom + p.pipeline_volume
