@@ -17,6 +17,7 @@ from hexsim.errors import HexsimError, InputError
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
 from hexsim.compare import ORDER
+from hexsim.tables import write_atomic
 from hexsim.temperature import WarmUp
 
 
@@ -65,7 +66,81 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison PNG (seed Fig. 5.12 layout)")
     cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON")
+    val = sub.add_parser(
+        "validate",
+        help="confront the model with a measurement log: residual, missing effect, error before/after",
+        description="Replay a measurement log (../shared/measurement-log.md) through the model with the logged "
+        "valve setpoints, analyse the residual, fit each candidate effect the nominal model lacks and name the "
+        "one that explains the log (or none). Single-actuator logs.",
+    )
+    val.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
+    val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
+    val.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
+    val.add_argument("--jobs", type=int, default=2, help="worker processes for the fits (default 2)")
+    val.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    fr = sub.add_parser(
+        "friction",
+        help="identify the Stribeck friction curve from a log (seed §2.3.3, eq. 2.3-2.4)",
+        description="Estimate F_f = F_L - M ydd - M g along the stroke from P1 and P_s (or force_N) and the "
+        "position, and fit the asymmetric Stribeck curve of seed eq. (2.4) with standard errors.",
+    )
+    fr.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
+    fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (PNG)")
+    fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON")
     return parser
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from hexsim.measurement import read_log
+    from hexsim.validation import validate
+
+    _check_outputs(args)
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    if args.report is not None and args.report.exists() and not args.report.is_dir():
+        raise InputError(f"--report {args.report}: exists and is not a folder")
+    log = read_log(args.log)
+    for note in log.assumed:
+        print(f"assumed: {note}")
+    if log.missing:
+        print(f"not checked (missing columns): {', '.join(log.missing)}")
+    doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs,
+                   progress=not args.quiet and sys.stderr.isatty())
+    print(f"added effect: {doc['added_effect']}")
+    for name, v in doc["parameters"].items():
+        print(f"  {name} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}")
+    print(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s}")
+    for ch, before in doc["error_before"].items():
+        print(f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g}")
+    print(f"{'candidate':16s} {'held-out gain':>13s} {'dBIC':>10s}")
+    for c in doc["candidates"]:
+        print(f"{c['effect']:16s} {c['held_out_gain']:+13.3f} {c['bic'] - doc['nominal']['bic']:+10.1f}")
+    for path in (args.report, args.json):
+        if path is not None:
+            print(f"wrote {path}")
+    return 0
+
+
+def cmd_friction(args: argparse.Namespace) -> int:
+    from hexsim.friction_id import identify_friction, plot_map, to_json
+    from hexsim.measurement import read_log
+
+    _check_outputs(args)
+    result = identify_friction(read_log(args.log))
+    print(f"friction from {result['force_source']}, M = {result['mass_kg']:g} kg, "
+          f"inclination {result['inclination_deg']:g}°")
+    for side in ("positive", "negative"):
+        ps = result[side]["parameters"]
+        print(f"  {side:8s}: " + ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
+                                           for k, v in ps.items()) + f"  (rms {result[side]['rms_N']:.3g} N)")
+    if args.json:
+        write_atomic(args.json, lambda tmp: tmp.write_text(to_json(result)))
+        print(f"wrote {args.json}")
+    if args.plot:
+        plot_map(result, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
 
 
 def _scenario_options(p: argparse.ArgumentParser) -> None:
@@ -202,7 +277,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return cmd_compare(args) if args.command == "compare" else cmd_run(args)
+        commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction}
+        return commands[args.command](args)
     except HexsimError as exc:
         print(f"hexsim: error: {exc}", file=sys.stderr)
         return 2

@@ -105,7 +105,7 @@ def pressure_rate(phi_1, y, ydot, p: HydraulicParams):
     return p.bulk_modulus / chamber_volume(y, p) * (phi_1 - ydot * p.area_bottom)
 
 
-def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None):
+def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, x_v=None, leakage=0.0):
     """Bottom-chamber pressure P1 [Pa] after one step of ``dt`` [s] (seed eq. 3.2, 3.4, 3.7).
 
     Linearly implicit (Rosenbrock-Euler) in P1: P1' = P1 + dt f / (1 - dt df/dP1), with
@@ -114,9 +114,15 @@ def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None):
     update equals explicit Euler to first order. The piston velocity ``ydot`` is taken at the start of
     the step; the mechanical side then uses the new P1 (symplectic Euler for the 109 Hz oil spring).
 
-    Arrays of shape (n,) in, (n,) out.
+    ``x_v`` [m] overrides the spool position computed from u_v (a spool with its own dynamics,
+    :mod:`hexsim.effects`); ``leakage`` C_l [m^3/(s Pa)] adds the internal leakage across the piston
+    C_l (P_s - P1) to phi_1 (the rod side is at P_s), zero in the seed. Arrays of shape (n,) in, (n,) out.
     """
-    phi, dphi = _orifice(spool_position(u_v, p), p1, p, p_s)
+    x_v = spool_position(u_v, p) if x_v is None else x_v
+    phi, dphi = _orifice(x_v, p1, p, p_s)
+    if np.any(leakage):
+        phi = phi + leakage * ((p.supply_pressure if p_s is None else p_s) - p1)
+        dphi = dphi - leakage
     stiffness = p.bulk_modulus / chamber_volume(y, p)
     return p1 + dt * stiffness * (phi - ydot * p.area_bottom) / (1.0 - dt * stiffness * dphi)
 

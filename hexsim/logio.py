@@ -53,10 +53,32 @@ def sidecar(result: SimulationResult) -> dict:
     }
 
 
-def write_log(path: str | os.PathLike, result: SimulationResult) -> tuple[pathlib.Path, pathlib.Path]:
-    """Write ``path`` (CSV) and its sidecar (same stem, .json), each atomically. Returns both paths."""
+#: Sensor noise (rms, SI units) that :func:`add_sensor_noise` puts on simulated logs so they look like
+#: measurements: position transducer 2 µm (resolution, "a few µm"), pressure transducers 0.02 bar
+#: (0.1 % of a 250 bar range, hexsim's assumption), accelerometer 0.02 m/s^2.
+SENSOR_NOISE = {"pos_m": 2e-6, "p1_Pa": 2e3, "ps_Pa": 2e3, "_mps2": 0.02}
+
+
+def add_sensor_noise(cols: dict[str, np.ndarray], rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """A copy of the log columns with white Gaussian noise of :data:`SENSOR_NOISE` on every measured column
+    (leg and platform columns of the hexapod too); setpoints, valve commands and time are left exact."""
+    out = {}
+    for name, values in cols.items():
+        level = next((v for k, v in SENSOR_NOISE.items() if name.endswith(k)), None)
+        out[name] = values + rng.normal(0.0, level, values.shape) if level else values
+    return out
+
+
+def write_log(path: str | os.PathLike, result: SimulationResult,
+              noise: np.random.Generator | None = None) -> tuple[pathlib.Path, pathlib.Path]:
+    """Write ``path`` (CSV) and its sidecar (same stem, .json), each atomically. Returns both paths.
+
+    ``noise``: a generator to add :data:`SENSOR_NOISE` (:func:`add_sensor_noise`); default exact values.
+    """
     path = pathlib.Path(path)
     cols = log_columns(result)
+    if noise is not None:
+        cols = add_sensor_noise(cols, noise)
     table = np.column_stack(list(cols.values()))
     header = ",".join(cols)
 

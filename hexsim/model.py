@@ -107,3 +107,24 @@ def check_warnings(m: mujoco.MjModel, d: mujoco.MjData) -> None:
                 what += f" ({mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(d.warning.lastinfo[i]))})"
             kinds.append(what)
         raise PhysicsError(f"MuJoCo warning {', '.join(kinds)} at t = {d.time:.4f} s")
+
+
+def apply_load(m: mujoco.MjModel, effects) -> None:
+    """Change the moving mass and the inclination of a single-actuator model in place.
+
+    ``effects.mass_kg`` [kg] replaces the mass of the body that slide ``leg1`` carries;
+    ``effects.inclination_deg`` [deg] tilts gravity so the actuator axis is that far from vertical: only
+    g cos(angle) acts along the axis (the seed's model is vertical, eq. 3.8; the seed notes gravity is
+    not along the hexapod's legs, ch. 4). Raises InputError on a model with more than one leg.
+    """
+    if effects.mass_kg is None and effects.inclination_deg is None:
+        return
+    idx = PlantIndex.from_model(m)
+    if idx.n_legs != 1:
+        raise InputError("mass_kg and inclination_deg apply to the single-actuator model only")
+    if effects.mass_kg is not None:
+        m.body_mass[m.jnt_bodyid[_id(m, mujoco.mjtObj.mjOBJ_JOINT, "leg1")]] = effects.mass_kg
+    if effects.inclination_deg is not None:
+        g = float(np.linalg.norm(m.opt.gravity))
+        angle = np.deg2rad(effects.inclination_deg)
+        m.opt.gravity[:] = (g * np.sin(angle), 0.0, -g * np.cos(angle))

@@ -19,9 +19,10 @@ from tqdm import tqdm
 from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
 from hexsim import hydraulics
 from hexsim.controller import PController
+from hexsim.effects import Effects, PlantState, step_plant
 from hexsim.errors import InputError, PhysicsError, WorkspaceError
 from hexsim.kinematics import HexapodGeometry
-from hexsim.model import PlantIndex, check_warnings, load_model, reset_neutral
+from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
 from hexsim.temperature import WarmUp
@@ -38,6 +39,7 @@ class RunConfig:
     compensator: str = "none"
     compensator_settings: CompensatorSettings = field(default_factory=CompensatorSettings)
     warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C
+    effects: Effects = field(default_factory=Effects)  # extensions of the seed model; default: none
     seed: int = 0
     record_rate_hz: float | None = None
     progress: bool = False
@@ -48,8 +50,9 @@ class SimulationResult:
     """Recorded signals of a run, sampled at ``record_rate_hz``; arrays (N,) or (N, n_legs) or (N, 3).
 
     t [s]; y, ydot: measured piston position [m] / velocity [m/s] (jointpos/jointvel sensors); y_ref:
-    piston setpoint in force (ZOH) [m]; u_v: valve setpoint [V]; u_c: compensation voltage [V]; p1:
-    bottom-chamber pressure [Pa]; p_s: supply pressure [Pa]; force: hydraulic leg force [N]; acc:
+    piston setpoint in force (ZOH) [m] (with a sensor delay, y is the delayed measurement and ydot the
+    true velocity); u_v: valve setpoint [V]; u_c: compensation voltage [V]; p1:
+    bottom-chamber pressure [Pa]; p_s: supply pressure (N,) [Pa] (of the first manifold); force: hydraulic leg force [N]; acc:
     accelerometer, site frame, specific force [m/s^2]; gyro [rad/s] and angacc [rad/s^2] (world) of the
     platform (hexapod only); pose: measured platform pose (N, 6) rel. neutral; pose_ref: commanded pose;
     constraint_violation: largest connect violation [m] per sample; oil_temperature [°C];
@@ -101,7 +104,8 @@ class HydraulicCoupling:
 
     def __init__(self, idx: PlantIndex, hyd: HydraulicParams, controller: PController, setpoints: np.ndarray,
                  noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int, warm_up: WarmUp | None = None,
-                 plant: PlantTruth | None = None) -> None:
+                 plant: PlantTruth | None = None, effects: Effects | None = None,
+                 groups: np.ndarray | None = None, y_initial: np.ndarray | None = None) -> None:
         self.idx = idx
         self.hyd = hyd
         self.base_hyd = hyd
@@ -113,8 +117,14 @@ class HydraulicCoupling:
         self.noise = noise
         self.ctrl_div = ctrl_div
         self.dt = idx.dt
-        self.p1 = p1_initial.astype(float).copy()
+        self.effects = effects or Effects()
+        self.groups = np.zeros(idx.n_legs, dtype=np.intp) if groups is None else groups
         n = idx.n_legs
+        self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd)
+        delay_steps = int(round(self.effects.sensor_delay / self.dt))
+        y0 = idx.neutral_y if y_initial is None else y_initial
+        self._y_history = np.tile(np.asarray(y0, dtype=float), (delay_steps + 1, 1))
+        self.y_measured = self._y_history[0].copy()
         self.u_v = np.zeros(n)
         self.u_c = np.zeros(n)
         self.r = setpoints[0].copy()
@@ -129,6 +139,9 @@ class HydraulicCoupling:
                 self._last_step = k
                 y = d.qpos[self.idx.qpos_adr]
                 ydot = d.qvel[self.idx.dof_adr]
+                hist = self._y_history
+                hist[k % len(hist)] = y
+                self.y_measured = hist[(k + 1) % len(hist)]  # y(t_k - tau_y); itself without delay
                 if k % self.ctrl_div == 0:
                     if self.warm_up is not None:
                         self.temperature = float(self.warm_up.temperature(k * self.dt))
@@ -137,9 +150,9 @@ class HydraulicCoupling:
                             self.plant.params = self.hyd
                     j = min(k // self.ctrl_div, len(self.setpoints) - 1)
                     self.r = self.setpoints[j]
-                    self.u_v, self.u_c = self.controller.sample(self.r, y + self.noise[j])
-                self.p1 = hydraulics.step_pressure(self.p1, self.u_v, y, ydot, self.dt, self.hyd)
-                self.force = hydraulics.leg_force(self.p1, ydot, self.hyd)
+                    self.u_v, self.u_c = self.controller.sample(self.r, self.y_measured + self.noise[j])
+                self.state = step_plant(self.state, self.u_v, y, ydot, self.dt, self.hyd, self.effects, self.groups)
+                self.force = hydraulics.leg_force(self.state.p1, ydot, self.hyd, self.state.p_s)
             d.ctrl[self.idx.actuator_id] = self.force
         except Exception as exc:  # noqa: BLE001 - re-raised by simulate() after the step
             self.error = exc
@@ -196,6 +209,7 @@ def simulate(config: RunConfig) -> SimulationResult:
     """
     sc, hyd, cp = config.scenario, config.hydraulics, config.controller
     m = load_model(sc.system)
+    apply_load(m, config.effects)
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
     dt = idx.dt
@@ -225,12 +239,15 @@ def simulate(config: RunConfig) -> SimulationResult:
     except SettingsError as exc:
         raise InputError(str(exc)) from None
     controller = PController(cp, hyd.u_v_max, compensator)
-    coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div, config.warm_up, plant)
+    coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div, config.warm_up, plant,
+                                 config.effects)
 
     n_rec = int(round(sc.duration / dt)) // rec_div
     n = idx.n_legs
     rec = {k: np.empty((n_rec, n)) for k in ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")}
     t = np.empty(n_rec)
+    p_s = np.empty(n_rec)
+    delayed = config.effects.sensor_delay > 0
     acc = np.empty((n_rec, 3))
     hexapod = sc.system == "hexapod"
     gyro, angacc = (np.empty((n_rec, 3)), np.empty((n_rec, 3))) if hexapod else (None, None)
@@ -255,12 +272,13 @@ def simulate(config: RunConfig) -> SimulationResult:
             _check_state(m, d, idx, coupling)
             sd = d.sensordata
             t[i] = d.time - dt  # sensors were evaluated at the start of the last step
-            rec["y"][i] = sd[leg_pos]
+            rec["y"][i] = coupling.y_measured if delayed else sd[leg_pos]
             rec["ydot"][i] = sd[leg_vel]
             rec["y_ref"][i] = coupling.r
             rec["u_v"][i] = coupling.u_v
             rec["u_c"][i] = coupling.u_c
-            rec["p1"][i] = coupling.p1
+            rec["p1"][i] = coupling.state.p1
+            p_s[i] = coupling.state.p_s[0]
             rec["force"][i] = coupling.force
             temperature[i] = coupling.temperature
             for key, value in compensator.state().items():
@@ -288,7 +306,7 @@ def simulate(config: RunConfig) -> SimulationResult:
         pose = np.concatenate([pos - geom.neutral_position, rpy], axis=1)
         pose_ref = sc.poses(t)
     return SimulationResult(
-        config=config, t=t, **rec, p_s=np.full(n_rec, hyd.supply_pressure), acc=acc, gyro=gyro, angacc=angacc,
+        config=config, t=t, **rec, p_s=p_s, acc=acc, gyro=gyro, angacc=angacc,
         pose=pose, pose_ref=pose_ref, constraint_violation=viol, oil_temperature=temperature,
         compensator_state=comp_state, p1_initial=p1_0,
         saturated_samples=controller.saturated_samples, wall_time_s=wall, gravity=float(-m.opt.gravity[2]),
@@ -303,7 +321,7 @@ def _divider(rate_hz: float, dt: float, what: str) -> int:
 
 
 def _check_state(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex, coupling: HydraulicCoupling) -> None:
-    bad_p1 = ~np.isfinite(coupling.p1)
+    bad_p1 = ~np.isfinite(coupling.state.p1)
     bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
     if np.any(bad_p1 | bad_q):
         leg = int(np.flatnonzero(bad_p1 | bad_q)[0]) + 1

@@ -1,0 +1,117 @@
+"""Friction identification from a log (seed §2.3.3, eq. 2.3–2.4): ``hexsim friction LOG.csv``.
+
+F_f = F_L - M ydd - M g cos(inclination), with F_L = P1 A1 - P_s A2 (seed eq. 2.3) from the pressures,
+or F_L = ``force_N`` for a drive without pressure sensors (the seed notes the method applies to electric
+drives too). Velocity and acceleration are Savitzky–Golay derivatives of the measured position. The
+asymmetric Stribeck curve of eq. (2.4), F_f = sigma v + sign(v) [F_c0 + F_s0 exp(-|v| / c_s)], is fitted
+per direction with ``scipy.optimize.least_squares``; standard errors from the Jacobian.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import savgol_filter
+
+from hexsim.errors import InputError
+from hexsim.measurement import MeasurementLog
+from hexsim.params import HydraulicParams
+from hexsim.tables import write_atomic
+
+G = 9.8  # [m/s^2], seed app. A (the models' gravity)
+MODEL_MASS = 40.0  # [kg], seed app. A, the single-actuator MJCF's moving mass
+V_MIN = 0.002  # [m/s]: samples slower than this are left out (sign of v uncertain)
+PARAMS = ("sigma", "F_c0", "F_s0", "c_s")
+UNITS = ("N s/m", "N", "N", "m/s")
+
+
+def stribeck(v: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Seed eq. (2.4) for one direction: x = (sigma, F_c0, F_s0, c_s)."""
+    return x[0] * v + np.sign(v) * (x[1] + x[2] * np.exp(-np.abs(v) / x[3]))
+
+
+def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """(velocity [m/s], friction force [N], source of F_L) per sample. Raises InputError naming the
+    missing columns if the log has neither p1_Pa + ps_Pa nor force_N, or is not a single axis."""
+    if log.system != "single-actuator":
+        raise InputError(f"{log.path}: friction identification needs a single-actuator log (this is {log.system})")
+    hyd = hyd or HydraulicParams()
+    c = log.columns
+    if "force_N" in c:
+        f_l, source = c["force_N"], "force_N"
+    elif "p1_Pa" in c and "ps_Pa" in c:
+        f_l, source = c["p1_Pa"] * hyd.area_bottom - c["ps_Pa"] * hyd.area_rod, "P1 A1 - P_s A2 (seed eq. 2.3)"
+    else:
+        raise InputError(f"{log.path}: friction identification needs columns 'p1_Pa' and 'ps_Pa', or 'force_N'")
+    fs = log.sample_rate_hz
+    n = max(5, int(round(0.051 * fs)) | 1)  # 51 ms cubic: smooths the oil-spring ringing out of ydd
+    vel = savgol_filter(c["pos_m"], n, 3, deriv=1, delta=1 / fs)
+    acc = savgol_filter(c["pos_m"], n, 3, deriv=2, delta=1 / fs)
+    f_l = savgol_filter(f_l, n, 3)
+    mass = log.mass_kg or MODEL_MASS
+    g_axis = G * np.cos(np.deg2rad(log.inclination_deg))
+    return vel, f_l - mass * acc - mass * g_axis, source
+
+
+def identify_friction(log: MeasurementLog) -> dict:
+    """Fitted Stribeck parameters per direction with standard errors, the RMS fit error and the samples
+    used. Raises InputError if a direction has fewer than 50 samples faster than 2 mm/s."""
+    vel, ff, source = friction_samples(log)
+    out = {"log": str(log.path), "force_source": source, "mass_kg": log.mass_kg or MODEL_MASS,
+           "inclination_deg": log.inclination_deg, "assumed": log.assumed, "equation": "seed eq. (2.4)"}
+    for side, mask in (("positive", vel > V_MIN), ("negative", vel < -V_MIN)):
+        if mask.sum() < 50:
+            raise InputError(f"{log.path}: only {int(mask.sum())} samples move in the {side} direction faster "
+                             f"than {V_MIN * 1e3:g} mm/s; friction cannot be fitted")
+        v, f = vel[mask], ff[mask]
+        x0 = np.array([1000.0, 50.0, 20.0, 0.005])  # sign(v) in eq. (2.4) carries the direction: magnitudes
+        lo, hi = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])
+        sol = least_squares(lambda x, v=v, f=f: stribeck(v, x) - f, x0, bounds=(lo, hi),
+                            x_scale=[1000, 50, 20, 0.005])
+        dof = max(len(v) - 4, 1)
+        s2 = float(sol.fun @ sol.fun) / dof
+        try:
+            se = np.sqrt(np.clip(np.diag(np.linalg.inv(sol.jac.T @ sol.jac)) * s2, 0, None))
+        except np.linalg.LinAlgError:
+            se = np.full(4, np.nan)
+        out[side] = {"parameters": {p: {"value": float(x), "std_error": float(e), "unit": u}
+                                    for p, x, e, u in zip(PARAMS, sol.x, se, UNITS)},
+                     "rms_N": float(np.sqrt(s2)), "samples": int(len(v))}
+    out["_samples"] = (vel, ff)
+    return out
+
+
+def plot_map(result: dict, path: pathlib.Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    vel, ff = result["_samples"]
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g (seed eq. 2.3)")
+    for side, sgn in (("positive", 1), ("negative", -1)):
+        x = np.array([result[side]["parameters"][p]["value"] for p in PARAMS])
+        v = sgn * np.linspace(V_MIN, max(np.abs(vel).max(), 2 * V_MIN), 200)
+        ax.plot(v, stribeck(v, x), color="C0" if sgn > 0 else "C3", label=f"Stribeck fit, {side} (seed eq. 2.4)")
+    ax.set_xlabel("velocity [m/s]")
+    ax.set_ylabel("friction force [N]")
+    ax.set_title(f"friction-velocity map: {pathlib.Path(result['log']).name}")
+    ax.legend(fontsize=8, markerscale=20)
+    fig.tight_layout()
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+    plt.close(fig)
+
+
+def to_json(result: dict) -> str:
+    """The result as JSON; a standard error that could not be estimated (NaN) is written as null."""
+    def clean(x):
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items() if not k.startswith("_")}
+        if isinstance(x, list):
+            return [clean(v) for v in x]
+        return None if isinstance(x, float) and not np.isfinite(x) else x
+    return json.dumps(clean(result), indent=2) + "\n"

@@ -1,0 +1,154 @@
+"""Compiled (numba) kernel of the leg hydraulics, stepping MuJoCo without returning to Python.
+
+The same physics as the reference :func:`hexsim.effects.step_plant` + :func:`hexsim.hydraulics.leg_force`
+(seed eq. 3.2–3.4, 3.7–3.9 and the effects of :class:`hexsim.effects.Effects`), written per leg in
+scalar loops and compiled with numba. The loop calls ``mj_step`` of the MuJoCo library the Python
+bindings loaded, through ctypes, on the raw ``mjModel*`` / ``mjData*`` (``MjModel._address``), reading
+and writing ``qpos``/``qvel``/``ctrl``/``sensordata`` through the bindings' numpy views of the same
+memory. tests/test_native.py checks it against the numpy reference.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import pathlib
+
+import mujoco
+import numba
+import numpy as np
+
+from hexsim.effects import Effects
+from hexsim.params import HydraulicParams
+
+_lib_path = sorted(pathlib.Path(mujoco.__file__).parent.glob("libmujoco.so*"))
+_lib_path = _lib_path or sorted(pathlib.Path(mujoco.__file__).parent.glob("*mujoco*.dylib"))
+_lib = ctypes.CDLL(str(_lib_path[0]))
+_mj_step = _lib.mj_step
+_mj_step.argtypes = [ctypes.c_int64, ctypes.c_int64]  # mjModel*, mjData* passed as integers (same ABI)
+_mj_step.restype = None
+
+_FLOOR = math.sqrt(1.0e4)  # sqrt of hydraulics.JACOBIAN_DP_FLOOR
+
+
+def pack(hyd: HydraulicParams, eff: Effects) -> np.ndarray:
+    """Parameters as the flat float array the kernel reads (see the index comments below)."""
+    t = hyd.stribeck_table
+    return np.array([
+        hyd.supply_pressure, hyd.tank_pressure, hyd.orifice_constant, hyd.area_bottom, hyd.area_rod,  # 0-4
+        hyd.bulk_modulus, hyd.pipeline_volume, hyd.u_v_max, hyd.x_v_max, hyd.overlap,  # 5-9
+        hyd.null_offset, math.pi * hyd.spool_diameter, hyd.smooth_area_gain, float(hyd.flow_area == "sharp"),  # 10-13
+        hyd.arctan_gain, float(hyd.arctan_normalised), *t[0], *t[1],  # 14-15, 16-19 (ydot < 0), 20-23 (>= 0)
+        eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping,  # 24-27
+        eff.spool_play, eff.leakage,  # 28-29
+    ])
+
+
+@numba.njit(cache=True, fastmath=False)
+def _areas(x, P):
+    if P[13] > 0.5:
+        a1 = P[11] * max(x - P[9], 0.0)
+        a2 = P[11] * max(-x - P[9], 0.0)
+    else:
+        a = P[12] * x * x
+        a1 = a if x > 0.0 else 0.0
+        a2 = a - a1
+    return a1, a2
+
+
+@numba.njit(cache=True, fastmath=False)
+def step_legs(P, u, y, ydot, dt, p1, ps, xv, vv, ub, force, groups, demand):
+    """One step of every leg, in place: state (p1, ps, xv, vv, ub) and force, arrays (n,)."""
+    n = p1.shape[0]
+    ng = demand.shape[0]
+    for g in range(ng):
+        demand[g] = 0.0
+    for i in range(n):
+        # spool play and spool dynamics
+        if P[28] > 0.0:
+            ub[i] = min(max(ub[i], u[i] - P[28]), u[i] + P[28])
+        else:
+            ub[i] = u[i]
+        x_set = (ub[i] - P[10]) * (P[8] / P[7])
+        if P[26] > 0.0:
+            w = 2.0 * math.pi * P[26]
+            vv[i] = vv[i] + dt * (w * w * (x_set - xv[i]) - 2.0 * P[27] * w * vv[i])
+            xv[i] = xv[i] + dt * vv[i]
+            if abs(xv[i]) > P[8]:
+                xv[i] = math.copysign(P[8], xv[i])
+                vv[i] = 0.0
+        else:
+            xv[i] = x_set
+        # orifice flow (seed eq. 3.4) and linearly implicit P1 (eq. 3.7)
+        a1, a2 = _areas(xv[i], P)
+        dp1 = ps[i] - p1[i]
+        dp2 = p1[i] - P[1]
+        s1 = math.sqrt(abs(dp1))
+        s2 = math.sqrt(abs(dp2))
+        phi = P[2] * (a1 * math.copysign(s1, dp1) - a2 * math.copysign(s2, dp2))
+        dphi = -0.5 * P[2] * (a1 / max(s1, _FLOOR) + a2 / max(s2, _FLOOR))
+        if P[29] != 0.0:
+            phi += P[29] * dp1
+            dphi -= P[29]
+        stiff = P[5] / (max(y[i], 0.0) * P[3] + P[6])
+        p1[i] = p1[i] + dt * stiff * (phi - ydot[i] * P[3]) / (1.0 - dt * stiff * dphi)
+        if P[24] > 0.0:
+            dps = ps[i] - p1[i]
+            phi_pa = P[2] * a1 * math.copysign(math.sqrt(abs(dps)), dps)
+            demand[groups[i]] += phi_pa + P[29] * dps - ydot[i] * P[4]
+        # friction (seed eq. 3.9) and leg force (eq. 3.8 without gravity)
+        v = ydot[i]
+        o = 20 if v >= 0.0 else 16
+        shape = math.atan(P[14] * v)
+        if P[15] > 0.5:
+            shape *= 2.0 / math.pi
+        ff = P[o] * v + shape * (P[o + 1] + P[o + 2] * math.exp(-abs(v) / P[o + 3]))
+        force[i] = p1[i] * P[3] - ps[i] * P[4] - ff
+    if P[24] > 0.0:
+        decay = math.exp(-dt / P[25])
+        for i in range(n):
+            target = P[0] - P[24] * demand[groups[i]]
+            ps[i] = max(target + (ps[i] - target) * decay, P[1])
+        # the force used P_s of the step's start, as the reference (leg_force after step_plant uses new
+        # P_s): recompute with the new P_s
+        for i in range(n):
+            v = ydot[i]
+            o = 20 if v >= 0.0 else 16
+            shape = math.atan(P[14] * v)
+            if P[15] > 0.5:
+                shape *= 2.0 / math.pi
+            ff = P[o] * v + shape * (P[o + 1] + P[o + 2] * math.exp(-abs(v) / P[o + 3]))
+            force[i] = p1[i] * P[3] - ps[i] * P[4] - ff
+
+
+@numba.njit(cache=False)  # calls a ctypes function: numba cannot cache it (compiles in ~3 s)
+def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_adr, P, u_sched, sub, dt,
+                 p1, ps, xv, vv, ub, out_pos, out_p1, out_ps, out_acc):
+    """Open-loop replay of k independent legs, in the order of :func:`hexsim.replay.replay` (which see):
+    ``ctrl`` holds the force of the initial state; substep s >= 1 uses u_sched[:, ceil(s / sub)]; row j
+    is recorded after substep j * sub. Outputs (k, n) from column 1 on. Returns -1, or the first row at
+    which P1 is not finite."""
+    k, n = u_sched.shape
+    y = np.empty(k)
+    yd = np.empty(k)
+    force = np.empty(k)
+    groups = np.arange(k)
+    demand = np.empty(k)
+    _mj_step(m_addr, d_addr)
+    for j in range(1, n):
+        for _ in range(sub):
+            for i in range(k):
+                y[i] = qpos[qadr[i]]
+                yd[i] = qvel[dadr[i]]
+            step_legs(P, u_sched[:, j], y, yd, dt, p1, ps, xv, vv, ub, force, groups, demand)
+            for i in range(k):
+                ctrl[aadr[i]] = force[i]
+            _mj_step(m_addr, d_addr)
+        for i in range(k):
+            out_pos[i, j] = y[i]
+            out_p1[i, j] = p1[i]
+            out_ps[i, j] = ps[i]
+            out_acc[i, j] = sens[acc_adr[i]]
+        if not np.isfinite(p1).all():
+            return j
+    return -1

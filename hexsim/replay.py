@@ -1,0 +1,265 @@
+"""Replaying a measurement log through the model: the same hydraulics and MuJoCo mechanics as
+:func:`hexsim.simulation.simulate`, with the log in place of the scenario.
+
+Two ways, each used for one purpose:
+
+* **Valve replay** (identification and the per-channel errors): the logged valve setpoints u_v drive the
+  model open loop over windows short enough that the integrating position does not drift far (0.4 s by
+  default). Each window starts from the measured state at its first sample (position, velocity from a
+  Savitzky–Golay derivative of the position, P1, P_s). The controller is out of the loop, so what it
+  would have compensated (a flow offset, a lag) stays in the residual where it can be seen.
+* **Closed-loop replay** (the end-to-end check): the logged setpoints r through the model's own P
+  controller with the logged K_p and rate, in windows of 2 s; any compensator that acted on the
+  machine is not known to the replay and shows in the residual of u_v.
+
+All windows run at once as independent copies of the single actuator in one MuJoCo model (one slide
+joint and one accelerometer per window), built from the shipped ``single_actuator.xml``.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.signal import cont2discrete, savgol_filter
+
+from hexsim import hydraulics
+from hexsim.effects import Effects, PlantState, step_plant
+from hexsim.errors import InputError, PhysicsError
+from hexsim.measurement import MeasurementLog
+from hexsim.model import PlantIndex, apply_load, check_warnings, model_path
+from hexsim.params import HydraulicParams
+
+#: Channels compared, in report order: name -> (log column of the single actuator, unit, floor of the scale).
+CHANNELS = {
+    "position": ("pos_m", "m", 1e-4),
+    "p1": ("p1_Pa", "Pa", 1e4),
+    "p_s": ("ps_Pa", "Pa", 1e4),
+    "acceleration": ("acc_mps2", "m/s^2", 0.05),
+}
+
+
+@functools.lru_cache(maxsize=8)
+def _batch_xml(n: int) -> str:
+    tree = ET.parse(model_path("actuator"))
+    root = tree.getroot()
+    world = root.find("worldbody")
+    body = world.find("body[@name='load']")
+    world.remove(body)
+    actuators, sensors = root.find("actuator"), root.find("sensor")
+    for el in list(actuators) + list(sensors):
+        (actuators if el in list(actuators) else sensors).remove(el)
+    for i in range(n):
+        b = copy.deepcopy(body)
+        b.set("name", f"load{i + 1}")
+        b.set("pos", f"{0.3 * i:g} 0 0.62")
+        b.find("joint").set("name", f"leg{i + 1}")
+        b.find("site").set("name", f"leg{i + 1}_site")
+        world.append(b)
+        ET.SubElement(actuators, "motor", name=f"leg{i + 1}_force", joint=f"leg{i + 1}")
+        ET.SubElement(sensors, "accelerometer", name=f"leg{i + 1}_acc", site=f"leg{i + 1}_site")
+        ET.SubElement(sensors, "jointpos", name=f"leg{i + 1}_pos", joint=f"leg{i + 1}")
+    key = root.find("keyframe/key")
+    key.set("qpos", " ".join([key.get("qpos")] * n))
+    return ET.tostring(root, encoding="unicode")
+
+
+def batch_model(n: int, effects: Effects) -> mujoco.MjModel:
+    """n independent copies of the single actuator (slides ``leg1``…``legN``, sensors ``legI_acc``,
+    ``legI_pos``), with the load of ``effects`` (mass, inclination) applied to every copy."""
+    m = mujoco.MjModel.from_xml_string(_batch_xml(n))
+    if effects.mass_kg is not None or effects.inclination_deg is not None:
+        one = mujoco.MjModel.from_xml_path(str(model_path("actuator")))
+        apply_load(one, effects)
+        m.opt.gravity[:] = one.opt.gravity
+        if effects.mass_kg is not None:
+            m.body_mass[1:] = effects.mass_kg
+    return m
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Replay windows: first sample index of each (k,) and their common length in samples."""
+
+    starts: np.ndarray
+    length: int
+
+    @classmethod
+    def tile(cls, n_samples: int, length: int, skip: int = 0) -> "Windows":
+        starts = np.arange(skip, n_samples - length + 1, length)
+        if len(starts) == 0:
+            raise InputError(f"the log has {n_samples} samples, fewer than one replay window of {length}")
+        return cls(starts=starts, length=length)
+
+    def take(self, x: np.ndarray) -> np.ndarray:
+        """(k, length) samples of a (N,) signal."""
+        return x[self.starts[:, None] + np.arange(self.length)[None, :]]
+
+
+@dataclass(frozen=True)
+class PlantModel:
+    """The model being confronted with the log: hydraulics, effects and the declared load."""
+
+    hydraulics: HydraulicParams
+    effects: Effects
+
+
+def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:
+    """Piston velocity [m/s] from the measured position (N,) by a Savitzky–Golay derivative (cubic,
+    21 samples at 1 kHz: noise of a few µm gives < 1 mm/s)."""
+    n = max(5, int(round(0.021 * log.sample_rate_hz)) | 1)
+    return savgol_filter(pos, n, 3, deriv=1, delta=1.0 / log.sample_rate_hz)
+
+
+def supply_from_log(log: MeasurementLog, hyd: HydraulicParams) -> HydraulicParams:
+    """``hyd`` with the supply pressure P_s0 set to the median of the log's ``ps_Pa`` (an operating
+    condition the log states, not a fitted effect); unchanged if the log has no supply pressure."""
+    if "ps_Pa" not in log.columns:
+        return hyd
+    return hyd.replace(supply_pressure=float(np.median(log.columns["ps_Pa"])))
+
+
+def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effects, rows: np.ndarray):
+    """Spool-side state (u_b, x_v, v_v), each (k,), at the sample ``rows`` after the logged valve
+    setpoints u_log (N,) [V] from the start of the log: the backlash recursion
+    u_b[j] = clip(u_b[j-1], u[j] - h, u[j] + h), then the second-order spool loop as an exact ZOH
+    discretisation (scipy.signal.cont2discrete) of x_v'' = w^2 (x_set - x_v) - 2 zeta w x_v' (spool
+    travel limits ignored here). With an ideal spool x_v = x_set, v_v = 0."""
+    u_b = u_log.copy()
+    if eff.spool_play > 0:
+        h = eff.spool_play
+        prev = u_log[0]
+        for j, u in enumerate(u_log):
+            prev = min(max(prev, u - h), u + h)
+            u_b[j] = prev
+    x_set = hydraulics.spool_position(u_b, hyd)
+    if eff.spool_frequency <= 0:
+        return u_b[rows], x_set[rows], np.zeros(len(rows))
+    w, z = 2 * np.pi * eff.spool_frequency, eff.spool_damping
+    a = np.array([[0.0, 1.0], [-w * w, -2 * z * w]])
+    ad, bd, *_ = cont2discrete((a, np.array([[0.0], [w * w]]), np.eye(2), np.zeros((2, 1))), 1.0 / fs, "zoh")
+    # the setpoint of row j is held over the period ending at row j (see replay)
+    x = np.zeros(2)
+    x[0] = x_set[0]
+    states = np.empty((len(u_log), 2))
+    for j in range(len(u_log)):
+        if j:
+            x = ad @ x + bd[:, 0] * x_set[j]
+        states[j] = x
+    return u_b[rows], states[rows, 0], states[rows, 1]
+
+
+def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_loop: bool = False,
+           dt: float = 1e-4, native: bool = True) -> dict[str, np.ndarray]:
+    """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
+    plus ``u_v`` (the valve setpoint applied).
+
+    Valve replay (default) applies the logged u_v (held over each sample period); ``closed_loop`` runs the
+    P controller (logged K_p and rate) on the logged ``ref_m``. The measured position the log holds is
+    compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
+    compiled kernel (:mod:`hexsim.native`); False: the numpy reference. Single-actuator logs only.
+    Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
+    non-finite state.
+    """
+    if log.system != "single-actuator":
+        raise InputError(f"{log.path}: window replay needs a single-actuator log (this is {log.system})")
+    hyd, eff = model.hydraulics, model.effects
+    c = log.columns
+    fs = log.sample_rate_hz
+    sub = int(round(1.0 / (fs * dt)))
+    if abs(sub * dt * fs - 1.0) > 1e-9:
+        raise InputError(f"{log.path}: sample rate {fs:g} Hz must divide the physics rate {1 / dt:g} Hz")
+    if closed_loop and "ref_m" not in c:
+        raise InputError(f"{log.path}: closed-loop replay needs column 'ref_m'")
+    k, n = len(windows.starts), windows.length
+    m = batch_model(k, eff)
+    m.opt.timestep = dt
+    d = mujoco.MjData(m)
+    idx = PlantIndex.from_model(m)
+    t = log.time
+    pos, u_log = c["pos_m"], c["valve_cmd_V"]
+    vel = measured_velocity(log, pos)
+    s0 = windows.starts
+    tau = eff.sensor_delay
+    y0 = np.interp(t[s0] + tau, t, pos)  # the true position the delayed sensor shows tau later
+    d.qpos[idx.qpos_adr] = y0
+    d.qvel[idx.dof_adr] = np.interp(t[s0] + tau, t, vel)
+    mujoco.mj_forward(m, d)
+    g_axis = -float(m.opt.gravity[2])
+    mass = float(m.body_mass[1])
+    # P_s: with a supply model, the measured level at the window start (mean of 10 samples against the
+    # transducer noise); else constant at the supply pressure (the caller sets it, see supply_from_log)
+    if "ps_Pa" in c and eff.supply_resistance > 0:
+        p_s0 = Windows(s0, 10).take(c["ps_Pa"]).mean(axis=1)
+    else:
+        p_s0 = np.full(k, hyd.supply_pressure)
+    if "p1_Pa" in c:
+        p1_0 = c["p1_Pa"][s0]
+    else:
+        p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
+    state = PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)
+    state.u_b, state.x_v, state.v_v = spool_history(u_log, fs, hyd, eff, s0)
+    d.ctrl[idx.actuator_id] = hydraulics.leg_force(state.p1, d.qvel[idx.dof_adr], hyd, state.p_s)
+    mujoco.mj_forward(m, d)
+    if closed_loop:
+        ctrl_div = int(round(fs / log.controller_rate_hz)) * sub
+        ref = c["ref_m"]
+        hist = np.tile(y0, (int(round(tau / dt)) + 1, 1))
+    out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
+    acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
+    out["position"][:, 0] = y0
+    out["p1"][:, 0], out["p_s"][:, 0] = state.p1, state.p_s
+    out["acceleration"][:, 0] = d.sensordata[acc_adr]
+    u = u_log[s0].copy()
+    out["u_v"][:, 0] = u
+    if native and not closed_loop:
+        from hexsim import native as kernel
+
+        mujoco.set_mjcb_control(None)
+        u_sched = windows.take(u_log)
+        out["u_v"] = u_sched
+        bad = kernel.valve_replay(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, idx.qpos_adr,
+                                  idx.dof_adr, idx.actuator_id, acc_adr, kernel.pack(hyd, eff), u_sched, sub, dt,
+                                  state.p1, state.p_s, state.x_v, state.v_v, state.u_b, out["position"], out["p1"],
+                                  out["p_s"], out["acceleration"])
+        if bad >= 0:
+            raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
+    python_rows = 1 if native and not closed_loop else n  # the kernel did them all
+    step = 0
+    if python_rows > 1:
+        mujoco.mj_step(m, d)  # the step at the initial state: its P1 is the logged one, already updated
+    for j in range(1, python_rows):
+        if not closed_loop:
+            u = u_log[s0 + j]
+        for _ in range(sub):
+            step += 1
+            y = d.qpos[idx.qpos_adr].copy()
+            ydot = d.qvel[idx.dof_adr].copy()
+            if closed_loop:
+                hist[step % len(hist)] = y
+                if step % ctrl_div == 0:
+                    u = np.clip(log.kp * (ref[s0 + step // sub] - hist[(step + 1) % len(hist)]),
+                                -hyd.u_v_max, hyd.u_v_max)
+            state = step_plant(state, u, y, ydot, dt, hyd, eff)
+            d.ctrl[idx.actuator_id] = hydraulics.leg_force(state.p1, ydot, hyd, state.p_s)
+            mujoco.mj_step(m, d)
+        out["position"][:, j] = y
+        out["p1"][:, j] = state.p1
+        out["p_s"][:, j] = state.p_s
+        out["acceleration"][:, j] = d.sensordata[acc_adr]
+        out["u_v"][:, j] = u
+        if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
+            bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
+            raise PhysicsError(f"replay: non-finite state in the window starting at t = {t[s0[bad]]:.3f} s, "
+                               f"{j / fs:.3f} s into it")
+    check_warnings(m, d)
+    if tau > 0 and not closed_loop:
+        # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau
+        tw = np.arange(n) / fs
+        out["position"] = np.array([np.interp(tw - tau, tw, row, left=y0w) for row, y0w in
+                                    zip(out["position"], np.interp(t[s0], t, pos))])
+    return out
