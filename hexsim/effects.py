@@ -74,6 +74,9 @@ class Effects:
         return self == Effects()
 
 
+NOMINAL = Effects()
+
+
 @dataclass
 class PlantState:
     """Hydraulic state of n legs, arrays (n,): P1 [Pa], P_s seen by each leg [Pa], spool position x_v [m]
@@ -108,6 +111,9 @@ def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams,
     manifold (the hexapod: all zeros); default each leg its own supply. With ``Effects()`` this is exactly
     :func:`hexsim.hydraulics.step_pressure`.
     """
+    if eff is NOMINAL or eff == NOMINAL:  # the seed's plant: one call, as the reference step
+        p1 = hydraulics.step_pressure(state.p1, u_v, y, ydot, dt, hyd, state.p_s)
+        return PlantState(p1=p1, p_s=state.p_s, x_v=state.x_v, v_v=state.v_v, u_b=state.u_b)
     u_v = np.asarray(u_v, dtype=float)
     u_b = state.u_b
     if eff.spool_play > 0:

@@ -120,7 +120,7 @@ def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, 
     """
     x_v = spool_position(u_v, p) if x_v is None else x_v
     phi, dphi = _orifice(x_v, p1, p, p_s)
-    if np.any(leakage):
+    if leakage:  # a scalar C_l
         phi = phi + leakage * ((p.supply_pressure if p_s is None else p_s) - p1)
         dphi = dphi - leakage
     stiffness = p.bulk_modulus / chamber_volume(y, p)

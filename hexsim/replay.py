@@ -158,7 +158,10 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
     """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
     plus ``u_v`` (the valve setpoint applied).
 
-    Valve replay (default) applies the logged u_v (held over each sample period); ``closed_loop`` runs the
+    Timing follows hexsim's own logs: row j holds the state at the start of a physics step and the P1
+    and u_v in force during it, so row j's u_v drives the steps from row j-1 to row j. The state of row
+    0 is the measured one; the step at row 0 uses its logged P1 as is. Valve replay (default) applies the
+    logged u_v; ``closed_loop`` runs the
     P controller (logged K_p and rate) on the logged ``ref_m``. The measured position the log holds is
     compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
     compiled kernel (:mod:`hexsim.native`); False: the numpy reference. Single-actuator logs only.
