@@ -67,11 +67,8 @@ class Effects:
             raise InputError(f"Effects.inclination_deg must be within 0…90, got {self.inclination_deg!r}")
 
     def replace(self, **changes) -> "Effects":
+        """A copy with ``changes`` applied (validated again)."""
         return replace(self, **changes)
-
-    @property
-    def nominal(self) -> bool:
-        return self == Effects()
 
 
 NOMINAL = Effects()

@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from hexsim.effects import EFFECT_NAMES, Effects
+from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
 from hexsim.replay import CHANNELS, PlantModel, Windows, replay, supply_from_log
@@ -35,8 +36,9 @@ from hexsim.replay import CHANNELS, PlantModel, Windows, replay, supply_from_log
 MIN_HELD_OUT_GAIN = 0.05
 #: Valve-replay window [s]: long enough to see a flow offset integrate, short enough not to drift away.
 WINDOW_S = 0.45
-#: Start of each window left out of the cost [s]: the state estimated from the measurements (velocity
-#: from a filtered derivative) is not exact and the 100 Hz oil spring rings it out within ~10 ms; a spool with its own dynamics starts at rest and needs ~40 ms.
+#: Start of each window left out of the cost [s]: the initial state taken from the measurements
+#: (velocity from a filtered derivative, P1 with its sensor noise) is not exact, and the 100 Hz oil
+#: spring rings the difference out over some 10–40 ms.
 SETTLE_S = 0.05
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
 
@@ -143,13 +145,10 @@ class Problem:
     def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
         self.log = log
         length = int(round(window_s * log.sample_rate_hz))
-        skip = 0
-        self.windows = Windows.tile(len(log.time), length, skip)
+        self.windows = Windows.tile(len(log.time), length)
         self.fit_rows = np.arange(0, len(self.windows.starts), 2)
         self.test_rows = np.arange(1, len(self.windows.starts), 2)
         if len(self.test_rows) == 0:
-            from hexsim.errors import InputError
-
             raise InputError(f"{log.path}: the log is shorter than two replay windows of {window_s} s")
         self.settle = int(round(SETTLE_S * log.sample_rate_hz))
         self.channels = available_channels(log)
@@ -232,7 +231,7 @@ def fit_candidate(problem: Problem, name: str) -> FitResult:
         if key not in cache:
             try:
                 cache[key] = problem.residuals(cand.apply(problem.nominal, x))
-            except Exception:  # noqa: BLE001 - a parameter set the model cannot run is a bad fit, not a crash
+            except (PhysicsError, FloatingPointError, ValueError):  # the model cannot run there: a bad fit
                 cache[key] = {ch: np.full_like(problem.measured[ch], 1e3 * problem.scales[ch])
                               for ch in problem.channels}
         return problem.vector(cache[key], problem.fit_rows)
@@ -263,8 +262,7 @@ def fit_candidate(problem: Problem, name: str) -> FitResult:
 
 
 def _fit_in_worker(log: MeasurementLog, name: str) -> FitResult:
-    result = fit_candidate(Problem(log), name)
-    return result
+    return fit_candidate(Problem(log), name)
 
 
 @dataclass

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hexsim.errors import InputError
+from hexsim.params import ControllerParams
 from hexsim.tables import read_numeric_csv
 
 SYSTEMS = ("single-actuator", "hexapod")
@@ -120,8 +121,6 @@ def read_log(path) -> MeasurementLog:
         raise InputError(f"{side_name}: key 'controller' must be an object, got {ctrl!r}")
     if ctrl.get("type", "P") != "P":
         raise InputError(f"{side_name}: controller type {ctrl.get('type')!r} is not supported (only 'P')")
-    from hexsim.params import ControllerParams
-
     if "kp_V_per_m" in ctrl:
         kp = _number(ctrl, "kp_V_per_m", f"{side_name} controller")
     else:
