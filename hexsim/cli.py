@@ -88,7 +88,34 @@ def build_parser() -> argparse.ArgumentParser:
     fr.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (PNG)")
     fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON")
+    be = sub.add_parser(
+        "bench",
+        help="time the simulator against bare mj_step on the same model (ratios, real-time factors)",
+        description="In one process: bare mj_step on the hexapod, the full hexapod (hydraulics, P control, "
+        "buffered compensator), the single actuator and the compiled replay kernel; median of the repeats.",
+    )
+    be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
+    be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
+    be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON")
     return parser
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    import json
+
+    from hexsim.bench import run_bench, table
+
+    _check_outputs(args)
+    if args.repeats < 1:
+        raise InputError(f"--repeats must be at least 1, got {args.repeats}")
+    if args.duration < 1.5:
+        raise InputError(f"--duration must be at least 1.5 s (2 Hz scenarios), got {args.duration:g}")
+    result = run_bench(args.duration, args.repeats)
+    print(table(result))
+    if args.json:
+        write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(result, indent=2) + "\n"))
+        print(f"wrote {args.json}")
+    return 0
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
@@ -277,7 +304,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction}
+        commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
+                    "bench": cmd_bench}
         return commands[args.command](args)
     except HexsimError as exc:
         print(f"hexsim: error: {exc}", file=sys.stderr)

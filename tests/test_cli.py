@@ -144,3 +144,14 @@ def test_scenario_file_saved_with_a_byte_order_mark_is_read(tmp_path):
     path = write_heave_pitch_profile(tmp_path / "excel.csv", 6.0, 0.03)
     path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
     assert make_scenario(f"file:{path}").axis_name == "z"
+
+
+def test_bench_prints_ratios_against_bare_mj_step(tmp_path, capsys):
+    out = tmp_path / "bench.json"
+    assert main(["bench", "--duration", "1.5", "--repeats", "1", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert set(doc["cases"]) == {"bare_mj_step", "hexapod_full", "actuator_full", "replay_kernel"}
+    # the callback adds work on top of the same mj_step: the ratio cannot be below 1
+    assert doc["ratio_hexapod_full_to_bare"] > 1.0
+    assert "hexapod_full / bare_mj_step" in capsys.readouterr().out
+    assert main(["bench", "--repeats", "0"]) == 2
