@@ -51,8 +51,8 @@ class SimulationResult:
 
     t [s]; y, ydot: measured piston position [m] / velocity [m/s] (jointpos/jointvel sensors); y_ref:
     piston setpoint in force (ZOH) [m] (with a sensor delay, y is the delayed measurement and ydot the
-    true velocity); u_v: valve setpoint [V]; u_c: compensation voltage [V]; p1:
-    bottom-chamber pressure [Pa]; p_s: supply pressure (N,) [Pa] (of the first manifold); force: hydraulic leg force [N]; acc:
+    true velocity); u_v: valve setpoint [V]; u_c: compensation voltage [V]; p1: bottom-chamber pressure
+    [Pa]; p_s: supply pressure (N,) [Pa] (of the first manifold); force: hydraulic leg force [N]; acc:
     accelerometer, site frame, specific force [m/s^2]; gyro [rad/s] and angacc [rad/s^2] (world) of the
     platform (hexapod only); pose: measured platform pose (N, 6) rel. neutral; pose_ref: commanded pose;
     constraint_violation: largest connect violation [m] per sample; oil_temperature [°C];
@@ -95,17 +95,18 @@ class HydraulicCoupling:
     """The MuJoCo control callback: valve, chamber and friction of every leg, once per physics step.
 
     At step k (time t_k): every ``ctrl_div``-th step the controller samples the measured piston positions
-    (plus sensor noise) and updates u_v (held in between: ZOH); then P1 advances to t_k+1 with the piston
-    velocity at t_k (:func:`hexsim.hydraulics.step_pressure`) and the leg force P1 A1 - P_s A2 - F_f(ydot)
-    is written to ``data.ctrl``. Repeated calls at the same time (an extra ``mj_forward``) rewrite the same
+    (plus sensor noise; delayed by tau_y with a sensor-delay effect) and updates u_v (held in between:
+    ZOH); then the leg hydraulics advance to t_k+1 with the piston velocity at t_k
+    (:func:`hexsim.effects.step_plant`: :func:`hexsim.hydraulics.step_pressure` plus any
+    :class:`~hexsim.effects.Effects`) and the leg force P1 A1 - P_s A2 - F_f(ydot) is written to
+    ``data.ctrl``. Repeated calls at the same time (an extra ``mj_forward``) rewrite the same
     force without integrating twice. An exception is kept in :attr:`error` for the runner to raise, since
     it cannot cross MuJoCo's C loop.
     """
 
     def __init__(self, idx: PlantIndex, hyd: HydraulicParams, controller: PController, setpoints: np.ndarray,
                  noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int, warm_up: WarmUp | None = None,
-                 plant: PlantTruth | None = None, effects: Effects | None = None,
-                 groups: np.ndarray | None = None, y_initial: np.ndarray | None = None) -> None:
+                 plant: PlantTruth | None = None, effects: Effects | None = None) -> None:
         self.idx = idx
         self.hyd = hyd
         self.base_hyd = hyd
@@ -118,12 +119,11 @@ class HydraulicCoupling:
         self.ctrl_div = ctrl_div
         self.dt = idx.dt
         self.effects = effects or Effects()
-        self.groups = np.zeros(idx.n_legs, dtype=np.intp) if groups is None else groups
+        self.groups = np.zeros(idx.n_legs, dtype=np.intp)  # one supply manifold for all legs
         n = idx.n_legs
         self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd)
         delay_steps = int(round(self.effects.sensor_delay / self.dt))
-        y0 = idx.neutral_y if y_initial is None else y_initial
-        self._y_history = np.tile(np.asarray(y0, dtype=float), (delay_steps + 1, 1))
+        self._y_history = np.tile(np.asarray(idx.neutral_y, dtype=float), (delay_steps + 1, 1))
         self.y_measured = self._y_history[0].copy()
         self.u_v = np.zeros(n)
         self.u_c = np.zeros(n)
