@@ -173,7 +173,7 @@ class Problem:
         return {ch: float(np.sqrt(np.mean(res[ch][rows] ** 2)) / self.scales[ch]) for ch in self.channels}
 
 
-def effective_n(res: dict[str, np.ndarray], scales: dict[str, float]) -> float:
+def effective_n(res: dict[str, np.ndarray]) -> float:
     """Independent residuals: sum over channels of N / (1 + 2 sum_k rho_k), rho from the windows'
     autocorrelation up to the first non-positive lag (Bartlett / Bayley–Hammersley)."""
     total = 0.0
@@ -211,9 +211,8 @@ class FitResult:
 
 
 def _criteria(cost: float, n_eff: float, n_total: int, k: int) -> tuple[float, float]:
-    # Gaussian log-likelihood with the residual variance estimated; cost scaled to N_eff samples
-    rss = 2.0 * cost * n_eff / n_total
-    sigma2 = max(rss / n_eff, 1e-300)
+    # Gaussian log-likelihood over N_eff independent residuals with the variance estimated (2 cost / N)
+    sigma2 = max(2.0 * cost / n_total, 1e-300)
     aic = n_eff * math.log(sigma2) + 2 * k
     bic = n_eff * math.log(sigma2) + k * math.log(n_eff)
     return aic, bic
@@ -240,12 +239,12 @@ def fit_candidate(problem: Problem, name: str) -> FitResult:
     x0 = min(starts, key=lambda x: float(np.sum(resid(x) ** 2)))
     sol = least_squares(resid, x0, bounds=(lower, upper), method="trf", diff_step=1e-2, x_scale="jac",
                         max_nfev=12 * len(x0) + 8, xtol=1e-4, ftol=1e-6)
-    res = cache[np.asarray(sol.x).tobytes()] if np.asarray(sol.x).tobytes() in cache else \
-        problem.residuals(cand.apply(problem.nominal, sol.x))
+    resid(sol.x)  # the optimum is normally in the cache already
+    res = cache[np.asarray(sol.x).tobytes()]
     fit_vec = problem.vector(res, problem.fit_rows)
     test_vec = problem.vector(res, problem.test_rows)
     n_fit = fit_vec.size
-    n_eff = effective_n({ch: res[ch][problem.fit_rows] for ch in problem.channels}, problem.scales)
+    n_eff = effective_n({ch: res[ch][problem.fit_rows] for ch in problem.channels})
     dof = max(n_eff - len(x0), 1.0)
     s2 = float(fit_vec @ fit_vec) / dof * (n_eff / n_fit)
     try:
@@ -303,7 +302,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] = EFFECT_NAMES,
     nominal = problem.residuals(problem.nominal)
     fit_vec = problem.vector(nominal, problem.fit_rows)
     test_vec = problem.vector(nominal, problem.test_rows)
-    n_eff = effective_n({ch: nominal[ch][problem.fit_rows] for ch in problem.channels}, problem.scales)
+    n_eff = effective_n({ch: nominal[ch][problem.fit_rows] for ch in problem.channels})
     base_aic, base_bic = _criteria(0.5 * float(fit_vec @ fit_vec), n_eff, fit_vec.size, 0)
     base_test = 0.5 * float(test_vec @ test_vec)
     results: list[FitResult] = []

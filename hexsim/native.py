@@ -57,6 +57,16 @@ def _areas(x, P):
 
 
 @numba.njit(cache=True, fastmath=False)
+def _friction(v, P):
+    """Asymmetric Stribeck friction F_f [N] at piston velocity v [m/s] (seed eq. 3.9)."""
+    o = 20 if v >= 0.0 else 16
+    shape = math.atan(P[14] * v)
+    if P[15] > 0.5:
+        shape *= 2.0 / math.pi
+    return P[o] * v + shape * (P[o + 1] + P[o + 2] * math.exp(-abs(v) / P[o + 3]))
+
+
+@numba.njit(cache=True, fastmath=False)
 def step_legs(P, u, y, ydot, dt, p1, ps, xv, vv, ub, force, groups, demand):
     """One step of every leg, in place: state (p1, ps, xv, vv, ub) and force, arrays (n,)."""
     n = p1.shape[0]
@@ -96,29 +106,15 @@ def step_legs(P, u, y, ydot, dt, p1, ps, xv, vv, ub, force, groups, demand):
             dps = ps[i] - p1[i]
             phi_pa = P[2] * a1 * math.copysign(math.sqrt(abs(dps)), dps)
             demand[groups[i]] += phi_pa + P[29] * dps - ydot[i] * P[4]
-        # friction (seed eq. 3.9) and leg force (eq. 3.8 without gravity)
-        v = ydot[i]
-        o = 20 if v >= 0.0 else 16
-        shape = math.atan(P[14] * v)
-        if P[15] > 0.5:
-            shape *= 2.0 / math.pi
-        ff = P[o] * v + shape * (P[o + 1] + P[o + 2] * math.exp(-abs(v) / P[o + 3]))
-        force[i] = p1[i] * P[3] - ps[i] * P[4] - ff
+        force[i] = _friction(ydot[i], P)  # completed to the leg force below, once P_s is final
     if P[24] > 0.0:
         decay = math.exp(-dt / P[25])
         for i in range(n):
             target = P[0] - P[24] * demand[groups[i]]
             ps[i] = max(target + (ps[i] - target) * decay, P[1])
-        # the force used P_s of the step's start, as the reference (leg_force after step_plant uses new
-        # P_s): recompute with the new P_s
-        for i in range(n):
-            v = ydot[i]
-            o = 20 if v >= 0.0 else 16
-            shape = math.atan(P[14] * v)
-            if P[15] > 0.5:
-                shape *= 2.0 / math.pi
-            ff = P[o] * v + shape * (P[o + 1] + P[o + 2] * math.exp(-abs(v) / P[o + 3]))
-            force[i] = p1[i] * P[3] - ps[i] * P[4] - ff
+    # leg force with the new P1 and P_s (eq. 3.8 without gravity), as leg_force after step_plant
+    for i in range(n):
+        force[i] = p1[i] * P[3] - ps[i] * P[4] - force[i]
 
 
 @numba.njit(cache=False)  # calls a ctypes function: numba cannot cache it (compiles in ~3 s)
