@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import butter, lfilter, lfilter_zi
+from scipy.signal import butter
 
 
 class SettingsError(ValueError):
@@ -112,10 +112,13 @@ class FlowCurveObserver:
     """The flow curve a motion computer can see: filtered u_v and velocity from the measured position.
 
     Velocity = backward difference of the measured position, low-passed by a 2nd-order Butterworth at
-    ``cutoff_hz``; u_v passes the same filter so the pair keeps the same phase (seed §4.4 filters the
-    valve setpoint "with the same filter to obtain a flow-curve as realistic as possible"). Also keeps
-    the seed's online estimate of the desired slope s = (max ẏ - min ẏ) / (max u_v - min u_v) (§5.3).
-    Arrays (n_legs,).
+    ``cutoff_hz`` (``scipy.signal.butter``); u_v passes the same filter so the pair keeps the same phase
+    (seed §4.4 filters the valve setpoint "with the same filter to obtain a flow-curve as realistic as
+    possible"). The filter runs one sample per controller tick in the transposed direct form II of
+    ``scipy.signal.lfilter`` (the same recursion, tests/test_compensation_functions.py checks it against
+    lfilter), written out because lfilter's call overhead per single sample is ten times the arithmetic.
+    Also keeps the seed's online estimate of the desired slope s = (max ẏ - min ẏ) / (max u_v - min u_v)
+    (§5.3) in :attr:`slope`. Arrays (n_legs,).
     """
 
     def __init__(self, n_legs: int, rate_hz: float, cutoff_hz: float) -> None:
@@ -123,34 +126,35 @@ class FlowCurveObserver:
             raise SettingsError(f"velocity_cutoff_hz {cutoff_hz} must be below the Nyquist rate {rate_hz / 2}")
         self.dt = 1.0 / rate_hz
         self.b, self.a = butter(2, cutoff_hz / (rate_hz / 2))
-        zi = lfilter_zi(self.b, self.a)[:, None]
-        self._zi_u = zi * np.zeros(n_legs)
-        self._zi_v = zi * np.zeros(n_legs)
+        self._z = np.zeros((2, 2, n_legs))  # filter state: [delay element, signal (u_v, velocity), leg]
+        self._x = np.zeros((2, n_legs))
         self._y_prev: np.ndarray | None = None
         self.u_range = np.zeros((2, n_legs))  # running min, max of filtered u_v
         self.v_range = np.zeros((2, n_legs))
         self.u_dot = np.zeros(n_legs)  # rate of change of filtered u_v [V/s]
         self._u_prev = np.zeros(n_legs)
+        self.slope = np.zeros(n_legs)  # s [(m/s)/V] per leg; 0 until u_v has moved by 10 mV
 
     def update(self, u_v: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u_f, ydot_f): filtered valve setpoint [V] and filtered velocity [m/s], each (n_legs,)."""
         if self._y_prev is None:
             self._y_prev = y.copy()
-        v_raw = (y - self._y_prev) / self.dt
+        x = self._x
+        x[0] = u_v
+        np.subtract(y, self._y_prev, out=x[1])
+        x[1] /= self.dt
         self._y_prev = y.copy()
-        u_f, self._zi_u = lfilter(self.b, self.a, u_v[None, :], axis=0, zi=self._zi_u)
-        v_f, self._zi_v = lfilter(self.b, self.a, v_raw[None, :], axis=0, zi=self._zi_v)
-        u_f, v_f = u_f[0], v_f[0]
+        b, a, z = self.b, self.a, self._z
+        out = b[0] * x + z[0]
+        z[0] = b[1] * x - a[1] * out + z[1]
+        z[1] = b[2] * x - a[2] * out
+        u_f, v_f = out
         self.u_dot = (u_f - self._u_prev) / self.dt
         self._u_prev = u_f
         np.minimum(self.u_range[0], u_f, out=self.u_range[0])
         np.maximum(self.u_range[1], u_f, out=self.u_range[1])
         np.minimum(self.v_range[0], v_f, out=self.v_range[0])
         np.maximum(self.v_range[1], v_f, out=self.v_range[1])
-        return u_f, v_f
-
-    @property
-    def slope(self) -> np.ndarray:
-        """s [(m/s)/V] per leg; 0 until u_v has moved by 10 mV."""
         du = self.u_range[1] - self.u_range[0]
-        return np.where(du > 0.01, (self.v_range[1] - self.v_range[0]) / np.maximum(du, 0.01), 0.0)
+        self.slope = np.where(du > 0.01, (self.v_range[1] - self.v_range[0]) / np.maximum(du, 0.01), 0.0)
+        return u_f, v_f

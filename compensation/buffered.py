@@ -53,9 +53,8 @@ class ParameterBuffers:
         self.num, self.den = [1.0 - pole], [1.0, -pole]
         i = np.arange(1, length + 1)
         self.weights = (1.0 / (1.0 + np.exp(-10.0 * i / length)))[:, None]
-        self.a = np.zeros(n_legs)  # appendix C: aold, bold, c start at 0
-        self.b = np.zeros(n_legs)
-        self.c = np.zeros(n_legs)
+        self.abc = np.zeros((3, n_legs))  # (a, b, c) per leg; appendix C: aold, bold, c start at 0
+        self.a, self.b, self.c = self.abc  # views
         self.updates = 0
 
     def add(self, legs: np.ndarray, uv: np.ndarray, uc: np.ndarray, uy: np.ndarray) -> None:
@@ -65,9 +64,8 @@ class ParameterBuffers:
         self.uc[rows, legs] = uc[legs]
         self.uy[rows, legs] = uy[legs]
         self.fill[legs] += 1
-        full = self.fill >= self.length
-        if np.any(full):
-            self._update(np.flatnonzero(full))
+        if self.fill.max() >= self.length:
+            self._update(np.flatnonzero(self.fill >= self.length))
 
     def _update(self, legs: np.ndarray) -> None:
         uvf = lfilter(self.num, self.den, self.uv[:, legs], axis=0) * self.weights
@@ -120,18 +118,22 @@ class BufferedCompensator(Compensator):
             rising = self.observer.u_dot >= 0
             masks = [ready & rising, ready & ~rising]
         for buffers, mask in zip(self.sets, masks):
-            if np.any(mask):
+            if mask.any():
                 buffers.add(mask, u_f, uc_sample, uy_sample)
         for k, buffers in enumerate(self.sets):
-            target = np.stack([buffers.a, buffers.b, buffers.c])
-            self.applied[k] += self._fade * (target - self.applied[k])
+            self.applied[k] += self._fade * (buffers.abc - self.applied[k])
+        if self.directions == 1:
+            return function2(u_v, *self.applied[0])
         w = self._direction_weights()
         a, b, c = self.applied[:, 0], self.applied[:, 1], self.applied[:, 2]
         return np.sum(w * function2(u_v[None, :], a, b, c), axis=0)
 
     def state(self) -> dict[str, np.ndarray]:
-        w = self._direction_weights()
-        a, b, c = (np.sum(w * self.applied[:, k], axis=0) for k in range(3))
+        if self.directions == 1:
+            a, b, c = self.applied[0].copy()
+        else:
+            w = self._direction_weights()
+            a, b, c = (np.sum(w * self.applied[:, k], axis=0) for k in range(3))
         return {"a": a, "b": b, "c": c, "s": self.observer.slope.copy()}
 
 

@@ -28,6 +28,7 @@ class PController:
         u_p = self.params.kp * (r - y_measured)
         u_c = self.compensator.update(u_p, y_measured)
         u = u_p + u_c
-        if np.any(np.abs(u) > self.u_v_max):
+        u_v = np.minimum(np.maximum(u, -self.u_v_max), self.u_v_max)
+        if (u_v != u).any():
             self.saturated_samples += 1
-        return np.clip(u, -self.u_v_max, self.u_v_max), u_c
+        return u_v, u_c

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
 from compensation import CompensatorSettings, FlowCurveObserver, SettingsError, make_compensator
 from compensation.buffered import ParameterBuffers
@@ -53,6 +54,17 @@ def test_observer_recovers_velocity_and_slope_from_noisy_positions():
     err = vel[lag + 500:] - true[500:-lag]
     assert np.sqrt(np.mean(err**2)) < 2e-3
     assert obs.slope[0] == pytest.approx(0.05 * w / 0.9, rel=0.03)
+
+
+def test_observer_filter_is_lfilter_one_sample_at_a_time():
+    rng = np.random.default_rng(4)
+    u = rng.normal(size=(400, 3))
+    y = np.cumsum(rng.normal(size=(400, 3)), axis=0) * 1e-4
+    obs = FlowCurveObserver(3, 500.0, 20.0)
+    out = np.array([obs.update(u[k], y[k]) for k in range(len(u))])  # (N, 2, 3)
+    v_raw = np.diff(y, axis=0, prepend=y[:1]) * 500.0
+    assert np.allclose(out[:, 0], lfilter(obs.b, obs.a, u, axis=0), rtol=0, atol=1e-12)
+    assert np.allclose(out[:, 1], lfilter(obs.b, obs.a, v_raw, axis=0), rtol=0, atol=1e-12)
 
 
 def test_buffers_give_appendix_c_parameters_and_only_increase():
