@@ -3,14 +3,18 @@
 Cases, each timed ``repeats`` times (median reported) over ``duration`` simulated seconds:
 
 * ``bare_mj_step``: the hexapod model, no control callback, ``mj_step`` at dt = 1e-4 s (legs held by
-  their static forces);
-* ``hexapod_full``: :func:`hexsim.simulation.simulate` on heave with the buffered compensator
-  (hydraulics of six legs, P control at 500 Hz, compensator, sensors recorded at 1 kHz);
-* ``actuator_full``: the same on the single actuator, no compensator;
-* ``replay_kernel``: the compiled valve replay (:mod:`hexsim.native`) of one single-actuator window,
-  per simulated second.
+  their static forces) — the baseline (a);
+* ``hexapod_full``: :func:`hexsim.simulation.simulate` on heave with the buffered compensator: six legs'
+  hydraulics in the compiled kernel at 10 kHz, P control and compensator in Python at 500 Hz, sensors
+  recorded at 1 kHz — (b);
+* ``hexapod_numpy``: the same with the numpy reference callback, for the gain of the kernel;
+* ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/test_convergence.py):
+  dt = 1e-3 s, uncompensated heave — (c); with a compensator the 1e-3 s step misses the 2 % bound on
+  single reversal peaks and the Python compensator at 500 Hz dominates the time (README "Speed");
+* ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator;
+* ``replay_kernel``: the compiled valve replay (:mod:`hexsim.native`) of one single-actuator window.
 
-A faster integration scheme (issue 5 item c) is not implemented; the benchmark says so.
+``sweep=True`` adds the throughput of ``hexsim sweep`` (4 runs) with 1 and with 2 worker processes.
 """
 
 from __future__ import annotations
@@ -41,12 +45,23 @@ def _bare(duration: float) -> float:
     return time.perf_counter() - start
 
 
-def _full(system: str, compensator: str, duration: float) -> float:
+def _full(system: str, compensator: str, duration: float, engine: str = "native", timestep: float | None = None) -> float:
     from hexsim.scenario import make_scenario
     from hexsim.simulation import RunConfig, simulate
 
     scenario = make_scenario("heave" if system == "hexapod" else "actuator", duration=duration, frequency=2.0)
-    return simulate(RunConfig(scenario, compensator=compensator)).wall_time_s
+    return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep)).wall_time_s
+
+
+def _sweep(jobs: int) -> float:
+    """Wall time [s] of a 4-run sweep (heave, 4 s at 1 Hz, buffered, 4 seeds) with ``jobs`` workers."""
+    from hexsim.scenario import make_scenario
+    from hexsim.simulation import RunConfig
+    from hexsim.sweep import expand, run_sweep
+
+    scenario = make_scenario("heave", duration=4.0, frequency=1.0)
+    points = expand({"seed": [1, 2, 3, 4]}, lambda s: RunConfig(scenario, compensator="buffered", seed=s["seed"]))
+    return run_sweep(points, jobs=jobs, progress=False)[1]
 
 
 def _replay(duration: float) -> float:
@@ -76,13 +91,16 @@ def _replay(duration: float) -> float:
     return time.perf_counter() - start
 
 
-def run_bench(duration: float = 2.0, repeats: int = 3) -> dict:
+def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> dict:
     """Median wall time per simulated second of each case, real-time factors and the ratios to bare
     ``mj_step``. ``duration`` [s] of simulated time per repeat (>= 1.5 s for the scenarios)."""
     cases = {
         "bare_mj_step": lambda: _bare(duration),
         "hexapod_full": lambda: _full("hexapod", "buffered", duration),
+        "hexapod_numpy": lambda: _full("hexapod", "buffered", duration, engine="numpy"),
+        "hexapod_fast": lambda: _full("hexapod", "none", duration, timestep=1e-3),
         "actuator_full": lambda: _full("actuator", "none", duration),
+        "actuator_fast": lambda: _full("actuator", "none", duration, timestep=1e-3),
         "replay_kernel": lambda: _replay(duration),
     }
     out: dict = {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version(),
@@ -90,18 +108,29 @@ def run_bench(duration: float = 2.0, repeats: int = 3) -> dict:
     for name, fn in cases.items():
         walls = [fn() for _ in range(repeats)]
         per_s = statistics.median(walls) / duration
-        out["cases"][name] = {"wall_per_sim_s": per_s, "us_per_step": per_s * 1e6 / 1e4,
+        out["cases"][name] = {"wall_per_sim_s": per_s, "us_per_sim_s": per_s * 1e6,
                               "realtime_factor": 1.0 / per_s}
     bare = out["cases"]["bare_mj_step"]["wall_per_sim_s"]
     out["ratio_hexapod_full_to_bare"] = out["cases"]["hexapod_full"]["wall_per_sim_s"] / bare
-    out["faster_scheme"] = "not implemented (issue 5 item c)"
+    out["ratio_hexapod_fast_to_bare"] = out["cases"]["hexapod_fast"]["wall_per_sim_s"] / bare
+    out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
+    if sweep:
+        one, two = _sweep(1), _sweep(2)
+        out["sweep"] = {"runs": 4, "wall_1_worker_s": one, "wall_2_workers_s": two, "speedup": one / two}
     return out
 
 
 def table(result: dict) -> str:
-    lines = [f"{'case':16s} {'µs/step':>9s} {'s per sim s':>12s} {'× real time':>12s}"]
+    lines = [f"{'case':16s} {'µs per sim s':>13s} {'× real time':>12s} {'÷ bare':>8s}"]
+    bare = result["cases"]["bare_mj_step"]["wall_per_sim_s"]
     for name, c in result["cases"].items():
-        lines.append(f"{name:16s} {c['us_per_step']:9.2f} {c['wall_per_sim_s']:12.4f} {c['realtime_factor']:12.2f}")
+        lines.append(f"{name:16s} {c['us_per_sim_s']:13.0f} {c['realtime_factor']:12.2f} "
+                     f"{c['wall_per_sim_s'] / bare:8.2f}")
     lines.append(f"hexapod_full / bare_mj_step = {result['ratio_hexapod_full_to_bare']:.2f}")
-    lines.append(f"faster accurate scheme: {result['faster_scheme']}")
+    lines.append(f"hexapod_fast / bare_mj_step = {result['ratio_hexapod_fast_to_bare']:.2f}  "
+                 f"(fast scheme: {result['fast_scheme']})")
+    if "sweep" in result:
+        sw = result["sweep"]
+        lines.append(f"sweep of {sw['runs']} runs: {sw['wall_1_worker_s']:.1f} s with 1 worker, "
+                     f"{sw['wall_2_workers_s']:.1f} s with 2: {sw['speedup']:.2f}× the throughput")
     return "\n".join(lines)

@@ -31,8 +31,8 @@ _mj_step.restype = None
 _FLOOR = math.sqrt(1.0e4)  # sqrt of hydraulics.JACOBIAN_DP_FLOOR
 
 
-def pack(hyd: HydraulicParams, eff: Effects) -> np.ndarray:
-    """Parameters as the flat float array the kernel reads (see the index comments below)."""
+def pack(hyd: HydraulicParams, eff: Effects, dt: float = 0.0) -> np.ndarray:
+    """Parameters as the flat float array the kernels read (see the index comments below)."""
     t = hyd.stribeck_table
     return np.array([
         hyd.supply_pressure, hyd.tank_pressure, hyd.orifice_constant, hyd.area_bottom, hyd.area_rod,  # 0-4
@@ -40,7 +40,7 @@ def pack(hyd: HydraulicParams, eff: Effects) -> np.ndarray:
         hyd.null_offset, math.pi * hyd.spool_diameter, hyd.smooth_area_gain, float(hyd.flow_area == "sharp"),  # 10-13
         hyd.arctan_gain, float(hyd.arctan_normalised), *t[0], *t[1],  # 14-15, 16-19 (ydot < 0), 20-23 (>= 0)
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping,  # 24-27
-        eff.spool_play, eff.leakage,  # 28-29
+        eff.spool_play, eff.leakage, dt,  # 28-30 (dt: the step [s] of run_block)
     ])
 
 
@@ -121,30 +121,95 @@ def step_legs(P, u, y, ydot, dt, p1, ps, xv, vv, ub, force, groups, demand):
 def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_adr, P, u_sched, sub, dt,
                  p1, ps, xv, vv, ub, out_pos, out_p1, out_ps, out_acc):
     """Open-loop replay of k independent legs, in the order of :func:`hexsim.replay.replay` (which see):
-    ``ctrl`` holds the force of the initial state; substep s >= 1 uses u_sched[:, ceil(s / sub)]; row j
-    is recorded after substep j * sub. Outputs (k, n) from column 1 on. Returns -1, or the first row at
-    which P1 is not finite."""
+    row j's setpoints u_sched[:, j] drive the ``sub`` steps from row j to row j+1; row j records the
+    position, P1 and P_s at its time and the acceleration MuJoCo computes in the first of those steps.
+    Outputs (k, n). Returns -1, or the first row at which P1 is not finite."""
     k, n = u_sched.shape
     y = np.empty(k)
     yd = np.empty(k)
     force = np.empty(k)
     groups = np.arange(k)
     demand = np.empty(k)
-    _mj_step(m_addr, d_addr)
-    for j in range(1, n):
-        for _ in range(sub):
+    for j in range(n):
+        for s in range(sub):
             for i in range(k):
                 y[i] = qpos[qadr[i]]
                 yd[i] = qvel[dadr[i]]
+            if s == 0:
+                for i in range(k):
+                    out_pos[i, j] = y[i]
+                    out_p1[i, j] = p1[i]
+                    out_ps[i, j] = ps[i]
             step_legs(P, u_sched[:, j], y, yd, dt, p1, ps, xv, vv, ub, force, groups, demand)
             for i in range(k):
                 ctrl[aadr[i]] = force[i]
             _mj_step(m_addr, d_addr)
-        for i in range(k):
-            out_pos[i, j] = y[i]
-            out_p1[i, j] = p1[i]
-            out_ps[i, j] = ps[i]
-            out_acc[i, j] = sens[acc_adr[i]]
+            if s == 0:
+                for i in range(k):
+                    out_acc[i, j] = sens[acc_adr[i]]
         if not np.isfinite(p1).all():
             return j
     return -1
+
+
+@numba.njit(cache=False)  # calls a ctypes function (see valve_replay)
+def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2, P, u, groups,
+              p1, ps, xv, vv, ub, force, demand, hist, k0, nsteps, rec_div, r0, rec_k, rec_sens, rec_p1, rec_ps,
+              rec_force, rec_y, rec_viol, status):
+    """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs with the valve setpoints ``u`` (n,) held (ZOH),
+    in the order of :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the
+    sensor-delay ring ``hist`` (L, n) (Python pushed it for step k0 before the controller sample);
+    advance the leg hydraulics by the step ``P[30]`` (:func:`step_legs`); write the leg forces to
+    ``ctrl``; ``mj_step``.
+    Every step k with k % rec_div == 0 fills row r of the ``rec_*`` arrays with the state at t_k: k,
+    P1, P_s of leg 0 and the measured position before the step, the sensor data and site positions
+    MuJoCo computed at the start of the step (``rec_viol``: largest distance between the connect
+    anchor sites ``site1[i]``/``site2[i]``) and the force applied over the step. Returns the next row;
+    ``status[0]`` = the first step whose state is not finite, else -1."""
+    n = p1.shape[0]
+    L = hist.shape[0]
+    dt = P[30]
+    y = np.empty(n)
+    yd = np.empty(n)
+    r = r0
+    for s in range(nsteps):
+        k = k0 + s
+        for i in range(n):
+            y[i] = qpos[qadr[i]]
+            yd[i] = qvel[dadr[i]]
+        if s > 0:
+            for i in range(n):
+                hist[k % L, i] = y[i]
+        record = k % rec_div == 0 and r < rec_k.shape[0]
+        if record:
+            rec_k[r] = k
+            rec_ps[r] = ps[0]
+            for i in range(n):
+                rec_p1[r, i] = p1[i]
+                rec_y[r, i] = hist[(k + 1) % L, i]
+        step_legs(P, u, y, yd, dt, p1, ps, xv, vv, ub, force, groups, demand)
+        for i in range(n):
+            ctrl[aadr[i]] = force[i]
+        _mj_step(m_addr, d_addr)
+        finite = True
+        for i in range(n):
+            if not (math.isfinite(p1[i]) and math.isfinite(qpos[qadr[i]]) and math.isfinite(qvel[dadr[i]])):
+                finite = False
+        if not finite:
+            status[0] = k
+            return r
+        if record:
+            for c in range(sens.shape[0]):
+                rec_sens[r, c] = sens[c]
+            worst = 0.0
+            for e in range(site1.shape[0]):
+                dx = site_xpos[site1[e], 0] - site_xpos[site2[e], 0]
+                dy = site_xpos[site1[e], 1] - site_xpos[site2[e], 1]
+                dz = site_xpos[site1[e], 2] - site_xpos[site2[e], 2]
+                worst = max(worst, math.sqrt(dx * dx + dy * dy + dz * dz))
+            rec_viol[r] = worst
+            for i in range(n):
+                rec_force[r, i] = force[i]
+            r += 1
+    status[0] = -1
+    return r

@@ -130,25 +130,25 @@ def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effec
     discretisation (scipy.signal.cont2discrete) of x_v'' = w^2 (x_set - x_v) - 2 zeta w x_v' (spool
     travel limits ignored here). With an ideal spool x_v = x_set, v_v = 0."""
     u_b = u_log.copy()
-    if eff.spool_play > 0:
+    if eff.spool_play > 0:  # the backlash state at row j, after the setpoints of rows 0 … j-1
         h = eff.spool_play
         prev = u_log[0]
         for j, u in enumerate(u_log):
-            prev = min(max(prev, u - h), u + h)
             u_b[j] = prev
+            prev = min(max(prev, u - h), u + h)
     x_set = hydraulics.spool_position(u_b, hyd)
     if eff.spool_frequency <= 0:
         return u_b[rows], x_set[rows], np.zeros(len(rows))
     w, z = 2 * np.pi * eff.spool_frequency, eff.spool_damping
     a = np.array([[0.0, 1.0], [-w * w, -2 * z * w]])
     ad, bd, *_ = cont2discrete((a, np.array([[0.0], [w * w]]), np.eye(2), np.zeros((2, 1))), 1.0 / fs, "zoh")
-    # the setpoint of row j is held over the period ending at row j (see replay)
+    # the setpoint of row j is held over the period from row j to row j+1 (see replay)
     x = np.zeros(2)
     x[0] = x_set[0]
     states = np.empty((len(u_log), 2))
     for j in range(len(u_log)):
         if j:
-            x = ad @ x + bd[:, 0] * x_set[j]
+            x = ad @ x + bd[:, 0] * x_set[j - 1]
         states[j] = x
     return u_b[rows], states[rows, 0], states[rows, 1]
 
@@ -158,9 +158,9 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
     """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
     plus ``u_v`` (the valve setpoint applied).
 
-    Timing follows hexsim's own logs: row j holds the state at the start of a physics step and the P1
-    and u_v in force during it, so row j's u_v drives the steps from row j-1 to row j. The state of row
-    0 is the measured one; the step at row 0 uses its logged P1 as is. Valve replay (default) applies the
+    Timing follows hexsim's own logs (:func:`hexsim.simulation.simulate`): row j holds the state at its
+    time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration of the step that
+    starts at t_j. The state of row 0 is the measured one. Valve replay (default) applies the
     logged u_v; ``closed_loop`` runs the
     P controller (logged K_p and rate) on the logged ``ref_m``. The measured position the log holds is
     compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
@@ -206,23 +206,16 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
         p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
     state = PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)
     state.u_b, state.x_v, state.v_v = spool_history(u_log, fs, hyd, eff, s0)
-    d.ctrl[idx.actuator_id] = hydraulics.leg_force(state.p1, d.qvel[idx.dof_adr], hyd, state.p_s)
-    mujoco.mj_forward(m, d)
     if closed_loop:
         ctrl_div = int(round(fs / log.controller_rate_hz)) * sub
         ref = c["ref_m"]
         hist = np.tile(y0, (int(round(tau / dt)) + 1, 1))
     out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
-    out["position"][:, 0] = y0
-    out["p1"][:, 0], out["p_s"][:, 0] = state.p1, state.p_s
-    out["acceleration"][:, 0] = d.sensordata[acc_adr]
-    u = u_log[s0].copy()
-    out["u_v"][:, 0] = u
+    mujoco.set_mjcb_control(None)
     if native and not closed_loop:
         from hexsim import native as kernel
 
-        mujoco.set_mjcb_control(None)
         u_sched = windows.take(u_log)
         out["u_v"] = u_sched
         bad = kernel.valve_replay(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, idx.qpos_adr,
@@ -231,34 +224,33 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
                                   out["p_s"], out["acceleration"])
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
-    python_rows = 1 if native and not closed_loop else n  # the kernel did them all
-    step = 0
-    if python_rows > 1:
-        mujoco.mj_step(m, d)  # the step at the initial state: its P1 is the logged one, already updated
-    for j in range(1, python_rows):
-        if not closed_loop:
-            u = u_log[s0 + j]
-        for _ in range(sub):
-            step += 1
-            y = d.qpos[idx.qpos_adr].copy()
-            ydot = d.qvel[idx.dof_adr].copy()
-            if closed_loop:
-                hist[step % len(hist)] = y
-                if step % ctrl_div == 0:
-                    u = np.clip(log.kp * (ref[s0 + step // sub] - hist[(step + 1) % len(hist)]),
-                                -hyd.u_v_max, hyd.u_v_max)
-            state = step_plant(state, u, y, ydot, dt, hyd, eff)
-            d.ctrl[idx.actuator_id] = hydraulics.leg_force(state.p1, ydot, hyd, state.p_s)
-            mujoco.mj_step(m, d)
-        out["position"][:, j] = y
-        out["p1"][:, j] = state.p1
-        out["p_s"][:, j] = state.p_s
-        out["acceleration"][:, j] = d.sensordata[acc_adr]
-        out["u_v"][:, j] = u
-        if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
-            bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
-            raise PhysicsError(f"replay: non-finite state in the window starting at t = {t[s0[bad]]:.3f} s, "
-                               f"{j / fs:.3f} s into it")
+    else:  # the numpy reference, and the closed loop (P control on the logged setpoints)
+        step = 0
+        u = u_log[s0].copy()
+        for j in range(n):
+            if not closed_loop:
+                u = u_log[s0 + j]
+            for s_ in range(sub):
+                y = d.qpos[idx.qpos_adr].copy()
+                ydot = d.qvel[idx.dof_adr].copy()
+                if closed_loop:
+                    hist[step % len(hist)] = y
+                    if step % ctrl_div == 0:
+                        u = np.clip(log.kp * (ref[s0 + step // sub] - hist[(step + 1) % len(hist)]),
+                                    -hyd.u_v_max, hyd.u_v_max)
+                if s_ == 0:
+                    out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
+                    out["u_v"][:, j] = u
+                state = step_plant(state, u, y, ydot, dt, hyd, eff)
+                d.ctrl[idx.actuator_id] = hydraulics.leg_force(state.p1, ydot, hyd, state.p_s)
+                mujoco.mj_step(m, d)
+                if s_ == 0:
+                    out["acceleration"][:, j] = d.sensordata[acc_adr]
+                step += 1
+            if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
+                bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
+                raise PhysicsError(f"replay: non-finite state in the window starting at t = {t[s0[bad]]:.3f} s, "
+                                   f"{j / fs:.3f} s into it")
     check_warnings(m, d)
     if tau > 0 and not closed_loop:
         # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau

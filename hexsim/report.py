@@ -27,6 +27,8 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "flow_area": cfg.hydraulics.flow_area,
         "kp_V_per_m": cfg.controller.kp,
         "controller_rate_hz": cfg.controller.rate_hz,
+        "engine": cfg.engine,
+        "timestep_s": result.timestep,
         "signal": sm.signal,
         "unit": sm.unit,
         "window_s": list(sm.window),
@@ -45,9 +47,39 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "valve_saturated_samples": result.saturated_samples,
         "compensator_parameters": {k: v[-1].tolist() for k, v in result.compensator_state.items()},
         "oil_temperature_C": [float(result.oil_temperature[0]), float(result.oil_temperature[-1])],
+        "faults": fault_outcomes(result),
         "realtime_factor": result.realtime_factor,
         "wall_time_s": result.wall_time_s,
     }
+
+
+def fault_outcomes(result: SimulationResult) -> list[dict]:
+    """Each injected fault (kind, t_s, leg, its value) and what followed from its start: the leg's
+    extreme piston positions and how far past the stroke (the soft end stops' penetration) [m], the
+    lowest supply pressure [Pa], the largest connect violation [m]. The run stayed finite, or it would
+    have raised."""
+    out = []
+    stroke = result.stroke
+    for fault in result.config.faults:
+        after = result.t >= fault.t
+        doc = fault.as_dict()
+        if not np.any(after):
+            doc["outcome"] = "not reached (starts after the end of the run)"
+            out.append(doc)
+            continue
+        legs = [fault.leg - 1] if fault.leg is not None else list(range(result.n_legs))
+        y = result.y[after][:, legs]
+        lo, hi = stroke[legs, 0], stroke[legs, 1]
+        doc["outcome"] = {
+            "piston_min_m": float(y.min()),
+            "piston_max_m": float(y.max()),
+            "beyond_stroke_m": float(max(0.0, np.max(y - hi), np.max(lo - y))),
+            "p_s_min_Pa": float(result.p_s[after].min()),
+            "max_constraint_violation_m": float(result.constraint_violation[after].max()),
+            "finite": True,
+        }
+        out.append(doc)
+    return out
 
 
 def summary_table(report: dict) -> str:
@@ -67,10 +99,21 @@ def summary_table(report: dict) -> str:
         ("max_tracking_error", f"{report['max_tracking_error_m'] * 1e3:.2f} mm"),
         ("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (connects)"),
         ("valve_saturated", f"{report['valve_saturated_samples']} controller samples"),
+        *(("fault", _fault_line(f)) for f in report["faults"]),
         ("realtime_factor", f"{report['realtime_factor']:.2f}x ({report['wall_time_s']:.1f} s wall)"),
     ]
     width = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def _fault_line(f: dict) -> str:
+    where = f"leg{f['leg']} " if f["leg"] is not None else ""
+    o = f["outcome"]
+    if isinstance(o, str):
+        return f"{f['kind']} {where}at {f['t_s']:g} s: {o}"
+    return (f"{f['kind']} {where}at {f['t_s']:g} s: piston {o['piston_min_m'] * 1e3:.1f}…{o['piston_max_m'] * 1e3:.1f} mm "
+            f"({o['beyond_stroke_m'] * 1e3:.2f} mm past the stroke), P_s min {o['p_s_min_Pa'] / 1e5:.1f} bar, "
+            f"connect violation {o['max_constraint_violation_m'] * 1e6:.2f} µm; stayed finite")
 
 
 def write_json(path: str | os.PathLike, data: dict) -> None:

@@ -21,11 +21,16 @@ from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.effects import Effects, PlantState, step_plant
 from hexsim.errors import InputError, PhysicsError, WorkspaceError
+from hexsim.faults import Fault, FaultInjector
 from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
 from hexsim.temperature import WarmUp
+
+
+#: Ways to step the legs: the compiled kernel and the numpy reference (same physics, same order).
+ENGINES = ("native", "numpy")
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,18 @@ class RunConfig:
     seed: int = 0
     record_rate_hz: float | None = None
     progress: bool = False
+    engine: str = "native"  # "native": compiled kernel (hexsim.native); "numpy": the reference callback
+    timestep: float | None = None  # physics step [s]; None: the model's 1e-4 s (the seed's 10 kHz)
+    faults: tuple[Fault, ...] = ()  # injected faults (hexsim.faults); default none
+
+    def __post_init__(self) -> None:
+        if self.engine not in ENGINES:
+            raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        if self.timestep is not None:
+            if not (math.isfinite(self.timestep) and 1e-6 <= self.timestep <= 1e-3):
+                raise InputError(f"timestep must be within 1e-6…1e-3 s, got {self.timestep!r}")
+            _divider(self.controller.rate_hz, self.timestep, f"controller rate (timestep {self.timestep:g} s)")
+            _divider(self.record_rate_hz or 1000.0, self.timestep, f"record rate (timestep {self.timestep:g} s)")
 
 
 @dataclass
@@ -81,6 +98,8 @@ class SimulationResult:
     saturated_samples: int
     wall_time_s: float
     gravity: float
+    stroke: np.ndarray  # (n_legs, 2) joint range of each piston [m]
+    timestep: float  # physics step [s]
 
     @property
     def n_legs(self) -> int:
@@ -106,7 +125,8 @@ class HydraulicCoupling:
 
     def __init__(self, idx: PlantIndex, hyd: HydraulicParams, controller: PController, setpoints: np.ndarray,
                  noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int, warm_up: WarmUp | None = None,
-                 plant: PlantTruth | None = None, effects: Effects | None = None) -> None:
+                 plant: PlantTruth | None = None, effects: Effects | None = None,
+                 faults: FaultInjector | None = None) -> None:
         self.idx = idx
         self.hyd = hyd
         self.base_hyd = hyd
@@ -119,6 +139,7 @@ class HydraulicCoupling:
         self.ctrl_div = ctrl_div
         self.dt = idx.dt
         self.effects = effects or Effects()
+        self.faults = faults
         self.groups = np.zeros(idx.n_legs, dtype=np.intp)  # one supply manifold for all legs
         n = idx.n_legs
         self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd)
@@ -130,6 +151,7 @@ class HydraulicCoupling:
         self.r = setpoints[0].copy()
         self.force = np.zeros(n)
         self._last_step = -1
+        self.supply_level: float | None = None
         self.error: BaseException | None = None
 
     def __call__(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
@@ -143,20 +165,41 @@ class HydraulicCoupling:
                 hist[k % len(hist)] = y
                 self.y_measured = hist[(k + 1) % len(hist)]  # y(t_k - tau_y); itself without delay
                 if k % self.ctrl_div == 0:
-                    if self.warm_up is not None:
-                        self.temperature = float(self.warm_up.temperature(k * self.dt))
-                        self.hyd = self.warm_up.params_at(self.base_hyd, self.temperature)
-                        if self.plant is not None:
-                            self.plant.params = self.hyd
-                    j = min(k // self.ctrl_div, len(self.setpoints) - 1)
-                    self.r = self.setpoints[j]
-                    self.u_v, self.u_c = self.controller.sample(self.r, self.y_measured + self.noise[j])
+                    self.hyd = self.tick(k, self.y_measured)
+                    if self.supply_level is not None:
+                        self.state.p_s[:] = self.supply_level
                 self.state = step_plant(self.state, self.u_v, y, ydot, self.dt, self.hyd, self.effects, self.groups)
                 self.force = hydraulics.leg_force(self.state.p1, ydot, self.hyd, self.state.p_s)
             d.ctrl[self.idx.actuator_id] = self.force
         except Exception as exc:  # noqa: BLE001 - re-raised by simulate() after the step
             self.error = exc
             d.ctrl[self.idx.actuator_id] = 0.0
+
+
+    def tick(self, k: int, y_measured: np.ndarray) -> HydraulicParams:
+        """The controller sample at step ``k`` (both engines): oil temperature, setpoint, P control with
+        the compensator, faults. Sets :attr:`r`, :attr:`u_v`, :attr:`u_c`, :attr:`supply_level` (P_s
+        imposed by a supply-loss fault, else None); returns the hydraulic parameters now in force."""
+        t_k = k * self.dt
+        hyd = self.hyd
+        if self.warm_up is not None:
+            self.temperature = float(self.warm_up.temperature(t_k))
+            hyd = self.warm_up.params_at(self.base_hyd, self.temperature)
+            if self.plant is not None:
+                self.plant.params = hyd
+        j = min(k // self.ctrl_div, len(self.setpoints) - 1)
+        self.r = self.setpoints[j]
+        seen = y_measured + self.noise[j]
+        inj = self.faults
+        if inj:
+            self.r = inj.setpoint(t_k, self.r)
+            seen = inj.measured(t_k, seen)
+        self.u_v, self.u_c = self.controller.sample(self.r, seen)
+        self.supply_level = None
+        if inj:
+            self.u_v = inj.valve(t_k, self.u_v)
+            self.supply_level = inj.supply(t_k)
+        return hyd
 
 
 def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> np.ndarray:
@@ -210,6 +253,8 @@ def simulate(config: RunConfig) -> SimulationResult:
     sc, hyd, cp = config.scenario, config.hydraulics, config.controller
     m = load_model(sc.system)
     apply_load(m, config.effects)
+    if config.timestep is not None:
+        m.opt.timestep = config.timestep
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
     dt = idx.dt
@@ -239,8 +284,9 @@ def simulate(config: RunConfig) -> SimulationResult:
     except SettingsError as exc:
         raise InputError(str(exc)) from None
     controller = PController(cp, hyd.u_v_max, compensator)
+    injector = FaultInjector(config.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
     coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div, config.warm_up, plant,
-                                 config.effects)
+                                 config.effects, injector)
 
     n_rec = int(round(sc.duration / dt)) // rec_div
     n = idx.n_legs
@@ -255,49 +301,19 @@ def simulate(config: RunConfig) -> SimulationResult:
     viol = np.zeros(n_rec)
     temperature = np.empty(n_rec)
     comp_state = {k: np.empty((n_rec, n)) for k in compensator.state()}
-    s = idx.sensor
-    leg_pos = np.array([s[f"leg{i + 1}_pos"].start for i in range(n)])
-    leg_vel = np.array([s[f"leg{i + 1}_vel"].start for i in range(n)])
 
-    start = time.perf_counter()
-    mujoco.set_mjcb_control(coupling)
-    try:
-        mujoco.mj_forward(m, d)
-        bar = tqdm(total=round(sc.duration, 3), unit="sim s", disable=not config.progress, leave=False,
-                   bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
-        for i in range(n_rec):
-            mujoco.mj_step(m, d, rec_div)
-            if coupling.error is not None:
-                raise coupling.error
-            _check_state(m, d, idx, coupling)
-            sd = d.sensordata
-            t[i] = d.time - dt  # sensors were evaluated at the start of the last step
-            rec["y"][i] = coupling.y_measured if delayed else sd[leg_pos]
-            rec["ydot"][i] = sd[leg_vel]
-            rec["y_ref"][i] = coupling.r
-            rec["u_v"][i] = coupling.u_v
-            rec["u_c"][i] = coupling.u_c
-            rec["p1"][i] = coupling.state.p1
-            p_s[i] = coupling.state.p_s[0]
-            rec["force"][i] = coupling.force
-            temperature[i] = coupling.temperature
-            for key, value in compensator.state().items():
-                comp_state[key][i] = value
-            acc[i] = sd[s["platform_acc"]]
-            if hexapod:
-                gyro[i] = sd[s["platform_gyro"]]
-                angacc[i] = sd[s["platform_angacc"]]
-                pos[i] = sd[s["platform_pos"]]
-                quat[i] = sd[s["platform_quat"]]
-                eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-                if np.any(eq):
-                    viol[i] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
-            if config.progress and i % 100 == 0:
-                bar.update(round(d.time - bar.n, 3))
-        bar.close()
-    finally:
-        mujoco.set_mjcb_control(None)
-    wall = time.perf_counter() - start
+    rec_sensors = {"platform_acc": acc}
+    if hexapod:
+        rec_sensors.update(platform_gyro=gyro, platform_angacc=angacc, platform_pos=pos, platform_quat=quat)
+    bar = tqdm(total=round(sc.duration, 3), unit="sim s", disable=not config.progress, leave=False,
+               bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
+    if config.engine == "numpy":
+        wall = _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
+                    viol, delayed, bar)
+    else:
+        wall = _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
+                     rec_sensors, viol, bar)
+    bar.close()
 
     pose = pose_ref = None
     if hexapod:
@@ -310,7 +326,139 @@ def simulate(config: RunConfig) -> SimulationResult:
         pose=pose, pose_ref=pose_ref, constraint_violation=viol, oil_temperature=temperature,
         compensator_state=comp_state, p1_initial=p1_0,
         saturated_samples=controller.saturated_samples, wall_time_s=wall, gravity=float(-m.opt.gravity[2]),
+        stroke=idx.stroke.copy(), timestep=dt,
     )
+
+
+def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
+                viol, delayed, bar) -> float:
+    """The reference: :class:`HydraulicCoupling` as MuJoCo's control callback; every ``rec_div``-th
+    step k records the state at t_k (the sensors MuJoCo evaluates at the start of the step, P1 before
+    the step's update). Returns the wall time [s]."""
+    s = idx.sensor
+    n = idx.n_legs
+    dt = idx.dt
+    leg_pos = np.array([s[f"leg{i + 1}_pos"].start for i in range(n)])
+    leg_vel = np.array([s[f"leg{i + 1}_vel"].start for i in range(n)])
+    start = time.perf_counter()
+    mujoco.set_mjcb_control(coupling)
+    try:
+        for i in range(len(t)):
+            p1_before, p_s_before = coupling.state.p1.copy(), coupling.state.p_s[0]
+            mujoco.mj_step(m, d)  # step k = i * rec_div: the sensors see t_k
+            if coupling.error is not None:
+                raise coupling.error
+            _check_state(m, d, idx, coupling)
+            sd = d.sensordata
+            t[i] = i * rec_div * dt
+            rec["y"][i] = coupling.y_measured if delayed else sd[leg_pos]
+            rec["ydot"][i] = sd[leg_vel]
+            rec["y_ref"][i] = coupling.r
+            rec["u_v"][i] = coupling.u_v
+            rec["u_c"][i] = coupling.u_c
+            rec["p1"][i] = p1_before
+            p_s[i] = p_s_before
+            rec["force"][i] = coupling.force
+            temperature[i] = coupling.temperature
+            for key, value in compensator.state().items():
+                comp_state[key][i] = value
+            for name, out in rec_sensors.items():
+                out[i] = sd[s[name]]
+            eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+            if np.any(eq):
+                viol[i] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
+            if i % 100 == 0:
+                bar.update(round(d.time - bar.n, 3))
+            if rec_div > 1:
+                mujoco.mj_step(m, d, rec_div - 1)
+                if coupling.error is not None:
+                    raise coupling.error
+                _check_state(m, d, idx, coupling)
+    finally:
+        mujoco.set_mjcb_control(None)
+    return time.perf_counter() - start
+
+
+def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
+                 rec_sensors, viol, bar) -> float:
+    """The compiled path (returns the wall time [s] after compiling): Python samples the controller and the compensator at every controller tick
+    (``coupling.ctrl_div`` steps) and :func:`hexsim.native.run_block` steps the legs and MuJoCo until
+    the next tick, recording into ``rec_*``. Same order of operations as :class:`HydraulicCoupling`
+    (tests/test_native.py checks the trajectories agree)."""
+    from hexsim import native
+
+    n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
+    st = coupling.state.copy()
+    p1, ps, xv, vv, ub = st.p1, st.p_s, st.x_v, st.v_v, st.u_b
+    force, demand = np.zeros(n), np.zeros(1)
+    groups = coupling.groups
+    hist = coupling._y_history
+    L = len(hist)
+    eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
+    if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
+        raise InputError("the native engine needs connect constraints between sites")
+    site1, site2 = m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64)
+    n_rec = len(t)
+    rec_k = np.empty(n_rec, dtype=np.int64)
+    rec_sens = np.empty((n_rec, m.nsensordata))
+    status = np.full(1, -1, dtype=np.int64)
+    qadr, dadr, aadr = (a.astype(np.int64) for a in (idx.qpos_adr, idx.dof_adr, idx.actuator_id))
+    hyd = coupling.hyd
+    P = native.pack(hyd, coupling.effects, dt)
+    total = n_rec * rec_div
+    mujoco.mj_forward(m, d)
+
+    def block(u_v, k, steps, r):
+        return native.run_block(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, d.site_xpos, qadr,
+                                dadr, aadr, site1, site2, P, u_v, groups, p1, ps, xv, vv, ub, force, demand,
+                                hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
+                                viol, status)
+
+    warnings = d.warning.number  # a view of MuJoCo's warning counters
+    block(np.zeros(n), 0, 0, 0)  # compile (a few seconds, once per process) before the clock starts
+    start = time.perf_counter()
+    k = r = 0
+    while k < total:
+        y = d.qpos[idx.qpos_adr]
+        hist[k % L] = y
+        y_measured = hist[(k + 1) % L].copy()
+        new_hyd = coupling.tick(k, y_measured)
+        if new_hyd is not hyd:
+            hyd = new_hyd
+            P = native.pack(hyd, coupling.effects, dt)
+        if coupling.supply_level is not None:
+            ps[:] = coupling.supply_level
+        r_set, u_v, u_c = coupling.r, coupling.u_v, coupling.u_c
+        steps = min(ctrl_div, total - k)
+        r_next = block(u_v, k, steps, r)
+        if status[0] >= 0:
+            bad = ~np.isfinite(p1) | ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
+            leg = int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else 1
+            raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * dt:.4f} s")
+        if warnings.any():
+            check_warnings(m, d)
+        rows = slice(r, r_next)
+        rec["y_ref"][rows] = r_set
+        rec["u_v"][rows] = u_v
+        rec["u_c"][rows] = u_c
+        temperature[rows] = coupling.temperature
+        for key, value in compensator.state().items():
+            comp_state[key][rows] = value
+        r = r_next
+        k += steps
+        if k % (50 * ctrl_div) == 0:
+            bar.update(round(k * dt - bar.n, 3))
+    wall = time.perf_counter() - start
+    if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+        raise PhysicsError(f"non-finite platform state at t = {d.time:.4f} s")
+    t[:] = rec_k * dt
+    s = idx.sensor
+    rec["ydot"][:] = rec_sens[:, [s[f"leg{i + 1}_vel"].start for i in range(n)]]
+    for name, out in rec_sensors.items():
+        out[:] = rec_sens[:, s[name]]
+    coupling.state = PlantState(p1, ps, xv, vv, ub)
+    coupling.u_v, coupling.u_c, coupling.force = u_v, u_c, force
+    return wall
 
 
 def _divider(rate_hz: float, dt: float, what: str) -> int:

@@ -31,8 +31,9 @@ def test_run_writes_every_output(heave_outputs):
     assert code == 0
     report = json.loads((out / "out.json").read_text())
     for key in ("scenario", "duration_s", "fundamental", "noise_ratio", "peak_noise_g", "reversal_peaks",
-                "max_tracking_error_m", "realtime_factor"):
+                "max_tracking_error_m", "faults", "engine", "timestep_s"):
         assert key in report
+    assert "realtime_factor" not in report and "wall_time_s" not in report  # same command, same bytes
     assert report["scenario"] == "heave" and report["duration_s"] == 4.0
     assert len(report["reversal_peaks"]) >= 2 and report["peak_noise_g"] > 0
     assert (out / "out.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -150,7 +151,8 @@ def test_bench_prints_ratios_against_bare_mj_step(tmp_path, capsys):
     out = tmp_path / "bench.json"
     assert main(["bench", "--duration", "1.5", "--repeats", "1", "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
-    assert set(doc["cases"]) == {"bare_mj_step", "hexapod_full", "actuator_full", "replay_kernel"}
+    assert set(doc["cases"]) == {"bare_mj_step", "hexapod_full", "hexapod_numpy", "hexapod_fast", "actuator_full",
+                                 "actuator_fast", "replay_kernel"}
     # the callback adds work on top of the same mj_step: the ratio cannot be below 1
     assert doc["ratio_hexapod_full_to_bare"] > 1.0
     assert "hexapod_full / bare_mj_step" in capsys.readouterr().out

@@ -115,4 +115,20 @@ def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
 
     monkeypatch.setattr(hydraulics, "step_pressure", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg3 at t = 0\.\d+ s"):
+        simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02), engine="numpy"))
+
+
+def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypatch):
+    from hexsim import native
+    from hexsim.errors import PhysicsError
+
+    real = native.pack
+
+    def poisoned(hyd, eff, dt=0.0):
+        out = real(hyd, eff, dt)
+        out[5] = np.nan  # bulk modulus: every P1 goes bad in the first step
+        return out
+
+    monkeypatch.setattr(native, "pack", poisoned)
+    with pytest.raises(PhysicsError, match=r"non-finite state of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))
