@@ -88,15 +88,33 @@ def build_parser() -> argparse.ArgumentParser:
     fr.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (PNG)")
     fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON")
+    sw = sub.add_parser(
+        "sweep",
+        help="run a grid of scenarios / controller / compensator settings in worker processes",
+        description="Run every combination of the --grid values (any run option, e.g. --grid compensator=none,"
+        "buffered --grid buffer-time=1,3 --grid frequency=0.5,1) in worker processes, with a progress bar, and "
+        "write one row of metrics per grid point (CSV and/or JSON). Options not in the grid apply to every run.",
+    )
+    _scenario_options(sw)
+    sw.add_argument("--compensator", choices=sorted(COMPENSATORS), default="none",
+                    help="compensator of every run unless the grid varies it (default none)")
+    sw.add_argument("--grid", action="append", default=[], metavar="NAME=V1,V2,…",
+                    help="an option to vary and its values (repeatable); NAME is a run option without the dashes")
+    sw.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    sw.add_argument("--csv", type=pathlib.Path, help="write the table as CSV")
+    sw.add_argument("--json", type=pathlib.Path, help="write the table as JSON")
+    sw.add_argument("--quiet", action="store_true", help="no progress bar")
     be = sub.add_parser(
         "bench",
         help="time the simulator against bare mj_step on the same model (ratios, real-time factors)",
-        description="In one process: bare mj_step on the hexapod, the full hexapod (hydraulics, P control, "
-        "buffered compensator), the single actuator and the compiled replay kernel; median of the repeats.",
+        description="In one process: bare mj_step on the hexapod, the full hexapod (compiled hydraulics, P control, "
+        "buffered compensator) with the native and the numpy engine, the fast scheme (dt 1e-3 s), the single "
+        "actuator and the compiled replay kernel; median of the repeats.",
     )
     be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
     be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
     be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON")
+    be.add_argument("--sweep", action="store_true", help="also time a 4-run sweep with 1 and 2 worker processes")
     return parser
 
 
@@ -110,7 +128,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     if args.duration < 1.5:
         raise InputError(f"--duration must be at least 1.5 s (2 Hz scenarios), got {args.duration:g}")
-    result = run_bench(args.duration, args.repeats)
+    result = run_bench(args.duration, args.repeats, sweep=args.sweep)
     print(table(result))
     if args.json:
         write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(result, indent=2) + "\n"))
@@ -178,12 +196,24 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                         f"(default {DEFAULT_AMPLITUDE['heave']} m, {DEFAULT_AMPLITUDE['roll']:.4f} rad)")
     p.add_argument("--frequency", type=_number, help=f"sine frequency [Hz] (default {DEFAULT_FREQUENCY})")
     p.add_argument("--seed", type=int, default=0, help="seed of the position-sensor noise (default 0)")
-    p.add_argument("--kp", type=_number, default=ControllerParams.kp, help="P gain K_p [V/m] (default %(default)s)")
-    p.add_argument("--flow-area", choices=("smooth", "sharp"), default="smooth",
+    p.add_argument("--params", type=pathlib.Path, metavar="FILE.json",
+                   help="parameter file: sections hydraulics / controller / effects overriding the seed's values "
+                        "(see hexsim/paramfile.py); the options below override the file")
+    p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default {ControllerParams.kp:g})")
+    p.add_argument("--flow-area", choices=("smooth", "sharp"),
                    help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) or sharp-edged with "
                         "overlap (eq. 3.3) (default smooth)")
-    p.add_argument("--sensor-noise", type=_number, default=ControllerParams.position_noise,
-                   help="rms noise on the measured piston position [m] (default %(default)s)")
+    p.add_argument("--sensor-noise", type=_number,
+                   help=f"rms noise on the measured piston position [m] (default {ControllerParams.position_noise:g})")
+    p.add_argument("--fault", action="append", default=[], metavar="KIND:key=value,…",
+                   help="inject a fault (repeatable): valve_stuck:leg=N,t=S,value=V | supply_loss:t=S[,ramp=S] | "
+                        "sensor_frozen:leg=N,t=S | sensor_dropout:leg=N,t=S | end_stop:leg=N,t=S[,value=M] "
+                        "(see hexsim/faults.py)")
+    p.add_argument("--engine", choices=("native", "numpy"), default="native",
+                   help="leg hydraulics as the compiled kernel (default) or the numpy reference callback")
+    p.add_argument("--timestep", type=_number, default=1e-4,
+                   help="physics step [s] (default 1e-4, the seed's 10 kHz; must divide the 2 ms controller "
+                        "period and the 1 ms record period; see README 'Speed' for the accuracy of larger steps)")
     p.add_argument("--warm-up", type=_number, metavar="DELTA_C",
                    help="warm the oil by DELTA_C °C over the run (seed §5.5 uses 15): density, viscous friction "
                         "and valve null change (see hexsim/temperature.py)")
@@ -208,8 +238,20 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
 def _run_config(args: argparse.Namespace, compensator: str):
     from hexsim.simulation import RunConfig
 
-    controller = ControllerParams(kp=args.kp, position_noise=args.sensor_noise)
-    hydraulics = HydraulicParams(flow_area=args.flow_area)
+    from hexsim.effects import Effects
+    from hexsim.paramfile import read_params
+
+    if args.params is not None:
+        given = read_params(args.params)
+        hydraulics, controller, effects = given["hydraulics"], given["controller"], given["effects"]
+    else:
+        hydraulics, controller, effects = HydraulicParams(), ControllerParams(), Effects()
+    if args.kp is not None:
+        controller = controller.replace(kp=args.kp)
+    if args.sensor_noise is not None:
+        controller = controller.replace(position_noise=args.sensor_noise)
+    if args.flow_area is not None:
+        hydraulics = hydraulics.replace(flow_area=args.flow_area)
     scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
                              frequency=args.frequency, controller_rate_hz=controller.rate_hz)
     try:
@@ -219,14 +261,18 @@ def _run_config(args: argparse.Namespace, compensator: str):
             held_maximum=args.held_maximum)
     except SettingsError as exc:
         raise InputError(str(exc)) from None
+    from hexsim.faults import Fault
+
     warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
+    faults = tuple(Fault.parse(text) for text in args.fault)
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
-                     compensator_settings=settings, warm_up=warm_up, seed=args.seed,
-                     progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
+                     compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
+                     engine=args.engine,
+                     timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
-    for flag, suffix in (("rrd", ".rrd"), ("plot", ".png"), ("json", ".json"), ("log", ".csv")):
+    for flag, suffix in (("rrd", ".rrd"), ("plot", ".png"), ("json", ".json"), ("log", ".csv"), ("csv", ".csv")):
         path = getattr(args, flag, None)
         if path is None:
             continue
@@ -253,8 +299,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     report = run_report(result, sm)
     print(summary_table(report))
     written = []
-    if args.json:
-        write_json(args.json, report)
+    if args.json:  # without the wall time, so the same command writes the same bytes
+        write_json(args.json, {k: v for k, v in report.items() if k not in ("realtime_factor", "wall_time_s")})
         written.append(args.json)
     if args.plot:
         plot_run(args.plot, result, sm)
@@ -300,10 +346,96 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Options a sweep grid may vary (argparse dest names).
+GRID_OPTIONS = ("scenario", "duration", "amplitude", "frequency", "seed", "kp", "flow_area", "sensor_noise", "engine",
+                "timestep", "warm_up", "compensator", "buffer_time", "velocity_band", "q_threshold", "iterative_gain",
+                "held_maximum", "fade_time", "velocity_cutoff")
+
+
+def _parse_grid(parser: argparse.ArgumentParser, items: list[str]) -> dict[str, list]:
+    """``NAME=V1,V2`` items to {dest: [values]}, each value converted and checked like the option itself."""
+    actions = {a.dest: a for a in parser._actions}
+    grid: dict[str, list] = {}
+    for item in items:
+        name, sep, values = item.partition("=")
+        dest = name.strip().lstrip("-").replace("-", "_")
+        if not sep or not values.strip():
+            raise InputError(f"--grid {item!r}: expected NAME=V1,V2,…")
+        if dest not in GRID_OPTIONS:
+            raise InputError(f"--grid {item!r}: {name!r} is not an option a sweep can vary; "
+                             f"choose from {', '.join(o.replace('_', '-') for o in GRID_OPTIONS)}")
+        if dest in grid:
+            raise InputError(f"--grid {item!r}: {name!r} is given twice")
+        action = actions[dest]
+        parsed = []
+        for text in values.split(","):
+            text = text.strip()
+            try:
+                value = action.type(text) if action.type else text
+            except (argparse.ArgumentTypeError, ValueError) as exc:
+                raise InputError(f"--grid {name}: value {text!r}: {exc}") from None
+            if action.choices is not None and value not in action.choices:
+                raise InputError(f"--grid {name}: value {text!r} is not one of {', '.join(map(str, action.choices))}")
+            parsed.append(value)
+        grid[dest] = parsed
+    return grid
+
+
+def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    import csv
+    import io
+    import json
+
+    from hexsim.sweep import METRICS, expand, run_sweep
+
+    _check_outputs(args)
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    sweep_parser = parser._subparsers._group_actions[0].choices["sweep"]
+    grid = _parse_grid(sweep_parser, args.grid)
+    if not grid:
+        raise InputError("sweep needs at least one --grid NAME=V1,V2,…")
+
+    def make_config(settings: dict):
+        ns = argparse.Namespace(**{**vars(args), **settings, "quiet": True})
+        try:
+            return _run_config(ns, ns.compensator)
+        except HexsimError as exc:
+            raise InputError(f"grid point {settings}: {exc}") from None
+
+    points = expand(grid, make_config)
+    print(f"sweeping {len(points)} runs ({' × '.join(f'{len(v)} {k}' for k, v in grid.items())}) with "
+          f"{args.jobs} worker(s)…", flush=True)
+    rows, wall = run_sweep(points, jobs=args.jobs, progress=not args.quiet and sys.stderr.isatty())
+    columns = ["point", *grid, *METRICS]
+    shown = ["point", *grid, "noise_ratio", "peak_noise_g", "mean_reversal_peak", "final_mean_reversal_peak",
+             "max_tracking_error_mm"]
+    print("  ".join(f"{c:>12.12s}" for c in shown))
+    for row in rows:
+        print("  ".join(f"{row[c]:>12.5g}" if isinstance(row[c], float) else f"{str(row[c]):>12.12s}" for c in shown))
+    sim_s = sum(p.config.scenario.duration for p in points)
+    print(f"{len(points)} runs, {sim_s:g} simulated s in {wall:.1f} s wall: {len(points) / wall * 60:.1f} runs/min, "
+          f"{sim_s / wall:.1f}× real time over {args.jobs} worker(s)")
+    if args.csv:
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+        write_atomic(args.csv, lambda tmp: tmp.write_text(buf.getvalue()))
+        print(f"wrote {args.csv}")
+    if args.json:
+        data = {"grid": grid, "rows": rows}
+        write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n"))
+        print(f"wrote {args.json}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        if args.command == "sweep":
+            return cmd_sweep(args, parser)
         commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                     "bench": cmd_bench}
         return commands[args.command](args)

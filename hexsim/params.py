@@ -174,3 +174,7 @@ class ControllerParams:
     def __post_init__(self) -> None:
         _check_positive(self, "kp", "rate_hz")
         _check_nonnegative(self, "position_noise")
+
+    def replace(self, **changes) -> "ControllerParams":
+        """A copy with ``changes`` applied (validated again)."""
+        return dataclasses.replace(self, **changes)

@@ -121,6 +121,9 @@ def _check_duration(duration: float, minimum: float, why: str) -> None:
 
 def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
     cols = read_numeric_csv(path)
+    unknown = [c for c in cols if c != "time_s" and c not in FILE_COLUMNS]
+    if unknown:
+        raise InputError(f"{path}: unknown column {unknown[0]!r}; expected time_s and any of {', '.join(FILE_COLUMNS)}")
     present = [c for c in FILE_COLUMNS if c in cols]
     if not present:
         raise InputError(f"{path}: no setpoint column; expected any of {', '.join(FILE_COLUMNS)}")
