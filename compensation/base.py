@@ -108,6 +108,24 @@ class NoCompensator(Compensator):
         return np.zeros(self.n_legs)
 
 
+class ReplayedCompensation(Compensator):
+    """U_c read from a table (n_ticks, n_legs) [V], one row per controller sample: the compensation a
+    logged machine applied, fed forward in a closed-loop replay of its log (hexsim.hexapod_replay). It
+    sees nothing; past the table's end it holds the last row."""
+
+    name = "replayed"
+
+    def __init__(self, table: np.ndarray, rate_hz: float, u_v_max: float = 10.0) -> None:
+        super().__init__(table.shape[1], rate_hz, u_v_max)
+        self.table = table
+        self._k = 0
+
+    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        row = self.table[min(self._k, len(self.table) - 1)]
+        self._k += 1
+        return row.copy()
+
+
 class FlowCurveObserver:
     """The flow curve a motion computer can see: filtered u_v and velocity from the measured position.
 

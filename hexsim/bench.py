@@ -14,7 +14,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator;
 * ``replay_kernel``: the compiled valve replay (:mod:`hexsim.native`) of one single-actuator window.
 
-``sweep=True`` adds the throughput of ``hexsim sweep`` (4 runs) with 1 and with 2 worker processes.
+``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 10 s) with 1 and with 2 worker processes.
 """
 
 from __future__ import annotations
@@ -53,14 +53,19 @@ def _full(system: str, compensator: str, duration: float, engine: str = "native"
     return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep)).wall_time_s
 
 
+SWEEP_RUNS = 8
+
+
 def _sweep(jobs: int) -> float:
-    """Wall time [s] of a 4-run sweep (heave, 4 s at 1 Hz, buffered, 4 seeds) with ``jobs`` workers."""
+    """Wall time [s] of a sweep of :data:`SWEEP_RUNS` runs (heave, 10 s at 1 Hz, buffered, one seed each)
+    with ``jobs`` workers, start-up (spawn, import, compile) included."""
     from hexsim.scenario import make_scenario
     from hexsim.simulation import RunConfig
     from hexsim.sweep import expand, run_sweep
 
-    scenario = make_scenario("heave", duration=4.0, frequency=1.0)
-    points = expand({"seed": [1, 2, 3, 4]}, lambda s: RunConfig(scenario, compensator="buffered", seed=s["seed"]))
+    scenario = make_scenario("heave", duration=10.0, frequency=1.0)
+    points = expand({"seed": list(range(SWEEP_RUNS))},
+                    lambda s: RunConfig(scenario, compensator="buffered", seed=s["seed"]))
     return run_sweep(points, jobs=jobs, progress=False)[1]
 
 
@@ -116,7 +121,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
     if sweep:
         one, two = _sweep(1), _sweep(2)
-        out["sweep"] = {"runs": 4, "wall_1_worker_s": one, "wall_2_workers_s": two, "speedup": one / two}
+        out["sweep"] = {"runs": SWEEP_RUNS, "wall_1_worker_s": one, "wall_2_workers_s": two, "speedup": one / two}
     return out
 
 

@@ -71,7 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="confront the model with a measurement log: residual, missing effect, error before/after",
         description="Replay a measurement log (../shared/measurement-log.md) through the model with the logged "
         "valve setpoints, analyse the residual, fit each candidate effect the nominal model lacks and name the "
-        "one that explains the log (or none). Single-actuator logs.",
+        "one that explains the log (or none). Single-actuator logs: valve replay in windows; hexapod logs: "
+        "closed-loop replay of the logged leg setpoints with the logged compensation fed forward.",
     )
     val.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
@@ -114,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
     be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
     be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON")
-    be.add_argument("--sweep", action="store_true", help="also time a 4-run sweep with 1 and 2 worker processes")
+    be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 and 2 worker processes (about 2 min)")
     return parser
 
 

@@ -30,7 +30,8 @@ from hexsim.effects import EFFECT_NAMES, Effects
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
-from hexsim.replay import CHANNELS, PlantModel, Windows, replay, supply_from_log
+from hexsim.replay import CHANNELS, PlantModel, Windows, measured_velocity, replay, supply_from_log
+from hexsim.signals import zero_crossings
 
 #: A candidate must lower the held-out cost by this fraction to be chosen.
 MIN_HELD_OUT_GAIN = 0.05
@@ -127,16 +128,18 @@ def channel_scales(log: MeasurementLog) -> dict[str, float]:
 
 
 def noise_levels(log: MeasurementLog) -> dict[str, float]:
-    """Sensor noise (rms) of each channel estimated from the log itself: 1.4826 MAD of the second
-    difference / sqrt(6) (white noise of variance s^2 gives a second difference of variance 6 s^2; the
-    signal's own second difference is small at the log rate). Floors: 0.1 µm, 100 Pa, 1e-3 m/s^2."""
+    """Sensor noise (rms) of each channel estimated from the log itself (:func:`_noise_of`)."""
+    return {ch: _noise_of(log.columns[CHANNELS[ch][0]], ch) for ch in available_channels(log)}
+
+
+def _noise_of(x: np.ndarray, channel: str) -> float:
+    """1.4826 MAD of the second difference / sqrt(6) (white noise of variance s^2 gives a second
+    difference of variance 6 s^2; the signal's own second difference is small at the log rate).
+    Floors: 0.1 µm, 100 Pa, 1e-3 m/s^2."""
     floors = {"position": 1e-7, "p1": 100.0, "p_s": 100.0, "acceleration": 1e-3}
-    out = {}
-    for ch in available_channels(log):
-        d2 = np.diff(log.columns[CHANNELS[ch][0]], 2)
-        mad = float(np.median(np.abs(d2 - np.median(d2))))
-        out[ch] = max(1.4826 * mad / math.sqrt(6.0), floors[ch])
-    return out
+    d2 = np.diff(x, 2)
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return max(1.4826 * mad / math.sqrt(6.0), floors[channel])
 
 
 class Problem:
@@ -171,6 +174,47 @@ class Problem:
         """RMS residual / scale per channel (on ``rows`` of the windows, default all)."""
         rows = slice(None) if rows is None else rows
         return {ch: float(np.sqrt(np.mean(res[ch][rows] ** 2)) / self.scales[ch]) for ch in self.channels}
+
+    # what the report needs (hexsim.validation), the same for every kind of problem
+    replay_mode = ("valve replay: the logged u_v drives the model open loop in windows, each started from "
+                   "the measured state")
+    scored = "windows after their settling time"
+
+    @property
+    def units(self) -> dict[str, str]:
+        return {ch: CHANNELS[ch][1] for ch in self.channels}
+
+    @property
+    def window_doc(self) -> dict:
+        fs = self.log.sample_rate_hz
+        return {"count": int(len(self.windows.starts)), "length_s": self.windows.length / fs,
+                "settle_s": self.settle / fs, "fit": "even windows", "held_out": "odd windows"}
+
+    def analysis_view(self, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Residuals (k, n) per channel as the residual analysis takes them: windows without the settling."""
+        return {ch: r[:, self.settle:] for ch, r in res.items()}
+
+    def motion_state(self):
+        """(u_v, velocity, position, near a reversal), each (k, n) like :meth:`analysis_view`."""
+        log = self.log
+        pos = log.columns["pos_m"]
+        vel = measured_velocity(log, pos)
+        near = near_reversals(log.time, vel)
+        take = lambda x: self.windows.take(x)[:, self.settle:]  # noqa: E731
+        return take(log.columns["valve_cmd_V"]), take(vel), take(pos), take(near)
+
+    def sample_times(self) -> np.ndarray:
+        """Log times [s] of the samples of :meth:`analysis_view` (k, n)."""
+        fs = self.log.sample_rate_hz
+        return self.log.time[self.windows.starts][:, None] + np.arange(self.settle, self.windows.length)[None, :] / fs
+
+
+def near_reversals(t: np.ndarray, velocity: np.ndarray, half_width: float = 0.05) -> np.ndarray:
+    """(N,) True within ``half_width`` [s] of a velocity reversal."""
+    near = np.zeros(len(t), bool)
+    for tr in zero_crossings(t, velocity):
+        near |= np.abs(t - tr) < half_width
+    return near
 
 
 def effective_n(res: dict[str, np.ndarray]) -> float:
@@ -260,8 +304,23 @@ def fit_candidate(problem: Problem, name: str) -> FitResult:
                      nfev=int(sol.nfev), model=cand.apply(problem.nominal, sol.x))
 
 
+def make_problem(log: MeasurementLog):
+    """The identification problem of a log: windowed valve replay for a single actuator
+    (:class:`Problem`), closed-loop replay in segments for a hexapod
+    (:class:`hexsim.hexapod_replay.HexapodProblem`)."""
+    if log.system == "hexapod":
+        from hexsim.hexapod_replay import HexapodProblem
+
+        return HexapodProblem(log)
+    return Problem(log)
+
+
+#: Candidates that apply to a hexapod log: the load (mass, inclination) is a single-axis fact.
+HEXAPOD_CANDIDATES = tuple(n for n in EFFECT_NAMES if n != "load")
+
+
 def _fit_in_worker(log: MeasurementLog, name: str) -> FitResult:
-    return fit_candidate(Problem(log), name)
+    return fit_candidate(make_problem(log), name)
 
 
 @dataclass
@@ -291,14 +350,16 @@ class Identification:
         return self.problem.nrmse(self.chosen_residuals)
 
 
-def identify(log: MeasurementLog, *, candidates: tuple[str, ...] = EFFECT_NAMES, jobs: int = 2,
+def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
              progress: bool = False) -> Identification:
     """Replay the log with the nominal model, fit every candidate effect and choose (see the module doc).
 
-    ``jobs`` worker processes fit candidates in parallel (1: in this process). Raises InputError for a
-    log the replay cannot use.
+    ``candidates``: default every effect that applies to the log's system. ``jobs`` worker processes
+    fit candidates in parallel (1: in this process). Raises InputError for a log the replay cannot use.
     """
-    problem = Problem(log)
+    problem = make_problem(log)
+    if candidates is None:
+        candidates = HEXAPOD_CANDIDATES if log.system == "hexapod" else EFFECT_NAMES
     nominal = problem.residuals(problem.nominal)
     fit_vec = problem.vector(nominal, problem.fit_rows)
     test_vec = problem.vector(nominal, problem.test_rows)

@@ -54,6 +54,9 @@ class Scenario:
     fade_period: float
     amplitude: float | None = None
     _table: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
+    #: piston setpoints given directly, (times (N,) [s], values (N, n_legs) [m]), each held until the next
+    #: row (a measurement log's leg{i}_ref_m); no platform setpoint then
+    legs: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     @property
     def axis_name(self) -> str:
@@ -66,6 +69,8 @@ class Scenario:
     def poses(self, t: np.ndarray) -> np.ndarray:
         """Platform setpoints (N, 6) [m, rad] relative to the neutral pose at times t (N,) [s] (hexapod)."""
         t = np.asarray(t, dtype=float)
+        if self.legs is not None:
+            raise ValueError(f"scenario {self.name} gives piston setpoints, not platform poses")
         if self._table is not None:
             times, values = self._table
             return np.stack([np.interp(t, times, values[:, k]) for k in range(6)], axis=1)

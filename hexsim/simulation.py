@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
+from compensation.base import ReplayedCompensation
 from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.effects import Effects, PlantState, step_plant
@@ -51,6 +52,9 @@ class RunConfig:
     engine: str = "native"  # "native": compiled kernel (hexsim.native); "numpy": the reference callback
     timestep: float | None = None  # physics step [s]; None: the model's 1e-4 s (the seed's 10 kHz)
     faults: tuple[Fault, ...] = ()  # injected faults (hexsim.faults); default none
+    # U_c per controller sample (n_ticks, n_legs) [V] replayed instead of a compensator (measured-data
+    # replay, hexsim.hexapod_replay); None: the compensator named above
+    feedforward: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
@@ -228,6 +232,20 @@ def piston_setpoints(m: mujoco.MjModel, idx: PlantIndex, scenario: Scenario, t: 
 
     Raises WorkspaceError naming the leg and length if a setpoint leaves the stroke.
     """
+    if scenario.legs is not None:
+        times, values = scenario.legs
+        if values.shape[1] != idx.n_legs:
+            raise InputError(f"scenario {scenario.name} has {values.shape[1]} legs, the model {idx.n_legs}")
+        rows = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
+        y = values[rows]
+        for i in range(idx.n_legs):
+            lo, hi = idx.stroke[i]
+            bad = (y[:, i] < lo) | (y[:, i] > hi)
+            if np.any(bad):
+                n = int(np.argmax(bad))
+                raise WorkspaceError(f"setpoint at t = {t[n]:.3f} s needs leg{i + 1} piston position "
+                                     f"{y[n, i]:.4f} m, outside its stroke {lo:g}…{hi:g} m")
+        return y, None
     if scenario.system == "hexapod":
         if idx.n_legs != 6:
             raise InputError(f"scenario {scenario.name} needs the hexapod model, this model has {idx.n_legs} legs")
@@ -279,8 +297,11 @@ def simulate(config: RunConfig) -> SimulationResult:
             )
     plant = PlantTruth(params=hyd, p1_static=p1_0.copy())
     try:
-        compensator = make_compensator(config.compensator, idx.n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
-                                       settings=config.compensator_settings, plant=plant)
+        if config.feedforward is not None:
+            compensator = ReplayedCompensation(np.asarray(config.feedforward, dtype=float), cp.rate_hz, hyd.u_v_max)
+        else:
+            compensator = make_compensator(config.compensator, idx.n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
+                                           settings=config.compensator_settings, plant=plant)
     except SettingsError as exc:
         raise InputError(str(exc)) from None
     controller = PController(cp, hyd.u_v_max, compensator)
@@ -320,7 +341,7 @@ def simulate(config: RunConfig) -> SimulationResult:
         geom = HexapodGeometry.from_model(m)
         rpy = Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
         pose = np.concatenate([pos - geom.neutral_position, rpy], axis=1)
-        pose_ref = sc.poses(t)
+        pose_ref = sc.poses(t) if sc.legs is None else None
     return SimulationResult(
         config=config, t=t, **rec, p_s=p_s, acc=acc, gyro=gyro, angacc=angacc,
         pose=pose, pose_ref=pose_ref, constraint_violation=viol, oil_temperature=temperature,

@@ -14,32 +14,16 @@ import numpy as np
 
 from hexsim.identify import CANDIDATES, Identification, identify
 from hexsim.measurement import MeasurementLog
-from hexsim.replay import CHANNELS, measured_velocity
 from hexsim.residuals import analyse
-from hexsim.signals import zero_crossings
 from hexsim.tables import write_atomic
-
-
-def _motion_state(ident: Identification):
-    p = ident.problem
-    log, w, s = p.log, p.windows, p.settle
-    pos = log.columns["pos_m"]
-    vel = measured_velocity(log, pos)
-    t = log.time
-    rev = zero_crossings(t, vel)
-    near = np.zeros(len(t), bool)
-    for tr in rev:
-        near |= np.abs(t - tr) < 0.05
-    take = lambda x: w.take(x)[:, s:]  # noqa: E731
-    return take(log.columns["valve_cmd_V"]), take(vel), take(pos), take(near)
 
 
 def summary(ident: Identification) -> dict:
     """The JSON document: added_effect, parameters, error_before/after (NRMSE per channel), candidates,
     residual analysis before/after, what the log lacked and which defaults were assumed."""
     p = ident.problem
-    u, vel, pos, near = _motion_state(ident)
-    cut = lambda res: {ch: r[:, p.settle:] for ch, r in res.items()}  # noqa: E731
+    u, vel, pos, near = p.motion_state()
+    cut = p.analysis_view
     chosen = ident.chosen
     return {
         "log": str(p.log.path),
@@ -49,18 +33,18 @@ def summary(ident: Identification) -> dict:
         "error_before": ident.error_before,
         "error_after": ident.error_after,
         "error_definition": "NRMSE: RMS of (replayed - measured) / the measured signal's standard deviation "
-                            "(floored: 0.1 mm, 0.1 bar, 0.05 m/s^2), valve replay over all windows",
+                            "(floored: 0.1 mm, 0.1 bar, 0.05 m/s^2), over all " + p.scored,
+        "replay": p.replay_mode,
         "rms_before": {ch: float(np.sqrt(np.mean(r**2))) for ch, r in ident.nominal_residuals.items()},
         "rms_after": {ch: float(np.sqrt(np.mean(r**2))) for ch, r in ident.chosen_residuals.items()},
-        "units": {ch: CHANNELS[ch][1] for ch in p.channels},
+        "units": p.units,
         "nominal": {"cost_fit": ident.nominal_cost_fit, "cost_held_out": ident.nominal_cost_held_out,
                     "aic": ident.nominal_aic, "bic": ident.nominal_bic},
         "candidates": [c.as_dict() | {"physics": CANDIDATES[c.name].physics} for c in ident.candidates],
         "selection": "largest held-out gain, chosen only if >= 5 % and BIC below the nominal's",
         "residuals_before": analyse(cut(ident.nominal_residuals), u, vel, pos, near, p.log.sample_rate_hz),
         "residuals_after": analyse(cut(ident.chosen_residuals), u, vel, pos, near, p.log.sample_rate_hz),
-        "windows": {"count": int(len(p.windows.starts)), "length_s": p.windows.length / p.log.sample_rate_hz,
-                    "settle_s": p.settle / p.log.sample_rate_hz, "fit": "even windows", "held_out": "odd windows"},
+        "windows": p.window_doc,
         "not_checked": p.log.missing,
         "assumed": p.log.assumed,
     }
@@ -73,7 +57,8 @@ def markdown(doc: dict, png_names: list[str]) -> str:
         lines += ["No candidate lowered the held-out error enough (≥ 5 % and a lower BIC): the nominal model "
                   "explains the log, or the residual lives where no candidate reaches (see the conditioned "
                   "table below).", ""]
-    lines += ["## Error per channel (NRMSE, valve replay)", "", "| channel | before | after |", "|---|---|---|"]
+    lines += [f"Replay: {doc['replay']}", "",
+              "## Error per channel (NRMSE)", "", "| channel | before | after |", "|---|---|---|"]
     for ch, before in doc["error_before"].items():
         lines.append(f"| {ch} | {before:.4g} | {doc['error_after'][ch]:.4g} |")
     lines += ["", "## Candidates", "",
@@ -114,14 +99,14 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
     chans = p.channels
     fig, ax = plt.subplots(len(chans), 3, figsize=(15, 3 * len(chans)), squeeze=False)
     fs = p.log.sample_rate_hz
-    u, vel, pos, near = _motion_state(ident)
+    u, vel, pos, near = p.motion_state()
+    before, after = p.analysis_view(ident.nominal_residuals), p.analysis_view(ident.chosen_residuals)
+    tw = p.sample_times()
     for i, ch in enumerate(chans):
-        b = ident.nominal_residuals[ch][:, p.settle:]
-        a = ident.chosen_residuals[ch][:, p.settle:]
-        tw = p.log.time[p.windows.starts][:, None] + np.arange(p.settle, p.windows.length)[None, :] / fs
+        b, a = before[ch], after[ch]
         ax[i, 0].plot(tw.ravel(), b.ravel(), ",", color="C3", label="before")
         ax[i, 0].plot(tw.ravel(), a.ravel(), ",", color="C0", label="after")
-        ax[i, 0].set_ylabel(f"{ch} residual [{CHANNELS[ch][1]}]")
+        ax[i, 0].set_ylabel(f"{ch} residual [{p.units[ch]}]")
         ax[i, 0].legend(loc="upper right", markerscale=20)
         ax[i, 1].plot(vel.ravel(), b.ravel(), ",", color="C3")
         ax[i, 1].plot(vel.ravel(), a.ravel(), ",", color="C0")

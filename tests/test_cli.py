@@ -157,3 +157,15 @@ def test_bench_prints_ratios_against_bare_mj_step(tmp_path, capsys):
     assert doc["ratio_hexapod_full_to_bare"] > 1.0
     assert "hexapod_full / bare_mj_step" in capsys.readouterr().out
     assert main(["bench", "--repeats", "0"]) == 2
+
+
+def test_same_command_twice_writes_the_same_bytes(tmp_path):
+    """Determinism (issue 6): JSON report, CSV log and its sidecar are bit-identical between two runs."""
+    outputs = []
+    for name in ("a", "b"):
+        d = tmp_path / name
+        d.mkdir()
+        assert main(["run", "actuator", "--duration", "2", "--frequency", "2", "--compensator", "buffered",
+                     "--buffer-time", "0.5", "--quiet", "--json", str(d / "run.json"), "--log", str(d / "log.csv")]) == 0
+        outputs.append([(d / f).read_bytes() for f in ("run.json", "log.csv", "log.json")])
+    assert outputs[0] == outputs[1]
