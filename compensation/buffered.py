@@ -17,7 +17,10 @@ When the buffers are full (appendix C):
    text's eq. (5.4) writes 10 / (2 l), which weights the oldest sample 0.5 and the newest 0.993; appendix
    C's code, which produced Fig. 5.12/5.13, goes from 0.5 to 0.99995. We use the code's;
 3. a = max(UC), b = 1/q with q = max|UV| (appendix C's last assignment of q), c = b mean(UY);
-   a and b are only ever increased (appendix C: ``if anew > aold``), c follows the data;
+   a and b are only ever increased (appendix C: ``if anew > aold``), c follows the data; a is limited to
+   q/4 (not in the seed: the exact amplitude for the quadratic flow area, eq. 5.1, the iterative
+   compensators' limit too; without it a buffer shorter than the motion's period lets a run away, e.g.
+   1 s buffers on a 0.5 Hz heave gave a = 44 V and 72 g peaks);
 4. the buffers are cleared, and the function's parameters glide to the new values through a first-order
    low-pass (``fade_time``), never jumping.
 
@@ -75,6 +78,11 @@ class ParameterBuffers:
         b_new = np.where(q > 0, 1.0 / np.maximum(q, 1e-12), 0.0)
         self.a[legs] = np.maximum(self.a[legs], a_new)
         self.b[legs] = np.maximum(self.b[legs], b_new)
+        # safety bound (not in the seed): a <= q/4 = 1/(4 b), the exact amplitude for the seed's quadratic
+        # flow area (eq. 5.1), as the iterative compensators limit a (seed §5.4: "parameter a could be
+        # limited"); a buffer shorter than the motion's period otherwise ratchets a up without bound
+        b = self.b[legs]
+        self.a[legs] = np.where(b > 0, np.minimum(self.a[legs], 0.25 / np.maximum(b, 1e-12)), self.a[legs])
         for leg in legs:
             uy = self.uy[:, leg]
             uy = uy[np.isfinite(uy)]

@@ -8,13 +8,14 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
   hydraulics in the compiled kernel at 10 kHz, P control and compensator in Python at 500 Hz, sensors
   recorded at 1 kHz — (b);
 * ``hexapod_numpy``: the same with the numpy reference callback, for the gain of the kernel;
+* ``hexapod_uncompensated``: heave without a compensator: the P controller runs inside the kernel too;
 * ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/test_convergence.py):
   dt = 1e-3 s, uncompensated heave — (c); with a compensator the 1e-3 s step misses the 2 % bound on
   single reversal peaks and the Python compensator at 500 Hz dominates the time (README "Speed");
 * ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator;
 * ``replay_kernel``: the compiled valve replay (:mod:`hexsim.native`) of one single-actuator window.
 
-``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 10 s) with 1 and with 2 worker processes.
+``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 20 s) with 1 and with 2 worker processes.
 """
 
 from __future__ import annotations
@@ -57,13 +58,13 @@ SWEEP_RUNS = 8
 
 
 def _sweep(jobs: int) -> float:
-    """Wall time [s] of a sweep of :data:`SWEEP_RUNS` runs (heave, 10 s at 1 Hz, buffered, one seed each)
+    """Wall time [s] of a sweep of :data:`SWEEP_RUNS` runs (heave, 20 s at 1 Hz, buffered, one seed each)
     with ``jobs`` workers, start-up (spawn, import, compile) included."""
     from hexsim.scenario import make_scenario
     from hexsim.simulation import RunConfig
     from hexsim.sweep import expand, run_sweep
 
-    scenario = make_scenario("heave", duration=10.0, frequency=1.0)
+    scenario = make_scenario("heave", duration=20.0, frequency=1.0)
     points = expand({"seed": list(range(SWEEP_RUNS))},
                     lambda s: RunConfig(scenario, compensator="buffered", seed=s["seed"]))
     return run_sweep(points, jobs=jobs, progress=False)[1]
@@ -103,6 +104,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
         "bare_mj_step": lambda: _bare(duration),
         "hexapod_full": lambda: _full("hexapod", "buffered", duration),
         "hexapod_numpy": lambda: _full("hexapod", "buffered", duration, engine="numpy"),
+        "hexapod_uncompensated": lambda: _full("hexapod", "none", duration),
         "hexapod_fast": lambda: _full("hexapod", "none", duration, timestep=1e-3),
         "actuator_full": lambda: _full("actuator", "none", duration),
         "actuator_fast": lambda: _full("actuator", "none", duration, timestep=1e-3),
@@ -126,10 +128,10 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
 
 
 def table(result: dict) -> str:
-    lines = [f"{'case':16s} {'µs per sim s':>13s} {'× real time':>12s} {'÷ bare':>8s}"]
+    lines = [f"{'case':22s} {'µs per sim s':>13s} {'× real time':>12s} {'÷ bare':>8s}"]
     bare = result["cases"]["bare_mj_step"]["wall_per_sim_s"]
     for name, c in result["cases"].items():
-        lines.append(f"{name:16s} {c['us_per_sim_s']:13.0f} {c['realtime_factor']:12.2f} "
+        lines.append(f"{name:22s} {c['us_per_sim_s']:13.0f} {c['realtime_factor']:12.2f} "
                      f"{c['wall_per_sim_s'] / bare:8.2f}")
     lines.append(f"hexapod_full / bare_mj_step = {result['ratio_hexapod_full_to_bare']:.2f}")
     lines.append(f"hexapod_fast / bare_mj_step = {result['ratio_hexapod_fast_to_bare']:.2f}  "

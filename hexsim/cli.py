@@ -210,6 +210,9 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                    help="inject a fault (repeatable): valve_stuck:leg=N,t=S,value=V | supply_loss:t=S[,ramp=S] | "
                         "sensor_frozen:leg=N,t=S | sensor_dropout:leg=N,t=S | end_stop:leg=N,t=S[,value=M] "
                         "(see hexsim/faults.py)")
+    p.add_argument("--keep-last", type=_number, metavar="SECONDS",
+                   help="keep only the last SECONDS of the 1 kHz recording (long runs: memory stays flat; the "
+                        "metrics and outputs cover that window)")
     p.add_argument("--engine", choices=("native", "numpy"), default="native",
                    help="leg hydraulics as the compiled kernel (default) or the numpy reference callback")
     p.add_argument("--timestep", type=_number, default=1e-4,
@@ -268,7 +271,7 @@ def _run_config(args: argparse.Namespace, compensator: str):
     faults = tuple(Fault.parse(text) for text in args.fault)
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
-                     engine=args.engine,
+                     engine=args.engine, keep_last_s=args.keep_last,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 
 

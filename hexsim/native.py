@@ -3,17 +3,17 @@
 The same physics as the reference :func:`hexsim.effects.step_plant` + :func:`hexsim.hydraulics.leg_force`
 (seed eq. 3.2–3.4, 3.7–3.9 and the effects of :class:`hexsim.effects.Effects`), written per leg in
 scalar loops and compiled with numba. The loop calls ``mj_step`` of the MuJoCo library the Python
-bindings loaded, through ctypes, on the raw ``mjModel*`` / ``mjData*`` (``MjModel._address``), reading
+bindings loaded, by symbol name, on the raw ``mjModel*`` / ``mjData*`` (``MjModel._address``), reading
 and writing ``qpos``/``qvel``/``ctrl``/``sensordata`` through the bindings' numpy views of the same
 memory. tests/test_native.py checks it against the numpy reference.
 """
 
 from __future__ import annotations
 
-import ctypes
 import math
 import pathlib
 
+import llvmlite.binding as llvm
 import mujoco
 import numba
 import numpy as np
@@ -23,10 +23,11 @@ from hexsim.params import HydraulicParams
 
 _lib_path = sorted(pathlib.Path(mujoco.__file__).parent.glob("libmujoco.so*"))
 _lib_path = _lib_path or sorted(pathlib.Path(mujoco.__file__).parent.glob("*mujoco*.dylib"))
-_lib = ctypes.CDLL(str(_lib_path[0]))
-_mj_step = _lib.mj_step
-_mj_step.argtypes = [ctypes.c_int64, ctypes.c_int64]  # mjModel*, mjData* passed as integers (same ABI)
-_mj_step.restype = None
+# mj_step of the MuJoCo library the Python bindings loaded, called by symbol name from compiled code:
+# mjModel*, mjData* passed as integers (the same ABI as pointers). Resolved when the kernel is linked,
+# so the compiled kernels can be cached on disk (numba's cache=True) and a new process only loads them.
+llvm.load_library_permanently(str(_lib_path[0]))
+_mj_step = numba.types.ExternalFunction("mj_step", numba.types.void(numba.types.int64, numba.types.int64))
 
 _FLOOR = math.sqrt(1.0e4)  # sqrt of hydraulics.JACOBIAN_DP_FLOOR
 
@@ -117,7 +118,7 @@ def step_legs(P, u, y, ydot, dt, p1, ps, xv, vv, ub, force, groups, demand):
         force[i] = p1[i] * P[3] - ps[i] * P[4] - force[i]
 
 
-@numba.njit(cache=False)  # calls a ctypes function: numba cannot cache it (compiles in ~3 s)
+@numba.njit(cache=True)
 def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_adr, P, u_sched, sub, dt,
                  p1, ps, xv, vv, ub, out_pos, out_p1, out_ps, out_acc):
     """Open-loop replay of k independent legs, in the order of :func:`hexsim.replay.replay` (which see):
@@ -152,10 +153,11 @@ def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_a
     return -1
 
 
-@numba.njit(cache=False)  # calls a ctypes function (see valve_replay)
+@numba.njit(cache=True)
 def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2, P, u, groups,
               p1, ps, xv, vv, ub, force, demand, hist, k0, nsteps, rec_div, r0, rec_k, rec_sens, rec_p1, rec_ps,
-              rec_force, rec_y, rec_viol, status):
+              rec_force, rec_y, rec_viol, status, ctrl_div, kp, setpoints, noise, rec_ref, rec_u, saturated,
+              n_total):
     """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs with the valve setpoints ``u`` (n,) held (ZOH),
     in the order of :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the
     sensor-delay ring ``hist`` (L, n) (Python pushed it for step k0 before the controller sample);
@@ -165,28 +167,49 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
     P1, P_s of leg 0 and the measured position before the step, the sensor data and site positions
     MuJoCo computed at the start of the step (``rec_viol``: largest distance between the connect
     anchor sites ``site1[i]``/``site2[i]``) and the force applied over the step. Returns the next row;
-    ``status[0]`` = the first step whose state is not finite, else -1."""
+    ``status[0]`` = the first step whose state is not finite, else -1.
+
+    ``ctrl_div`` > 0: the uncompensated P controller runs here too (:class:`hexsim.controller.PController`
+    with U_c = 0): at every step k with k % ctrl_div == 0, u = sat(K_p (r_j - y_measured - noise_j),
+    ±P[7]) with r_j = setpoints[j], j = k // ctrl_div; ``saturated[0]`` counts the samples with a leg
+    saturated; rows also get the setpoint and u_v in force (``rec_ref``, ``rec_u``). 0: ``u`` is given
+    and held, and Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to row
+    r % len(rec_k), so a long run can keep only its last part."""
     n = p1.shape[0]
     L = hist.shape[0]
     dt = P[30]
     y = np.empty(n)
     yd = np.empty(n)
     r = r0
+    j = 0
     for s in range(nsteps):
         k = k0 + s
         for i in range(n):
             y[i] = qpos[qadr[i]]
             yd[i] = qvel[dadr[i]]
-        if s > 0:
+        if s > 0 or ctrl_div > 0:
             for i in range(n):
                 hist[k % L, i] = y[i]
-        record = k % rec_div == 0 and r < rec_k.shape[0]
-        if record:
-            rec_k[r] = k
-            rec_ps[r] = ps[0]
+        if ctrl_div > 0 and k % ctrl_div == 0:
+            j = min(k // ctrl_div, setpoints.shape[0] - 1)
+            hit = False
             for i in range(n):
-                rec_p1[r, i] = p1[i]
-                rec_y[r, i] = hist[(k + 1) % L, i]
+                v = kp * (setpoints[j, i] - (hist[(k + 1) % L, i] + noise[j, i]))
+                u[i] = min(max(v, -P[7]), P[7])
+                hit = hit or u[i] != v
+            if hit:
+                saturated[0] += 1
+        record = k % rec_div == 0 and r < n_total
+        w = r % rec_k.shape[0]
+        if record:
+            rec_k[w] = k
+            rec_ps[w] = ps[0]
+            for i in range(n):
+                rec_p1[w, i] = p1[i]
+                rec_y[w, i] = hist[(k + 1) % L, i]
+                if ctrl_div > 0:
+                    rec_ref[w, i] = setpoints[j, i]
+                    rec_u[w, i] = u[i]
         step_legs(P, u, y, yd, dt, p1, ps, xv, vv, ub, force, groups, demand)
         for i in range(n):
             ctrl[aadr[i]] = force[i]
@@ -200,16 +223,16 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
             return r
         if record:
             for c in range(sens.shape[0]):
-                rec_sens[r, c] = sens[c]
+                rec_sens[w, c] = sens[c]
             worst = 0.0
             for e in range(site1.shape[0]):
                 dx = site_xpos[site1[e], 0] - site_xpos[site2[e], 0]
                 dy = site_xpos[site1[e], 1] - site_xpos[site2[e], 1]
                 dz = site_xpos[site1[e], 2] - site_xpos[site2[e], 2]
                 worst = max(worst, math.sqrt(dx * dx + dy * dy + dz * dz))
-            rec_viol[r] = worst
+            rec_viol[w] = worst
             for i in range(n):
-                rec_force[r, i] = force[i]
+                rec_force[w, i] = force[i]
             r += 1
     status[0] = -1
     return r

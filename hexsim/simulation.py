@@ -51,6 +51,8 @@ class RunConfig:
     progress: bool = False
     engine: str = "native"  # "native": compiled kernel (hexsim.native); "numpy": the reference callback
     timestep: float | None = None  # physics step [s]; None: the model's 1e-4 s (the seed's 10 kHz)
+    keep_last_s: float | None = None  # keep only the last this many seconds of the recording (long runs:
+    # memory stays flat; metrics and outputs cover that window); None: the whole run
     faults: tuple[Fault, ...] = ()  # injected faults (hexsim.faults); default none
     # U_c per controller sample (n_ticks, n_legs) [V] replayed instead of a compensator (measured-data
     # replay, hexsim.hexapod_replay); None: the compensator named above
@@ -59,6 +61,8 @@ class RunConfig:
     def __post_init__(self) -> None:
         if self.engine not in ENGINES:
             raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
+        if self.keep_last_s is not None and not (math.isfinite(self.keep_last_s) and self.keep_last_s > 0):
+            raise InputError(f"keep_last_s must be a positive number of seconds, got {self.keep_last_s!r}")
         if self.timestep is not None:
             if not (math.isfinite(self.timestep) and 1e-6 <= self.timestep <= 1e-3):
                 raise InputError(f"timestep must be within 1e-6…1e-3 s, got {self.timestep!r}")
@@ -309,7 +313,8 @@ def simulate(config: RunConfig) -> SimulationResult:
     coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div, config.warm_up, plant,
                                  config.effects, injector)
 
-    n_rec = int(round(sc.duration / dt)) // rec_div
+    n_total = int(round(sc.duration / dt)) // rec_div  # samples the run records
+    n_rec = n_total if config.keep_last_s is None else min(n_total, max(1, int(round(config.keep_last_s * record_rate))))
     n = idx.n_legs
     rec = {k: np.empty((n_rec, n)) for k in ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")}
     t = np.empty(n_rec)
@@ -330,11 +335,16 @@ def simulate(config: RunConfig) -> SimulationResult:
                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
     if config.engine == "numpy":
         wall = _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
-                    viol, delayed, bar)
+                           viol, delayed, bar, n_total)
     else:
         wall = _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
-                     rec_sensors, viol, bar)
+                            rec_sensors, viol, bar, n_total)
     bar.close()
+    if n_total > n_rec:  # a ring of the last n_rec samples: put them in time order
+        shift = n_total % n_rec
+        kept = [t, p_s, acc, viol, temperature, *rec.values(), *comp_state.values()]
+        for arr in kept + [x for x in (gyro, angacc, pos, quat) if x is not None]:
+            arr[:] = np.roll(arr, -shift, axis=0)
 
     pose = pose_ref = None
     if hexapod:
@@ -352,10 +362,11 @@ def simulate(config: RunConfig) -> SimulationResult:
 
 
 def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
-                viol, delayed, bar) -> float:
+                viol, delayed, bar, n_total) -> float:
     """The reference: :class:`HydraulicCoupling` as MuJoCo's control callback; every ``rec_div``-th
     step k records the state at t_k (the sensors MuJoCo evaluates at the start of the step, P1 before
-    the step's update). Returns the wall time [s]."""
+    the step's update); ``n_total`` samples, kept in the arrays as a ring (row i % len(t)). Returns the
+    wall time [s]."""
     s = idx.sensor
     n = idx.n_legs
     dt = idx.dt
@@ -364,30 +375,31 @@ def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperat
     start = time.perf_counter()
     mujoco.set_mjcb_control(coupling)
     try:
-        for i in range(len(t)):
+        for i in range(n_total):
+            w = i % len(t)
             p1_before, p_s_before = coupling.state.p1.copy(), coupling.state.p_s[0]
             mujoco.mj_step(m, d)  # step k = i * rec_div: the sensors see t_k
             if coupling.error is not None:
                 raise coupling.error
             _check_state(m, d, idx, coupling)
             sd = d.sensordata
-            t[i] = i * rec_div * dt
-            rec["y"][i] = coupling.y_measured if delayed else sd[leg_pos]
-            rec["ydot"][i] = sd[leg_vel]
-            rec["y_ref"][i] = coupling.r
-            rec["u_v"][i] = coupling.u_v
-            rec["u_c"][i] = coupling.u_c
-            rec["p1"][i] = p1_before
-            p_s[i] = p_s_before
-            rec["force"][i] = coupling.force
-            temperature[i] = coupling.temperature
+            t[w] = i * rec_div * dt
+            rec["y"][w] = coupling.y_measured if delayed else sd[leg_pos]
+            rec["ydot"][w] = sd[leg_vel]
+            rec["y_ref"][w] = coupling.r
+            rec["u_v"][w] = coupling.u_v
+            rec["u_c"][w] = coupling.u_c
+            rec["p1"][w] = p1_before
+            p_s[w] = p_s_before
+            rec["force"][w] = coupling.force
+            temperature[w] = coupling.temperature
             for key, value in compensator.state().items():
-                comp_state[key][i] = value
+                comp_state[key][w] = value
             for name, out in rec_sensors.items():
-                out[i] = sd[s[name]]
+                out[w] = sd[s[name]]
             eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
             if np.any(eq):
-                viol[i] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
+                viol[w] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
             if i % 100 == 0:
                 bar.update(round(d.time - bar.n, 3))
             if rec_div > 1:
@@ -401,7 +413,7 @@ def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperat
 
 
 def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
-                 rec_sensors, viol, bar) -> float:
+                 rec_sensors, viol, bar, n_total) -> float:
     """The compiled path (returns the wall time [s] after compiling): Python samples the controller and the compensator at every controller tick
     (``coupling.ctrl_div`` steps) and :func:`hexsim.native.run_block` steps the legs and MuJoCo until
     the next tick, recording into ``rec_*``. Same order of operations as :class:`HydraulicCoupling`
@@ -419,26 +431,52 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
         raise InputError("the native engine needs connect constraints between sites")
     site1, site2 = m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64)
-    n_rec = len(t)
+    n_rec = len(t)  # rows kept: the last n_rec of the n_total samples, as a ring
     rec_k = np.empty(n_rec, dtype=np.int64)
     rec_sens = np.empty((n_rec, m.nsensordata))
     status = np.full(1, -1, dtype=np.int64)
     qadr, dadr, aadr = (a.astype(np.int64) for a in (idx.qpos_adr, idx.dof_adr, idx.actuator_id))
     hyd = coupling.hyd
     P = native.pack(hyd, coupling.effects, dt)
-    total = n_rec * rec_div
+    total = n_total * rec_div
     mujoco.mj_forward(m, d)
 
-    def block(u_v, k, steps, r):
+    # the uncompensated P controller without faults or warming oil runs inside the kernel as well
+    inner = (type(compensator).__name__ == "NoCompensator" and not coupling.faults and coupling.warm_up is None)
+    saturated = np.zeros(1, dtype=np.int64)
+    ctrl = coupling.controller
+
+    def block(u_v, k, steps, r, ctrl_div=0):
         return native.run_block(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, d.site_xpos, qadr,
                                 dadr, aadr, site1, site2, P, u_v, groups, p1, ps, xv, vv, ub, force, demand,
                                 hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
-                                viol, status)
+                                viol, status, ctrl_div, ctrl.params.kp, coupling.setpoints, coupling.noise,
+                                rec["y_ref"], rec["u_v"], saturated, n_total)
 
     warnings = d.warning.number  # a view of MuJoCo's warning counters
-    block(np.zeros(n), 0, 0, 0)  # compile (a few seconds, once per process) before the clock starts
+    block(np.zeros(n), 0, 0, 0)  # compile or load from the cache before the clock starts
     start = time.perf_counter()
     k = r = 0
+    if inner:  # in chunks of about 0.5 s, for the progress bar and the checks
+        u_v = np.zeros(n)
+        chunk = max(1, int(round(0.5 / (ctrl_div * dt)))) * ctrl_div
+        while k < total:
+            steps = min(chunk, total - k)
+            r = block(u_v, k, steps, r, ctrl_div)
+            if status[0] >= 0:
+                bad = ~np.isfinite(p1) | ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
+                leg = int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else 1
+                raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * dt:.4f} s")
+            if warnings.any():
+                check_warnings(m, d)
+            k += steps
+            bar.update(round(k * dt - bar.n, 3))
+        rec["u_c"][:] = 0.0
+        temperature[:] = coupling.temperature
+        ctrl.saturated_samples += int(saturated[0])
+        j = min((total - 1) // ctrl_div, len(coupling.setpoints) - 1)
+        coupling.r = coupling.setpoints[j]
+        coupling.u_v, coupling.u_c = u_v, np.zeros(n)
     while k < total:
         y = d.qpos[idx.qpos_adr]
         hist[k % L] = y
@@ -458,7 +496,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
             raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * dt:.4f} s")
         if warnings.any():
             check_warnings(m, d)
-        rows = slice(r, r_next)
+        rows = np.arange(r, r_next) % n_rec
         rec["y_ref"][rows] = r_set
         rec["u_v"][rows] = u_v
         rec["u_c"][rows] = u_c
@@ -478,7 +516,9 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     for name, out in rec_sensors.items():
         out[:] = rec_sens[:, s[name]]
     coupling.state = PlantState(p1, ps, xv, vv, ub)
-    coupling.u_v, coupling.u_c, coupling.force = u_v, u_c, force
+    coupling.force = force
+    if not inner:
+        coupling.u_v, coupling.u_c = u_v, u_c
     return wall
 
 

@@ -151,8 +151,8 @@ def test_bench_prints_ratios_against_bare_mj_step(tmp_path, capsys):
     out = tmp_path / "bench.json"
     assert main(["bench", "--duration", "1.5", "--repeats", "1", "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
-    assert set(doc["cases"]) == {"bare_mj_step", "hexapod_full", "hexapod_numpy", "hexapod_fast", "actuator_full",
-                                 "actuator_fast", "replay_kernel"}
+    assert set(doc["cases"]) == {"bare_mj_step", "hexapod_full", "hexapod_numpy", "hexapod_uncompensated",
+                                 "hexapod_fast", "actuator_full", "actuator_fast", "replay_kernel"}
     # the callback adds work on top of the same mj_step: the ratio cannot be below 1
     assert doc["ratio_hexapod_full_to_bare"] > 1.0
     assert "hexapod_full / bare_mj_step" in capsys.readouterr().out

@@ -88,6 +88,18 @@ def test_buffers_give_appendix_c_parameters_and_only_increase():
     assert buf.updates == 2 and buf.a[0] == a1 and buf.b[0] == b1
 
 
+def test_buffered_amplitude_is_limited_to_a_quarter_of_the_valve_range():
+    """A buffer that saw a small valve range but large u_v - ydot/s (e.g. shorter than the motion's period)
+    must not set a above q/4 = 1/(4 b) (safety bound, as the iterative compensators)."""
+    n = 500
+    buf = ParameterBuffers(1, n, 500.0, 0.032)
+    phase = np.linspace(0, 2 * np.pi, n)
+    for k in range(n):
+        buf.add(np.array([True]), np.array([0.4 * np.sin(phase[k])]), np.array([3.0]), np.array([np.nan]))
+    assert buf.b[0] == pytest.approx(1 / 0.4, rel=0.03)
+    assert buf.a[0] == pytest.approx(0.25 / buf.b[0])
+
+
 def test_settings_are_validated():
     with pytest.raises(SettingsError, match="buffer_time"):
         CompensatorSettings(buffer_time=0)

@@ -2,6 +2,9 @@
 hexsim.hydraulics.leg_force): same trajectories on the same log, every effect switched on."""
 
 import numpy as np
+import pytest
+
+from compensation import CompensatorSettings
 
 from hexsim.effects import Effects
 from hexsim.logio import write_log
@@ -62,3 +65,16 @@ def test_native_engine_equals_numpy_reference_with_every_effect():
                     spool_play=0.05, leakage=2e-12, sensor_delay=0.002, mass_kg=55.0, inclination_deg=20.0)
     base = RunConfig(make_scenario("actuator", duration=1.5, frequency=2.0), effects=every, seed=2)
     _same_run(simulate(base), simulate(RunConfig(**{**base.__dict__, "engine": "numpy"})))
+
+
+@pytest.mark.parametrize("compensator, engine", [("none", "native"), ("buffered", "native"), ("buffered", "numpy")])
+def test_keeping_the_last_seconds_records_the_tail_of_the_full_run(compensator, engine):
+    """--keep-last: the recording is a ring of the last samples, put back in time order (flat memory)."""
+    scenario = make_scenario("actuator", duration=2.0, frequency=2.0)
+    settings = CompensatorSettings(buffer_time=0.5)
+    full = simulate(RunConfig(scenario, compensator=compensator, compensator_settings=settings, engine=engine))
+    tail = simulate(RunConfig(scenario, compensator=compensator, compensator_settings=settings, engine=engine,
+                              keep_last_s=0.7))
+    assert len(tail.t) == 700 and tail.t[0] == pytest.approx(1.3)
+    for name in ("t", "y", "ydot", "y_ref", "u_v", "u_c", "p1", "p_s", "force", "acc", "constraint_violation"):
+        assert np.array_equal(getattr(tail, name), getattr(full, name)[-700:]), name
