@@ -68,33 +68,6 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     return simulate(config)
 
 
-def replay_errors(log: MeasurementLog, result: SimulationResult) -> dict:
-    """Residuals and NRMSE of a replay: {"residuals": group -> (k, n) simulated - measured from
-    :data:`SETTLE_S` on, "nrmse": group -> float, "nrmse_per_leg": {"position": [6], "p1": [6]},
-    "rows": the log rows used}. NRMSE = RMS residual / the measured signal's standard deviation, floored
-    (0.1 mm, 0.1 bar, 0.05 m/s^2)."""
-    t = log.time - log.time[0]
-    use = (t >= SETTLE_S) & (t <= result.t[-1])
-    sim = {
-        "position": result.y, "p1": result.p1, "p_s": result.p_s[:, None], "acceleration": result.acc,
-    }
-    residuals, nrmse, per_leg = {}, {}, {}
-    for group, (cols, _unit, floor) in GROUPS.items():
-        have = [k for k, name in enumerate(cols) if name in log.columns]
-        if not have:
-            continue
-        measured = np.stack([log.columns[cols[k]][use] for k in have])
-        simulated = np.stack([np.interp(t[use], result.t, sim[group][:, k]) for k in have])
-        r = simulated - measured
-        scale = max(float(np.std(measured)), floor)
-        residuals[group] = r
-        nrmse[group] = float(np.sqrt(np.mean(r**2)) / scale)
-        if group in ("position", "p1"):
-            per_leg[group] = [float(np.sqrt(np.mean(row**2)) / max(float(np.std(m)), floor))
-                              for row, m in zip(r, measured)]
-    return {"residuals": residuals, "nrmse": nrmse, "nrmse_per_leg": per_leg, "rows": np.flatnonzero(use)}
-
-
 #: Length of the scored segments [s]: even segments fit, odd segments are held out.
 SEGMENT_S = 0.5
 

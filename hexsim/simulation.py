@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
-from compensation.base import ReplayedCompensation
+from compensation.base import NoCompensator, ReplayedCompensation
 from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.effects import Effects, PlantState, step_plant
@@ -414,10 +414,12 @@ def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperat
 
 def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
                  rec_sensors, viol, bar, n_total) -> float:
-    """The compiled path (returns the wall time [s] after compiling): Python samples the controller and the compensator at every controller tick
+    """The compiled path: Python samples the controller and the compensator at every controller tick
     (``coupling.ctrl_div`` steps) and :func:`hexsim.native.run_block` steps the legs and MuJoCo until
-    the next tick, recording into ``rec_*``. Same order of operations as :class:`HydraulicCoupling`
-    (tests/test_native.py checks the trajectories agree)."""
+    the next tick, recording into the ``rec_*`` rings; without a compensator, faults or warming oil the
+    kernel runs the P controller too and Python only calls it every 0.5 s. Same order of operations as
+    :class:`HydraulicCoupling` (tests/test_native.py checks the trajectories agree). Returns the wall
+    time [s], compilation (or loading from numba's cache) excluded."""
     from hexsim import native
 
     n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
@@ -442,7 +444,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     mujoco.mj_forward(m, d)
 
     # the uncompensated P controller without faults or warming oil runs inside the kernel as well
-    inner = (type(compensator).__name__ == "NoCompensator" and not coupling.faults and coupling.warm_up is None)
+    inner = isinstance(compensator, NoCompensator) and not coupling.faults and coupling.warm_up is None
     saturated = np.zeros(1, dtype=np.int64)
     ctrl = coupling.controller
 
@@ -463,12 +465,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
         while k < total:
             steps = min(chunk, total - k)
             r = block(u_v, k, steps, r, ctrl_div)
-            if status[0] >= 0:
-                bad = ~np.isfinite(p1) | ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
-                leg = int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else 1
-                raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * dt:.4f} s")
-            if warnings.any():
-                check_warnings(m, d)
+            _check_block(m, d, idx, status, p1, warnings)
             k += steps
             bar.update(round(k * dt - bar.n, 3))
         rec["u_c"][:] = 0.0
@@ -490,12 +487,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
         r_set, u_v, u_c = coupling.r, coupling.u_v, coupling.u_c
         steps = min(ctrl_div, total - k)
         r_next = block(u_v, k, steps, r)
-        if status[0] >= 0:
-            bad = ~np.isfinite(p1) | ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
-            leg = int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else 1
-            raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * dt:.4f} s")
-        if warnings.any():
-            check_warnings(m, d)
+        _check_block(m, d, idx, status, p1, warnings)
         rows = np.arange(r, r_next) % n_rec
         rec["y_ref"][rows] = r_set
         rec["u_v"][rows] = u_v
@@ -520,6 +512,17 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     if not inner:
         coupling.u_v, coupling.u_c = u_v, u_c
     return wall
+
+
+def _check_block(m, d, idx: PlantIndex, status: np.ndarray, p1: np.ndarray, warnings: np.ndarray) -> None:
+    """After a kernel call: raise PhysicsError for the non-finite state the kernel stopped at (naming
+    the leg and the time) or for a MuJoCo warning."""
+    if status[0] >= 0:
+        bad = ~np.isfinite(p1) | ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
+        leg = int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else 1
+        raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * idx.dt:.4f} s")
+    if warnings.any():
+        check_warnings(m, d)
 
 
 def _divider(rate_hz: float, dt: float, what: str) -> int:
