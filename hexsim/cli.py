@@ -240,10 +240,10 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
 
 
 def _run_config(args: argparse.Namespace, compensator: str):
-    from hexsim.simulation import RunConfig
-
     from hexsim.effects import Effects
+    from hexsim.faults import Fault
     from hexsim.paramfile import read_params
+    from hexsim.simulation import RunConfig
 
     if args.params is not None:
         given = read_params(args.params)
@@ -265,8 +265,6 @@ def _run_config(args: argparse.Namespace, compensator: str):
             held_maximum=args.held_maximum)
     except SettingsError as exc:
         raise InputError(str(exc)) from None
-    from hexsim.faults import Fault
-
     warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
     faults = tuple(Fault.parse(text) for text in args.fault)
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
