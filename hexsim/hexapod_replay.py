@@ -22,6 +22,7 @@ from hexsim.errors import InputError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
+from hexsim.signals import zero_order_hold
 from hexsim.simulation import RunConfig, SimulationResult, simulate
 
 #: Start of the log left out of the error [s]: the model starts at rest in the neutral pose.
@@ -34,12 +35,6 @@ GROUPS = {
     "p_s": (["ps_Pa"], "Pa", 1e4),
     "acceleration": ([f"platform_acc_{a}_mps2" for a in "xyz"], "m/s^2", 0.05),
 }
-
-
-def _held(times: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """values (N, ...) held from each row's time to the next (zero-order hold) at times t."""
-    rows = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
-    return values[rows]
 
 
 def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = None,
@@ -61,7 +56,8 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     controller = ControllerParams(kp=log.kp, rate_hz=log.controller_rate_hz, position_noise=0.0)
     duration = math.floor((t[-1] + 1.0 / log.sample_rate_hz) * 1000.0 + 1e-6) / 1000.0
     ticks = np.arange(int(math.ceil(duration * controller.rate_hz)) + 1) / controller.rate_hz
-    feedforward = _held(t, u_v, ticks) - controller.kp * (_held(t, ref, ticks) - _held(t, pos, ticks))
+    held = lambda x: zero_order_hold(t, x, ticks)  # noqa: E731
+    feedforward = held(u_v) - controller.kp * (held(ref) - held(pos))
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
     config = RunConfig(scenario, hydraulics=hydraulics or HydraulicParams(), controller=controller,
                        effects=effects or Effects(), feedforward=feedforward)

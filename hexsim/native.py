@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from hexsim.effects import Effects
+from hexsim.hydraulics import JACOBIAN_DP_FLOOR
 from hexsim.params import HydraulicParams
 
 _lib_path = sorted(pathlib.Path(mujoco.__file__).parent.glob("libmujoco.so*"))
@@ -29,7 +30,7 @@ _lib_path = _lib_path or sorted(pathlib.Path(mujoco.__file__).parent.glob("*mujo
 llvm.load_library_permanently(str(_lib_path[0]))
 _mj_step = numba.types.ExternalFunction("mj_step", numba.types.void(numba.types.int64, numba.types.int64))
 
-_FLOOR = math.sqrt(1.0e4)  # sqrt of hydraulics.JACOBIAN_DP_FLOOR
+_FLOOR = math.sqrt(JACOBIAN_DP_FLOOR)
 
 
 def pack(hyd: HydraulicParams, eff: Effects, dt: float = 0.0) -> np.ndarray:

@@ -1,16 +1,12 @@
 """Replaying a measurement log through the model: the same hydraulics and MuJoCo mechanics as
 :func:`hexsim.simulation.simulate`, with the log in place of the scenario.
 
-Two ways, each used for one purpose:
-
-* **Valve replay** (identification and the per-channel errors): the logged valve setpoints u_v drive the
-  model open loop over windows short enough that the integrating position does not drift far (0.4 s by
-  default). Each window starts from the measured state at its first sample (position, velocity from a
-  Savitzky–Golay derivative of the position, P1, P_s). The controller is out of the loop, so what it
-  would have compensated (a flow offset, a lag) stays in the residual where it can be seen.
-* **Closed-loop replay** (the end-to-end check): the logged setpoints r through the model's own P
-  controller with the logged K_p and rate, in windows of 2 s; any compensator that acted on the
-  machine is not known to the replay and shows in the residual of u_v.
+**Valve replay** of a single-actuator log (identification and the per-channel errors): the logged valve
+setpoints u_v drive the model open loop over windows short enough that the integrating position does
+not drift far (:data:`hexsim.identify.WINDOW_S`). Each window starts from the measured state at its first
+sample (position, velocity from a Savitzky–Golay derivative of the position, P1, P_s). The controller
+is out of the loop, so what it would have compensated (a flow offset, a lag) stays in the residual
+where it can be seen. Hexapod logs are replayed closed loop instead (:mod:`hexsim.hexapod_replay`).
 
 All windows run at once as independent copies of the single actuator in one MuJoCo model (one slide
 joint and one accelerometer per window), built from the shipped ``single_actuator.xml``.
@@ -153,17 +149,15 @@ def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effec
     return u_b[rows], states[rows, 0], states[rows, 1]
 
 
-def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_loop: bool = False,
-           dt: float = 1e-4, native: bool = True) -> dict[str, np.ndarray]:
+def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: float = 1e-4,
+           native: bool = True) -> dict[str, np.ndarray]:
     """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
     plus ``u_v`` (the valve setpoint applied).
 
     Timing follows hexsim's own logs (:func:`hexsim.simulation.simulate`): row j holds the state at its
     time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration of the step that
-    starts at t_j. The state of row 0 is the measured one. Valve replay (default) applies the
-    logged u_v; ``closed_loop`` runs the
-    P controller (logged K_p and rate) on the logged ``ref_m``. The measured position the log holds is
-    compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
+    starts at t_j. The state of row 0 is the measured one; the logged u_v drives each window open loop.
+    The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
     compiled kernel (:mod:`hexsim.native`); False: the numpy reference. Single-actuator logs only.
     Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
     non-finite state.
@@ -176,8 +170,6 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
     sub = int(round(1.0 / (fs * dt)))
     if abs(sub * dt * fs - 1.0) > 1e-9:
         raise InputError(f"{log.path}: sample rate {fs:g} Hz must divide the physics rate {1 / dt:g} Hz")
-    if closed_loop and "ref_m" not in c:
-        raise InputError(f"{log.path}: closed-loop replay needs column 'ref_m'")
     k, n = len(windows.starts), windows.length
     m = batch_model(k, eff)
     m.opt.timestep = dt
@@ -206,14 +198,10 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
         p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
     state = PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)
     state.u_b, state.x_v, state.v_v = spool_history(u_log, fs, hyd, eff, s0)
-    if closed_loop:
-        ctrl_div = int(round(fs / log.controller_rate_hz)) * sub
-        ref = c["ref_m"]
-        hist = np.tile(y0, (int(round(tau / dt)) + 1, 1))
     out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
     mujoco.set_mjcb_control(None)
-    if native and not closed_loop:
+    if native:
         from hexsim import native as kernel
 
         u_sched = windows.take(u_log)
@@ -224,20 +212,12 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
                                   out["p_s"], out["acceleration"])
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
-    else:  # the numpy reference, and the closed loop (P control on the logged setpoints)
-        step = 0
-        u = u_log[s0].copy()
+    else:  # the numpy reference
         for j in range(n):
-            if not closed_loop:
-                u = u_log[s0 + j]
+            u = u_log[s0 + j]
             for s_ in range(sub):
                 y = d.qpos[idx.qpos_adr].copy()
                 ydot = d.qvel[idx.dof_adr].copy()
-                if closed_loop:
-                    hist[step % len(hist)] = y
-                    if step % ctrl_div == 0:
-                        u = np.clip(log.kp * (ref[s0 + step // sub] - hist[(step + 1) % len(hist)]),
-                                    -hyd.u_v_max, hyd.u_v_max)
                 if s_ == 0:
                     out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
                     out["u_v"][:, j] = u
@@ -246,13 +226,12 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, closed_l
                 mujoco.mj_step(m, d)
                 if s_ == 0:
                     out["acceleration"][:, j] = d.sensordata[acc_adr]
-                step += 1
             if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
                 bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
                 raise PhysicsError(f"replay: non-finite state in the window starting at t = {t[s0[bad]]:.3f} s, "
                                    f"{j / fs:.3f} s into it")
     check_warnings(m, d)
-    if tau > 0 and not closed_loop:
+    if tau > 0:
         # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau
         tw = np.arange(n) / fs
         out["position"] = np.array([np.interp(tw - tau, tw, row, left=y0w) for row, y0w in

@@ -1,4 +1,5 @@
-"""Small signal helpers shared by scenarios and metrics: fundamental fit and zero crossings."""
+"""Small signal helpers shared by scenarios, metrics and replays: fundamental fit, zero crossings,
+zero-order hold."""
 
 from __future__ import annotations
 
@@ -43,3 +44,10 @@ def zero_crossings(t: np.ndarray, x: np.ndarray) -> np.ndarray:
     idx = np.flatnonzero(np.sign(x[:-1]) != np.sign(x[1:]))
     frac = x[idx] / (x[idx] - x[idx + 1])
     return t[idx] + frac * (t[idx + 1] - t[idx])
+
+
+def zero_order_hold(times: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """values (N, ...) at sample times (N,) [s], each held until the next sample, read at times t (M,):
+    (M, ...). Before the first sample the first value."""
+    rows = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
+    return values[rows]

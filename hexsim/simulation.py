@@ -27,6 +27,7 @@ from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
+from hexsim.signals import zero_order_hold
 from hexsim.temperature import WarmUp
 
 
@@ -240,30 +241,24 @@ def piston_setpoints(m: mujoco.MjModel, idx: PlantIndex, scenario: Scenario, t: 
         times, values = scenario.legs
         if values.shape[1] != idx.n_legs:
             raise InputError(f"scenario {scenario.name} has {values.shape[1]} legs, the model {idx.n_legs}")
-        rows = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
-        y = values[rows]
-        for i in range(idx.n_legs):
-            lo, hi = idx.stroke[i]
-            bad = (y[:, i] < lo) | (y[:, i] > hi)
-            if np.any(bad):
-                n = int(np.argmax(bad))
-                raise WorkspaceError(f"setpoint at t = {t[n]:.3f} s needs leg{i + 1} piston position "
-                                     f"{y[n, i]:.4f} m, outside its stroke {lo:g}…{hi:g} m")
-        return y, None
+        return _within_stroke(zero_order_hold(times, values, t), t, idx), None
     if scenario.system == "hexapod":
         if idx.n_legs != 6:
             raise InputError(f"scenario {scenario.name} needs the hexapod model, this model has {idx.n_legs} legs")
         poses = scenario.poses(t)
         return HexapodGeometry.from_model(m).inverse(poses, t), poses
-    y = idx.neutral_y[None, :] + scenario.axis_setpoint(t)[:, None]
-    lo, hi = idx.stroke[0]
-    bad = (y[:, 0] < lo) | (y[:, 0] > hi)
-    if np.any(bad):
-        n = int(np.argmax(bad))
-        raise WorkspaceError(
-            f"setpoint at t = {t[n]:.3f} s needs leg1 piston position {y[n, 0]:.4f} m, outside its stroke {lo:g}…{hi:g} m"
-        )
-    return y, None
+    return _within_stroke(idx.neutral_y[None, :] + scenario.axis_setpoint(t)[:, None], t, idx), None
+
+
+def _within_stroke(y: np.ndarray, t: np.ndarray, idx: PlantIndex) -> np.ndarray:
+    """``y`` (N, n_legs) [m] unchanged, or WorkspaceError naming the first time and leg outside its stroke."""
+    for i, (lo, hi) in enumerate(idx.stroke):
+        bad = (y[:, i] < lo) | (y[:, i] > hi)
+        if np.any(bad):
+            n = int(np.argmax(bad))
+            raise WorkspaceError(f"setpoint at t = {t[n]:.3f} s needs leg{i + 1} piston position {y[n, i]:.4f} m, "
+                                 f"outside its stroke {lo:g}…{hi:g} m")
+    return y
 
 
 def simulate(config: RunConfig) -> SimulationResult:
@@ -319,7 +314,6 @@ def simulate(config: RunConfig) -> SimulationResult:
     rec = {k: np.empty((n_rec, n)) for k in ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")}
     t = np.empty(n_rec)
     p_s = np.empty(n_rec)
-    delayed = config.effects.sensor_delay > 0
     acc = np.empty((n_rec, 3))
     hexapod = sc.system == "hexapod"
     gyro, angacc = (np.empty((n_rec, 3)), np.empty((n_rec, 3))) if hexapod else (None, None)
@@ -335,7 +329,7 @@ def simulate(config: RunConfig) -> SimulationResult:
                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
     if config.engine == "numpy":
         wall = _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
-                           viol, delayed, bar, n_total)
+                           viol, bar, n_total)
     else:
         wall = _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
                             rec_sensors, viol, bar, n_total)
@@ -362,7 +356,7 @@ def simulate(config: RunConfig) -> SimulationResult:
 
 
 def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
-                viol, delayed, bar, n_total) -> float:
+                viol, bar, n_total) -> float:
     """The reference: :class:`HydraulicCoupling` as MuJoCo's control callback; every ``rec_div``-th
     step k records the state at t_k (the sensors MuJoCo evaluates at the start of the step, P1 before
     the step's update); ``n_total`` samples, kept in the arrays as a ring (row i % len(t)). Returns the
@@ -370,7 +364,6 @@ def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperat
     s = idx.sensor
     n = idx.n_legs
     dt = idx.dt
-    leg_pos = np.array([s[f"leg{i + 1}_pos"].start for i in range(n)])
     leg_vel = np.array([s[f"leg{i + 1}_vel"].start for i in range(n)])
     start = time.perf_counter()
     mujoco.set_mjcb_control(coupling)
@@ -384,7 +377,7 @@ def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperat
             _check_state(m, d, idx, coupling)
             sd = d.sensordata
             t[w] = i * rec_div * dt
-            rec["y"][w] = coupling.y_measured if delayed else sd[leg_pos]
+            rec["y"][w] = coupling.y_measured  # the position sensor, y(t_k - tau_y)
             rec["ydot"][w] = sd[leg_vel]
             rec["y_ref"][w] = coupling.r
             rec["u_v"][w] = coupling.u_v
