@@ -125,9 +125,20 @@ CASES = {
     "params malformed": (lambda tmp: RUN + ["--params", str(_params(tmp, "{hydraulics: 1"))], r"params\.json: not valid JSON"),
     "params unknown section": (lambda tmp: RUN + ["--params", str(_params(tmp, {"pump": {}}))], r"unknown section 'pump'"),
     "params missing": (lambda tmp: RUN + ["--params", str(tmp / "gone.json")], r"gone\.json: no such parameter file"),
+    # faults
+    "fault without value": (lambda tmp: RUN + ["--fault", "valve_stuck:leg=2,t=1"], r"missing value="),
+    "fault unknown kind": (lambda tmp: RUN + ["--fault", "melt:t=1"], r"unknown kind 'melt'"),
+    "fault fractional leg": (lambda tmp: RUN + ["--fault", "sensor_frozen:leg=2.5,t=1"], r"leg = 2\.5 is not a leg number"),
+    "fault leg missing": (lambda tmp: RUN + ["--fault", "end_stop:leg=7,t=1"], r"leg 7 does not exist"),
+    "fault zero ramp": (lambda tmp: RUN + ["--fault", "supply_loss:t=1,ramp=0"], r"ramp must be > 0"),
     # sweep grids
+    "grid without values": (lambda tmp: ["sweep", "actuator", "--grid", "kp"], r"expected NAME=V1,V2"),
     "grid non-numeric": (lambda tmp: ["sweep", "actuator", "--grid", "kp=1,abc"], r"--grid kp: value 'abc'"),
     "grid unknown option": (lambda tmp: ["sweep", "actuator", "--grid", "colour=red"], r"'colour' is not an option"),
+    "grid unknown choice": (lambda tmp: ["sweep", "actuator", "--grid", "compensator=none,magic"],
+                            r"value 'magic' is not one of"),
+    "grid timestep not dividing": (lambda tmp: ["sweep", "actuator", "--duration", "2.5", "--frequency", "2", "--grid",
+                                                "timestep=3e-4"], r"must divide"),
 }
 
 
