@@ -18,6 +18,7 @@ import mujoco
 import numba
 import numpy as np
 
+from compensation.native import buffered_tick
 from hexsim.effects import Effects
 from hexsim.hydraulics import JACOBIAN_DP_FLOOR
 from hexsim.params import HydraulicParams
@@ -158,7 +159,7 @@ def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_a
 def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2, P, u, groups,
               p1, ps, xv, vv, ub, force, demand, hist, k0, nsteps, rec_div, r0, rec_k, rec_sens, rec_p1, rec_ps,
               rec_force, rec_y, rec_viol, status, ctrl_div, kp, setpoints, noise, rec_ref, rec_u, saturated,
-              n_total):
+              n_total, comp_mode, comp, rec_uc, rec_comp):
     """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs with the valve setpoints ``u`` (n,) held (ZOH),
     in the order of :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the
     sensor-delay ring ``hist`` (L, n) (Python pushed it for step k0 before the controller sample);
@@ -170,17 +171,24 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
     anchor sites ``site1[i]``/``site2[i]``) and the force applied over the step. Returns the next row;
     ``status[0]`` = the first step whose state is not finite, else -1.
 
-    ``ctrl_div`` > 0: the uncompensated P controller runs here too (:class:`hexsim.controller.PController`
-    with U_c = 0): at every step k with k % ctrl_div == 0, u = sat(K_p (r_j - y_measured - noise_j),
-    ±P[7]) with r_j = setpoints[j], j = k // ctrl_div; ``saturated[0]`` counts the samples with a leg
-    saturated; rows also get the setpoint and u_v in force (``rec_ref``, ``rec_u``). 0: ``u`` is given
-    and held, and Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to row
+    ``ctrl_div`` > 0: the P controller runs here too (:class:`hexsim.controller.PController`): at every
+    step k with k % ctrl_div == 0, u_p = K_p (r_j - y_m) with r_j = setpoints[j], j = k // ctrl_div,
+    y_m = y_measured + noise_j; U_c = 0 (``comp_mode`` 0) or the compiled buffered/directional
+    compensator's :func:`compensation.native.buffered_tick` on (u_p, y_m) with the state tuple ``comp``
+    (``comp_mode`` 1); u = sat(u_p + U_c, ±P[7]). ``saturated[0]`` counts the samples with a leg
+    saturated; rows also get the setpoint, u_v and U_c in force and the compensator's (a, b, c, s)
+    (``rec_ref``, ``rec_u``, ``rec_uc``, ``rec_comp`` (rows, 4, n)). 0: ``u`` is given and held, and
+    Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to row
     r % len(rec_k), so a long run can keep only its last part."""
     n = p1.shape[0]
     L = hist.shape[0]
     dt = P[30]
     y = np.empty(n)
     yd = np.empty(n)
+    y_m = np.empty(n)
+    u_p = np.empty(n)
+    u_c = np.zeros(n)
+    stat = np.zeros((4, n))
     r = r0
     j = 0
     for s in range(nsteps):
@@ -193,9 +201,14 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
                 hist[k % L, i] = y[i]
         if ctrl_div > 0 and k % ctrl_div == 0:
             j = min(k // ctrl_div, setpoints.shape[0] - 1)
+            for i in range(n):
+                y_m[i] = hist[(k + 1) % L, i] + noise[j, i]
+                u_p[i] = kp * (setpoints[j, i] - y_m[i])
+            if comp_mode == 1:
+                buffered_tick(comp, u_p, y_m, u_c, stat)
             hit = False
             for i in range(n):
-                v = kp * (setpoints[j, i] - (hist[(k + 1) % L, i] + noise[j, i]))
+                v = u_p[i] + u_c[i]
                 u[i] = min(max(v, -P[7]), P[7])
                 hit = hit or u[i] != v
             if hit:
@@ -211,6 +224,10 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
                 if ctrl_div > 0:
                     rec_ref[w, i] = setpoints[j, i]
                     rec_u[w, i] = u[i]
+                    rec_uc[w, i] = u_c[i]
+                    if comp_mode == 1:
+                        for c in range(4):
+                            rec_comp[w, c, i] = stat[c, i]
         step_legs(P, u, y, yd, dt, p1, ps, xv, vv, ub, force, groups, demand)
         for i in range(n):
             ctrl[aadr[i]] = force[i]

@@ -17,7 +17,8 @@ from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
-from compensation.base import NoCompensator, ReplayedCompensation
+from compensation.base import ReplayedCompensation
+from compensation.buffered import BufferedCompensator
 from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.effects import Effects, PlantState, step_plant
@@ -409,10 +410,12 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
                  rec_sensors, viol, bar, n_total) -> float:
     """The compiled path: Python samples the controller and the compensator at every controller tick
     (``coupling.ctrl_div`` steps) and :func:`hexsim.native.run_block` steps the legs and MuJoCo until
-    the next tick, recording into the ``rec_*`` rings; without a compensator, faults or warming oil the
-    kernel runs the P controller too and Python only calls it every 0.5 s. Same order of operations as
+    the next tick, recording into the ``rec_*`` rings; without faults or warming oil, and with no, the
+    buffered or the directional compensator (compiled: :mod:`compensation.native`), the kernel runs the
+    P controller and the compensator too and Python only calls it every 0.5 s. Same order of operations as
     :class:`HydraulicCoupling` (tests/test_native.py checks the trajectories agree). Returns the wall
     time [s], compilation (or loading from numba's cache) excluded."""
+    from compensation.native import compiled, export_state, import_state
     from hexsim import native
 
     n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
@@ -436,8 +439,12 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     total = n_total * rec_div
     mujoco.mj_forward(m, d)
 
-    # the uncompensated P controller without faults or warming oil runs inside the kernel as well
-    inner = isinstance(compensator, NoCompensator) and not coupling.faults and coupling.warm_up is None
+    # without faults or warming oil, the P controller and the compensator (none, buffered, directional:
+    # compiled in compensation.native) run inside the kernel as well
+    inner = compiled(compensator) and not coupling.faults and coupling.warm_up is None
+    comp_mode = int(isinstance(compensator, BufferedCompensator))
+    cstate = export_state(compensator, n)
+    rec_comp = np.empty((n_rec if inner and comp_mode else 1, 4, n))
     saturated = np.zeros(1, dtype=np.int64)
     ctrl = coupling.controller
 
@@ -446,7 +453,8 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
                                 dadr, aadr, site1, site2, P, u_v, groups, p1, ps, xv, vv, ub, force, demand,
                                 hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
                                 viol, status, ctrl_div, ctrl.params.kp, coupling.setpoints, coupling.noise,
-                                rec["y_ref"], rec["u_v"], saturated, n_total)
+                                rec["y_ref"], rec["u_v"], saturated, n_total, comp_mode, cstate, rec["u_c"],
+                                rec_comp)
 
     warnings = d.warning.number  # a view of MuJoCo's warning counters
     block(np.zeros(n), 0, 0, 0)  # compile or load from the cache before the clock starts
@@ -461,12 +469,12 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
             _check_block(m, d, idx, status, p1, warnings)
             k += steps
             bar.update(round(k * dt - bar.n, 3))
-        rec["u_c"][:] = 0.0
         temperature[:] = coupling.temperature
         ctrl.saturated_samples += int(saturated[0])
-        j = min((total - 1) // ctrl_div, len(coupling.setpoints) - 1)
-        coupling.r = coupling.setpoints[j]
-        coupling.u_v, coupling.u_c = u_v, np.zeros(n)
+        import_state(compensator, cstate)
+        if comp_mode:
+            for c, key in enumerate(("a", "b", "c", "s")):  # rows of rec_comp, as BufferedCompensator.state()
+                comp_state[key][:] = rec_comp[:, c]
     while k < total:
         y = d.qpos[idx.qpos_adr]
         hist[k % L] = y
@@ -502,8 +510,6 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
         out[:] = rec_sens[:, s[name]]
     coupling.state = PlantState(p1, ps, xv, vv, ub)
     coupling.force = force
-    if not inner:
-        coupling.u_v, coupling.u_c = u_v, u_c
     return wall
 
 
