@@ -9,8 +9,6 @@ whole run.
 from __future__ import annotations
 
 import dataclasses
-import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +16,7 @@ import numpy as np
 from compensation import COMPENSATORS
 from hexsim.metrics import Smoothness, run_smoothness
 from hexsim.simulation import RunConfig, simulate
+from hexsim.workers import worker_pool
 
 #: Order of the league table: the baseline first, the yardstick last.
 ORDER = ("none", "iterative-1", "iterative-2", "buffered", "directional", "oracle")
@@ -129,8 +128,7 @@ def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2) -> l
     if jobs <= 1:
         entries = [evaluate(c) for c in configs]
     else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+        with worker_pool(jobs) as pool:
             entries = list(pool.map(evaluate, configs))
     baseline = entries[0].mean_reversal_peak
     for e in entries:

@@ -17,9 +17,8 @@ the same reason.
 from __future__ import annotations
 
 import math
-import multiprocessing
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +31,7 @@ from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
 from hexsim.replay import CHANNELS, PlantModel, Windows, measured_velocity, replay, supply_from_log
 from hexsim.signals import zero_crossings
+from hexsim.workers import worker_pool
 
 #: A candidate must lower the held-out cost by this fraction to be chosen.
 MIN_HELD_OUT_GAIN = 0.05
@@ -367,15 +367,19 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     base_aic, base_bic = _criteria(0.5 * float(fit_vec @ fit_vec), n_eff, fit_vec.size, 0)
     base_test = 0.5 * float(test_vec @ test_vec)
     results: list[FitResult] = []
-    bar = tqdm(total=len(candidates), desc="fitting effects", unit="effect", disable=not progress, leave=False)
+    def progress_bar():
+        return tqdm(total=len(candidates), desc="fitting effects", unit="effect", disable=not progress, leave=False)
+
     if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        with worker_pool(jobs) as pool:
             futures = [pool.submit(_fit_in_worker, log, name) for name in candidates]
+            bar = progress_bar()  # after the workers started (hexsim.workers)
             for fut in as_completed(futures):
                 results.append(fut.result())
                 bar.set_postfix_str(results[-1].name)
                 bar.update()
     else:
+        bar = progress_bar()
         for name in candidates:
             results.append(fit_candidate(problem, name))
             bar.set_postfix_str(name)

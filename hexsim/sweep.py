@@ -1,19 +1,17 @@
 """``hexsim sweep``: a grid of runs (scenario, controller and compensator settings) in worker processes.
 
-Each grid point is one :class:`~hexsim.simulation.RunConfig`; the points run in ``jobs`` spawned worker
-processes (each compiles its own MuJoCo model and kernel; the native engine installs no process-global
-control callback, the numpy reference installs one per run in its own process). Rows come back in grid
-order whatever order the workers finish in, and every run is seeded by its configuration alone, so a
-sweep gives the same numbers with any number of workers (tests/test_sweep.py checks it against serial
-runs).
+Each grid point is one :class:`~hexsim.simulation.RunConfig`; the points run in ``jobs`` worker
+processes (:func:`hexsim.workers.worker_pool`: forked where the platform can, each with its own MuJoCo
+model). Rows come back in grid order whatever order the workers finish in, and every run is seeded by
+its configuration alone, so a sweep gives the same numbers with any number of workers and any start
+method (tests/test_sweep.py checks it against serial runs).
 """
 
 from __future__ import annotations
 
 import itertools
-import multiprocessing
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +20,7 @@ from tqdm import tqdm
 from hexsim.compare import final_window_start
 from hexsim.metrics import max_tracking_error, run_smoothness
 from hexsim.simulation import RunConfig, simulate
+from hexsim.workers import worker_pool
 
 #: Metric columns of a sweep row, after the grid's own columns. Wall times are printed, not tabled, so
 #: the same sweep writes the same bytes.
@@ -74,20 +73,23 @@ def evaluate_point(config: RunConfig) -> dict:
     }
 
 
-def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True) -> tuple[list[dict], float]:
-    """Run every point with ``jobs`` worker processes (1: in this process). Returns the rows (grid
-    settings + :data:`METRICS`, in grid order) and the wall time [s] of the whole sweep."""
+def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
+              start_method: str | None = None) -> tuple[list[dict], float]:
+    """Run every point with ``jobs`` worker processes (1: in this process) started by ``start_method``
+    (see :func:`hexsim.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
+    grid order) and the wall time [s] of the whole sweep, start-up included. Raises InputError for a
+    start method the platform does not have."""
     start = time.perf_counter()
     results: list[dict | None] = [None] * len(points)
-    bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
     if jobs <= 1:
+        bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
         for p in points:
             results[p.index] = evaluate_point(p.config)
             bar.update()
     else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+        with worker_pool(jobs, start_method) as pool:
             futures = {pool.submit(evaluate_point, p.config): p.index for p in points}
+            bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
                 bar.update()
