@@ -5,15 +5,21 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``bare_mj_step``: the hexapod model, no control callback, ``mj_step`` at dt = 1e-4 s (legs held by
   their static forces) — the baseline (a);
 * ``hexapod_full``: :func:`hexsim.simulation.simulate` on heave with the buffered compensator: six legs'
-  hydraulics in the compiled kernel at 10 kHz, P control and compensator in Python at 500 Hz, sensors
-  recorded at 1 kHz — (b);
-* ``hexapod_numpy``: the same with the numpy reference callback, for the gain of the kernel;
-* ``hexapod_uncompensated``: heave without a compensator: the P controller runs inside the kernel too;
+  hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
+  :mod:`compensation.native`), all inside the kernel, sensors recorded at 1 kHz — (b);
+* ``hexapod_numpy``: the same with the numpy reference callback and the Python compensator, for the
+  gain of the kernel;
+* ``hexapod_uncompensated``: heave without a compensator;
 * ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/test_convergence.py):
   dt = 1e-3 s, uncompensated heave — (c); with a compensator the 1e-3 s step misses the 2 % bound on
-  single reversal peaks and the Python compensator at 500 Hz dominates the time (README "Speed");
-* ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator;
+  single reversal peaks (README "Speed");
+* ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator — (d);
+* ``actuator_bare_fast``: bare ``mj_step`` of the single-actuator model at dt = 1e-3 s, no callback: the
+  floor under ``actuator_fast``;
 * ``replay_kernel``: the compiled valve replay (:mod:`hexsim.native`) of one single-actuator window.
+
+The repeats go round the cases (case 1, 2, …, then again), so a machine that slows down or speeds up
+during the benchmark biases no case against another.
 
 ``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 20 s) with 1 and with 2 worker processes.
 """
@@ -30,10 +36,14 @@ import numpy as np
 from hexsim.model import PlantIndex, load_model, reset_neutral
 
 
-def _bare(duration: float) -> float:
+def _bare(duration: float, system: str = "hexapod", timestep: float | None = None) -> float:
+    """Wall time [s] of ``duration`` simulated seconds of bare ``mj_step``, the legs held by their static
+    forces."""
     from hexsim.simulation import static_leg_forces
 
-    m = load_model("hexapod")
+    m = load_model(system)
+    if timestep is not None:
+        m.opt.timestep = timestep
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
     mujoco.set_mjcb_control(None)
@@ -57,9 +67,9 @@ def _full(system: str, compensator: str, duration: float, engine: str = "native"
 SWEEP_RUNS = 8
 
 
-def _sweep(jobs: int) -> float:
+def _sweep(jobs: int, start_method: str | None = None) -> float:
     """Wall time [s] of a sweep of :data:`SWEEP_RUNS` runs (heave, 20 s at 1 Hz, buffered, one seed each)
-    with ``jobs`` workers, start-up (spawn, import, compile) included."""
+    with ``jobs`` workers started by ``start_method`` (None: the default), start-up included."""
     from hexsim.scenario import make_scenario
     from hexsim.simulation import RunConfig
     from hexsim.sweep import expand, run_sweep
@@ -67,7 +77,7 @@ def _sweep(jobs: int) -> float:
     scenario = make_scenario("heave", duration=20.0, frequency=1.0)
     points = expand({"seed": list(range(SWEEP_RUNS))},
                     lambda s: RunConfig(scenario, compensator="buffered", seed=s["seed"]))
-    return run_sweep(points, jobs=jobs, progress=False)[1]
+    return run_sweep(points, jobs=jobs, progress=False, start_method=start_method)[1]
 
 
 def _replay(duration: float) -> float:
@@ -108,22 +118,32 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
         "hexapod_fast": lambda: _full("hexapod", "none", duration, timestep=1e-3),
         "actuator_full": lambda: _full("actuator", "none", duration),
         "actuator_fast": lambda: _full("actuator", "none", duration, timestep=1e-3),
+        "actuator_bare_fast": lambda: _bare(duration, "actuator", timestep=1e-3),
         "replay_kernel": lambda: _replay(duration),
     }
     out: dict = {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version(),
                              "mujoco": mujoco.__version__}, "duration_s": duration, "repeats": repeats, "cases": {}}
-    for name, fn in cases.items():
-        walls = [fn() for _ in range(repeats)]
-        per_s = statistics.median(walls) / duration
+    walls: dict[str, list[float]] = {name: [] for name in cases}
+    for _ in range(repeats):
+        for name, fn in cases.items():
+            walls[name].append(fn())
+    for name in cases:
+        per_s = statistics.median(walls[name]) / duration
         out["cases"][name] = {"wall_per_sim_s": per_s, "us_per_sim_s": per_s * 1e6,
                               "realtime_factor": 1.0 / per_s}
     bare = out["cases"]["bare_mj_step"]["wall_per_sim_s"]
     out["ratio_hexapod_full_to_bare"] = out["cases"]["hexapod_full"]["wall_per_sim_s"] / bare
     out["ratio_hexapod_fast_to_bare"] = out["cases"]["hexapod_fast"]["wall_per_sim_s"] / bare
     out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
+    out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
+                                               / out["cases"]["actuator_bare_fast"]["wall_per_sim_s"])
     if sweep:
-        one, two = _sweep(1), _sweep(2)
-        out["sweep"] = {"runs": SWEEP_RUNS, "wall_1_worker_s": one, "wall_2_workers_s": two, "speedup": one / two}
+        from hexsim.workers import default_start_method
+
+        one, two, spawned = _sweep(1), _sweep(2), _sweep(2, "spawn")
+        out["sweep"] = {"runs": SWEEP_RUNS, "wall_1_worker_s": one, "wall_2_workers_s": two, "speedup": one / two,
+                        "start_method": default_start_method(), "wall_2_spawned_workers_s": spawned,
+                        "speedup_spawned": one / spawned}
     return out
 
 
@@ -136,8 +156,11 @@ def table(result: dict) -> str:
     lines.append(f"hexapod_full / bare_mj_step = {result['ratio_hexapod_full_to_bare']:.2f}")
     lines.append(f"hexapod_fast / bare_mj_step = {result['ratio_hexapod_fast_to_bare']:.2f}  "
                  f"(fast scheme: {result['fast_scheme']})")
+    lines.append(f"actuator_fast / actuator_bare_fast = {result['ratio_actuator_fast_to_bare_fast']:.2f}  "
+                 "(the single actuator over bare mj_step of its own model, both at dt = 1e-3 s)")
     if "sweep" in result:
         sw = result["sweep"]
         lines.append(f"sweep of {sw['runs']} runs: {sw['wall_1_worker_s']:.1f} s with 1 worker, "
-                     f"{sw['wall_2_workers_s']:.1f} s with 2: {sw['speedup']:.2f}× the throughput")
+                     f"{sw['wall_2_workers_s']:.1f} s with 2 ({sw['start_method']}): {sw['speedup']:.2f}× the "
+                     f"throughput; {sw['wall_2_spawned_workers_s']:.1f} s with 2 spawned: {sw['speedup_spawned']:.2f}×")
     return "\n".join(lines)
