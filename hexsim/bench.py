@@ -21,7 +21,8 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 The repeats go round the cases (case 1, 2, …, then again), so a machine that slows down or speeds up
 during the benchmark biases no case against another.
 
-``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 20 s) with 1 and with 2 worker processes.
+``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 20 s) with 1 worker (in this process),
+2 forked and 2 spawned workers, ``repeats`` rounds, medians of the wall times.
 """
 
 from __future__ import annotations
@@ -140,10 +141,11 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     if sweep:
         from hexsim.workers import default_start_method
 
-        one, two, spawned = _sweep(1), _sweep(2), _sweep(2, "spawn")
+        rounds = [(_sweep(1), _sweep(2), _sweep(2, "spawn")) for _ in range(repeats)]  # round the cases too
+        one, two, spawned = (statistics.median(r[i] for r in rounds) for i in range(3))
         out["sweep"] = {"runs": SWEEP_RUNS, "wall_1_worker_s": one, "wall_2_workers_s": two, "speedup": one / two,
                         "start_method": default_start_method(), "wall_2_spawned_workers_s": spawned,
-                        "speedup_spawned": one / spawned}
+                        "speedup_spawned": one / spawned, "rounds": rounds}
     return out
 
 

@@ -119,7 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
     be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
     be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON")
-    be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 and 2 worker processes (about 2 min)")
+    be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 worker, 2 forked and 2 spawned workers "
+                    "(about 75 s per repeat)")
     return parser
 
 
