@@ -27,20 +27,21 @@ import math
 import numba
 import numpy as np
 
-from compensation.base import Compensator, NoCompensator
+from compensation.base import Compensator, NoCompensator, ReplayedCompensation
 from compensation.buffered import BufferedCompensator, DirectionalCompensator
 
-#: Compensators the compiled controller runs (the others run in Python between kernel calls).
-COMPILED = (NoCompensator, BufferedCompensator, DirectionalCompensator)
+#: Compensators the compiled controller runs, and its ``comp_mode`` for each (:func:`hexsim.native.run_block`:
+#: 0 U_c = 0, 1 :func:`buffered_tick`, 2 a table row per sample); the others run in Python between kernel calls.
+COMPILED = {NoCompensator: 0, BufferedCompensator: 1, DirectionalCompensator: 1, ReplayedCompensation: 2}
 
 
-def compiled(compensator: Compensator) -> bool:
-    """Whether the kernel can stand in for ``compensator``: :func:`buffered_tick`, or U_c = 0."""
-    return type(compensator) in COMPILED
+def comp_mode(compensator: Compensator) -> int | None:
+    """The kernel's ``comp_mode`` for ``compensator``, or None if only Python can run it."""
+    return COMPILED.get(type(compensator))
 
 
 def export_state(comp: Compensator, n_legs: int) -> tuple:
-    """The kernel state of ``comp`` (a copy); for :class:`NoCompensator` a placeholder of the same types."""
+    """The kernel state of ``comp`` (a copy); for the others a placeholder of the same types."""
     if not isinstance(comp, BufferedCompensator):
         return (np.zeros(10), np.zeros((13, n_legs)), np.zeros((1, 3, 1, n_legs)), np.zeros((1, n_legs), np.int64),
                 np.zeros((1, 3, n_legs)), np.zeros((1, 3, n_legs)), np.zeros(1), np.zeros(1, np.int64))
@@ -59,8 +60,11 @@ def export_state(comp: Compensator, n_legs: int) -> tuple:
             np.array([s.updates for s in sets], dtype=np.int64))
 
 
-def import_state(comp: Compensator, state: tuple) -> None:
-    """Copy the kernel state back into ``comp`` (nothing for :class:`NoCompensator`)."""
+def import_state(comp: Compensator, state: tuple, ticks: int) -> None:
+    """Copy the kernel state back into ``comp`` after ``ticks`` controller samples (a replayed table:
+    the row it has reached; nothing for :class:`NoCompensator`)."""
+    if isinstance(comp, ReplayedCompensation):
+        comp._k += ticks
     if not isinstance(comp, BufferedCompensator):
         return
     _, cobs, cbuf, cfill, cabc, capp, _, cupd = state

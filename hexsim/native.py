@@ -159,7 +159,7 @@ def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_a
 def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2, P, u, groups,
               p1, ps, xv, vv, ub, force, demand, hist, k0, nsteps, rec_div, r0, rec_k, rec_sens, rec_p1, rec_ps,
               rec_force, rec_y, rec_viol, status, ctrl_div, kp, setpoints, noise, rec_ref, rec_u, saturated,
-              n_total, comp_mode, comp, rec_uc, rec_comp):
+              n_total, comp_mode, comp, ff_table, rec_uc, rec_comp):
     """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs with the valve setpoints ``u`` (n,) held (ZOH),
     in the order of :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the
     sensor-delay ring ``hist`` (L, n) (Python pushed it for step k0 before the controller sample);
@@ -173,9 +173,10 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
 
     ``ctrl_div`` > 0: the P controller runs here too (:class:`hexsim.controller.PController`): at every
     step k with k % ctrl_div == 0, u_p = K_p (r_j - y_m) with r_j = setpoints[j], j = k // ctrl_div,
-    y_m = y_measured + noise_j; U_c = 0 (``comp_mode`` 0) or the compiled buffered/directional
+    y_m = y_measured + noise_j; U_c = 0 (``comp_mode`` 0), the compiled buffered/directional
     compensator's :func:`compensation.native.buffered_tick` on (u_p, y_m) with the state tuple ``comp``
-    (``comp_mode`` 1); u = sat(u_p + U_c, ±P[7]). ``saturated[0]`` counts the samples with a leg
+    (``comp_mode`` 1), or row min(j, last) of ``ff_table`` (n_ticks, n) (``comp_mode`` 2: a logged
+    compensation fed forward, :class:`compensation.base.ReplayedCompensation`); u = sat(u_p + U_c, ±P[7]). ``saturated[0]`` counts the samples with a leg
     saturated; rows also get the setpoint, u_v and U_c in force and the compensator's (a, b, c, s)
     (``rec_ref``, ``rec_u``, ``rec_uc``, ``rec_comp`` (rows, 4, n)). 0: ``u`` is given and held, and
     Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to row
@@ -206,6 +207,10 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
                 u_p[i] = kp * (setpoints[j, i] - y_m[i])
             if comp_mode == 1:
                 buffered_tick(comp, u_p, y_m, u_c, stat)
+            elif comp_mode == 2:
+                row = min(k // ctrl_div, ff_table.shape[0] - 1)
+                for i in range(n):
+                    u_c[i] = ff_table[row, i]
             hit = False
             for i in range(n):
                 v = u_p[i] + u_c[i]

@@ -18,7 +18,6 @@ from tqdm import tqdm
 
 from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
 from compensation.base import ReplayedCompensation
-from compensation.buffered import BufferedCompensator
 from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.effects import Effects, PlantState, step_plant
@@ -298,7 +297,8 @@ def simulate(config: RunConfig) -> SimulationResult:
     plant = PlantTruth(params=hyd, p1_static=p1_0.copy())
     try:
         if config.feedforward is not None:
-            compensator = ReplayedCompensation(np.asarray(config.feedforward, dtype=float), cp.rate_hz, hyd.u_v_max)
+            compensator = ReplayedCompensation(np.ascontiguousarray(config.feedforward, dtype=float), cp.rate_hz,
+                                               hyd.u_v_max)
         else:
             compensator = make_compensator(config.compensator, idx.n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
                                            settings=config.compensator_settings, plant=plant)
@@ -411,11 +411,12 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     """The compiled path: Python samples the controller and the compensator at every controller tick
     (``coupling.ctrl_div`` steps) and :func:`hexsim.native.run_block` steps the legs and MuJoCo until
     the next tick, recording into the ``rec_*`` rings; without faults or warming oil, and with no, the
-    buffered or the directional compensator (compiled: :mod:`compensation.native`), the kernel runs the
-    P controller and the compensator too and Python only calls it every 0.5 s. Same order of operations as
+    buffered or the directional compensator (compiled: :mod:`compensation.native`) or a replayed
+    compensation table, the kernel runs the P controller and the compensator too and Python only calls
+    it every 0.5 s. Same order of operations as
     :class:`HydraulicCoupling` (tests/test_native.py checks the trajectories agree). Returns the wall
     time [s], compilation (or loading from numba's cache) excluded."""
-    from compensation.native import compiled, export_state, import_state
+    from compensation.native import comp_mode, export_state, import_state
     from hexsim import native
 
     n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
@@ -441,10 +442,11 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
 
     # without faults or warming oil, the P controller and the compensator (none, buffered, directional:
     # compiled in compensation.native) run inside the kernel as well
-    inner = compiled(compensator) and not coupling.faults and coupling.warm_up is None
-    comp_mode = int(isinstance(compensator, BufferedCompensator))
+    mode = comp_mode(compensator)
+    inner = mode is not None and not coupling.faults and coupling.warm_up is None
     cstate = export_state(compensator, n)
-    rec_comp = np.empty((n_rec if inner and comp_mode else 1, 4, n))
+    ff_table = compensator.table if mode == 2 else np.zeros((1, n))
+    rec_comp = np.empty((n_rec if inner and mode == 1 else 1, 4, n))
     saturated = np.zeros(1, dtype=np.int64)
     ctrl = coupling.controller
 
@@ -453,8 +455,8 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
                                 dadr, aadr, site1, site2, P, u_v, groups, p1, ps, xv, vv, ub, force, demand,
                                 hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
                                 viol, status, ctrl_div, ctrl.params.kp, coupling.setpoints, coupling.noise,
-                                rec["y_ref"], rec["u_v"], saturated, n_total, comp_mode, cstate, rec["u_c"],
-                                rec_comp)
+                                rec["y_ref"], rec["u_v"], saturated, n_total, mode or 0, cstate, ff_table,
+                                rec["u_c"], rec_comp)
 
     warnings = d.warning.number  # a view of MuJoCo's warning counters
     block(np.zeros(n), 0, 0, 0)  # compile or load from the cache before the clock starts
@@ -471,8 +473,8 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
             bar.update(round(k * dt - bar.n, 3))
         temperature[:] = coupling.temperature
         ctrl.saturated_samples += int(saturated[0])
-        import_state(compensator, cstate)
-        if comp_mode:
+        import_state(compensator, cstate, -(-total // ctrl_div))
+        if mode == 1:
             for c, key in enumerate(("a", "b", "c", "s")):  # rows of rec_comp, as BufferedCompensator.state()
                 comp_state[key][:] = rec_comp[:, c]
     while k < total:
