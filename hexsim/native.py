@@ -259,3 +259,30 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
             r += 1
     status[0] = -1
     return r
+
+
+def _flush_if_callee_changed() -> None:
+    """Drop numba's on-disk cache of :func:`run_block` when :mod:`compensation.native` changed since it
+    was written. The cache is keyed on this file's time stamp only, but run_block compiles in
+    ``buffered_tick`` from that other file (numba documents that changes to functions in other files
+    are not detected); without this an edit there would run with the old compiled compensator. A
+    marker next to the cache holds the other file's time stamp and size."""
+    import os
+
+    import compensation.native as callee
+
+    cache = getattr(run_block, "_cache", None)  # numba's FunctionCache of the dispatcher (cache=True)
+    if cache is None or not hasattr(cache, "flush"):
+        return
+    try:
+        st = os.stat(callee.__file__)
+        stamp = f"{st.st_mtime_ns} {st.st_size}"
+        marker = pathlib.Path(cache.cache_path) / "native.run_block.callee-stamp"
+        if not marker.exists() or marker.read_text() != stamp:
+            cache.flush()
+            marker.write_text(stamp)
+    except OSError:  # a read-only cache directory: numba then keeps no cache to go stale there either
+        pass
+
+
+_flush_if_callee_changed()
