@@ -176,11 +176,12 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
     y_m = y_measured + noise_j; U_c = 0 (``comp_mode`` 0), the compiled buffered/directional
     compensator's :func:`compensation.native.buffered_tick` on (u_p, y_m) with the state tuple ``comp``
     (``comp_mode`` 1), or row min(j, last) of ``ff_table`` (n_ticks, n) (``comp_mode`` 2: a logged
-    compensation fed forward, :class:`compensation.base.ReplayedCompensation`); u = sat(u_p + U_c, ±P[7]). ``saturated[0]`` counts the samples with a leg
-    saturated; rows also get the setpoint, u_v and U_c in force and the compensator's (a, b, c, s)
-    (``rec_ref``, ``rec_u``, ``rec_uc``, ``rec_comp`` (rows, 4, n)). 0: ``u`` is given and held, and
-    Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to row
-    r % len(rec_k), so a long run can keep only its last part."""
+    compensation fed forward, :class:`compensation.base.ReplayedCompensation`); u = sat(u_p + U_c,
+    ±P[7]). ``saturated[0]`` counts the samples with a leg saturated; rows also get the setpoint, u_v
+    and U_c in force and the compensator's (a, b, c, s) (``rec_ref``, ``rec_u``, ``rec_uc``,
+    ``rec_comp`` (rows, 4, n)). Blocks must start at a controller sample (k0 % ctrl_div == 0). 0: ``u``
+    is given and held, and Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to
+    row r % len(rec_k), so a long run can keep only its last part."""
     n = p1.shape[0]
     L = hist.shape[0]
     dt = P[30]

@@ -408,14 +408,14 @@ def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperat
 
 def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
                  rec_sensors, viol, bar, n_total) -> float:
-    """The compiled path: Python samples the controller and the compensator at every controller tick
-    (``coupling.ctrl_div`` steps) and :func:`hexsim.native.run_block` steps the legs and MuJoCo until
-    the next tick, recording into the ``rec_*`` rings; without faults or warming oil, and with no, the
-    buffered or the directional compensator (compiled: :mod:`compensation.native`) or a replayed
-    compensation table, the kernel runs the P controller and the compensator too and Python only calls
-    it every 0.5 s. Same order of operations as
-    :class:`HydraulicCoupling` (tests/test_native.py checks the trajectories agree). Returns the wall
-    time [s], compilation (or loading from numba's cache) excluded."""
+    """The compiled path: :func:`hexsim.native.run_block` steps the legs and MuJoCo, recording into the
+    ``rec_*`` rings. Without faults or warming oil, and with no compensator, the buffered or the
+    directional one (compiled: :mod:`compensation.native`) or a replayed compensation table, the kernel
+    runs the P controller and the compensator too and Python calls it every 0.5 s; otherwise Python
+    samples controller and compensator at every controller tick (``coupling.ctrl_div`` steps) and the
+    kernel runs until the next tick. Same order of operations as :class:`HydraulicCoupling`
+    (tests/test_native.py checks the trajectories agree). Returns the wall time [s], compilation (or
+    loading from numba's cache) excluded."""
     from compensation.native import comp_mode, export_state, import_state
     from hexsim import native
 
@@ -440,8 +440,8 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     total = n_total * rec_div
     mujoco.mj_forward(m, d)
 
-    # without faults or warming oil, the P controller and the compensator (none, buffered, directional:
-    # compiled in compensation.native) run inside the kernel as well
+    # without faults or warming oil, the P controller and the compensator (none, buffered, directional,
+    # a replayed table: compensation.native) run inside the kernel as well
     mode = comp_mode(compensator)
     inner = mode is not None and not coupling.faults and coupling.warm_up is None
     cstate = export_state(compensator, n)
