@@ -503,8 +503,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
         if k % (50 * ctrl_div) == 0:
             bar.update(round(k * dt - bar.n, 3))
     wall = time.perf_counter() - start
-    if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-        raise PhysicsError(f"non-finite platform state at t = {d.time:.4f} s")
+    _check_finite(p1, d, idx, d.time)  # the kernel checks the legs at every step, this the platform too
     t[:] = rec_k * dt
     s = idx.sensor
     rec["ydot"][:] = rec_sens[:, [s[f"leg{i + 1}_vel"].start for i in range(n)]]
@@ -517,11 +516,11 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
 
 def _check_block(m, d, idx: PlantIndex, status: np.ndarray, p1: np.ndarray, warnings: np.ndarray) -> None:
     """After a kernel call: raise PhysicsError for the non-finite state the kernel stopped at (naming
-    the leg and the time) or for a MuJoCo warning."""
+    the leg and the time of the step, :func:`_check_finite`) or for a MuJoCo warning."""
     if status[0] >= 0:
-        bad = ~np.isfinite(p1) | ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
-        leg = int(np.flatnonzero(bad)[0]) + 1 if np.any(bad) else 1
-        raise PhysicsError(f"non-finite state of leg{leg} at t = {status[0] * idx.dt:.4f} s")
+        t = status[0] * idx.dt
+        _check_finite(p1, d, idx, t)
+        raise PhysicsError(f"non-finite state at t = {t:.4f} s")  # the kernel saw it; the arrays hold it
     if warnings.any():
         check_warnings(m, d)
 
@@ -534,12 +533,19 @@ def _divider(rate_hz: float, dt: float, what: str) -> int:
 
 
 def _check_state(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex, coupling: HydraulicCoupling) -> None:
-    bad_p1 = ~np.isfinite(coupling.state.p1)
+    """After a step of the numpy engine: :func:`_check_finite`, then MuJoCo's warnings."""
+    _check_finite(coupling.state.p1, d, idx, d.time)
+    check_warnings(m, d)
+
+
+def _check_finite(p1: np.ndarray, d: mujoco.MjData, idx: PlantIndex, t: float) -> None:
+    """PhysicsError naming the first leg whose P1 (n_legs,) [Pa] or piston position/velocity is not
+    finite, or the platform, at time ``t`` [s]; nothing if all is finite."""
+    bad_p1 = ~np.isfinite(p1)
     bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
     if np.any(bad_p1 | bad_q):
         leg = int(np.flatnonzero(bad_p1 | bad_q)[0]) + 1
         what = "P1" if bad_p1[leg - 1] else "piston position/velocity"
-        raise PhysicsError(f"non-finite {what} of leg{leg} at t = {d.time:.4f} s")
+        raise PhysicsError(f"non-finite {what} of leg{leg} at t = {t:.4f} s")
     if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-        raise PhysicsError(f"non-finite platform state at t = {d.time:.4f} s")
-    check_warnings(m, d)
+        raise PhysicsError(f"non-finite platform state at t = {t:.4f} s")

@@ -130,5 +130,5 @@ def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypa
         return out
 
     monkeypatch.setattr(native, "pack", poisoned)
-    with pytest.raises(PhysicsError, match=r"non-finite state of leg1 at t = 0\.0000 s"):
+    with pytest.raises(PhysicsError, match=r"non-finite P1 of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))
