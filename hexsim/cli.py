@@ -158,15 +158,22 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"not checked (missing columns): {', '.join(log.missing)}")
     doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs,
                    progress=not args.quiet and sys.stderr.isatty())
+    print(f"verdict: {doc['verdict']}")
+    for line in doc["conclusions"]:
+        print(f"  {line}")
     print(f"added effect: {doc['added_effect']}")
-    for name, v in doc["parameters"].items():
-        print(f"  {name} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}")
-    print(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s}")
+    for effect in doc["added_effects"]:
+        print(f"  {effect['name']}: " + ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
+                                               for k, v in effect["parameters"].items()))
+    print(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s} {'held-out RMS / budget':>22s}")
     for ch, before in doc["error_before"].items():
-        print(f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g}")
-    print(f"{'candidate':16s} {'held-out gain':>13s} {'dBIC':>10s}")
+        print(f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g} {doc['held_out_rms_in_budgets'][ch]:22.3g}")
+    if doc["candidates"]:
+        print(f"{'candidate':16s} {'on top of':>16s} {'held-out gain':>13s} {'p':>9s}  verdict")
     for c in doc["candidates"]:
-        print(f"{c['effect']:16s} {c['held_out_gain']:+13.3f} {c['bic'] - doc['nominal']['bic']:+10.1f}")
+        why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
+        print(f"{c['effect']:16s} {'+'.join(c['on_top_of']) or 'nominal':>16s} {c['held_out_gain']:+13.3f} "
+              f"{c['p_value']:9.2g}  {why}")
     for path in (args.report, args.json):
         if path is not None:
             print(f"wrote {path}")

@@ -38,7 +38,7 @@ GROUPS = {
 
 
 def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = None,
-                   effects: Effects | None = None) -> SimulationResult:
+                   effects: Effects | None = None, timestep: float | None = None) -> SimulationResult:
     """The closed-loop replay of a hexapod log (see the module doc) as a simulation result sampled at
     t = i ms. Raises InputError if the log is not a hexapod log or lacks the leg setpoints and valve
     commands, WorkspaceError / PhysicsError as :func:`hexsim.simulation.simulate`."""
@@ -60,7 +60,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     feedforward = held(u_v) - controller.kp * (held(ref) - held(pos))
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
     config = RunConfig(scenario, hydraulics=hydraulics or HydraulicParams(), controller=controller,
-                       effects=effects or Effects(), feedforward=feedforward)
+                       effects=effects or Effects(), feedforward=feedforward, timestep=timestep)
     return simulate(config)
 
 
@@ -70,13 +70,15 @@ SEGMENT_S = 0.5
 
 class HexapodProblem:
     """The identifier's view of a hexapod log (the interface of :class:`hexsim.identify.Problem`): one
-    closed-loop replay of the whole log per model, its residuals cut into consecutive segments of
+    closed-loop replay of the whole log per model, its channels cut into consecutive segments of
     :data:`SEGMENT_S` after :data:`SETTLE_S`, each channel an array (segments, samples, signals)
     (signals: the six legs, the supply, the three accelerometer axes). Even segments fit, odd ones are
-    held out; residuals are weighted by each signal group's sensor noise estimated from the log."""
+    held out."""
+
+    windowed = False  # one replay from the neutral pose: a position offset is an offset
 
     def __init__(self, log: MeasurementLog) -> None:
-        from hexsim.identify import _noise_of
+        from hexsim.identify import noise_of
         from hexsim.replay import PlantModel, supply_from_log
 
         self.log = log
@@ -85,8 +87,8 @@ class HexapodProblem:
         first = int(np.searchsorted(t, SETTLE_S - 1e-9))
         seg = int(round(SEGMENT_S * fs))
         count = (len(t) - 1 - first) // seg  # the last row may fall past the replay's last sample
-        if count < 2:
-            raise InputError(f"{log.path}: the log is too short to identify from: needs {SETTLE_S:g} s plus two "
+        if count < 4:
+            raise InputError(f"{log.path}: the log is too short to identify from: needs {SETTLE_S:g} s plus four "
                              f"segments of {SEGMENT_S:g} s")
         self.rows = first + np.arange(count * seg)
         self.shape = (count, seg)
@@ -97,29 +99,19 @@ class HexapodProblem:
         self.measured = {g: self._cut(np.stack([log.columns[c] for c in GROUPS[g][0]], axis=1))
                          for g in self.channels}
         self.scales = {g: max(float(np.std(self.measured[g])), GROUPS[g][2]) for g in self.channels}
-        self.weights = {g: max(_noise_of(log.columns[GROUPS[g][0][0]], g), 1e-12) for g in self.channels}
+        self.log_noise = {g: noise_of(self.measured[g], g) for g in self.channels}
         self.nominal = PlantModel(supply_from_log(log, HydraulicParams()), Effects())
 
     def _cut(self, x: np.ndarray) -> np.ndarray:
         return x[self.rows].reshape(*self.shape, x.shape[1])
 
-    def residuals(self, model) -> dict[str, np.ndarray]:
-        """Replayed minus measured, channel -> (segments, samples, signals), physical units."""
-        result = replay_hexapod(self.log, model.hydraulics, model.effects)
+    def simulate(self, model, dt: float = 1e-4) -> dict[str, np.ndarray]:
+        """Replayed channels, name -> (segments, samples, signals), physical units."""
+        result = replay_hexapod(self.log, model.hydraulics, model.effects, timestep=dt)
         t = self.log.time - self.log.time[0]
         sim = {"position": result.y, "p1": result.p1, "p_s": result.p_s[:, None], "acceleration": result.acc}
-        out = {}
-        for g in self.channels:
-            x = np.stack([np.interp(t, result.t, sim[g][:, k]) for k in range(sim[g].shape[1])], axis=1)
-            out[g] = self._cut(x) - self.measured[g]
-        return out
-
-    def vector(self, res: dict[str, np.ndarray], rows: np.ndarray) -> np.ndarray:
-        return np.concatenate([(res[g][rows] / self.weights[g]).ravel() for g in self.channels])
-
-    def nrmse(self, res: dict[str, np.ndarray], rows: np.ndarray | None = None) -> dict[str, float]:
-        rows = slice(None) if rows is None else rows
-        return {g: float(np.sqrt(np.mean(res[g][rows] ** 2)) / self.scales[g]) for g in self.channels}
+        return {g: self._cut(np.stack([np.interp(t, result.t, sim[g][:, k]) for k in range(sim[g].shape[1])],
+                                      axis=1)) for g in self.channels}
 
     # what the report needs (hexsim.validation); the residual analysis looks at leg 1 (position, P1), the
     # supply and the platform's vertical acceleration, with leg 1's motion state
@@ -153,4 +145,3 @@ class HexapodProblem:
 
     def sample_times(self) -> np.ndarray:
         return self.log.time[self.rows].reshape(self.shape)
-

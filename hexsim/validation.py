@@ -8,64 +8,163 @@ log and its sidecar.
 from __future__ import annotations
 
 import json
+import math
 import pathlib
 
 import numpy as np
 
-from hexsim.identify import CANDIDATES, Identification, identify
+from hexsim.candidates import CANDIDATES
+from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Identification, identify,
+                             within_budget)
 from hexsim.measurement import MeasurementLog
 from hexsim.residuals import analyse
 from hexsim.tables import write_atomic
 
 
+G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
+
+
+def conclusions(ident: Identification, before: dict, units: dict[str, str]) -> list[str]:
+    """What the residual says, in sentences an engineer reads first: which channels are off and by how
+    much, sensor calibration that looks like a convention problem or a transducer error, and where the
+    residual lives (direction of motion)."""
+    p, budget = ident.problem, ident.budget
+    out = []
+    ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, budget).items()}
+    off = [ch for ch, r in ratio.items() if r * r > WITHIN]
+    clean = [ch for ch in ratio if ch not in off]
+    if not off:
+        out.append("The nominal model reproduces every channel to within its noise and numerical tolerance "
+                   "(held-out RMS / budget: " + ", ".join(f"{ch} {r:.2g}" for ch, r in ratio.items()) + ").")
+    else:
+        out.append("Off beyond noise and tolerance: " + ", ".join(f"{ch} ({ratio[ch]:.3g} budgets)" for ch in off)
+                   + (f"; at noise: {', '.join(clean)}." if clean else "."))
+        if off == ["position"] and {"p1", "acceleration"} <= set(clean):
+            out.append("Only the position disagrees while P1 and the acceleration are clean: look at the position "
+                       "sensor (scale, delay) or the valve's flow gain before friction or load.")
+    acc = ident.nominal.calibration.get("acceleration")
+    if acc:
+        for j, a in enumerate(acc["offset"]):
+            if abs(abs(a) - G_STANDARD) < 0.15 * G_STANDARD:
+                out.append(f"The accelerometer reads {a:+.2f} m/s^2 off the model: a constant offset of about "
+                           f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
+                           "format specific force, or the reverse), not physics; it is calibrated out.")
+                break
+    for ch in SCALED:
+        cal = ident.nominal.calibration.get(ch)
+        if cal and any(abs(sc - 1.0) > 0.02 for sc in cal["scale"]):
+            worst = max(cal["scale"], key=lambda sc: abs(sc - 1.0))
+            out.append(f"The {ch} sensor's scale fits {worst:.4f} (more than 2 % off): a transducer calibration "
+                       "error, calibrated out and not taken for an effect.")
+    for ch in off:
+        cond = before.get(ch, {}).get("conditioned", {})
+        up, down = cond.get("velocity > 0", {}).get("rms"), cond.get("velocity < 0", {}).get("rms")
+        if up and down and max(up, down) > 3.0 * min(up, down):
+            side = "retracting (v < 0, the return edge A→T)" if down > up else "extending (v > 0, the supply edge P→A)"
+            out.append(f"The {ch} residual is {max(up, down) / min(up, down):.1f}x larger while {side}: a "
+                       "direction-dependent effect (edge asymmetry, friction of one direction).")
+    verdict = ident.verdict
+    if verdict == "explained":
+        out.append("Accepted: " + " + ".join(f.name for f in ident.accepted) + "; with it every channel is within "
+                   "its budget.")
+    elif verdict == "partial":
+        left = [ch for ch, v in within_budget(ident.final, budget).items() if v > WITHIN]
+        out.append("Accepted: " + " + ".join(f.name for f in ident.accepted) + f"; structure is left in "
+                   f"{', '.join(left)} that no library effect explains.")
+    elif verdict == "unexplained":
+        out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
+    return out
+
+
 def summary(ident: Identification) -> dict:
-    """The JSON document: added_effect, parameters, error_before/after (NRMSE per channel), candidates,
-    residual analysis before/after, what the log lacked and which defaults were assumed."""
+    """The JSON document: verdict, added_effects, calibration, budget, error_before/after (NRMSE per
+    channel), candidates with their judgement, residual analysis before/after, conclusions, what the log
+    lacked and which defaults were assumed."""
     p = ident.problem
     u, vel, pos, near = p.motion_state()
     cut = p.analysis_view
-    chosen = ident.chosen
+    before = analyse(cut(ident.nominal_residuals), u, vel, pos, near, p.log.sample_rate_hz)
+    after = analyse(cut(ident.chosen_residuals), u, vel, pos, near, p.log.sample_rate_hz)
+    s0 = p.settle
+    first = ident.accepted[0] if ident.accepted else None
     return {
         "log": str(p.log.path),
         "system": p.log.system,
+        "verdict": ident.verdict,
         "added_effect": ident.added_effect,
-        "parameters": chosen.parameters if chosen else {},
+        "added_effects": [{"name": f.name, "leg": None, "parameters": f.parameters} for f in ident.accepted],
+        "parameters": first.parameters if first else {},
+        "calibration": {"nominal": ident.nominal.calibration, "final": ident.final.calibration},
+        "budget": ident.budget.as_dict(p.units),
+        "held_out_rms_in_budgets": {ch: math.sqrt(v) for ch, v in within_budget(ident.final, ident.budget).items()},
         "error_before": ident.error_before,
         "error_after": ident.error_after,
-        "error_definition": "NRMSE: RMS of (replayed - measured) / the measured signal's standard deviation "
-                            "(floored: 0.1 mm, 0.1 bar, 0.05 m/s^2), over all " + p.scored,
+        "error_definition": "NRMSE: RMS of (replayed, sensor-calibrated - measured) / the measured signal's "
+                            "standard deviation (floored: 0.1 mm, 0.1 bar, 0.05 m/s^2), over all " + p.scored,
         "replay": p.replay_mode,
-        "rms_before": {ch: float(np.sqrt(np.mean(r**2))) for ch, r in ident.nominal_residuals.items()},
-        "rms_after": {ch: float(np.sqrt(np.mean(r**2))) for ch, r in ident.chosen_residuals.items()},
+        "rms_before": {ch: float(np.sqrt(np.mean(r[:, s0:] ** 2))) for ch, r in ident.nominal_residuals.items()},
+        "rms_after": {ch: float(np.sqrt(np.mean(r[:, s0:] ** 2))) for ch, r in ident.chosen_residuals.items()},
         "units": p.units,
-        "nominal": {"cost_fit": ident.nominal_cost_fit, "cost_held_out": ident.nominal_cost_held_out,
-                    "aic": ident.nominal_aic, "bic": ident.nominal_bic},
-        "candidates": [c.as_dict() | {"physics": CANDIDATES[c.name].physics} for c in ident.candidates],
-        "selection": "largest held-out gain, chosen only if >= 5 % and BIC below the nominal's",
-        "residuals_before": analyse(cut(ident.nominal_residuals), u, vel, pos, near, p.log.sample_rate_hz),
-        "residuals_after": analyse(cut(ident.chosen_residuals), u, vel, pos, near, p.log.sample_rate_hz),
+        "candidates": [c.as_dict() | {"physics": CANDIDATES[c.name].physics,
+                                      "plausible_range_source": CANDIDATES[c.name].source} for c in ident.candidates],
+        "selection": (f"forward selection (at most {MAX_EFFECTS}): a candidate is accepted if its held-out "
+                      f"improvement beyond the numerical tolerance passes a one-sided t-test over the held-out "
+                      f"windows at {ALPHA:g} / (candidates in the round), no channel's held-out RMS rises by more "
+                      f"than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
+                      f"off the bounds and above the log's resolution; a channel is explained within "
+                      f"sqrt({WITHIN:g}) budgets"),
+        "conclusions": conclusions(ident, before, p.units),
+        "residuals_before": before,
+        "residuals_after": after,
         "windows": p.window_doc,
         "not_checked": p.log.missing,
         "assumed": p.log.assumed,
     }
 
 
+def _md(text: str) -> str:
+    """Text for a Markdown table cell: pipes escaped."""
+    return str(text).replace("|", "\\|")
+
+
+def _fmt(value: float, unit: str) -> str:
+    """A value in the unit a person reads: Pa as bar, m as mm or µm."""
+    if unit == "Pa":
+        return f"{value / 1e5:.4g} bar"
+    if unit == "m":
+        return f"{value * 1e3:.4g} mm" if abs(value) >= 1e-3 else f"{value * 1e6:.3g} µm"
+    return f"{value:.4g} {unit}"
+
+
 def markdown(doc: dict, png_names: list[str]) -> str:
-    lines = [f"# Validation of `{doc['log']}`", "",
-             f"**Added effect: `{doc['added_effect']}`**", ""]
-    if doc["added_effect"] == "none":
-        lines += ["No candidate lowered the held-out error enough (≥ 5 % and a lower BIC): the nominal model "
-                  "explains the log, or the residual lives where no candidate reaches (see the conditioned "
-                  "table below).", ""]
-    lines += [f"Replay: {doc['replay']}", "",
-              "## Error per channel (NRMSE)", "", "| channel | before | after |", "|---|---|---|"]
+    effects = " + ".join(f"`{e['name']}`" for e in doc["added_effects"]) or "none"
+    lines = [f"# Validation of `{doc['log']}`", "", f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
+    lines += [f"- {c}" for c in doc["conclusions"]] + [""]
+    for e in doc["added_effects"]:
+        lines.append(f"`{e['name']}`: " + ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {_md(v['unit'])}"
+                                                   for k, v in e["parameters"].items()))
+    lines += ["", f"Replay: {doc['replay']}", "", "## Error per channel", "",
+              "| channel | NRMSE before | NRMSE after | budget (noise, tolerance) |", "|---|---|---|---|"]
     for ch, before in doc["error_before"].items():
-        lines.append(f"| {ch} | {before:.4g} | {doc['error_after'][ch]:.4g} |")
-    lines += ["", "## Candidates", "",
-              "| effect | parameters ± s.e. | held-out gain | ΔBIC vs nominal |", "|---|---|---|---|"]
-    for c in doc["candidates"]:
-        ps = ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}" for k, v in c["parameters"].items())
-        lines.append(f"| {c['effect']} | {ps} | {c['held_out_gain']:+.3f} | {c['bic'] - doc['nominal']['bic']:+.1f} |")
+        b, u = doc["budget"][ch], doc["units"][ch]
+        lines.append(f"| {ch} | {before:.4g} | {doc['error_after'][ch]:.4g} | {_fmt(b['budget'], u)} "
+                     f"({_fmt(b['noise'], u)}, {_fmt(b['tolerance'], u)}) |")
+    lines += ["", "## Sensor calibration (nuisance, fitted with every model)", "", "| channel | offset | scale |",
+              "|---|---|---|"]
+    for ch, cal in doc["calibration"]["final"].items():
+        u = doc["units"][ch]
+        lines.append(f"| {ch} | {', '.join(_fmt(o, u) for o in cal['offset'])} | "
+                     f"{', '.join(f'{s_:.4f}' for s_ in cal['scale'])} |")
+    if doc["candidates"]:
+        lines += ["", "## Candidates", "", "| effect | on top of | parameters ± s.e. | held-out gain | p | accepted / why not |",
+                  "|---|---|---|---|---|---|"]
+        for c in doc["candidates"]:
+            ps = ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}" for k, v in c["parameters"].items())
+            why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
+            lines.append(f"| {c['effect']} | {', '.join(c['on_top_of']) or 'nominal'} | {_md(ps)} | "
+                         f"{c['held_out_gain']:+.3f} | {c['p_value']:.2g} | {_md(why)} |")
+    else:
+        lines += ["", "No candidate was fitted: the nominal model leaves nothing beyond noise and tolerance."]
     lines += ["", "## Residual before → after", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
               "spectrum peak [Hz] |", "|---|---|---|---|"]
     for ch in doc["residuals_before"]:
@@ -80,7 +179,7 @@ def markdown(doc: dict, png_names: list[str]) -> str:
     classes = doc["residuals_before"][chans[0]]["conditioned"]
     for cls in classes:
         row = [f"{doc['residuals_before'][ch]['conditioned'].get(cls, {}).get('rms', float('nan')):.3g}" for ch in chans]
-        lines.append(f"| {cls} | " + " | ".join(row) + " |")
+        lines.append(f"| {_md(cls)} | " + " | ".join(row) + " |")
     lines += ["", f"Not checked (columns missing): {', '.join(doc['not_checked']) or 'nothing'}.",
               f"Assumed: {'; '.join(doc['assumed']) or 'nothing'}.", ""]
     lines += [f"![{n}]({n})" for n in png_names]
@@ -118,7 +217,8 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
         ax[i, 2].set_xlabel("frequency [Hz]")
         ax[i, 2].set_ylabel("PSD")
     ax[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {ident.added_effect} (blue)")
+    added = " + ".join(f.name for f in ident.accepted) or "nothing"
+    fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {added} (blue), verdict {ident.verdict}")
     fig.tight_layout()
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
     plt.close(fig)

@@ -1,0 +1,171 @@
+"""The library of effects the nominal seed model lacks, as the identifier fits them.
+
+Each :class:`Candidate` extends a model by one effect with one to three free parameters. Its bounds are
+the *physically plausible range* of each parameter, written next to it with its source; the fit is
+bounded there, and a fitted value at a bound (within :data:`AT_BOUND` of the range) is flagged and never
+reported as a finding. :func:`plausible_bounds` narrows the ranges to what the log can resolve: no
+sensor delay below one sample period, no spool frequency above half the sample rate, and a supply set
+pressure inside the logged supply pressure when ``ps_Pa`` is logged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hexsim.effects import EFFECT_NAMES
+from hexsim.measurement import MeasurementLog
+from hexsim.replay import PlantModel
+
+BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
+#: A fitted value closer than this fraction of its plausible range to a bound is "at the bound".
+AT_BOUND = 0.01
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One effect: parameter names with units, starts, plausible range with its source, the value that
+    means "no effect" (a fit there found nothing), and how the effect changes a model."""
+
+    name: str
+    parameters: tuple[str, ...]
+    units: tuple[str, ...]
+    starts: Callable[[MeasurementLog], tuple[tuple[float, ...], ...]]  # the fit starts from the best of these
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    source: str  # where the plausible range comes from
+    apply: Callable[[PlantModel, np.ndarray], PlantModel]
+    physics: str
+    no_effect: tuple[float | None, ...] = ()  # per parameter: the value that switches the effect off, or None
+
+
+def _eff(model: PlantModel, **kw) -> PlantModel:
+    return PlantModel(model.hydraulics, model.effects.replace(**kw))
+
+
+def _hyd(model: PlantModel, **kw) -> PlantModel:
+    return PlantModel(model.hydraulics.replace(**kw), model.effects)
+
+
+def _supply_set(log: MeasurementLog) -> float:
+    """Start of the set pressure [bar]: the 99th percentile of the logged P_s (the supply sags below it
+    whenever oil is drawn), or the seed's 70 bar without a P_s column."""
+    return float(np.quantile(log.columns["ps_Pa"], 0.99)) / 1e5 if "ps_Pa" in log.columns else 70.0
+
+
+def _friction(model: PlantModel, x) -> PlantModel:
+    h = model.hydraulics
+    return _hyd(model, coulomb_pos=h.coulomb_pos * x[0], coulomb_neg=h.coulomb_neg * x[0],
+                static_pos=h.static_pos * x[0], static_neg=h.static_neg * x[0],
+                viscous_pos=h.viscous_pos * x[1], viscous_neg=h.viscous_neg * x[1])
+
+
+def _supply(model: PlantModel, x) -> PlantModel:
+    return PlantModel(model.hydraulics.replace(supply_pressure=x[2] * 1e5),
+                      model.effects.replace(supply_resistance=x[0] * BAR_PER_LPM, supply_time_constant=x[1] * 1e-3))
+
+
+def _load(model: PlantModel, x) -> PlantModel:
+    return _eff(model, mass_kg=x[0], inclination_deg=x[1])
+
+
+CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
+    Candidate("supply_pressure", ("R_s", "tau_s", "P_s0"), ("bar/(L/min)", "ms", "bar"),
+              lambda log: tuple((r, tau, _supply_set(log)) for r, tau in ((0.2, 20.0), (2.0, 20.0), (2.0, 200.0))),
+              (0.0, 1.0, 20.0), (20.0, 1000.0, 350.0),
+              "set pressure 20-350 bar: industrial power units (ISO 4413); R_s up to 20 bar/(L/min) is a "
+              "supply line and accumulator far too small for the flow; tau_s 1 ms-1 s (Jelali & Kroll §3.7)",
+              _supply,
+              "pump + accumulator behind a supply line: P_s sags from the set pressure P_s0 by R_s phi_s, "
+              "time constant tau_s", (0.0, None, None)),
+    Candidate("spool_dynamics", ("f_v", "zeta_v"), ("Hz", "-"),
+              lambda log: ((20.0, 0.7), (50.0, 0.7), (120.0, 0.7)), (5.0, 0.3), (300.0, 1.5),
+              "-90° frequency of proportional and servo valves 5-300 Hz, damping 0.3-1.5 (manufacturers' "
+              "frequency responses, e.g. Rexroth 4WRPEH, Moog D633; Jelali & Kroll §3.4)",
+              lambda m, x: _eff(m, spool_frequency=x[0], spool_damping=x[1]),
+              "second-order spool position loop (natural frequency f_v, damping zeta_v)"),
+    Candidate("null_offset", ("u_0",), ("V",), lambda log: ((-0.2,), (0.0,), (0.2,)), (-2.0,), (2.0,),
+              "zero point within ±20 % of u_v,max (datasheets adjust it to a few % and give drifts of "
+              "< 1 %/10 K; seed §5.3)",
+              lambda m, x: _hyd(m, null_offset=x[0]),
+              "valve setpoint u_0 that centres the spool is not 0 (seed §5.3: drifts with temperature)", (0.0,)),
+    Candidate("hysteresis", ("h",), ("V",), lambda log: ((0.05,), (0.2,), (0.6,)), (0.0,), (1.0,),
+              "hysteresis of proportional valves up to 10 % of u_v,max (datasheets give 0.1-5 %; seed §4.2)",
+              lambda m, x: _eff(m, spool_play=x[0]),
+              "spool play: backlash of half width h between setpoint and spool (seed §4.2, hysteresis of "
+              "the flow curve)", (0.0,)),
+    Candidate("leakage", ("C_l",), ("1e-12 m^3/(s Pa)",), lambda log: ((0.5,), (5.0,), (50.0,)), (0.0,), (200.0,),
+              "internal leakage of a worn piston seal: up to ~1 L/min at 70 bar, 2e-10 m^3/(s Pa) "
+              "(Merritt §3.4; a new seal leaks < 1e-12)",
+              lambda m, x: _eff(m, leakage=x[0] * 1e-12),
+              "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber", (0.0,)),
+    Candidate("load", ("M", "inclination"), ("kg", "deg"),
+              lambda log: ((log.mass_kg or 40.0, max(log.inclination_deg, 1.0)),
+                           (1.5 * (log.mass_kg or 40.0), 30.0)), (5.0, 0.0), (400.0, 89.0),
+              "a moving mass of 5-400 kg per axis (seed app. A: 40 kg) and any inclination short of "
+              "horizontal",
+              _load, "moving mass and inclination of the axis differ from the declared (seed ch. 4: gravity not "
+              "along the actuator)", (None, 0.0)),
+    Candidate("friction", ("k_c", "k_sigma"), ("-", "-"), lambda log: ((1.0, 1.0), (0.5, 1.0), (2.5, 1.0)),
+              (0.0, 0.0), (10.0, 10.0),
+              "Coulomb/static and viscous levels within 0-10x the seed's identified ones (seed §2.3.3, "
+              "app. A)", _friction,
+              "Stribeck friction (seed eq. 3.9) with Coulomb + static levels scaled by k_c, viscous by k_sigma"),
+    Candidate("bulk_modulus", ("E",), ("GPa",), lambda log: ((0.3,), (1.0,), (1.5,)), (0.1,), (2.0,),
+              "effective bulk modulus of mineral oil 1.4-2.0 GPa, down to ~0.1 GPa with hoses and "
+              "entrained air (Merritt §2.5)",
+              lambda m, x: _hyd(m, bulk_modulus=x[0] * 1e9),
+              "effective bulk modulus of the oil (entrained air lowers it; seed eq. 3.7)"),
+    Candidate("sensor_delay", ("tau_y",), ("ms",), lambda log: ((1.0,), (5.0,), (20.0,)), (0.0,), (50.0,),
+              "a position transducer and its filter lag 0-50 ms; below one sample period the log cannot "
+              "resolve a delay",
+              lambda m, x: _eff(m, sensor_delay=x[0] * 1e-3),
+              "the position measurement lags the piston by tau_y", (0.0,)),
+)}
+assert tuple(CANDIDATES) == EFFECT_NAMES
+
+
+def plausible_bounds(cand: Candidate, log: MeasurementLog) -> tuple[np.ndarray, np.ndarray]:
+    """(lower, upper) of ``cand``'s parameters for this log: the plausible range, narrowed to what the log
+    resolves (see the module doc)."""
+    lower, upper = np.array(cand.lower, dtype=float), np.array(cand.upper, dtype=float)
+    fs = log.sample_rate_hz
+    if cand.name == "spool_dynamics":
+        upper[0] = min(upper[0], 0.5 * fs)
+    if cand.name == "sensor_delay":
+        lower[0] = 0.0  # the fit may go below; acceptance needs one sample period (resolution_floor)
+    if cand.name == "supply_pressure" and "ps_Pa" in log.columns:
+        lo, hi = np.quantile(log.columns["ps_Pa"], [0.01, 0.99]) / 1e5
+        lower[2], upper[2] = lo - 0.5, hi + 0.5  # the set pressure lies within the measured supply
+    return lower, upper
+
+
+def resolution_floor(cand: Candidate, log: MeasurementLog) -> dict[str, float]:
+    """Smallest value of a parameter the log can resolve, name -> value (in the candidate's units)."""
+    if cand.name == "sensor_delay":
+        return {"tau_y": 1e3 / log.sample_rate_hz}
+    return {}
+
+
+def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray) -> list[str]:
+    """Why the fitted parameters ``x`` are not a finding (empty if they are): a value at a bound of its
+    plausible range, at the value that means no effect, or finer than the log resolves."""
+    lower, upper = plausible_bounds(cand, log)
+    span = upper - lower
+    problems = []
+    for i, (name, unit) in enumerate(zip(cand.parameters, cand.units)):
+        off = cand.no_effect[i] if i < len(cand.no_effect) else None
+        v = float(x[i])
+        if off is not None and abs(v - off) <= AT_BOUND * span[i]:
+            problems.append(f"{name} = {v:.4g} {unit} is the value without the effect")
+        elif v <= lower[i] + AT_BOUND * span[i] or v >= upper[i] - AT_BOUND * span[i]:
+            problems.append(f"{name} = {v:.4g} {unit} at a bound of its plausible range "
+                            f"{lower[i]:.4g}…{upper[i]:.4g}")
+    for name, floor in resolution_floor(cand, log).items():
+        i = cand.parameters.index(name)
+        if float(x[i]) < floor:
+            problems.append(f"{name} = {float(x[i]):.3g} {cand.units[i]} is finer than the log resolves "
+                            f"({floor:.3g} {cand.units[i]}, one sample)")
+    return problems
