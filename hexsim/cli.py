@@ -70,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     val = sub.add_parser(
         "validate",
         help="confront the model with a measurement log: residual, missing effect, error before/after",
-        description="Replay a measurement log (../shared/measurement-log.md) through the model with the logged "
+        description="Replay a measurement log (docs/measurement-log.md) through the model with the logged "
         "valve setpoints, analyse the residual, fit each candidate effect the nominal model lacks and name the "
         "one that explains the log (or none). Single-actuator logs: valve replay in windows; hexapod logs: "
         "closed-loop replay of the logged leg setpoints with the logged compensation fed forward.",
@@ -190,8 +190,12 @@ def cmd_friction(args: argparse.Namespace) -> int:
           f"inclination {result['inclination_deg']:g}°")
     for side in ("positive", "negative"):
         ps = result[side]["parameters"]
-        print(f"  {side:8s}: " + ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
-                                           for k, v in ps.items()) + f"  (rms {result[side]['rms_N']:.3g} N)")
+        print(f"  {side:8s}: " + ", ".join(
+            f"{k} unidentifiable" if "unidentifiable" in v else f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
+            for k, v in ps.items()) + f"  (rms {result[side]['rms_N']:.3g} N)")
+        for k, v in ps.items():
+            if "unidentifiable" in v:
+                print(f"    {k}: {v['unidentifiable']}")
     if args.json:
         write_atomic(args.json, lambda tmp: tmp.write_text(to_json(result)))
         print(f"wrote {args.json}")

@@ -2,9 +2,15 @@
 
 F_f = F_L - M ydd - M g cos(inclination), with F_L = P1 A1 - P_s A2 (seed eq. 2.3) from the pressures,
 or F_L = ``force_N`` for a drive without pressure sensors (the seed notes the method applies to electric
-drives too). Velocity and acceleration are Savitzky–Golay derivatives of the measured position. The
-asymmetric Stribeck curve of eq. (2.4), F_f = sigma v + sign(v) [F_c0 + F_s0 exp(-|v| / c_s)], is fitted
-per direction with ``scipy.optimize.least_squares``; standard errors from the Jacobian.
+drives too). Velocity and acceleration are Savitzky–Golay derivatives of the measured position.
+
+The curve fitted is the one the simulator uses (:func:`hexsim.hydraulics.friction_force`, seed eq. 3.9),
+F_f = sigma v + s(v) [F_c0 + F_s0 exp(-|v| / c_s)] with s(v) = arctan(k v) (times 2/pi when
+``arctan_normalised``), per direction, with ``scipy.optimize.least_squares``; so identification and
+simulation recover each other's parameters. (Eq. 2.4 of the seed has sign(v) for s(v); with the
+published eq. 3.9, arctan tends to ±pi/2 and the Coulomb level at speed is pi/2 F_c0.) Standard errors
+from the Jacobian; a parameter the data cannot separate (at a bound of its range, or a standard error
+larger than the value) is reported as unidentifiable with the reason, never as a number.
 """
 
 from __future__ import annotations
@@ -23,14 +29,17 @@ from hexsim.tables import write_atomic
 
 G = 9.8  # [m/s^2], seed app. A (the models' gravity)
 MODEL_MASS = 40.0  # [kg], seed app. A, the single-actuator MJCF's moving mass
-V_MIN = 0.002  # [m/s]: samples slower than this are left out (sign of v uncertain)
+V_MIN = 0.0005  # [m/s]: samples slower than this are left out (sign of v uncertain below ~0.1 mm/s)
 PARAMS = ("sigma", "F_c0", "F_s0", "c_s")
 UNITS = ("N s/m", "N", "N", "m/s")
 
 
-def stribeck(v: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Seed eq. (2.4) for one direction: x = (sigma, F_c0, F_s0, c_s)."""
-    return x[0] * v + np.sign(v) * (x[1] + x[2] * np.exp(-np.abs(v) / x[3]))
+def stribeck(v: np.ndarray, x: np.ndarray, hyd: HydraulicParams | None = None) -> np.ndarray:
+    """The simulator's friction curve for one direction (seed eq. 3.9), x = (sigma, F_c0, F_s0, c_s);
+    the arctan gain k and its normalisation from ``hyd`` (default the seed's)."""
+    hyd = hyd or HydraulicParams()
+    shape = np.arctan(hyd.arctan_gain * v) * (2.0 / np.pi if hyd.arctan_normalised else 1.0)
+    return x[0] * v + shape * (x[1] + x[2] * np.exp(-np.abs(v) / x[3]))
 
 
 def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None) -> tuple[np.ndarray, np.ndarray, str]:
@@ -61,25 +70,34 @@ def identify_friction(log: MeasurementLog) -> dict:
     used. Raises InputError if a direction has fewer than 50 samples faster than 2 mm/s."""
     vel, ff, source = friction_samples(log)
     out = {"log": str(log.path), "force_source": source, "mass_kg": log.mass_kg or MODEL_MASS,
-           "inclination_deg": log.inclination_deg, "assumed": log.assumed, "equation": "seed eq. (2.4)"}
+           "inclination_deg": log.inclination_deg, "assumed": log.assumed,
+           "equation": "seed eq. (3.9), the simulator's friction curve (hexsim.hydraulics.friction_force)"}
+    lo, hi = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])
     for side, mask in (("positive", vel > V_MIN), ("negative", vel < -V_MIN)):
         if mask.sum() < 50:
             raise InputError(f"{log.path}: only {int(mask.sum())} samples move in the {side} direction faster "
                              f"than {V_MIN * 1e3:g} mm/s; friction cannot be fitted")
         v, f = vel[mask], ff[mask]
-        x0 = np.array([1000.0, 50.0, 20.0, 0.005])  # sign(v) in eq. (2.4) carries the direction: magnitudes
-        lo, hi = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])
+        x0 = np.array([1000.0, 50.0, 20.0, 0.005])  # the shape s(v) carries the direction: magnitudes
         sol = least_squares(lambda x, v=v, f=f: stribeck(v, x) - f, x0, bounds=(lo, hi),
                             x_scale=[1000, 50, 20, 0.005])
-        dof = max(len(v) - 4, 1)
-        s2 = float(sol.fun @ sol.fun) / dof
-        try:
-            se = np.sqrt(np.clip(np.diag(np.linalg.inv(sol.jac.T @ sol.jac)) * s2, 0, None))
-        except np.linalg.LinAlgError:
-            se = np.full(4, np.nan)
-        out[side] = {"parameters": {p: {"value": float(x), "std_error": float(e), "unit": u}
-                                    for p, x, e, u in zip(PARAMS, sol.x, se, UNITS)},
-                     "rms_N": float(np.sqrt(s2)), "samples": int(len(v))}
+        s2 = float(sol.fun @ sol.fun) / max(len(v) - 4, 1)
+        se = np.sqrt(np.clip(np.diag(np.linalg.pinv(sol.jac.T @ sol.jac)) * s2, 0, None))
+        params, unidentifiable = {}, {}
+        for p, x, e, u, a, b in zip(PARAMS, sol.x, se, UNITS, lo, hi):
+            reason = None
+            if x <= a + 1e-9 * (b - a) or x >= b - 1e-9 * (b - a):
+                reason = f"at the bound {a if x <= a + 1e-9 * (b - a) else b:g} {u} of the fit"
+            elif not np.isfinite(e) or e > abs(x):
+                reason = (f"the data cannot separate it (standard error {e:.3g} {u} larger than the value "
+                          f"{x:.3g}): too few samples at speeds near c_s, where the Stribeck term changes")
+            if reason and p == "c_s":  # the only parameter that is shape, not level: report it as such
+                unidentifiable[p] = reason
+            params[p] = {"value": float(x), "std_error": float(e), "unit": u}
+            if reason:
+                params[p]["unidentifiable"] = reason
+        out[side] = {"parameters": params, "rms_N": float(np.sqrt(s2)), "samples": int(len(v)),
+                     "unidentifiable": unidentifiable}
     out["_samples"] = (vel, ff)
     return out
 
@@ -92,11 +110,11 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
 
     vel, ff = result["_samples"]
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g (seed eq. 2.3)")
+    ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g cos θ (seed eq. 2.3)")
     for side, sgn in (("positive", 1), ("negative", -1)):
         x = np.array([result[side]["parameters"][p]["value"] for p in PARAMS])
         v = sgn * np.linspace(V_MIN, max(np.abs(vel).max(), 2 * V_MIN), 200)
-        ax.plot(v, stribeck(v, x), color="C0" if sgn > 0 else "C3", label=f"Stribeck fit, {side} (seed eq. 2.4)")
+        ax.plot(v, stribeck(v, x), color="C0" if sgn > 0 else "C3", label=f"Stribeck fit, {side} (seed eq. 3.9)")
     ax.set_xlabel("velocity [m/s]")
     ax.set_ylabel("friction force [N]")
     ax.set_title(f"friction-velocity map: {pathlib.Path(result['log']).name}")

@@ -65,7 +65,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
 
 
 #: Length of the scored segments [s]: even segments fit, odd segments are held out.
-SEGMENT_S = 0.5
+SEGMENT_S = 0.25
 
 
 class HexapodProblem:

@@ -1,4 +1,4 @@
-"""Writing a run in the measurement-log format (``../shared/measurement-log.md``): CSV + JSON sidecar.
+"""Writing a run in the measurement-log format (``docs/measurement-log.md``): CSV + JSON sidecar.
 
 Simulated runs are written in the same format hexsim reads measured data in, so both can be compared
 with the same tools.

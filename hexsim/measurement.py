@@ -1,4 +1,4 @@
-"""Reading and validating measurement logs (``../shared/measurement-log.md``): CSV + JSON sidecar.
+"""Reading and validating measurement logs (``docs/measurement-log.md``): CSV + JSON sidecar.
 
 A log that breaks the format's rules is refused with one :class:`~hexsim.errors.InputError` naming the
 file, the column and the row (or the sidecar key) and the value. Missing optional columns are allowed:
@@ -22,7 +22,7 @@ from hexsim.tables import read_numeric_csv
 SYSTEMS = ("single-actuator", "hexapod")
 #: Physical range of each column kind (lower, upper) in SI units, and the hint when a value is outside.
 _RANGES = {
-    "_m": (-0.01, 0.21, "a piston position in metres within the 0…0.2 m stroke (a value in mm?)"),
+    "_m": (-0.01, 0.01, "a piston position in metres within the stroke (a value in mm?)"),  # + stroke_m
     "_Pa": (-1e5, 4.0e7, "a pressure in Pa between 0 and 400 bar"),
     "_V": (-10.5, 10.5, "a valve setpoint in V within ±10 V"),
     "_mps2": (-300.0, 300.0, "an acceleration in m/s^2 (below 30 g)"),
@@ -31,6 +31,7 @@ _RANGES = {
 }
 #: A pressure column whose largest value is below this [Pa] is taken to be in bar (or MPa), not Pa.
 _PRESSURE_UNIT_FLOOR = 1.0e4
+DEFAULT_STROKE = 0.2  # [m], the seed's actuator (app. A); a log's sidecar may declare its own stroke_m
 _JITTER = 0.01  # allowed deviation of a sample period from the nominal, fraction of the period (the format)
 
 
@@ -49,6 +50,7 @@ class MeasurementLog:
     inclination_deg: float  # declared inclination from vertical (single actuator)
     oil_temperature_c: float
     sidecar: dict
+    stroke_m: float = DEFAULT_STROKE  # travel of the axis [m] (sidecar stroke_m)
     assumed: list[str] = field(default_factory=list)
     missing: list[str] = field(default_factory=list)
 
@@ -136,6 +138,9 @@ def read_log(path) -> MeasurementLog:
     else:
         temp = 35.0
         assumed.append("oil temperature 35 °C (seed app. A)")
+    stroke = _number(side, "stroke_m", str(side_name)) if "stroke_m" in side else DEFAULT_STROKE
+    if "stroke_m" not in side and system == "single-actuator":
+        assumed.append(f"stroke {DEFAULT_STROKE:g} m (the seed's actuator)")
     mass = _number(side, "mass_kg", str(side_name)) if "mass_kg" in side else None
     if mass is None and system == "single-actuator":
         assumed.append("moving mass from the model (40 kg, seed app. A)")
@@ -164,10 +169,10 @@ def read_log(path) -> MeasurementLog:
             f"{path}: column 'time_s', row {r + 3}: sample period {steps[r] * 1e3:.4g} ms deviates more than 1 % "
             f"from {period * 1e3:.4g} ms (non-uniform sampling)")
     for name, values in cols.items():
-        _check_range(path, name, values)
+        _check_range(path, name, values, stroke)
     log = MeasurementLog(path=path, system=system, sample_rate_hz=rate, columns=cols, kp=kp,
                          controller_rate_hz=ctrl_rate, mass_kg=mass, inclination_deg=incl,
-                         oil_temperature_c=temp, sidecar=side, assumed=assumed)
+                         oil_temperature_c=temp, sidecar=side, stroke_m=stroke, assumed=assumed)
     for kind in ("valve_cmd_V", "pos_m"):
         for i in range(log.n_legs):
             name = log.leg_column(kind, i)
@@ -186,8 +191,11 @@ def read_log(path) -> MeasurementLog:
     return log
 
 
-def _check_range(path: pathlib.Path, name: str, values: np.ndarray) -> None:
+def _check_range(path: pathlib.Path, name: str, values: np.ndarray, stroke: float) -> None:
     for suffix, (lo, hi, what) in _RANGES.items():
+        if suffix == "_m":
+            hi = hi + stroke
+            what = f"a piston position in metres within the 0…{stroke:g} m stroke (a value in mm?)"
         if not name.endswith(suffix) or name == "time_s":
             continue
         if suffix == "_m" and not name.endswith(("pos_m", "ref_m")):

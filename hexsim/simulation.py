@@ -38,7 +38,7 @@ ENGINES = ("native", "numpy")
 @dataclass(frozen=True)
 class RunConfig:
     """Everything that defines one run. ``record_rate_hz`` None: 1 kHz, the rate of the measurement-log
-    example (``../shared/measurement-log.md``); it must divide the 10 kHz physics rate."""
+    example (``docs/measurement-log.md``); it must divide the 10 kHz physics rate."""
 
     scenario: Scenario
     hydraulics: HydraulicParams = field(default_factory=HydraulicParams)

@@ -1,6 +1,6 @@
 """Reading numeric CSV tables with one clear error per problem (file, column, row, value).
 
-Shared by scenario files (``file:PATH``) and measurement logs (``../shared/measurement-log.md``):
+Shared by scenario files (``file:PATH``) and measurement logs (``docs/measurement-log.md``):
 one header row, then one row per sample, plain decimal or exponent numbers, first column ``time_s``
 strictly increasing. Rows are numbered as a spreadsheet shows them (the header is row 1).
 """

@@ -96,7 +96,7 @@ def test_undeclared_effect_is_named_and_error_halves(answers, effect):
 def test_report_folder(logs, tmp_path, capsys):
     assert main(["validate", logs["leakage"], "--report", str(tmp_path / "rep"), "--quiet", "--jobs", "2"]) == 0
     md = (tmp_path / "rep" / "report.md").read_text()
-    assert "Added effect: `leakage`" in md and "Ljung–Box" in md
+    assert "**Verdict: explained** — added effects: `leakage`" in md and "Ljung–Box" in md
     assert (tmp_path / "rep" / "residuals.png").stat().st_size > 10_000
     assert "added effect: leakage" in capsys.readouterr().out
 
