@@ -14,8 +14,8 @@ import pathlib
 import numpy as np
 
 from hexsim.candidates import CANDIDATES
-from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Identification, identify,
-                             within_budget)
+from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALE_LIMIT, SCALED, WITHIN, WORSE_REL, Identification,
+                             identify, within_budget)
 from hexsim.measurement import MeasurementLog
 from hexsim.residuals import analyse
 from hexsim.tables import write_atomic
@@ -24,11 +24,11 @@ from hexsim.tables import write_atomic
 G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
 
 
-def conclusions(ident: Identification, before: dict, units: dict[str, str]) -> list[str]:
+def conclusions(ident: Identification, before: dict) -> list[str]:
     """What the residual says, in sentences an engineer reads first: which channels are off and by how
     much, sensor calibration that looks like a convention problem or a transducer error, and where the
     residual lives (direction of motion)."""
-    p, budget = ident.problem, ident.budget
+    budget = ident.budget
     out = []
     ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, budget).items()}
     off = [ch for ch, r in ratio.items() if r * r > WITHIN]
@@ -42,20 +42,27 @@ def conclusions(ident: Identification, before: dict, units: dict[str, str]) -> l
         if off == ["position"] and {"p1", "acceleration"} <= set(clean):
             out.append("Only the position disagrees while P1 and the acceleration are clean: look at the position "
                        "sensor (scale, delay) or the valve's flow gain before friction or load.")
-    acc = ident.nominal.calibration.get("acceleration")
+    final = ident.final.calibration  # the calibration of the model the verdict stands on
+    acc = final.get("acceleration")
     if acc:
-        for j, a in enumerate(acc["offset"]):
+        for a in acc["offset"]:
             if abs(abs(a) - G_STANDARD) < 0.15 * G_STANDARD:
                 out.append(f"The accelerometer reads {a:+.2f} m/s^2 off the model: a constant offset of about "
                            f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
                            "format specific force, or the reverse), not physics; it is calibrated out.")
                 break
+    settled = ident.verdict in ("none", "explained")
     for ch in SCALED:
-        cal = ident.nominal.calibration.get(ch)
-        if cal and any(abs(sc - 1.0) > 0.02 for sc in cal["scale"]):
-            worst = max(cal["scale"], key=lambda sc: abs(sc - 1.0))
+        cal = final.get(ch)
+        if not cal or not any(abs(sc - 1.0) > 0.02 for sc in cal["scale"]):
+            continue
+        worst = max(cal["scale"], key=lambda sc: abs(sc - 1.0))
+        if settled and abs(worst - 1.0) < SCALE_LIMIT - 1e-9:
             out.append(f"The {ch} sensor's scale fits {worst:.4f} (more than 2 % off): a transducer calibration "
                        "error, calibrated out and not taken for an effect.")
+        else:
+            out.append(f"The {ch} sensor's scale fits {worst:.4f}: with the model still off, the scale takes "
+                       "up part of the model error and says little about the sensor.")
     for ch in off:
         cond = before.get(ch, {}).get("conditioned", {})
         up, down = cond.get("velocity > 0", {}).get("rms"), cond.get("velocity < 0", {}).get("rms")
@@ -113,7 +120,7 @@ def summary(ident: Identification) -> dict:
                       f"than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
                       f"off the bounds and above the log's resolution; a channel is explained within "
                       f"sqrt({WITHIN:g}) budgets"),
-        "conclusions": conclusions(ident, before, p.units),
+        "conclusions": conclusions(ident, before),
         "residuals_before": before,
         "residuals_after": after,
         "windows": p.window_doc,

@@ -8,7 +8,6 @@ The logs come from hexsim's closed loop at a physics step of 5e-5 s (the identif
 with sensor noise; the identifier reads only the CSV and its sidecar.
 """
 
-import json
 import shutil
 from concurrent.futures import ProcessPoolExecutor
 
