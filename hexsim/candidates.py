@@ -123,6 +123,13 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "resolve a delay",
               lambda m, x: _eff(m, sensor_delay=x[0] * 1e-3),
               "the position measurement lags the piston by tau_y", (0.0,)),
+    Candidate("edge_asymmetry", ("k_PA", "k_AT"), ("-", "-"), lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
+              (0.5, 0.5), (1.5, 1.5),
+              "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
+              "tolerance for a new valve, worn or damaged edges more",
+              lambda m, x: _eff(m, edge_gain_pa=x[0], edge_gain_at=x[1]),
+              "valve edge asymmetry: the supply edge P→A and the return edge A→T pass k_PA and k_AT times the "
+              "flow of eq. (3.4)"),
 )}
 assert tuple(CANDIDATES) == EFFECT_NAMES
 

@@ -24,7 +24,7 @@ from hexsim.params import HydraulicParams, _check_nonnegative
 
 #: Names of the candidate effects of the identifier (issue 4), in the order they are tried.
 EFFECT_NAMES = ("supply_pressure", "spool_dynamics", "null_offset", "hysteresis", "leakage", "load", "friction",
-                "bulk_modulus", "sensor_delay")
+                "bulk_modulus", "sensor_delay", "edge_asymmetry")
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,9 @@ class Effects:
     ±x_v,max. Spool play: the setpoint passes a backlash of half width h [V] before the spool (the
     hysteresis of the flow curve the seed measured, §4.2). Leakage: internal across the piston,
     C_l (P_s - P1) into the bottom chamber. Sensor delay: the position the controller and the log see
-    is y(t - tau_y).
+    is y(t - tau_y). Edge asymmetry: the supply (P→A) and return (A→T) edges of the spool pass k_PA and
+    k_AT times the flow of eq. (3.4) (ground edges differ by manufacturing tolerance and wear; the seed's
+    measured flow curve is not symmetric either, §4.2).
     """
 
     supply_resistance: float = 0.0  # R_s [Pa s/m^3], P_s sag per unit supply flow; 0: ideal supply
@@ -52,12 +54,14 @@ class Effects:
     spool_play: float = 0.0  # h [V], half width of the backlash between setpoint and spool
     leakage: float = 0.0  # C_l [m^3/(s Pa)], internal leakage across the piston
     sensor_delay: float = 0.0  # tau_y [s], delay of the position measurement
+    edge_gain_pa: float = 1.0  # k_PA [-], flow gain of the supply edge P→A relative to eq. (3.4); 1: seed
+    edge_gain_at: float = 1.0  # k_AT [-], flow gain of the return edge A→T relative to eq. (3.4); 1: seed
     mass_kg: float | None = None  # moving mass M [kg] of the single actuator; None: the MJCF's
     inclination_deg: float | None = None  # actuator axis from vertical [deg]; None: vertical (the MJCF)
 
     def __post_init__(self) -> None:
         _check_nonnegative(self, "supply_resistance", "supply_time_constant", "spool_frequency", "spool_damping",
-                           "spool_play", "leakage", "sensor_delay")
+                           "spool_play", "leakage", "sensor_delay", "edge_gain_pa", "edge_gain_at")
         if self.supply_resistance > 0 and self.supply_time_constant <= 0:
             raise InputError("Effects.supply_time_constant must be > 0 when supply_resistance > 0")
         if self.mass_kg is not None and not (math.isfinite(self.mass_kg) and self.mass_kg > 0):
@@ -127,10 +131,12 @@ def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams,
         v_v = np.where(limited, 0.0, v_v)
     else:
         x_v, v_v = x_set, state.v_v
-    p1 = hydraulics.step_pressure(state.p1, u_v, y, ydot, dt, hyd, state.p_s, x_v=x_v, leakage=eff.leakage)
+    gains = (eff.edge_gain_pa, eff.edge_gain_at)
+    p1 = hydraulics.step_pressure(state.p1, u_v, y, ydot, dt, hyd, state.p_s, x_v=x_v, leakage=eff.leakage,
+                                  edge_gains=gains)
     p_s = state.p_s
     if eff.supply_resistance > 0:
-        a1, _ = hydraulics.flow_areas(x_v, hyd)
+        a1 = hydraulics.flow_areas(x_v, hyd)[0] * eff.edge_gain_pa
         dp = state.p_s - p1
         phi_pa = hyd.orifice_constant * a1 * np.copysign(np.sqrt(np.abs(dp)), dp)
         phi_s = phi_pa + eff.leakage * dp - ydot * hyd.area_rod

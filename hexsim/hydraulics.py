@@ -50,10 +50,12 @@ def flow_areas(x_v, p: HydraulicParams):
     return a1, a - a1
 
 
-def _orifice(x_v, p1, p: HydraulicParams, p_s):
-    """phi_1 (seed eq. 3.4) and d phi_1 / d P1, computed together from one evaluation of the areas."""
+def _orifice(x_v, p1, p: HydraulicParams, p_s, edge_gains=(1.0, 1.0)):
+    """phi_1 (seed eq. 3.4) and d phi_1 / d P1, computed together from one evaluation of the areas;
+    ``edge_gains`` (k_PA, k_AT) scale the two edges' openings (:class:`hexsim.effects.Effects`)."""
     p_s = p.supply_pressure if p_s is None else p_s
     a1, a2 = flow_areas(x_v, p)
+    a1, a2 = a1 * edge_gains[0], a2 * edge_gains[1]
     dp1 = p_s - p1
     dp2 = p1 - p.tank_pressure
     s1 = np.sqrt(np.abs(dp1))
@@ -105,7 +107,8 @@ def pressure_rate(phi_1, y, ydot, p: HydraulicParams):
     return p.bulk_modulus / chamber_volume(y, p) * (phi_1 - ydot * p.area_bottom)
 
 
-def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, x_v=None, leakage=0.0):
+def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, x_v=None, leakage=0.0,
+                  edge_gains=(1.0, 1.0)):
     """Bottom-chamber pressure P1 [Pa] after one step of ``dt`` [s] (seed eq. 3.2, 3.4, 3.7).
 
     Linearly implicit (Rosenbrock-Euler) in P1: P1' = P1 + dt f / (1 - dt df/dP1), with
@@ -116,10 +119,11 @@ def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, 
 
     ``x_v`` [m] overrides the spool position computed from u_v (a spool with its own dynamics,
     :mod:`hexsim.effects`); ``leakage`` C_l [m^3/(s Pa)] adds the internal leakage across the piston
-    C_l (P_s - P1) to phi_1 (the rod side is at P_s), zero in the seed. Arrays of shape (n,) in, (n,) out.
+    C_l (P_s - P1) to phi_1 (the rod side is at P_s), zero in the seed; ``edge_gains`` (k_PA, k_AT)
+    scale the supply and return edges (1, 1 in the seed). Arrays of shape (n,) in, (n,) out.
     """
     x_v = spool_position(u_v, p) if x_v is None else x_v
-    phi, dphi = _orifice(x_v, p1, p, p_s)
+    phi, dphi = _orifice(x_v, p1, p, p_s, edge_gains)
     if leakage:  # a scalar C_l
         phi = phi + leakage * ((p.supply_pressure if p_s is None else p_s) - p1)
         dphi = dphi - leakage

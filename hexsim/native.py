@@ -44,6 +44,7 @@ def pack(hyd: HydraulicParams, eff: Effects, dt: float = 0.0) -> np.ndarray:
         hyd.arctan_gain, float(hyd.arctan_normalised), *t[0], *t[1],  # 14-15, 16-19 (ydot < 0), 20-23 (>= 0)
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping,  # 24-27
         eff.spool_play, eff.leakage, dt,  # 28-30 (dt: the step [s] of run_block)
+        eff.edge_gain_pa, eff.edge_gain_at,  # 31-32
     ])
 
 
@@ -94,6 +95,8 @@ def step_legs(P, u, y, ydot, dt, p1, ps, xv, vv, ub, force, groups, demand):
             xv[i] = x_set
         # orifice flow (seed eq. 3.4) and linearly implicit P1 (eq. 3.7)
         a1, a2 = _areas(xv[i], P)
+        a1 *= P[31]
+        a2 *= P[32]
         dp1 = ps[i] - p1[i]
         dp2 = p1[i] - P[1]
         s1 = math.sqrt(abs(dp1))

@@ -14,7 +14,7 @@ import pathlib
 import numpy as np
 
 from hexsim.candidates import CANDIDATES
-from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALE_LIMIT, SCALED, WITHIN, WORSE_REL, Identification,
+from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Identification,
                              identify, within_budget)
 from hexsim.measurement import MeasurementLog
 from hexsim.residuals import analyse
@@ -54,15 +54,19 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
     settled = ident.verdict in ("none", "explained")
     for ch in SCALED:
         cal = final.get(ch)
-        if not cal or not any(abs(sc - 1.0) > 0.02 for sc in cal["scale"]):
+        if not cal or not any(abs(sc - 1.0) > 0.005 for sc in cal["scale"]):
             continue
         worst = max(cal["scale"], key=lambda sc: abs(sc - 1.0))
-        if settled and abs(worst - 1.0) < SCALE_LIMIT - 1e-9:
-            out.append(f"The {ch} sensor's scale fits {worst:.4f} (more than 2 % off): a transducer calibration "
-                       "error, calibrated out and not taken for an effect.")
+        if not settled:
+            out.append(f"The {ch} sensor's scale fits {worst:.4f}: with the model still off, the scale takes up part "
+                       "of the model error and says little about the sensor.")
+        elif ch == "position":
+            out.append(f"The position sensor's scale fits {worst:.4f}: a transducer scale error of this size, or a "
+                       "flow gain off by as much (the two trade in the position increments); calibrated out, not "
+                       "taken for an effect.")
         else:
-            out.append(f"The {ch} sensor's scale fits {worst:.4f}: with the model still off, the scale takes "
-                       "up part of the model error and says little about the sensor.")
+            out.append(f"The accelerometer's scale fits {worst:.4f}: a sensitivity error, calibrated out and not "
+                       "taken for an effect.")
     for ch in off:
         cond = before.get(ch, {}).get("conditioned", {})
         up, down = cond.get("velocity > 0", {}).get("rms"), cond.get("velocity < 0", {}).get("rms")
@@ -80,6 +84,15 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
                    f"{', '.join(left)} that no library effect explains.")
     elif verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
+    found = ident.discovery or {}
+    for term in found.get("terms", []):
+        out.append(f"Discovered in the {term['equation']} equation: {term['meaning']} "
+                   f"(coefficient {term['coefficient']:.4g} ± {term['std_error']:.2g} {term['unit']}).")
+    if found.get("added_to_model"):
+        out.append(f"With the discovered term(s) added to the model the held-out error drops by "
+                   f"{found['held_out_cost_recovered']:.1%} (cost in budgets).")
+    elif found.get("done") and not found.get("terms"):
+        out.append("Discovery: no term of the flow or force equation stands out of the equation noise.")
     return out
 
 
@@ -121,6 +134,8 @@ def summary(ident: Identification) -> dict:
                       f"off the bounds and above the log's resolution; a channel is explained within "
                       f"sqrt({WITHIN:g}) budgets"),
         "conclusions": conclusions(ident, before),
+        "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
+                                                            if not k.startswith("_")},
         "residuals_before": before,
         "residuals_after": after,
         "windows": p.window_doc,
@@ -172,6 +187,22 @@ def markdown(doc: dict, png_names: list[str]) -> str:
                          f"{c['held_out_gain']:+.3f} | {c['p_value']:.2g} | {_md(why)} |")
     else:
         lines += ["", "No candidate was fitted: the nominal model leaves nothing beyond noise and tolerance."]
+    disc = doc.get("discovery")
+    if disc and disc.get("done"):
+        lines += ["", "## Discovery (sparse correction of the flow and force equations)", "", disc["method"] + ".", ""]
+        if disc["terms"]:
+            lines += ["| equation | term | coefficient ± s.e. | meaning | added to the model |", "|---|---|---|---|---|"]
+            for t in disc["terms"]:
+                key = f"{t['equation']}:{t['term']}"
+                lines.append(f"| {t['equation']} | {_md(t['term'])} | {t['coefficient']:.4g} ± {t['std_error']:.2g} "
+                             f"{_md(t['unit'])} | {_md(t['meaning'])} | {'yes' if key in disc['added_to_model'] else 'no'} |")
+            if disc.get("added_to_model"):
+                lines += ["", "| channel | held-out RMS before | after |", "|---|---|---|"]
+                for ch, v in disc["held_out_rms_before"].items():
+                    u = doc["units"][ch]
+                    lines.append(f"| {ch} | {_fmt(v, u)} | {_fmt(disc['held_out_rms_after'][ch], u)} |")
+        else:
+            lines.append(disc.get("why", "No term found."))
     lines += ["", "## Residual before → after", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
               "spectrum peak [Hz] |", "|---|---|---|---|"]
     for ch in doc["residuals_before"]:

@@ -46,6 +46,8 @@ def truth(effect: str, rng: np.random.Generator) -> tuple[Effects, HydraulicPara
         h = h.replace(bulk_modulus=u(0.4e9, 0.7e9))
     elif effect == "sensor_delay":
         e = Effects(sensor_delay=u(0.003, 0.008))
+    elif effect == "edge_asymmetry":  # the return edge passes 20-40 % less flow than eq. (3.4)
+        e = Effects(edge_gain_at=u(0.6, 0.8))
     return e, h
 
 

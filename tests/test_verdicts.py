@@ -2,7 +2,7 @@
 about: nominal logs with other references and another integration step (model mismatch without an
 effect -> `none`), sensor calibration errors and an accelerometer without gravity (-> `none`, reported
 as calibration), two effects at once, and an effect outside the candidate list (-> `partial` or
-`unexplained`, never a confident wrong name).
+`unexplained`, never a confident wrong name, and the discovery step finds the missing term).
 
 The logs come from hexsim's closed loop at a physics step of 5e-5 s (the identifier replays at 1e-4 s),
 with sensor noise; the identifier reads only the CSV and its sidecar.
@@ -63,6 +63,7 @@ def _cases():
         "null_steps": ("steps", e, h),
         "null_random": ("random", e, h),
         "leakage": ("twotone", Effects(leakage=rng.uniform(2e-12, 5e-12)), h),
+        "edge": ("random", Effects(edge_gain_at=rng.uniform(0.6, 0.8)), h),
         "supply_and_hysteresis": ("twotone", Effects(supply_resistance=rng.uniform(1.0, 2.0) * BAR_PER_LPM,
                                                      supply_time_constant=0.03, spool_play=rng.uniform(0.2, 0.4)), h),
     }
@@ -75,10 +76,10 @@ def logs(tmp_path_factory):
     with ProcessPoolExecutor(2) as pool:
         futures = {n: pool.submit(_make, folder, n, ref, e, h, 40 + i) for i, (n, (ref, e, h)) in enumerate(cases.items())}
         paths = {n: f.result() for n, f in futures.items()}
-    # sensor calibration errors on the two-tone null: position 0.5 mm + 2 % scale, P1 +0.3 bar, and an
-    # accelerometer that logs acceleration (no +g) with a 3 % low scale
+    # sensor calibration errors on the two-tone null: position 0.5 mm + 0.8 % scale, P1 +0.3 bar, and an
+    # accelerometer that logs acceleration (no +g) with a 3 % low sensitivity
     cols = read_numeric_csv(paths["null_twotone"])
-    cols["pos_m"] = 0.0005 + 1.02 * cols["pos_m"]
+    cols["pos_m"] = 0.0005 + 1.008 * cols["pos_m"]
     cols["p1_Pa"] = cols["p1_Pa"] + 0.3e5
     cols["acc_mps2"] = 0.97 * (cols["acc_mps2"] - 9.8)
     cal = folder / "calibration.csv"
@@ -108,8 +109,10 @@ def test_sensor_calibration_is_not_physics(answers):
     doc = answers["calibration"]
     assert doc["verdict"] == "none", (doc["held_out_rms_in_budgets"], doc["conclusions"])
     cal = doc["calibration"]["nominal"]
-    assert cal["position"]["scale"][0] == pytest.approx(1.02, abs=0.005)
-    assert cal["acceleration"]["scale"][0] == pytest.approx(0.97, abs=0.01)
+    assert cal["position"]["scale"][0] == pytest.approx(1.008, abs=0.002)
+    # the replayed accelerometer is itself ~1 % low against the 5e-5 s generator (a null log without any
+    # sensor error fits 0.989: the 1 kHz sample instants, issue 14), so the 3 % error reads 4 %
+    assert cal["acceleration"]["scale"][0] == pytest.approx(0.97, abs=0.015)
     assert cal["p1"]["offset"][0] == pytest.approx(0.3e5, abs=0.02e5)
     assert any("convention problem" in c for c in doc["conclusions"])
 
@@ -134,13 +137,25 @@ def test_two_effects_are_both_found_or_the_rest_is_said_to_be_left(answers):
         assert doc["error_after"][ch] <= 0.5 * doc["error_before"][ch], ch
 
 
-def test_effect_outside_the_list_is_never_named_with_confidence(logs):
-    log = read_log(logs["leakage"])
-    ident = identify(log, candidates=tuple(n for n in EFFECT_NAMES if n != "leakage"), jobs=2)
+@pytest.mark.parametrize("name, effect, term", [("leakage", "leakage", "p_s - p1"),
+                                                ("edge", "edge_asymmetry", "phi_AT")])
+def test_effect_outside_the_list_is_never_named_and_discovery_finds_its_term(logs, name, effect, term):
+    """The true effect removed from the candidates: no confident wrong name, and the sparse correction of
+    the flow equation finds the term on the right variables, with the right size, and recovers most of the
+    held-out error once added to the model."""
+    log = read_log(logs[name])
+    ident = identify(log, candidates=tuple(n for n in EFFECT_NAMES if n != effect), jobs=2)
     assert ident.verdict in ("partial", "unexplained"), [f.name for f in ident.accepted]
     base = ident.nominal.held_out_rms
     for f in ident.accepted:  # what was accepted made no channel worse than its budget allows
         assert all(f.scored.held_out_rms[ch] <= max(1.1 * base[ch], base[ch] + ident.budget.total[ch]) for ch in base)
+    found = {t["term"]: t for t in ident.discovery["terms"] if t["equation"] == "flow"}
+    assert term in found, ident.discovery["terms"]
+    truth = _cases()[name][1]
+    expected = truth.leakage if effect == "leakage" else truth.edge_gain_at - 1.0
+    assert found[term]["coefficient"] == pytest.approx(expected, rel=0.15)
+    assert f"flow:{term}" in ident.discovery["added_to_model"]
+    assert ident.discovery["held_out_cost_recovered"] >= 0.5
 
 
 def test_nothing_finer_than_the_log_resolves_is_a_finding(logs):
