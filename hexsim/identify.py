@@ -13,8 +13,8 @@ engineer would sign it.
 4. **Accept** (:func:`judge`) only if, on the *held-out* windows (odd):
    the log cost ratio per window (the candidate charged with the cost the numerical tolerance alone
    accounts for) is positive in a one-sided t-test over the held-out windows at level :data:`ALPHA` /
-   (candidates tried in the round) (Bonferroni: the family of one round); no channel's
-   held-out RMS gets worse by more than its budget and :data:`WORSE_REL`; and every parameter lies inside
+   (candidates tried in the round) (Bonferroni: the family of one round); no signal's (each leg's on a
+   hexapod) held-out RMS gets worse by more than its budget and :data:`WORSE_REL`; and every parameter lies inside
    its plausible range, off its bounds and above what the log resolves.
 5. **Forward selection**: after an accepted effect, every other candidate is fitted on top of it and
    judged the same way; the accepted effects are then refitted jointly; at most :data:`MAX_EFFECTS`.
@@ -254,6 +254,7 @@ class Scored:
     calibration: dict
     window_cost: np.ndarray  # (windows,) sum of (residual / b_c)^2 over the scored samples
     held_out_rms: dict[str, float]  # channel -> RMS on the held-out windows [SI]
+    held_out_rms_signals: dict[str, list[float]]  # channel -> RMS per signal (hexapod: per leg / axis) [SI]
 
 
 def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
@@ -262,12 +263,13 @@ def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
     s0 = problem.settle
     k = len(problem.fit_rows) + len(problem.test_rows)
     cost = np.zeros(k)
-    held = {}
+    held, signals = {}, {}
     for ch in problem.channels:
         r = res[ch][:, s0:]
         cost += np.sum((r / b[ch]) ** 2, axis=tuple(range(1, r.ndim)))
         held[ch] = float(np.sqrt(np.mean(r[problem.test_rows] ** 2)))
-    return Scored(res, cal, cost, held)
+        signals[ch] = [float(v) for v in np.sqrt(np.mean(_signals(r[problem.test_rows]) ** 2, axis=(0, 1)))]
+    return Scored(res, cal, cost, held, signals)
 
 
 def residual_vector(problem, sim: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
@@ -434,13 +436,23 @@ def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> 
         reasons.append(f"held-out improvement beyond the numerical tolerance not significant "
                        f"(p = {fit.p_value:.2g} >= {level:.2g})")
     b = budget.total
-    for ch in problem.channels:
-        was, now = base.held_out_rms[ch], fit.scored.held_out_rms[ch]
-        if now > max((1.0 + WORSE_REL) * was, was + b[ch]):
-            reasons.append(f"{ch} worse: held-out RMS {was:.3g} -> {now:.3g} {CHANNELS[ch][1]}")
+    for ch in problem.channels:  # every signal: a candidate on all legs must not spoil the healthy ones
+        labels = signal_labels(problem, ch)
+        for j, (was, now) in enumerate(zip(base.held_out_rms_signals[ch], fit.scored.held_out_rms_signals[ch])):
+            if now > max((1.0 + WORSE_REL) * was, was + b[ch]):
+                where = f"{ch} of {labels[j]}" if len(labels) > 1 else ch
+                reasons.append(f"{where} worse: held-out RMS {was:.3g} -> {now:.3g} {CHANNELS[ch][1]}")
     reasons += plausibility(CANDIDATES[fit.name], problem.log, fit.x)
     fit.reasons = reasons
     fit.accepted = not reasons
+
+
+def signal_labels(problem, channel: str) -> list[str]:
+    """Names of the signals of a channel: ``leg1``…``leg6`` or the accelerometer axes on a hexapod."""
+    n = _signals(problem.measured[channel]).shape[2]
+    if n == 1:
+        return [channel]
+    return [f"axis {a}" for a in "xyz"] if channel == "acceleration" else [f"leg{i + 1}" for i in range(n)]
 
 
 def within_budget(scored: Scored, budget: Budget) -> dict[str, float]:

@@ -15,7 +15,7 @@ import numpy as np
 
 from hexsim.candidates import CANDIDATES
 from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Identification,
-                             identify, within_budget)
+                             identify, signal_labels, within_budget)
 from hexsim.measurement import MeasurementLog
 from hexsim.residuals import analyse
 from hexsim.tables import write_atomic
@@ -67,6 +67,29 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
         else:
             out.append(f"The accelerometer's scale fits {worst:.4f}: a sensitivity error, calibrated out and not "
                        "taken for an effect.")
+    p = ident.problem
+    offsets = ident.nominal.calibration.get("position", {}).get("offset", [])
+    if len(offsets) >= 3 and not p.windowed:
+        mags = np.abs(offsets)
+        j = int(np.argmax(mags))
+        rest = float(np.median(np.delete(mags, j)))
+        if mags[j] > 1e-4 and mags[j] > 5.0 * rest:
+            kp = p.log.kp
+            out.append(f"The position of leg{j + 1} reads {offsets[j] * 1e3:+.3f} mm off the closed-loop replay "
+                       f"(the other legs {rest * 1e3:.3f} mm): a sensor offset of that leg, or a valve null offset "
+                       f"of about {-offsets[j] * kp:+.3f} V on it (K_p = {kp:g} V/m holds the piston that far off); "
+                       "in closed loop the two look alike, and the calibration takes it.")
+    for ch in ("position", "p1"):
+        rms = ident.nominal.held_out_rms_signals.get(ch, [])
+        if len(rms) < 3:
+            continue
+        j = int(np.argmax(rms))
+        others = float(np.median([v for i, v in enumerate(rms) if i != j]))
+        if rms[j] > 5.0 * max(others, budget.total[ch]):
+            label = signal_labels(p, ch)[j]
+            out.append(f"The {ch} residual of {label} is {rms[j] / max(others, 1e-300):.0f}x the median of the other "
+                       f"legs: a leg-level effect on {label} (leakage, null offset, sensor of that leg), not one "
+                       "on all legs.")
     for ch in off:
         cond = before.get(ch, {}).get("conditioned", {})
         up, down = cond.get("velocity > 0", {}).get("rms"), cond.get("velocity < 0", {}).get("rms")
@@ -117,6 +140,9 @@ def summary(ident: Identification) -> dict:
         "calibration": {"nominal": ident.nominal.calibration, "final": ident.final.calibration},
         "budget": ident.budget.as_dict(p.units),
         "held_out_rms_in_budgets": {ch: math.sqrt(v) for ch, v in within_budget(ident.final, ident.budget).items()},
+        "held_out_rms_per_signal": {ch: {label: {"before": ident.nominal.held_out_rms_signals[ch][j],
+                                                 "after": ident.final.held_out_rms_signals[ch][j]}
+                                         for j, label in enumerate(signal_labels(p, ch))} for ch in p.channels},
         "error_before": ident.error_before,
         "error_after": ident.error_after,
         "error_definition": "NRMSE: RMS of (replayed, sensor-calibrated - measured) / the measured signal's "
@@ -171,6 +197,13 @@ def markdown(doc: dict, png_names: list[str]) -> str:
         b, u = doc["budget"][ch], doc["units"][ch]
         lines.append(f"| {ch} | {before:.4g} | {doc['error_after'][ch]:.4g} | {_fmt(b['budget'], u)} "
                      f"({_fmt(b['noise'], u)}, {_fmt(b['tolerance'], u)}) |")
+    multi = {ch: v for ch, v in doc["held_out_rms_per_signal"].items() if len(v) > 1}
+    if multi:
+        lines += ["", "## Held-out RMS per leg / axis", "", "| channel | signal | before | after |", "|---|---|---|---|"]
+        for ch, per in multi.items():
+            for label, v in per.items():
+                u = doc["units"][ch]
+                lines.append(f"| {ch} | {label} | {_fmt(v['before'], u)} | {_fmt(v['after'], u)} |")
     lines += ["", "## Sensor calibration (nuisance, fitted with every model)", "", "| channel | offset | scale |",
               "|---|---|---|"]
     for ch, cal in doc["calibration"]["final"].items():
