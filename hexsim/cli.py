@@ -459,7 +459,8 @@ def main(argv: list[str] | None = None) -> int:
                     "bench": cmd_bench}
         return commands[args.command](args)
     except HexsimError as exc:
-        print(f"hexsim: error: {exc}", file=sys.stderr)
+        # one line, whatever a file put into the message (a key or a value with a line break in it)
+        print("hexsim: error: " + " ".join(str(exc).splitlines()), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("hexsim: interrupted", file=sys.stderr)

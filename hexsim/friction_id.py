@@ -57,6 +57,9 @@ def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None) ->
         raise InputError(f"{log.path}: friction identification needs columns 'p1_Pa' and 'ps_Pa', or 'force_N'")
     fs = log.sample_rate_hz
     n = max(5, int(round(0.051 * fs)) | 1)  # 51 ms cubic: smooths the oil-spring ringing out of ydd
+    if len(log.time) < n:
+        raise InputError(f"{log.path}: {len(log.time)} samples, fewer than the {n} the derivative filter needs "
+                         f"({n / fs * 1e3:.0f} ms at {fs:g} Hz)")
     vel = savgol_filter(c["pos_m"], n, 3, deriv=1, delta=1 / fs)
     acc = savgol_filter(c["pos_m"], n, 3, deriv=2, delta=1 / fs)
     f_l = savgol_filter(f_l, n, 3)

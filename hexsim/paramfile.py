@@ -56,7 +56,8 @@ def read_params(path: str | os.PathLike) -> dict[str, object]:
         fields = {f.name: f for f in dataclasses.fields(cls)}
         for key, value in values.items():
             if key not in fields:
-                raise InputError(f"{path}: {section}.{key} is not a parameter; known: {', '.join(fields)}")
+                name = key if key.isidentifier() else repr(key)
+                raise InputError(f"{path}: {section}.{name} is not a parameter; known: {', '.join(fields)}")
             _check_type(path, section, key, value, fields[key].default)
         try:
             out[section] = cls(**values)

@@ -23,7 +23,8 @@ def read_numeric_csv(path: str | os.PathLike, *, required: tuple[str, ...] = ("t
     """Columns of a numeric CSV as float arrays of shape (N,), keyed by header name, in file order.
 
     Raises InputError naming the file (and column, row, value where it applies) when the file is
-    missing or empty, a header is duplicated, a required column is missing, a row has the wrong number
+    missing, empty, not UTF-8 text or not parseable as CSV (a field over the csv module's limit), a
+    header is duplicated, a required column is missing, a row has the wrong number
     of fields, a value is not a finite number, or ``time_s`` is not strictly increasing.
     """
     path = pathlib.Path(path)
@@ -31,7 +32,11 @@ def read_numeric_csv(path: str | os.PathLike, *, required: tuple[str, ...] = ("t
         raise InputError(f"{path}: no such file")
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:  # -sig: tolerate a spreadsheet BOM
-            rows = list(csv.reader(fh))
+            reader = csv.reader(fh)
+            try:
+                rows = list(reader)
+            except csv.Error as exc:  # e.g. a field longer than the csv module's limit (131 072 characters)
+                raise InputError(f"{path}: row {reader.line_num}: not a numeric CSV row ({exc})") from None
     except UnicodeDecodeError as exc:
         raise InputError(f"{path}: not a UTF-8 text CSV file ({exc.reason} at byte {exc.start})") from None
     rows = [r for r in rows if any(field.strip() for field in r)]
