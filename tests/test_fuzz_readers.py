@@ -21,7 +21,6 @@ import pathlib
 import tempfile
 
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -228,8 +227,7 @@ def test_any_parameter_file_is_read_or_refused_with_one_clear_error(doc):
 
 
 def _sweep_parser() -> argparse.ArgumentParser:
-    from hexsim.cli import _parse_grid  # noqa: F401 - the function under test, below
-
+    """The sweep sub-command's parser (argparse keeps it in a private action: test code only)."""
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return sub.choices["sweep"]
