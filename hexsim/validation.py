@@ -114,6 +114,8 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
     if found.get("added_to_model"):
         out.append(f"With the discovered term(s) added to the model the held-out error drops by "
                    f"{found['held_out_cost_recovered']:.1%} (cost in budgets).")
+    elif found.get("terms") and found.get("why"):
+        out.append(f"Discovery: {found['why']}.")
     elif found.get("done") and not found.get("terms"):
         out.append("Discovery: no term of the flow or force equation stands out of the equation noise.")
     return out
