@@ -145,3 +145,34 @@ class HexapodProblem:
 
     def sample_times(self) -> np.ndarray:
         return self.log.time[self.rows].reshape(self.shape)
+
+
+def payload_from_statics(p1_offsets: np.ndarray, hydraulics: HydraulicParams | None = None) -> dict:
+    """The payload change that explains a constant P1 difference per leg, by the statics of the platform
+    at its neutral pose: leg forces dF_i = dP1_i A1 along the unit leg vectors n_i must carry the weight
+    dm g of a mass at (x, y) in the platform frame: sum dF_i n_i = (0, 0, dm g) and
+    sum a_i x dF_i n_i = (y dm g, -x dm g, 0) (a_i: platform anchors relative to the platform origin).
+
+    ``p1_offsets`` (6,) [Pa]: measured minus replayed P1 of each leg (the calibration offsets of the
+    nominal model). Returns mass_kg, x_m, y_m and ``inconsistency``: the part of the legs' wrench that no
+    payload produces (horizontal force, yaw torque, as a fraction of the vertical force); a small value
+    says the six offsets are one load, not six sensor offsets. Geometry and gravity from the MJCF."""
+    from hexsim.kinematics import HexapodGeometry
+    from hexsim.model import load_model
+
+    hyd = hydraulics or HydraulicParams()
+    m = load_model("hexapod")
+    geom = HexapodGeometry.from_model(m)
+    legs = geom.leg_vectors(np.zeros(6))[0]
+    n = legs / np.linalg.norm(legs, axis=1, keepdims=True)
+    arms = geom.platform  # platform frame = world orientation at the neutral pose
+    df = np.asarray(p1_offsets, dtype=float) * hyd.area_bottom
+    force = (df[:, None] * n).sum(axis=0)
+    torque = np.cross(arms, df[:, None] * n).sum(axis=0)
+    g = -float(m.opt.gravity[2])
+    weight = force[2]
+    mass = weight / g
+    if abs(weight) < 1e-9:
+        return {"mass_kg": 0.0, "x_m": 0.0, "y_m": 0.0, "inconsistency": float("inf")}
+    return {"mass_kg": float(mass), "x_m": float(-torque[1] / weight), "y_m": float(torque[0] / weight),
+            "inconsistency": float(np.linalg.norm([force[0], force[1], torque[2] / 0.5]) / abs(weight))}

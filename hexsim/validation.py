@@ -24,6 +24,25 @@ from hexsim.tables import write_atomic
 G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
 
 
+#: A payload read from the legs' P1 offsets is reported when it is at least this heavy [kg] and the offsets
+#: leave at most :data:`PAYLOAD_INCONSISTENCY` of the wrench unexplained.
+PAYLOAD_MIN_KG = 5.0
+PAYLOAD_INCONSISTENCY = 0.1
+
+
+def hexapod_payload(ident: Identification) -> dict | None:
+    """:func:`hexsim.hexapod_replay.payload_from_statics` on the nominal model's P1 calibration offsets of
+    a hexapod log, or None (single actuator, no P1, or offsets that are not one consistent load)."""
+    if ident.problem.log.system != "hexapod" or "p1" not in ident.nominal.calibration:
+        return None
+    from hexsim.hexapod_replay import payload_from_statics
+
+    found = payload_from_statics(np.array(ident.nominal.calibration["p1"]["offset"]))
+    if abs(found["mass_kg"]) >= PAYLOAD_MIN_KG and found["inconsistency"] <= PAYLOAD_INCONSISTENCY:
+        return found
+    return None
+
+
 def conclusions(ident: Identification, before: dict) -> list[str]:
     """What the residual says, in sentences an engineer reads first: which channels are off and by how
     much, sensor calibration that looks like a convention problem or a transducer error, and where the
@@ -79,6 +98,12 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
                        f"(the other legs {rest * 1e3:.3f} mm): a sensor offset of that leg, or a valve null offset "
                        f"of about {-offsets[j] * kp:+.3f} V on it (K_p = {kp:g} V/m holds the piston that far off); "
                        "in closed loop the two look alike, and the calibration takes it.")
+    payload = hexapod_payload(ident)
+    if payload is not None:
+        out.append(f"The six legs' P1 offsets are one load, not six sensor offsets: a payload change of "
+                   f"{payload['mass_kg']:+.1f} kg at ({payload['x_m']:+.3f}, {payload['y_m']:+.3f}) m on the platform "
+                   f"(statics at the neutral pose; {payload['inconsistency']:.1%} of the wrench no payload makes). "
+                   "Calibrated out in the replay, reported here as physics.")
     for ch in ("position", "p1"):
         rms = ident.nominal.held_out_rms_signals.get(ch, [])
         if len(rms) < 3:
@@ -114,10 +139,8 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
     if found.get("added_to_model"):
         out.append(f"With the discovered term(s) added to the model the held-out error drops by "
                    f"{found['held_out_cost_recovered']:.1%} (cost in budgets).")
-    elif found.get("terms") and found.get("why"):
+    elif found.get("why"):
         out.append(f"Discovery: {found['why']}.")
-    elif found.get("done") and not found.get("terms"):
-        out.append("Discovery: no term of the flow or force equation stands out of the equation noise.")
     return out
 
 
@@ -162,6 +185,7 @@ def summary(ident: Identification) -> dict:
                       f"off the bounds and above the log's resolution; a channel is explained within "
                       f"sqrt({WITHIN:g}) budgets"),
         "conclusions": conclusions(ident, before),
+        "payload_from_statics": hexapod_payload(ident),
         "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
                                                             if not k.startswith("_")},
         "residuals_before": before,

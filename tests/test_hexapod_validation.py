@@ -89,3 +89,33 @@ def test_discovery_points_at_the_one_leg_with_a_flow_effect(tmp_path):
     assert legs == {3}, found["leg3_offset"]
     constant = [t for t in found["leg3_offset"] if t["term"] == "1"]
     assert constant and constant[0]["coefficient"] < 0  # the shifted spool opens A→T: oil leaves the chamber
+
+
+def test_payload_from_the_legs_p1_offsets_by_statics():
+    """120 kg put 0.3 m off centre on the platform (a model edit, MuJoCo's statics for the leg forces):
+    the change of the legs' P1 gives the payload back, and six unrelated offsets are not taken for one."""
+    import mujoco
+
+    from hexsim.hexapod_replay import payload_from_statics
+    from hexsim.model import PlantIndex, load_model, reset_neutral
+    from hexsim.params import HydraulicParams
+    from hexsim.simulation import static_leg_forces
+
+    def leg_forces(extra_kg, at):
+        m = load_model("hexapod")
+        body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "platform")
+        mass = m.body_mass[body]
+        m.body_ipos[body] = (mass * m.body_ipos[body] + extra_kg * np.asarray(at)) / (mass + extra_kg)
+        m.body_mass[body] = mass + extra_kg
+        d = mujoco.MjData(m)
+        reset_neutral(m, d)
+        return static_leg_forces(m, d, PlantIndex.from_model(m))
+
+    a1 = HydraulicParams().area_bottom
+    dp1 = (leg_forces(120.0, (0.0, 0.3, 0.0)) - leg_forces(0.0, (0.0, 0.0, 0.0))) / a1
+    found = payload_from_statics(dp1)
+    assert found["mass_kg"] == pytest.approx(120.0, rel=0.02)
+    assert found["x_m"] == pytest.approx(0.0, abs=0.01) and found["y_m"] == pytest.approx(0.3, abs=0.01)
+    assert found["inconsistency"] < 0.02
+    unrelated = payload_from_statics(np.array([0.3e5, -0.2e5, 0.1e5, 0.25e5, -0.3e5, 0.05e5]))
+    assert unrelated["inconsistency"] > 0.1
