@@ -144,7 +144,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from hexsim.measurement import read_log
-    from hexsim.validation import validate
+    from hexsim.validation import plus_minus, validate
 
     _check_outputs(args)
     if args.jobs < 1:
@@ -163,8 +163,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"  {line}")
     print(f"added effect: {doc['added_effect']}")
     for effect in doc["added_effects"]:
-        print(f"  {effect['name']}: " + ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
-                                               for k, v in effect["parameters"].items()))
+        print(f"  {effect['name']}: " + ", ".join(f"{k} = {plus_minus(v)}" for k, v in effect["parameters"].items()))
     print(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s} {'held-out RMS / budget':>22s}")
     for ch, before in doc["error_before"].items():
         print(f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g} {doc['held_out_rms_in_budgets'][ch]:22.3g}")

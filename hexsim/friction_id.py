@@ -15,7 +15,6 @@ larger than the value) is reported as unidentifiable with the reason, never as a
 
 from __future__ import annotations
 
-import json
 import pathlib
 
 import numpy as np
@@ -25,7 +24,7 @@ from scipy.signal import savgol_filter
 from hexsim.errors import InputError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
-from hexsim.tables import write_atomic
+from hexsim.tables import json_text, write_atomic
 
 G = 9.8  # [m/s^2], seed app. A (the models' gravity)
 MODEL_MASS = 40.0  # [kg], seed app. A, the single-actuator MJCF's moving mass
@@ -129,10 +128,4 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
 
 def to_json(result: dict) -> str:
     """The result as JSON; a standard error that could not be estimated (NaN) is written as null."""
-    def clean(x):
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items() if not k.startswith("_")}
-        if isinstance(x, list):
-            return [clean(v) for v in x]
-        return None if isinstance(x, float) and not np.isfinite(x) else x
-    return json.dumps(clean(result), indent=2) + "\n"
+    return json_text(result)

@@ -75,6 +75,23 @@ def read_numeric_csv(path: str | os.PathLike, *, required: tuple[str, ...] = ("t
     return columns
 
 
+def json_text(doc) -> str:
+    """``doc`` as strict JSON text (indented, newline-terminated): a number that is not finite (a standard
+    error that could not be estimated) is written as null, and keys starting with "_" are left out."""
+    import json
+
+    def clean(x):
+        if isinstance(x, dict):
+            return {k: clean(v) for k, v in x.items() if not (isinstance(k, str) and k.startswith("_"))}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        if isinstance(x, (float, np.floating)):
+            return float(x) if math.isfinite(x) else None
+        return x
+
+    return json.dumps(clean(doc), indent=2, allow_nan=False) + "\n"
+
+
 def write_atomic(path: str | os.PathLike, write: Callable[[pathlib.Path], None]) -> None:
     """Call ``write(tmp)`` on a temporary file next to ``path`` and rename it into place.
 

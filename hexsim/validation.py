@@ -7,7 +7,6 @@ log and its sidecar.
 
 from __future__ import annotations
 
-import json
 import math
 import pathlib
 
@@ -18,7 +17,7 @@ from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Iden
                              identify, signal_labels, within_budget)
 from hexsim.measurement import MeasurementLog
 from hexsim.residuals import analyse
-from hexsim.tables import write_atomic
+from hexsim.tables import json_text, write_atomic
 
 
 G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
@@ -180,8 +179,8 @@ def summary(ident: Identification) -> dict:
                                       "plausible_range_source": CANDIDATES[c.name].source} for c in ident.candidates],
         "selection": (f"forward selection (at most {MAX_EFFECTS}): a candidate is accepted if its held-out "
                       f"improvement beyond the numerical tolerance passes a one-sided t-test over the held-out "
-                      f"windows at {ALPHA:g} / (candidates in the round), no channel's held-out RMS rises by more "
-                      f"than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
+                      f"windows at {ALPHA:g} / (candidates in the round), no signal's (each leg's) held-out RMS "
+                      f"rises by more than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
                       f"off the bounds and above the log's resolution; a channel is explained within "
                       f"sqrt({WITHIN:g}) budgets"),
         "conclusions": conclusions(ident, before),
@@ -194,6 +193,14 @@ def summary(ident: Identification) -> dict:
         "not_checked": p.log.missing,
         "assumed": p.log.assumed,
     }
+
+
+def plus_minus(v: dict) -> str:
+    """'value ± s.e. unit', or 'value unit (no s.e.: at a bound)' when the s.e. could not be estimated."""
+    se = v.get("std_error")
+    if se is None or not math.isfinite(se):
+        return f"{v['value']:.4g} {v['unit']} (no s.e.: at a bound)"
+    return f"{v['value']:.4g} ± {se:.2g} {v['unit']}"
 
 
 def _md(text: str) -> str:
@@ -215,8 +222,7 @@ def markdown(doc: dict, png_names: list[str]) -> str:
     lines = [f"# Validation of `{doc['log']}`", "", f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
     lines += [f"- {c}" for c in doc["conclusions"]] + [""]
     for e in doc["added_effects"]:
-        lines.append(f"`{e['name']}`: " + ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {_md(v['unit'])}"
-                                                   for k, v in e["parameters"].items()))
+        lines.append(f"`{e['name']}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))
     lines += ["", f"Replay: {doc['replay']}", "", "## Error per channel", "",
               "| channel | NRMSE before | NRMSE after | budget (noise, tolerance) |", "|---|---|---|---|"]
     for ch, before in doc["error_before"].items():
@@ -240,7 +246,7 @@ def markdown(doc: dict, png_names: list[str]) -> str:
         lines += ["", "## Candidates", "", "| effect | on top of | parameters ± s.e. | held-out gain | p | accepted / why not |",
                   "|---|---|---|---|---|---|"]
         for c in doc["candidates"]:
-            ps = ", ".join(f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}" for k, v in c["parameters"].items())
+            ps = ", ".join(f"{k} = {plus_minus(v)}" for k, v in c["parameters"].items())
             why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
             lines.append(f"| {c['effect']} | {', '.join(c['on_top_of']) or 'nominal'} | {_md(ps)} | "
                          f"{c['held_out_gain']:+.3f} | {c['p_value']:.2g} | {_md(why)} |")
@@ -332,7 +338,7 @@ def validate(log: MeasurementLog, *, report: pathlib.Path | None = None, json_pa
         report.mkdir(parents=True, exist_ok=True)
         plot(ident, report / "residuals.png")
         write_atomic(report / "report.md", lambda tmp: tmp.write_text(markdown(doc, ["residuals.png"])))
-        write_atomic(report / "validation.json", lambda tmp: tmp.write_text(json.dumps(doc, indent=2) + "\n"))
+        write_atomic(report / "validation.json", lambda tmp: tmp.write_text(json_text(doc)))
     if json_path is not None:
-        write_atomic(json_path, lambda tmp: tmp.write_text(json.dumps(doc, indent=2) + "\n"))
+        write_atomic(json_path, lambda tmp: tmp.write_text(json_text(doc)))
     return doc
