@@ -71,9 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
         "validate",
         help="confront the model with a measurement log: residual, missing effect, error before/after",
         description="Replay a measurement log (docs/measurement-log.md) through the model with the logged "
-        "valve setpoints, analyse the residual, fit each candidate effect the nominal model lacks and name the "
-        "one that explains the log (or none). Single-actuator logs: valve replay in windows; hexapod logs: "
-        "closed-loop replay of the logged leg setpoints with the logged compensation fed forward.",
+        "valve setpoints, judge every channel against its noise and numerical tolerance with the sensor "
+        "calibration fitted, select the effects the nominal model lacks that pass a held-out test, and give a "
+        "verdict: none, explained, partial or unexplained (with a sparse correction of the model's equations "
+        "for the last two). Single-actuator logs: valve replay in windows; hexapod logs: closed-loop replay of "
+        "the logged leg setpoints with the logged compensation fed forward.",
     )
     val.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
