@@ -81,7 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
     val.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
     val.add_argument("--jobs", type=int, default=2, help="worker processes for the fits (default 2)")
-    val.add_argument("--quiet", action="store_true", help="no progress bar")
+    val.add_argument("--quiet", action="store_true",
+                     help="no progress (a bar on a terminal, one line per step otherwise)")
 
     fr = sub.add_parser(
         "friction",
@@ -144,6 +145,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _progress_line(text: str) -> None:
+    """A progress line on stderr for runs whose stderr is not a terminal (a log file, CI)."""
+    print(f"hexsim: {text}", file=sys.stderr, flush=True)
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     from hexsim.measurement import read_log
     from hexsim.validation import plus_minus, validate
@@ -159,7 +165,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if log.missing:
         print(f"not checked (missing columns): {', '.join(log.missing)}")
     doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs,
-                   progress=not args.quiet and sys.stderr.isatty())
+                   progress=not args.quiet and sys.stderr.isatty(),
+                   notify=None if args.quiet or sys.stderr.isatty() else _progress_line)
     print(f"verdict: {doc['verdict']}")
     for line in doc["conclusions"]:
         print(f"  {line}")

@@ -523,38 +523,49 @@ class Identification:
         return self.nrmse(self.final)
 
 
-def _fit_round(problem, log, names, base: PlantModel, budget: Budget, on_top_of, jobs, bar) -> list[FitResult]:
+def _fit_round(problem, log, names, base: PlantModel, budget: Budget, on_top_of, jobs, bar,
+               notify) -> list[FitResult]:
     results = []
+
+    def done(fit: FitResult) -> None:
+        results.append(fit)
+        bar.set_postfix_str(fit.name)
+        bar.update()
+        notify(f"fitted {fit.name}{' on top of ' + '+'.join(on_top_of) if on_top_of else ''} "
+               f"({len(results)}/{len(names)})")
+
     if jobs > 1 and len(names) > 1:
         with worker_pool(min(jobs, len(names))) as pool:
             futures = [pool.submit(_fit_in_worker, log, n, base, budget, on_top_of) for n in names]
             for fut in as_completed(futures):
-                results.append(fut.result())
-                bar.set_postfix_str(results[-1].name)
-                bar.update()
+                done(fut.result())
     else:
         for n in names:
-            results.append(fit_candidate(problem, n, base, budget, on_top_of))
-            bar.set_postfix_str(n)
-            bar.update()
+            done(fit_candidate(problem, n, base, budget, on_top_of))
     order = {n: i for i, n in enumerate(names)}
     return sorted(results, key=lambda r: order[r.name])
 
 
 def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
-             progress: bool = False) -> Identification:
+             progress: bool = False, notify=None) -> Identification:
     """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
     select effects forward (see the module doc).
 
     ``candidates``: default every effect that applies to the log's system. ``jobs`` worker processes
-    fit candidates in parallel (1: in this process). Raises InputError for a log the replay cannot use.
+    fit candidates in parallel (1: in this process). ``progress``: a progress bar (terminals);
+    ``notify``: called with one line of text per step (logs, pipes). Raises InputError for a log the
+    replay cannot use.
     """
+    notify = notify or (lambda text: None)
     problem = make_problem(log)
+    notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
     if candidates is None:
         candidates = HEXAPOD_CANDIDATES if log.system == "hexapod" else EFFECT_NAMES
     nominal_sim = problem.simulate(problem.nominal)
     budget = measure_budget(problem, nominal_sim)
     nominal = score(problem, nominal_sim, budget)
+    notify("noise budget measured; held-out RMS / budget: " + ", ".join(
+        f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
     rounds: list[list[FitResult]] = []
     accepted: list[FitResult] = []
     current, model = nominal, problem.nominal
@@ -565,7 +576,8 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
             if not names:
                 break
             on_top = tuple(a.name for a in accepted)
-            fits = _fit_round(problem, log, names, model, budget, on_top, jobs, bar)
+            notify(f"round {len(rounds) + 1}: fitting {len(names)} candidates")
+            fits = _fit_round(problem, log, names, model, budget, on_top, jobs, bar, notify)
             for f in fits:
                 judge(problem, current, f, budget, len(names))
             rounds.append(fits)
@@ -586,6 +598,8 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         verdict = "unexplained"
     else:
         verdict = "explained" if max(within_budget(current, budget).values()) <= WITHIN else "partial"
+    if verdict in ("partial", "unexplained"):
+        notify("discovery: sparse correction of the model's equations")
     found = discover(problem, model, current, budget) if verdict in ("partial", "unexplained") else None
     return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,
                           final=current, verdict=verdict, discovery=found)

@@ -328,11 +328,11 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
 
 
 def validate(log: MeasurementLog, *, report: pathlib.Path | None = None, json_path: pathlib.Path | None = None,
-             jobs: int = 2, progress: bool = False) -> dict:
+             jobs: int = 2, progress: bool = False, notify=None) -> dict:
     """Identify (see :func:`hexsim.identify.identify`), then write the report folder (report.md +
     residuals.png) and/or the JSON. Returns the JSON document. Raises InputError for a log the replay
     cannot use or a report folder that cannot be created."""
-    ident = identify(log, jobs=jobs, progress=progress)
+    ident = identify(log, jobs=jobs, progress=progress, notify=notify)
     doc = summary(ident)
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
