@@ -33,6 +33,7 @@ from scipy.signal import savgol_filter
 
 from hexsim import hydraulics
 from hexsim.replay import PlantModel
+from hexsim.residuals import effective_n
 
 SMOOTH_S = 0.021  # [s] Savitzky–Golay window (cubic) of the derivatives and of every term
 MIN_T = 4.0  # a term is kept when |coefficient| >= MIN_T standard errors
@@ -165,21 +166,6 @@ def _discover_legs(problem, base: PlantModel) -> dict:
                    "only, not replayed" if terms else "no term of any leg's flow equation stands out of the noise"}
 
 
-def _n_eff(r: np.ndarray) -> float:
-    """N / (1 + 2 sum rho_k) up to the first non-positive lag (Bartlett)."""
-    x = r - r.mean()
-    var = float(x @ x) / x.size
-    if var <= 0:
-        return float(x.size)
-    s = 0.0
-    for lag in range(1, min(x.size // 2, 2000)):
-        rho = float(x[lag:] @ x[:-lag]) / x.size / var
-        if rho <= 0:
-            break
-        s += rho
-    return x.size / (1.0 + 2.0 * s)
-
-
 def sparse_fit(target: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sparse coefficients (k,) and standard errors (k,) (NaN off the support): LassoLarsIC (BIC) on the
     columns scaled to unit RMS, least squares on the support, pruned to |coef| >= MIN_T s.e."""
@@ -194,7 +180,7 @@ def sparse_fit(target: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarra
         xs = x[:, support]
         theta, *_ = np.linalg.lstsq(xs, target, rcond=None)
         r = target - xs @ theta
-        s2 = float(r @ r) / max(_n_eff(r) - support.size, 1.0)  # per independent residual
+        s2 = float(r @ r) / max(effective_n(r[None, :]) - support.size, 1.0)  # per independent residual
         err = np.sqrt(np.clip(np.diag(np.linalg.pinv(xs.T @ xs)) * s2, 0, None))
         weak = np.abs(theta) < MIN_T * err
         if not np.any(weak):

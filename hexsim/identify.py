@@ -48,6 +48,7 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
 from hexsim.replay import CHANNELS, PlantModel, Windows, measured_velocity, replay, supply_from_log
+from hexsim.residuals import effective_n
 from hexsim.signals import zero_crossings
 from hexsim.workers import worker_pool
 
@@ -387,7 +388,7 @@ def _least_squares(problem, make_model, lower, upper, starts, budget: Budget):
     x = sol.x if sim_at(sol.x) is not None else x0
     scored = score(problem, sim_at(x), budget)
     fit_vec = residual_vector(problem, sim_at(x), budget, problem.fit_rows)
-    n_eff = effective_n({ch: scored.residuals[ch][problem.fit_rows, problem.settle:] for ch in problem.channels})
+    n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
     s2 = float(fit_vec @ fit_vec) / max(n_eff - len(x0), 1.0)  # per independent residual
     free = (x > lower) & (x < upper)
     se = np.full(len(x0), np.nan)
@@ -395,26 +396,6 @@ def _least_squares(problem, make_model, lower, upper, starts, budget: Budget):
         jf = sol.jac[:, free]
         se[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf) * s2), 0, None))
     return x, se, scored, int(sol.nfev)
-
-
-def effective_n(res: dict[str, np.ndarray]) -> float:
-    """Independent residuals: sum over channels of N / (1 + 2 sum_k rho_k), rho from the windows'
-    autocorrelation up to the first non-positive lag (Bartlett / Bayley–Hammersley)."""
-    total = 0.0
-    for r in res.values():
-        x = _signals(r)
-        x = x - x.mean(axis=1, keepdims=True)
-        var = float(np.mean(x * x))
-        if var <= 0:
-            continue
-        s = 0.0
-        for lag in range(1, x.shape[1] // 2):
-            rho = float(np.mean(x[:, lag:] * x[:, :-lag])) / var
-            if rho <= 0:
-                break
-            s += rho
-        total += x.size / (1.0 + 2.0 * s)
-    return total
 
 
 def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> None:

@@ -23,6 +23,24 @@ def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
     return np.array([1.0] + [float(np.mean(x[:, lag:] * x[:, :-lag])) / var for lag in range(1, max_lag + 1)])
 
 
+def effective_n(res: np.ndarray) -> float:
+    """Independent samples among residuals (k windows, n samples[, s signals]): N / (1 + 2 sum_k rho_k),
+    rho pooled over windows (each demeaned) up to the first non-positive lag (Bartlett /
+    Bayley–Hammersley); 0 for residuals without variance. A single series is passed as (1, n)."""
+    x = res if res.ndim == 3 else res[..., None]
+    x = x - x.mean(axis=1, keepdims=True)
+    var = float(np.mean(x * x))
+    if var <= 0:
+        return 0.0
+    s = 0.0
+    for lag in range(1, x.shape[1] // 2):
+        rho = float(np.mean(x[:, lag:] * x[:, :-lag])) / var
+        if rho <= 0:
+            break
+        s += rho
+    return x.size / (1.0 + 2.0 * s)
+
+
 def ljung_box(res: np.ndarray, max_lag: int = MAX_LAG) -> dict[str, float]:
     """Ljung–Box Q = N (N + 2) sum_k rho_k^2 / (N - k) over lags 1…max_lag, N = all samples, with its
     p-value from chi^2(max_lag). White residuals: p > 0.05."""
