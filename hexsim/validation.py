@@ -44,31 +44,37 @@ def hexapod_payload(ident: Identification) -> dict | None:
 
 def conclusions(ident: Identification, before: dict) -> list[str]:
     """What the residual says, in sentences an engineer reads first: which channels are off and by how
-    much, sensor calibration that looks like a convention problem or a transducer error, and where the
-    residual lives (direction of motion)."""
-    budget = ident.budget
-    out = []
-    ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, budget).items()}
+    much, sensor calibration that looks like a convention problem or a transducer error, leg-level signs
+    on a hexapod, where the residual lives (direction of motion), the verdict and what discovery found.
+    ``before``: the residual analysis of the nominal model (:func:`hexsim.residuals.analyse`)."""
+    ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, ident.budget).items()}
     off = [ch for ch, r in ratio.items() if r * r > WITHIN]
+    return (_channel_sentences(ratio, off) + _calibration_sentences(ident) + _leg_sentences(ident)
+            + _direction_sentences(before, off) + _verdict_sentences(ident))
+
+
+def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
     clean = [ch for ch in ratio if ch not in off]
     if not off:
-        out.append("The nominal model reproduces every channel to within its noise and numerical tolerance "
-                   "(held-out RMS / budget: " + ", ".join(f"{ch} {r:.2g}" for ch, r in ratio.items()) + ").")
-    else:
-        out.append("Off beyond noise and tolerance: " + ", ".join(f"{ch} ({ratio[ch]:.3g} budgets)" for ch in off)
-                   + (f"; at noise: {', '.join(clean)}." if clean else "."))
-        if off == ["position"] and {"p1", "acceleration"} <= set(clean):
-            out.append("Only the position disagrees while P1 and the acceleration are clean: look at the position "
-                       "sensor (scale, delay) or the valve's flow gain before friction or load.")
+        return ["The nominal model reproduces every channel to within its noise and numerical tolerance "
+                "(held-out RMS / budget: " + ", ".join(f"{ch} {r:.2g}" for ch, r in ratio.items()) + ")."]
+    out = ["Off beyond noise and tolerance: " + ", ".join(f"{ch} ({ratio[ch]:.3g} budgets)" for ch in off)
+           + (f"; at noise: {', '.join(clean)}." if clean else ".")]
+    if off == ["position"] and {"p1", "acceleration"} <= set(clean):
+        out.append("Only the position disagrees while P1 and the acceleration are clean: look at the position "
+                   "sensor (scale, delay) or the valve's flow gain before friction or load.")
+    return out
+
+
+def _calibration_sentences(ident: Identification) -> list[str]:
+    out = []
     final = ident.final.calibration  # the calibration of the model the verdict stands on
-    acc = final.get("acceleration")
-    if acc:
-        for a in acc["offset"]:
-            if abs(abs(a) - G_STANDARD) < 0.15 * G_STANDARD:
-                out.append(f"The accelerometer reads {a:+.2f} m/s^2 off the model: a constant offset of about "
-                           f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
-                           "format specific force, or the reverse), not physics; it is calibrated out.")
-                break
+    for a in final.get("acceleration", {}).get("offset", []):
+        if abs(abs(a) - G_STANDARD) < 0.15 * G_STANDARD:
+            out.append(f"The accelerometer reads {a:+.2f} m/s^2 off the model: a constant offset of about "
+                       f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
+                       "format specific force, or the reverse), not physics; it is calibrated out.")
+            break
     settled = ident.verdict in ("none", "explained")
     for ch in SCALED:
         cal = final.get(ch)
@@ -85,7 +91,13 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
         else:
             out.append(f"The accelerometer's scale fits {worst:.4f}: a sensitivity error, calibrated out and not "
                        "taken for an effect.")
-    p = ident.problem
+    return out
+
+
+def _leg_sentences(ident: Identification) -> list[str]:
+    """Hexapod: one leg's position offset standing out, a payload in the legs' P1 offsets, one leg's
+    residual standing out."""
+    out, p = [], ident.problem
     offsets = ident.nominal.calibration.get("position", {}).get("offset", [])
     if len(offsets) >= 3 and not p.windowed:
         mags = np.abs(offsets)
@@ -109,11 +121,16 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
             continue
         j = int(np.argmax(rms))
         others = float(np.median([v for i, v in enumerate(rms) if i != j]))
-        if rms[j] > 5.0 * max(others, budget.total[ch]):
+        if rms[j] > 5.0 * max(others, ident.budget.total[ch]):
             label = signal_labels(p, ch)[j]
             out.append(f"The {ch} residual of {label} is {rms[j] / max(others, 1e-300):.0f}x the median of the other "
                        f"legs: a leg-level effect on {label} (leakage, null offset, sensor of that leg), not one "
                        "on all legs.")
+    return out
+
+
+def _direction_sentences(before: dict, off: list[str]) -> list[str]:
+    out = []
     for ch in off:
         cond = before.get(ch, {}).get("conditioned", {})
         up, down = cond.get("velocity > 0", {}).get("rms"), cond.get("velocity < 0", {}).get("rms")
@@ -121,15 +138,19 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
             side = "retracting (v < 0, the return edge A→T)" if down > up else "extending (v > 0, the supply edge P→A)"
             out.append(f"The {ch} residual is {max(up, down) / min(up, down):.1f}x larger while {side}: a "
                        "direction-dependent effect (edge asymmetry, friction of one direction).")
-    verdict = ident.verdict
-    if verdict == "explained":
+    return out
+
+
+def _verdict_sentences(ident: Identification) -> list[str]:
+    out = []
+    if ident.verdict == "explained":
         out.append("Accepted: " + " + ".join(f.name for f in ident.accepted) + "; with it every channel is within "
                    "its budget.")
-    elif verdict == "partial":
-        left = [ch for ch, v in within_budget(ident.final, budget).items() if v > WITHIN]
+    elif ident.verdict == "partial":
+        left = [ch for ch, v in within_budget(ident.final, ident.budget).items() if v > WITHIN]
         out.append("Accepted: " + " + ".join(f.name for f in ident.accepted) + f"; structure is left in "
                    f"{', '.join(left)} that no library effect explains.")
-    elif verdict == "unexplained":
+    elif ident.verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
     found = ident.discovery or {}
     for term in found.get("terms", []):
@@ -217,6 +238,28 @@ def _fmt(value: float, unit: str) -> str:
     return f"{value:.4g} {unit}"
 
 
+def _discovery_markdown(doc: dict) -> list[str]:
+    """The report's discovery section (none when discovery did not run)."""
+    lines: list[str] = []
+    disc = doc.get("discovery")
+    if disc and disc.get("done"):
+        lines += ["", "## Discovery (sparse correction of the flow and force equations)", "", disc["method"] + ".", ""]
+        if disc["terms"]:
+            lines += ["| equation | term | coefficient ± s.e. | meaning | added to the model |", "|---|---|---|---|---|"]
+            for t in disc["terms"]:
+                key = f"{t['equation']}:{t['term']}"
+                lines.append(f"| {t['equation']} | {_md(t['term'])} | {t['coefficient']:.4g} ± {t['std_error']:.2g} "
+                             f"{_md(t['unit'])} | {_md(t['meaning'])} | {'yes' if key in disc['added_to_model'] else 'no'} |")
+            if disc.get("added_to_model"):
+                lines += ["", "| channel | held-out RMS before | after |", "|---|---|---|"]
+                for ch, v in disc["held_out_rms_before"].items():
+                    u = doc["units"][ch]
+                    lines.append(f"| {ch} | {_fmt(v, u)} | {_fmt(disc['held_out_rms_after'][ch], u)} |")
+        else:
+            lines.append(disc.get("why", "No term found."))
+    return lines
+
+
 def markdown(doc: dict, png_names: list[str]) -> str:
     effects = " + ".join(f"`{e['name']}`" for e in doc["added_effects"]) or "none"
     lines = [f"# Validation of `{doc['log']}`", "", f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
@@ -252,22 +295,7 @@ def markdown(doc: dict, png_names: list[str]) -> str:
                          f"{c['held_out_gain']:+.3f} | {c['p_value']:.2g} | {_md(why)} |")
     else:
         lines += ["", "No candidate was fitted: the nominal model leaves nothing beyond noise and tolerance."]
-    disc = doc.get("discovery")
-    if disc and disc.get("done"):
-        lines += ["", "## Discovery (sparse correction of the flow and force equations)", "", disc["method"] + ".", ""]
-        if disc["terms"]:
-            lines += ["| equation | term | coefficient ± s.e. | meaning | added to the model |", "|---|---|---|---|---|"]
-            for t in disc["terms"]:
-                key = f"{t['equation']}:{t['term']}"
-                lines.append(f"| {t['equation']} | {_md(t['term'])} | {t['coefficient']:.4g} ± {t['std_error']:.2g} "
-                             f"{_md(t['unit'])} | {_md(t['meaning'])} | {'yes' if key in disc['added_to_model'] else 'no'} |")
-            if disc.get("added_to_model"):
-                lines += ["", "| channel | held-out RMS before | after |", "|---|---|---|"]
-                for ch, v in disc["held_out_rms_before"].items():
-                    u = doc["units"][ch]
-                    lines.append(f"| {ch} | {_fmt(v, u)} | {_fmt(disc['held_out_rms_after'][ch], u)} |")
-        else:
-            lines.append(disc.get("why", "No term found."))
+    lines += _discovery_markdown(doc)
     lines += ["", "## Residual before → after", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
               "spectrum peak [Hz] |", "|---|---|---|---|"]
     for ch in doc["residuals_before"]:
