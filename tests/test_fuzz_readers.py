@@ -151,15 +151,19 @@ def _contract_reader(fn, path: pathlib.Path):
         return None
 
 
+def _mutated_log(folder: pathlib.Path, edits, encoding: str, cut: int, side: str) -> pathlib.Path:
+    """The valid log with ``edits`` applied, written in ``encoding``, and the sidecar text ``side``."""
+    path = folder / "log.csv"
+    _write_table(path, *_apply(*_valid_log_rows(), edits), encoding, cut)
+    path.with_suffix(".json").write_text(side)
+    return path
+
+
 @FUZZ
 @given(edits=table_mutations(7, 1000), encoding=encodings, cut=st.integers(0, 10**6), side=sidecars())
 def test_any_log_is_read_or_refused_with_one_clear_error(edits, encoding, cut, side):
-    header, rows = _apply(*_valid_log_rows(), edits)
     with tempfile.TemporaryDirectory() as tmp:
-        path = pathlib.Path(tmp) / "log.csv"
-        _write_table(path, header, rows, encoding, cut)
-        path.with_suffix(".json").write_text(side)
-        _contract_reader(read_log, path)
+        _contract_reader(read_log, _mutated_log(pathlib.Path(tmp), edits, encoding, cut, side))
 
 
 @FUZZ
@@ -169,11 +173,8 @@ def test_cli_on_any_log_exits_0_or_2_with_one_line_and_no_output(edits, encoding
     import contextlib
     import io
 
-    header, rows = _apply(*_valid_log_rows(), edits)
     with tempfile.TemporaryDirectory() as tmp:
-        path = pathlib.Path(tmp) / "log.csv"
-        _write_table(path, header, rows, encoding, cut)
-        path.with_suffix(".json").write_text(side)
+        path = _mutated_log(pathlib.Path(tmp), edits, encoding, cut, side)
         out = pathlib.Path(tmp) / "friction.json"
         err = io.StringIO()
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
