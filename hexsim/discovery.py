@@ -225,14 +225,14 @@ def apply_terms(model: PlantModel, found: dict[str, float], mean_dp: float = 0.0
     return PlantModel(hyd, eff), applied
 
 
-def discover(problem, base: PlantModel, base_scored, budget) -> dict:
+def discover(problem, base: PlantModel, base_scored, budget, score=None) -> dict:
     """Fit the sparse correction on the fit windows' samples, add what maps onto the model, replay and
     compare on the held-out windows (see the module doc). ``base``/``base_scored``: the model the verdict
-    stands on and its :class:`hexsim.identify.Scored`. Returns the JSON-ready account; ``terms`` empty
+    stands on and its :class:`hexsim.identify.Scored`; ``score(problem, sim, budget)`` scores a replay the
+    same way (:func:`hexsim.identify.score`, passed in so this module does not import the identifier).
+    Returns the JSON-ready account; ``terms`` empty
     if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation, reported only
     (:func:`_discover_legs`)."""
-    from hexsim.identify import score
-
     log = problem.log
     if log.system == "hexapod":
         return _discover_legs(problem, base)

@@ -22,7 +22,8 @@ from hexsim.errors import InputError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
-from hexsim.signals import zero_order_hold
+from hexsim.residuals import noise_of
+from hexsim.signals import near_reversals, zero_order_hold
 from hexsim.simulation import RunConfig, SimulationResult, simulate
 
 #: Start of the log left out of the error [s]: the model starts at rest in the neutral pose.
@@ -78,7 +79,6 @@ class HexapodProblem:
     windowed = False  # one replay from the neutral pose: a position offset is an offset
 
     def __init__(self, log: MeasurementLog) -> None:
-        from hexsim.identify import noise_of
         from hexsim.replay import PlantModel, supply_from_log
 
         self.log = log
@@ -133,7 +133,6 @@ class HexapodProblem:
         return {g: r[:, :, self._view[g]] for g, r in res.items()}
 
     def motion_state(self):
-        from hexsim.identify import near_reversals
         from hexsim.replay import measured_velocity
 
         c = self.log.columns

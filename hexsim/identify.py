@@ -48,8 +48,8 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
 from hexsim.replay import CHANNELS, PlantModel, Windows, measured_velocity, replay, supply_from_log
-from hexsim.residuals import effective_n
-from hexsim.signals import zero_crossings
+from hexsim.residuals import effective_n, noise_of
+from hexsim.signals import near_reversals
 from hexsim.workers import worker_pool
 
 #: Valve-replay window [s]: long enough to see a flow offset integrate, short enough not to drift away.
@@ -76,8 +76,6 @@ SCALED = ("position", "acceleration")
 #: a few percent (±5 % uncalibrated); position transducers are linear to far better than 1 %, and a looser
 #: position scale trades with the valve's flow gain (the increments of a window scale with both).
 SCALE_LIMIT = {"position": 0.01, "acceleration": 0.05}
-#: Floors of the noise estimates, per channel [SI]: 0.1 µm, 100 Pa, 100 Pa, 1e-3 m/s^2.
-NOISE_FLOOR = {"position": 1e-7, "p1": 100.0, "p_s": 100.0, "acceleration": 1e-3}
 
 
 def available_channels(log: MeasurementLog) -> list[str]:
@@ -88,15 +86,6 @@ def channel_scales(log: MeasurementLog) -> dict[str, float]:
     """Scale of each channel for the NRMSE: the standard deviation of the measured signal, floored (so a
     constant supply pressure is judged against 0.1 bar, not against its sensor noise)."""
     return {ch: max(float(np.std(log.columns[CHANNELS[ch][0]])), CHANNELS[ch][2]) for ch in available_channels(log)}
-
-
-def noise_of(x: np.ndarray, channel: str) -> float:
-    """Rms of white noise on ``x`` (any shape; differences along axis 1 for 2-D and 3-D arrays, else
-    along the only axis): 1.4826 MAD of the second difference / sqrt(6) (white noise of variance s^2
-    gives a second difference of variance 6 s^2). Floored at :data:`NOISE_FLOOR`."""
-    d2 = np.diff(x, 2, axis=1 if x.ndim > 1 else 0).ravel()
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return max(1.4826 * mad / math.sqrt(6.0), NOISE_FLOOR[channel])
 
 
 def _signals(a: np.ndarray) -> np.ndarray:
@@ -161,14 +150,6 @@ class Problem:
         """Log times [s] of the samples of :meth:`analysis_view` (k, n)."""
         fs = self.log.sample_rate_hz
         return self.log.time[self.windows.starts][:, None] + np.arange(self.settle, self.windows.length)[None, :] / fs
-
-
-def near_reversals(t: np.ndarray, velocity: np.ndarray, half_width: float = 0.05) -> np.ndarray:
-    """(N,) True within ``half_width`` [s] of a velocity reversal."""
-    near = np.zeros(len(t), bool)
-    for tr in zero_crossings(t, velocity):
-        near |= np.abs(t - tr) < half_width
-    return near
 
 
 @dataclass(frozen=True)
@@ -581,6 +562,6 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         verdict = "explained" if max(within_budget(current, budget).values()) <= WITHIN else "partial"
     if verdict in ("partial", "unexplained"):
         notify("discovery: sparse correction of the model's equations")
-    found = discover(problem, model, current, budget) if verdict in ("partial", "unexplained") else None
+    found = discover(problem, model, current, budget, score) if verdict in ("partial", "unexplained") else None
     return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,
                           final=current, verdict=verdict, discovery=found)

@@ -8,10 +8,14 @@ are left out (see :mod:`hexsim.identify`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import signal, stats
 
 MAX_LAG = 20  # lags [samples] of the whiteness and cross-correlation tests
+#: Floors of the noise estimates, per channel [SI]: 0.1 µm, 100 Pa, 100 Pa, 1e-3 m/s^2.
+NOISE_FLOOR = {"position": 1e-7, "p1": 100.0, "p_s": 100.0, "acceleration": 1e-3}
 
 
 def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -21,6 +25,15 @@ def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
     if var <= 0:
         return np.zeros(max_lag + 1)
     return np.array([1.0] + [float(np.mean(x[:, lag:] * x[:, :-lag])) / var for lag in range(1, max_lag + 1)])
+
+
+def noise_of(x: np.ndarray, channel: str) -> float:
+    """Rms of white noise on ``x`` (any shape; differences along axis 1 for 2-D and 3-D arrays, else
+    along the only axis): 1.4826 MAD of the second difference / sqrt(6) (white noise of variance s^2
+    gives a second difference of variance 6 s^2). Floored at :data:`NOISE_FLOOR`."""
+    d2 = np.diff(x, 2, axis=1 if x.ndim > 1 else 0).ravel()
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return max(1.4826 * mad / math.sqrt(6.0), NOISE_FLOOR[channel])
 
 
 def effective_n(res: np.ndarray) -> float:

@@ -51,3 +51,11 @@ def zero_order_hold(times: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.
     (M, ...). Before the first sample the first value."""
     rows = np.clip(np.searchsorted(times, t + 1e-9, side="right") - 1, 0, len(times) - 1)
     return values[rows]
+
+
+def near_reversals(t: np.ndarray, velocity: np.ndarray, half_width: float = 0.05) -> np.ndarray:
+    """(N,) True within ``half_width`` [s] of a velocity reversal."""
+    near = np.zeros(len(t), bool)
+    for tr in zero_crossings(t, velocity):
+        near |= np.abs(t - tr) < half_width
+    return near
