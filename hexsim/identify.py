@@ -256,7 +256,10 @@ def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
 
 def residual_vector(problem, sim: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
     """Calibrated residuals of ``rows`` (scored samples) divided by the budget, as one vector."""
-    res, _ = calibrate(problem, sim, rows)
+    return _as_vector(problem, calibrate(problem, sim, rows)[0], budget, rows)
+
+
+def _as_vector(problem, res: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
     b = budget.total
     return np.concatenate([(res[ch][rows, problem.settle:] / b[ch]).ravel() for ch in problem.channels])
 
@@ -368,7 +371,7 @@ def _least_squares(problem, make_model, lower, upper, starts, budget: Budget):
                         max_nfev=12 * len(x0) + 8, xtol=1e-4, ftol=1e-6)
     x = sol.x if sim_at(sol.x) is not None else x0
     scored = score(problem, sim_at(x), budget)
-    fit_vec = residual_vector(problem, sim_at(x), budget, problem.fit_rows)
+    fit_vec = _as_vector(problem, scored.residuals, budget, problem.fit_rows)  # calibrated on the fit rows
     n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
     s2 = float(fit_vec @ fit_vec) / max(n_eff - len(x0), 1.0)  # per independent residual
     free = (x > lower) & (x < upper)
