@@ -7,7 +7,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``hexapod_full``: :func:`hexsim.simulation.simulate` on heave with the buffered compensator: six legs'
   hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
   :mod:`compensation.native`), all inside the kernel, sensors recorded at 1 kHz — (b);
-* ``hexapod_numpy``: the same with the numpy reference callback and the Python compensator, for the
+* ``hexapod_python``: the same with the Python control callback and the Python compensator, for the
   gain of the kernel;
 * ``hexapod_uncompensated``: heave without a compensator;
 * ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/test_convergence.py):
@@ -114,7 +114,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     cases = {
         "bare_mj_step": lambda: _bare(duration),
         "hexapod_full": lambda: _full("hexapod", "buffered", duration),
-        "hexapod_numpy": lambda: _full("hexapod", "buffered", duration, engine="numpy"),
+        "hexapod_python": lambda: _full("hexapod", "buffered", duration, engine="python"),
         "hexapod_uncompensated": lambda: _full("hexapod", "none", duration),
         "hexapod_fast": lambda: _full("hexapod", "none", duration, timestep=1e-3),
         "actuator_full": lambda: _full("actuator", "none", duration),

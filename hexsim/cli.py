@@ -116,7 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
         "bench",
         help="time the simulator against bare mj_step on the same model (ratios, real-time factors)",
         description="In one process: bare mj_step on the hexapod, the full hexapod (compiled hydraulics, P control, "
-        "buffered compensator) with the native and the numpy engine, the fast scheme (dt 1e-3 s), the single "
+        "buffered compensator) with the native and the python engine, the fast scheme (dt 1e-3 s), the single "
         "actuator and the compiled replay kernel; median of the repeats.",
     )
     be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
@@ -237,8 +237,8 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--keep-last", type=_number, metavar="SECONDS",
                    help="keep only the last SECONDS of the 1 kHz recording (long runs: memory stays flat; the "
                         "metrics and outputs cover that window)")
-    p.add_argument("--engine", choices=("native", "numpy"), default="native",
-                   help="leg hydraulics as the compiled kernel (default) or the numpy reference callback")
+    p.add_argument("--engine", choices=("native", "python"), default="native",
+                   help="the loop compiled (default) or as a Python MuJoCo control callback (same compiled leg step; runs any Python compensator at Python speed)")
     p.add_argument("--timestep", type=_number, default=1e-4,
                    help="physics step [s] (default 1e-4, the seed's 10 kHz; must divide the 2 ms controller "
                         "period and the 1 ms record period; see README 'Speed' for the accuracy of larger steps)")

@@ -8,7 +8,7 @@ model, so ``Effects()`` reproduces the nominal plant exactly. Null offset, bulk 
 fields of :class:`~hexsim.params.HydraulicParams`; mass and inclination of the actuator are rigid-body
 facts and change the MuJoCo model (:func:`hexsim.model.apply_load`).
 
-:func:`step_plant` is a pure function on arrays of one entry per leg, like :mod:`hexsim.hydraulics`.
+The equations of the effects are written once, in the leg step of :mod:`hexsim.plant`.
 """
 
 from __future__ import annotations
@@ -16,11 +16,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import numpy as np
 
-from hexsim import hydraulics
 from hexsim.errors import InputError
-from hexsim.params import HydraulicParams, _check_nonnegative
+from hexsim.params import _check_nonnegative
 
 #: Names of the candidate effects of the identifier (issue 4), in the order they are tried.
 EFFECT_NAMES = ("supply_pressure", "spool_dynamics", "null_offset", "hysteresis", "leakage", "load", "friction",
@@ -76,73 +74,3 @@ class Effects:
 
 
 NOMINAL = Effects()
-
-
-@dataclass
-class PlantState:
-    """Hydraulic state of n legs, arrays (n,): P1 [Pa], P_s seen by each leg [Pa], spool position x_v [m]
-    and velocity [m/s], setpoint after the spool play u_b [V]."""
-
-    p1: np.ndarray
-    p_s: np.ndarray
-    x_v: np.ndarray
-    v_v: np.ndarray
-    u_b: np.ndarray
-
-    @classmethod
-    def at_rest(cls, p1, u_v, hyd: HydraulicParams, p_s=None) -> "PlantState":
-        """Steady state: spool at its setpoint, no play taken up, supply at ``p_s`` (default nominal)."""
-        p1 = np.array(p1, dtype=float)
-        u_v = np.broadcast_to(np.asarray(u_v, dtype=float), p1.shape).copy()
-        p_s = np.full(p1.shape, hyd.supply_pressure) if p_s is None else np.broadcast_to(p_s, p1.shape).astype(float)
-        return cls(p1=p1, p_s=p_s, x_v=hydraulics.spool_position(u_v, hyd), v_v=np.zeros_like(p1), u_b=u_v)
-
-    def copy(self) -> "PlantState":
-        return PlantState(*(a.copy() for a in (self.p1, self.p_s, self.x_v, self.v_v, self.u_b)))
-
-
-def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams, eff: Effects,
-               groups: np.ndarray | None = None) -> PlantState:
-    """Advance the leg hydraulics by ``dt`` [s] with valve setpoints u_v [V] (n,), piston positions y [m]
-    and velocities ydot [m/s] (n,) taken at the start of the step. Returns a new state.
-
-    Order: spool play (backlash), spool dynamics (semi-implicit Euler), bottom-chamber pressure
-    (linearly implicit, :func:`hexsim.hydraulics.step_pressure`, seed eq. 3.4/3.7, with leakage), supply
-    pressure (exact first-order update with the step's flow). ``groups`` (n,) ints: legs sharing a supply
-    manifold (the hexapod: all zeros); default each leg its own supply. With ``Effects()`` this is exactly
-    :func:`hexsim.hydraulics.step_pressure`.
-    """
-    if eff is NOMINAL or eff == NOMINAL:  # the seed's plant: one call, as the reference step
-        p1 = hydraulics.step_pressure(state.p1, u_v, y, ydot, dt, hyd, state.p_s)
-        return PlantState(p1=p1, p_s=state.p_s, x_v=state.x_v, v_v=state.v_v, u_b=state.u_b)
-    u_v = np.asarray(u_v, dtype=float)
-    u_b = state.u_b
-    if eff.spool_play > 0:
-        u_b = np.clip(u_b, u_v - eff.spool_play, u_v + eff.spool_play)
-    else:
-        u_b = u_v
-    x_set = hydraulics.spool_position(u_b, hyd)
-    if eff.spool_frequency > 0:
-        w = 2.0 * np.pi * eff.spool_frequency
-        v_v = state.v_v + dt * (w * w * (x_set - state.x_v) - 2.0 * eff.spool_damping * w * state.v_v)
-        x_v = state.x_v + dt * v_v
-        limited = np.abs(x_v) > hyd.x_v_max
-        x_v = np.clip(x_v, -hyd.x_v_max, hyd.x_v_max)
-        v_v = np.where(limited, 0.0, v_v)
-    else:
-        x_v, v_v = x_set, state.v_v
-    gains = (eff.edge_gain_pa, eff.edge_gain_at)
-    p1 = hydraulics.step_pressure(state.p1, u_v, y, ydot, dt, hyd, state.p_s, x_v=x_v, leakage=eff.leakage,
-                                  edge_gains=gains)
-    p_s = state.p_s
-    if eff.supply_resistance > 0:
-        a1 = hydraulics.flow_areas(x_v, hyd)[0] * eff.edge_gain_pa
-        dp = state.p_s - p1
-        phi_pa = hyd.orifice_constant * a1 * np.copysign(np.sqrt(np.abs(dp)), dp)
-        phi_s = phi_pa + eff.leakage * dp - ydot * hyd.area_rod
-        groups = np.arange(len(p1)) if groups is None else groups
-        demand = np.bincount(groups, weights=phi_s)[groups]
-        target = hyd.supply_pressure - eff.supply_resistance * demand
-        p_s = target + (state.p_s - target) * math.exp(-dt / eff.supply_time_constant)
-        p_s = np.maximum(p_s, hyd.tank_pressure)
-    return PlantState(p1=p1, p_s=p_s, x_v=x_v, v_v=v_v, u_b=u_b)

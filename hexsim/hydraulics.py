@@ -1,9 +1,11 @@
-"""Valve, chamber and friction of a valve-controlled asymmetric cylinder: pure functions on arrays.
+"""Valve, chamber and friction of a valve-controlled asymmetric cylinder: the seed's equations on arrays.
 
 The seed's chapter 3 ("Compensation of the reversal bump", Rexroth-Hydraudyne / TU Eindhoven 2005), one
-function per equation. Every function takes arrays with one entry per leg (shape ``(n,)``; scalars work
-too) and a :class:`~hexsim.params.HydraulicParams`, has no side effects and imports nothing from MuJoCo,
-so a compiled kernel can replace the per-step loop without changing the physics.
+function per equation, for analysis (flow curves, friction curves, statics, identification). Every
+function takes arrays (one entry per leg, shape ``(n,)``; any shape that broadcasts, scalars too) and a
+:class:`~hexsim.params.HydraulicParams`, has no side effects and imports nothing from MuJoCo. The
+physics itself is written once, as the compiled scalar functions of :mod:`hexsim.plant` that the
+simulation steps with; the functions here map those over arrays.
 
 Sign conventions: piston position y [m] is 0 fully retracted and grows when the leg extends; flow
 phi_1 > 0 fills the bottom chamber; the leg force > 0 extends the leg.
@@ -11,24 +13,74 @@ phi_1 > 0 fills the bottom chamber; the leg force > 0 extends the leg.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
+from hexsim import jitcache, plant
 from hexsim.params import HydraulicParams
+from hexsim.plant import JACOBIAN_DP_FLOOR, leg_params
 
-#: Pressure difference [Pa] below which the Jacobian of the orifice flow is evaluated as if it were this
-#: large. Only the linearly implicit integrator uses the Jacobian; the flow itself is exact.
-JACOBIAN_DP_FLOOR = 1.0e4
+__all__ = ["JACOBIAN_DP_FLOOR", "spool_position", "flow_areas", "valve_flow", "valve_flow_dp1", "static_velocity",
+           "chamber_volume", "pressure_rate", "step_pressure", "friction_force", "leg_force", "equilibrium_pressure",
+           "eigenfrequency"]
+
+_jit = numba.njit(cache=True)
+
+
+def _flat(*arrays):
+    """The arguments broadcast together, as contiguous float arrays (size,), and their common shape."""
+    b = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in arrays))
+    return [np.array(a, order="C").ravel() for a in b], b[0].shape
+
+
+def _shaped(out, shape):
+    return out.reshape(shape) if shape else out[0]
+
+
+@_jit
+def _map_areas(x, P, a1, a2):
+    for i in range(x.shape[0]):
+        a1[i], a2[i] = plant.flow_areas(x[i], P)
+
+
+@_jit
+def _map_orifice(x, p1, p_s, P, phi, dphi):
+    for i in range(x.shape[0]):
+        phi[i], dphi[i] = plant.orifice(x[i], p1[i], p_s[i], P)
+
+
+@_jit
+def _map_pressure_step(p1, x, p_s, y, ydot, dt, P, out):
+    for i in range(x.shape[0]):
+        out[i] = plant.pressure_step(p1[i], x[i], p_s[i], y[i], ydot[i], dt, P)
+
+
+@_jit
+def _map_friction(v, P, out):
+    for i in range(v.shape[0]):
+        out[i] = plant.friction(v[i], P)
+
+
+@_jit
+def _map_leg_force(p1, p_s, v, P, out):
+    for i in range(v.shape[0]):
+        out[i] = plant.leg_force(p1[i], p_s[i], v[i], P)
+
+
+# the array maps compile in the scalar physics of hexsim.plant: drop their cache when that file changes
+jitcache.guard((_map_areas, _map_orifice, _map_pressure_step, _map_friction, _map_leg_force),
+               plant.__file__)
 
 
 def spool_position(u_v, p: HydraulicParams):
-    """Valve spool position x_v [m] from the valve setpoint u_v [V] (seed eq. 3.2).
+    """Valve spool position x_v [m] from the valve setpoint u_v [V] (seed eq. 3.2), shaped like u_v.
 
     The spool's own position loop has a high bandwidth (seed §3.2.1), so
     x_v = (u_v - u_0) x_v,max / u_v,max, with u_0 = ``p.null_offset`` the setpoint at which the spool is
     centred (0 in the seed; it drifts with temperature, seed §5.3). u_v is expected inside ±u_v,max
-    (the controller saturates it).
+    (the controller saturates it). (:func:`hexsim.plant.spool_position`, elementwise.)
     """
-    return (np.asarray(u_v, dtype=float) - p.null_offset) * (p.x_v_max / p.u_v_max)
+    return plant.spool_position(np.asarray(u_v, dtype=float), leg_params(p))
 
 
 def flow_areas(x_v, p: HydraulicParams):
@@ -39,32 +91,21 @@ def flow_areas(x_v, p: HydraulicParams):
     ``p.flow_area == "smooth"`` (default): a_i = 300 x_v^2 on the side x_v opens, seed eq. (3.11),
     which the seed adopts because the kink of (3.3) at ±O_l excites the hydraulic eigenfrequency.
 
-    Returns two arrays shaped like ``x_v``.
+    Returns two arrays shaped like ``x_v`` (:func:`hexsim.plant.flow_areas`, elementwise).
     """
-    x_v = np.asarray(x_v, dtype=float)
-    if p.flow_area == "sharp":
-        w = np.pi * p.spool_diameter
-        return w * np.maximum(x_v - p.overlap, 0.0), w * np.maximum(-x_v - p.overlap, 0.0)
-    a = p.smooth_area_gain * x_v * x_v
-    a1 = a * (x_v > 0.0)
-    return a1, a - a1
+    (x,), shape = _flat(x_v)
+    a1, a2 = np.empty_like(x), np.empty_like(x)
+    _map_areas(x, leg_params(p), a1, a2)
+    return _shaped(a1, shape), _shaped(a2, shape)
 
 
-def _orifice(x_v, p1, p: HydraulicParams, p_s, edge_gains=(1.0, 1.0)):
-    """phi_1 (seed eq. 3.4) and d phi_1 / d P1, computed together from one evaluation of the areas;
-    ``edge_gains`` (k_PA, k_AT) scale the two edges' openings (:class:`hexsim.effects.Effects`)."""
+def _orifice(x_v, p1, p: HydraulicParams, p_s):
+    """phi_1 (seed eq. 3.4) and d phi_1 / d P1, arrays broadcast (:func:`hexsim.plant.orifice`)."""
     p_s = p.supply_pressure if p_s is None else p_s
-    a1, a2 = flow_areas(x_v, p)
-    a1, a2 = a1 * edge_gains[0], a2 * edge_gains[1]
-    dp1 = p_s - p1
-    dp2 = p1 - p.tank_pressure
-    s1 = np.sqrt(np.abs(dp1))
-    s2 = np.sqrt(np.abs(dp2))
-    k = p.orifice_constant
-    phi = k * (a1 * np.copysign(s1, dp1) - a2 * np.copysign(s2, dp2))
-    floor = np.sqrt(JACOBIAN_DP_FLOOR)
-    dphi = -0.5 * k * (a1 / np.maximum(s1, floor) + a2 / np.maximum(s2, floor))
-    return phi, dphi
+    (x, q1, qs), shape = _flat(x_v, p1, p_s)
+    phi, dphi = np.empty_like(x), np.empty_like(x)
+    _map_orifice(x, q1, qs, leg_params(p), phi, dphi)
+    return _shaped(phi, shape), _shaped(dphi, shape)
 
 
 def valve_flow(x_v, p1, p: HydraulicParams, p_s=None):
@@ -73,7 +114,7 @@ def valve_flow(x_v, p1, p: HydraulicParams, p_s=None):
     phi_1 = C_d a1(x_v) sqrt(2 (P_s - P1)/rho) - C_d a2(x_v) sqrt(2 (P1 - P_t)/rho).
     The square root is taken signed (sqrt|dp| sign dp) so a reversed pressure difference reverses the
     flow through that edge instead of producing NaN. ``p_s`` [Pa] overrides the supply pressure
-    (scalar or per leg); default ``p.supply_pressure``.
+    (scalar or per leg); default ``p.supply_pressure``. Arrays broadcast.
     """
     return _orifice(x_v, p1, p, p_s)[0]
 
@@ -107,8 +148,7 @@ def pressure_rate(phi_1, y, ydot, p: HydraulicParams):
     return p.bulk_modulus / chamber_volume(y, p) * (phi_1 - ydot * p.area_bottom)
 
 
-def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, x_v=None, leakage=0.0,
-                  edge_gains=(1.0, 1.0)):
+def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None):
     """Bottom-chamber pressure P1 [Pa] after one step of ``dt`` [s] (seed eq. 3.2, 3.4, 3.7).
 
     Linearly implicit (Rosenbrock-Euler) in P1: P1' = P1 + dt f / (1 - dt df/dP1), with
@@ -116,43 +156,44 @@ def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None, *, 
     openings (about 30 µs at u_v = 10 V), where explicit Euler would diverge; where it is slow the
     update equals explicit Euler to first order. The piston velocity ``ydot`` is taken at the start of
     the step; the mechanical side then uses the new P1 (symplectic Euler for the 109 Hz oil spring).
-
-    ``x_v`` [m] overrides the spool position computed from u_v (a spool with its own dynamics,
-    :mod:`hexsim.effects`); ``leakage`` C_l [m^3/(s Pa)] adds the internal leakage across the piston
-    C_l (P_s - P1) to phi_1 (the rod side is at P_s), zero in the seed; ``edge_gains`` (k_PA, k_AT)
-    scale the supply and return edges (1, 1 in the seed). Arrays of shape (n,) in, (n,) out.
+    Arrays broadcast, (n,) in, (n,) out (:func:`hexsim.plant.pressure_step`, elementwise; the effects'
+    version of a whole step is :func:`hexsim.plant.step_legs`).
     """
-    x_v = spool_position(u_v, p) if x_v is None else x_v
-    phi, dphi = _orifice(x_v, p1, p, p_s, edge_gains)
-    if leakage:  # a scalar C_l
-        phi = phi + leakage * ((p.supply_pressure if p_s is None else p_s) - p1)
-        dphi = dphi - leakage
-    stiffness = p.bulk_modulus / chamber_volume(y, p)
-    return p1 + dt * stiffness * (phi - ydot * p.area_bottom) / (1.0 - dt * stiffness * dphi)
+    p_s = p.supply_pressure if p_s is None else p_s
+    (q1, u, qs, yy, yd), shape = _flat(p1, u_v, p_s, y, ydot)
+    P = leg_params(p)
+    x = spool_position(u, p)
+    out = np.empty_like(q1)
+    _map_pressure_step(q1, x, qs, yy, yd, float(dt), P, out)
+    return _shaped(out, shape)
 
 
 def friction_force(ydot, p: HydraulicParams):
-    """Asymmetric Stribeck friction F_f [N] opposing the piston velocity ydot [m/s] (seed eq. 3.9).
+    """Asymmetric Stribeck friction F_f [N] opposing the piston velocity ydot [m/s] (seed eq. 3.9),
+    shaped like ydot.
 
     F_f = sigma ydot + arctan(k ydot) [F_c0 + F_s0 exp(-|ydot| / c_s)], with the "+" parameters for
     ydot >= 0 and the "-" parameters for ydot < 0 (seed eq. 2.4, app. A). See
     :attr:`HydraulicParams.arctan_normalised` for the scale of arctan: as published it tends to ±pi/2.
+    (:func:`hexsim.plant.friction`, elementwise.)
     """
-    ydot = np.asarray(ydot, dtype=float)
-    sigma, f_c, f_s, c_s = p.stribeck_table[(ydot >= 0.0).astype(np.intp)].T
-    shape = np.arctan(p.arctan_gain * ydot)
-    if p.arctan_normalised:
-        shape = shape * (2.0 / np.pi)
-    return sigma * ydot + shape * (f_c + f_s * np.exp(-np.abs(ydot) / c_s))
+    (v,), shape = _flat(ydot)
+    out = np.empty_like(v)
+    _map_friction(v, leg_params(p), out)
+    return _shaped(out, shape)
 
 
 def leg_force(p1, ydot, p: HydraulicParams, p_s=None):
-    """Hydraulic force on the piston along the leg [N]: P1 A1 - P_s A2 - F_f(ydot) (seed eq. 3.8).
+    """Hydraulic force on the piston along the leg [N]: P1 A1 - P_s A2 - F_f(ydot) (seed eq. 3.8),
+    arrays broadcast (:func:`hexsim.plant.leg_force`, elementwise).
 
     Gravity (the -M g of eq. 3.8) is not included: the rigid-body simulator applies it.
     """
     p_s = p.supply_pressure if p_s is None else p_s
-    return p1 * p.area_bottom - p_s * p.area_rod - friction_force(ydot, p)
+    (q1, qs, v), shape = _flat(p1, p_s, ydot)
+    out = np.empty_like(v)
+    _map_leg_force(q1, qs, v, leg_params(p), out)
+    return _shaped(out, shape)
 
 
 def equilibrium_pressure(load_force, p: HydraulicParams, p_s=None):

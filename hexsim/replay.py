@@ -24,11 +24,12 @@ import numpy as np
 from scipy.signal import cont2discrete, savgol_filter
 
 from hexsim import hydraulics
-from hexsim.effects import Effects, PlantState, step_plant
+from hexsim.effects import Effects
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.model import PlantIndex, apply_load, check_warnings, model_path
 from hexsim.params import HydraulicParams
+from hexsim.plant import PlantState, leg_params, step_plant
 
 #: Channels compared, in report order: name -> (log column of the single actuator, unit, floor of the scale).
 CHANNELS = {
@@ -158,7 +159,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration of the step that
     starts at t_j. The state of row 0 is the measured one; the logged u_v drives each window open loop.
     The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
-    compiled kernel (:mod:`hexsim.native`); False: the numpy reference. Single-actuator logs only.
+    compiled kernel (:mod:`hexsim.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.
     Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
     non-finite state.
     """
@@ -196,8 +197,8 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
         p1_0 = c["p1_Pa"][s0]
     else:
         p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
-    state = PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)
-    state.u_b, state.x_v, state.v_v = spool_history(u_log, fs, hyd, eff, s0)
+    u_b, x_v, v_v = spool_history(u_log, fs, hyd, eff, s0)
+    state = PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)._replace(u_b=u_b, x_v=x_v, v_v=v_v)
     out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
     mujoco.set_mjcb_control(None)
@@ -207,12 +208,11 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
         u_sched = windows.take(u_log)
         out["u_v"] = u_sched
         bad = kernel.valve_replay(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, idx.qpos_adr,
-                                  idx.dof_adr, idx.actuator_id, acc_adr, kernel.pack(hyd, eff), u_sched, sub, dt,
-                                  state.p1, state.p_s, state.x_v, state.v_v, state.u_b, out["position"], out["p1"],
-                                  out["p_s"], out["acceleration"])
+                                  idx.dof_adr, idx.actuator_id, acc_adr, leg_params(hyd, eff), u_sched, sub, dt,
+                                  state, out["position"], out["p1"], out["p_s"], out["acceleration"])
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
-    else:  # the numpy reference
+    else:  # the straightforward Python loop
         for j in range(n):
             u = u_log[s0 + j]
             for s_ in range(sub):
@@ -221,8 +221,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
                 if s_ == 0:
                     out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
                     out["u_v"][:, j] = u
-                state = step_plant(state, u, y, ydot, dt, hyd, eff)
-                d.ctrl[idx.actuator_id] = hydraulics.leg_force(state.p1, ydot, hyd, state.p_s)
+                state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, hyd, eff)
                 mujoco.mj_step(m, d)
                 if s_ == 0:
                     out["acceleration"][:, j] = d.sensordata[acc_adr]

@@ -20,19 +20,21 @@ from compensation import CompensatorSettings, PlantTruth, SettingsError, make_co
 from compensation.base import ReplayedCompensation
 from hexsim import hydraulics
 from hexsim.controller import PController
-from hexsim.effects import Effects, PlantState, step_plant
+from hexsim.effects import Effects
 from hexsim.errors import InputError, PhysicsError, WorkspaceError
 from hexsim.faults import Fault, FaultInjector
 from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.params import ControllerParams, HydraulicParams
+from hexsim.plant import PlantState, leg_params, step_plant
 from hexsim.scenario import Scenario
 from hexsim.signals import zero_order_hold
 from hexsim.temperature import WarmUp
 
 
-#: Ways to step the legs: the compiled kernel and the numpy reference (same physics, same order).
-ENGINES = ("native", "numpy")
+#: Ways to run the loop: the compiled runner (hexsim.native) and the Python control callback, a
+#: straightforward loop over the same compiled leg step (hexsim.plant) that also runs Python compensators.
+ENGINES = ("native", "python")
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,7 @@ class RunConfig:
     seed: int = 0
     record_rate_hz: float | None = None
     progress: bool = False
-    engine: str = "native"  # "native": compiled kernel (hexsim.native); "numpy": the reference callback
+    engine: str = "native"  # "native": compiled runner (hexsim.native); "python": the control callback
     timestep: float | None = None  # physics step [s]; None: the model's 1e-4 s (the seed's 10 kHz)
     keep_last_s: float | None = None  # keep only the last this many seconds of the recording (long runs:
     # memory stays flat; metrics and outputs cover that window); None: the whole run
@@ -125,7 +127,7 @@ class HydraulicCoupling:
     At step k (time t_k): every ``ctrl_div``-th step the controller samples the measured piston positions
     (plus sensor noise; delayed by tau_y with a sensor-delay effect) and updates u_v (held in between:
     ZOH); then the leg hydraulics advance to t_k+1 with the piston velocity at t_k
-    (:func:`hexsim.effects.step_plant`: :func:`hexsim.hydraulics.step_pressure` plus any
+    (:func:`hexsim.plant.step_plant`, the compiled :func:`hexsim.plant.step_legs` with any
     :class:`~hexsim.effects.Effects`) and the leg force P1 A1 - P_s A2 - F_f(ydot) is written to
     ``data.ctrl``. Repeated calls at the same time (an extra ``mj_forward``) rewrite the same
     force without integrating twice. An exception is kept in :attr:`error` for the runner to raise, since
@@ -177,8 +179,8 @@ class HydraulicCoupling:
                     self.hyd = self.tick(k, self.y_measured)
                     if self.supply_level is not None:
                         self.state.p_s[:] = self.supply_level
-                self.state = step_plant(self.state, self.u_v, y, ydot, self.dt, self.hyd, self.effects, self.groups)
-                self.force = hydraulics.leg_force(self.state.p1, ydot, self.hyd, self.state.p_s)
+                self.state, self.force = step_plant(self.state, self.u_v, y, ydot, self.dt, self.hyd, self.effects,
+                                                    self.groups)
             d.ctrl[self.idx.actuator_id] = self.force
         except Exception as exc:  # noqa: BLE001 - re-raised by simulate() after the step
             self.error = exc
@@ -328,8 +330,8 @@ def simulate(config: RunConfig) -> SimulationResult:
         rec_sensors.update(platform_gyro=gyro, platform_angacc=angacc, platform_pos=pos, platform_quat=quat)
     bar = tqdm(total=round(sc.duration, 3), unit="sim s", disable=not config.progress, leave=False,
                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
-    if config.engine == "numpy":
-        wall = _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
+    if config.engine == "python":
+        wall = _loop_python(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
                            viol, bar, n_total)
     else:
         wall = _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
@@ -356,9 +358,9 @@ def simulate(config: RunConfig) -> SimulationResult:
     )
 
 
-def _loop_numpy(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
+def _loop_python(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
                 viol, bar, n_total) -> float:
-    """The reference: :class:`HydraulicCoupling` as MuJoCo's control callback; every ``rec_div``-th
+    """The straightforward loop: :class:`HydraulicCoupling` as MuJoCo's control callback; every ``rec_div``-th
     step k records the state at t_k (the sensors MuJoCo evaluates at the start of the step, P1 before
     the step's update); ``n_total`` samples, kept in the arrays as a ring (row i % len(t)). Returns the
     wall time [s]."""
@@ -420,9 +422,9 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     from hexsim import native
 
     n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
-    st = coupling.state.copy()
-    p1, ps, xv, vv, ub = st.p1, st.p_s, st.x_v, st.v_v, st.u_b
-    force, demand = np.zeros(n), np.zeros(1)
+    S = coupling.state.copy()
+    p1, ps = S.p1, S.p_s
+    force = np.zeros(n)
     groups = coupling.groups
     hist = coupling._y_history
     L = len(hist)
@@ -436,7 +438,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     status = np.full(1, -1, dtype=np.int64)
     qadr, dadr, aadr = (a.astype(np.int64) for a in (idx.qpos_adr, idx.dof_adr, idx.actuator_id))
     hyd = coupling.hyd
-    P = native.pack(hyd, coupling.effects, dt)
+    P = leg_params(hyd, coupling.effects)
     total = n_total * rec_div
     mujoco.mj_forward(m, d)
 
@@ -452,8 +454,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
 
     def block(u_v, k, steps, r, ctrl_div=0):
         return native.run_block(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, d.site_xpos, qadr,
-                                dadr, aadr, site1, site2, P, u_v, groups, p1, ps, xv, vv, ub, force, demand,
-                                hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
+                                dadr, aadr, site1, site2, P, dt, u_v, groups, S, force, hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
                                 viol, status, ctrl_div, ctrl.params.kp, coupling.setpoints, coupling.noise,
                                 rec["y_ref"], rec["u_v"], saturated, n_total, mode or 0, cstate, ff_table,
                                 rec["u_c"], rec_comp)
@@ -484,7 +485,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
         new_hyd = coupling.tick(k, y_measured)
         if new_hyd is not hyd:
             hyd = new_hyd
-            P = native.pack(hyd, coupling.effects, dt)
+            P = leg_params(hyd, coupling.effects)
         if coupling.supply_level is not None:
             ps[:] = coupling.supply_level
         r_set, u_v, u_c = coupling.r, coupling.u_v, coupling.u_c
@@ -509,7 +510,7 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     rec["ydot"][:] = rec_sens[:, [s[f"leg{i + 1}_vel"].start for i in range(n)]]
     for name, out in rec_sensors.items():
         out[:] = rec_sens[:, s[name]]
-    coupling.state = PlantState(p1, ps, xv, vv, ub)
+    coupling.state = S
     coupling.force = force
     return wall
 
@@ -533,7 +534,7 @@ def _divider(rate_hz: float, dt: float, what: str) -> int:
 
 
 def _check_state(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex, coupling: HydraulicCoupling) -> None:
-    """After a step of the numpy engine: :func:`_check_finite`, then MuJoCo's warnings."""
+    """After a step of the Python engine: :func:`_check_finite`, then MuJoCo's warnings."""
     _check_finite(coupling.state.p1, d, idx, d.time)
     check_warnings(m, d)
 

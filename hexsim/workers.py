@@ -5,7 +5,7 @@ scipy, MuJoCo and the compiled kernels already imported, in milliseconds; spawne
 on macOS and Windows, or ``start_method="spawn"``) import all of it first, about 2.5 s each on a 2-vCPU
 machine. Each worker loads its own MuJoCo model. MuJoCo's control callback is process-global: at the
 fork the caller runs no simulation, so none is installed (:func:`hexsim.simulation.simulate` installs it
-only for a numpy-engine run and always removes it), and a worker installs its own.
+only for a python-engine run and always removes it), and a worker installs its own.
 """
 
 from __future__ import annotations

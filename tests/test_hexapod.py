@@ -103,32 +103,30 @@ def test_scenario_options_are_checked():
 
 
 def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
-    from hexsim import hydraulics
+    from hexsim import simulation
     from hexsim.errors import PhysicsError
 
-    real = hydraulics.step_pressure
+    real = simulation.step_plant
 
     def poisoned(*args, **kwargs):
-        out = real(*args, **kwargs)
-        out[2] = np.nan  # leg3's chamber pressure goes bad
-        return out
+        state, force = real(*args, **kwargs)
+        state.p1[2] = np.nan  # leg3's chamber pressure goes bad
+        return state, force
 
-    monkeypatch.setattr(hydraulics, "step_pressure", poisoned)
+    monkeypatch.setattr(simulation, "step_plant", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg3 at t = 0\.\d+ s"):
-        simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02), engine="numpy"))
+        simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02), engine="python"))
 
 
 def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypatch):
-    from hexsim import native
+    from hexsim import simulation
     from hexsim.errors import PhysicsError
 
-    real = native.pack
+    real = simulation.leg_params
 
-    def poisoned(hyd, eff, dt=0.0):
-        out = real(hyd, eff, dt)
-        out[5] = np.nan  # bulk modulus: every P1 goes bad in the first step
-        return out
+    def poisoned(hyd, eff):
+        return real(hyd, eff)._replace(bulk_modulus=np.nan)  # every P1 goes bad in the first step
 
-    monkeypatch.setattr(native, "pack", poisoned)
+    monkeypatch.setattr(simulation, "leg_params", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))

@@ -1,5 +1,5 @@
-"""The compiled replay kernel (hexsim.native) against the numpy reference (hexsim.effects.step_plant +
-hexsim.hydraulics.leg_force): same trajectories on the same log, every effect switched on."""
+"""The compiled runners (hexsim.native) against the straightforward Python loops over the same compiled leg
+step (hexsim.plant.step_plant, MuJoCo's control callback): same trajectories, every effect switched on."""
 
 import numpy as np
 import pytest
@@ -15,7 +15,7 @@ from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig, simulate
 
 
-def test_native_replay_equals_numpy_reference(tmp_path):
+def test_native_replay_equals_the_python_loop(tmp_path):
     result = simulate(RunConfig(make_scenario("actuator", duration=6.0), seed=3))
     write_log(tmp_path / "run.csv", result, noise=np.random.default_rng(3))
     log = read_log(tmp_path / "run.csv")
@@ -49,7 +49,7 @@ def _same_run(a, b):
     assert a.saturated_samples == b.saturated_samples
 
 
-def test_native_engine_equals_numpy_reference_on_the_hexapod_with_a_compensator():
+def test_native_engine_equals_the_python_callback_on_the_hexapod_with_a_compensator():
     """The compiled leg kernel (hexsim.native.run_block) against the numpy control callback: heave, with
     the buffered compensator adapting (buffers of 0.5 s) and the oil warming."""
     from compensation import CompensatorSettings
@@ -59,7 +59,7 @@ def test_native_engine_equals_numpy_reference_on_the_hexapod_with_a_compensator(
                      compensator_settings=CompensatorSettings(buffer_time=0.5, fade_time=0.1),
                      warm_up=WarmUp(delta_c=15.0, duration_s=1.5))
     fast = simulate(base)
-    ref = simulate(RunConfig(**{**base.__dict__, "engine": "numpy"}))
+    ref = simulate(RunConfig(**{**base.__dict__, "engine": "python"}))
     assert np.max(np.abs(ref.u_c)) > 0.05  # the compensator acted within the run
     _same_run(fast, ref)
 
@@ -67,11 +67,11 @@ def test_native_engine_equals_numpy_reference_on_the_hexapod_with_a_compensator(
 @pytest.mark.parametrize("compensator", ["buffered", "directional"])
 def test_compiled_compensator_in_the_kernel_equals_the_python_reference(compensator):
     """Without warming oil or faults the P controller and the buffered/directional compensator run inside
-    the kernel (compensation.native): the same run as the numpy callback with the Python compensator."""
+    the kernel (compensation.native): the same run as the Python callback with the Python compensator."""
     base = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), compensator=compensator, seed=4,
                      compensator_settings=CompensatorSettings(buffer_time=0.4, fade_time=0.1))
     fast = simulate(base)
-    ref = simulate(RunConfig(**{**base.__dict__, "engine": "numpy"}))
+    ref = simulate(RunConfig(**{**base.__dict__, "engine": "python"}))
     assert np.max(np.abs(ref.u_c)) > 0.05  # the compensator acted within the run
     assert set(fast.compensator_state) == {"a", "b", "c", "s"}
     _same_run(fast, ref)
@@ -79,13 +79,13 @@ def test_compiled_compensator_in_the_kernel_equals_the_python_reference(compensa
 
 def test_replayed_compensation_in_the_kernel_equals_the_python_reference():
     """A logged compensation fed forward (the hexapod log replay) runs in the kernel as a table row per
-    controller sample: the same run as the numpy callback with ReplayedCompensation; the table is
+    controller sample: the same run as the Python callback with ReplayedCompensation; the table is
     shorter than the run, so its last row is held."""
     rng = np.random.default_rng(9)
     table = 0.2 * np.sin(np.linspace(0, 6, 600))[:, None] + rng.normal(0, 0.02, (600, 6))
     base = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), seed=6, feedforward=table)
     fast = simulate(base)
-    ref = simulate(RunConfig(**{**base.__dict__, "engine": "numpy"}))
+    ref = simulate(RunConfig(**{**base.__dict__, "engine": "python"}))
     assert np.array_equal(ref.u_c[::2][:600], table[: len(ref.u_c[::2])][:600])  # rows at 500 Hz, 1 kHz records
     _same_run(fast, ref)
 
@@ -118,14 +118,14 @@ def test_buffered_tick_follows_the_python_compensator_sample_by_sample(compensat
         np.testing.assert_allclose(twin.update(u[k], y[k]), ref.update(u[k], y[k]), rtol=1e-12, atol=1e-12)
 
 
-def test_native_engine_equals_numpy_reference_with_every_effect():
+def test_native_engine_equals_the_python_callback_with_every_effect():
     every = Effects(supply_resistance=5e9, supply_time_constant=0.03, spool_frequency=60.0, spool_damping=0.6,
                     spool_play=0.05, leakage=2e-12, sensor_delay=0.002, mass_kg=55.0, inclination_deg=20.0)
     base = RunConfig(make_scenario("actuator", duration=1.5, frequency=2.0), effects=every, seed=2)
-    _same_run(simulate(base), simulate(RunConfig(**{**base.__dict__, "engine": "numpy"})))
+    _same_run(simulate(base), simulate(RunConfig(**{**base.__dict__, "engine": "python"})))
 
 
-@pytest.mark.parametrize("compensator, engine", [("none", "native"), ("buffered", "native"), ("buffered", "numpy")])
+@pytest.mark.parametrize("compensator, engine", [("none", "native"), ("buffered", "native"), ("buffered", "python")])
 def test_keeping_the_last_seconds_records_the_tail_of_the_full_run(compensator, engine):
     """--keep-last: the recording is a ring of the last samples, put back in time order (flat memory)."""
     scenario = make_scenario("actuator", duration=2.0, frequency=2.0)

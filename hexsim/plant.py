@@ -1,0 +1,238 @@
+"""The leg plant, written once: valve, chamber, friction and the effects, as scalar functions that numba
+compiles and Python calls.
+
+This module is the single source of the leg physics (seed ch. 3, eq. 3.2–3.4, 3.7–3.9, and the
+extensions of :class:`hexsim.effects.Effects`). The compiled runners (:mod:`hexsim.native`) call
+:func:`step_legs` inside their loops; the array functions of :mod:`hexsim.hydraulics` (flow curve,
+friction curve, statics) map the same scalar functions over arrays; the Python control callback
+(``engine="python"``) calls :func:`step_plant`, which runs :func:`step_legs` too. There is no second
+translation to keep in step.
+
+Parameters travel as one named record, :class:`LegParams` (a ``NamedTuple`` of floats, which numba
+passes by value), built from :class:`~hexsim.params.HydraulicParams` and
+:class:`~hexsim.effects.Effects` by :func:`leg_params`. The state of n legs is :class:`PlantState`,
+a ``NamedTuple`` of five arrays (n,), updated in place by the compiled step.
+
+Sign conventions: piston position y [m] is 0 fully retracted and grows when the leg extends; flow
+phi_1 > 0 fills the bottom chamber; the leg force > 0 extends the leg.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from hexsim.effects import NOMINAL, Effects
+from hexsim.params import HydraulicParams
+
+#: Pressure difference [Pa] below which the Jacobian of the orifice flow is evaluated as if it were this
+#: large. Only the linearly implicit integrator uses the Jacobian; the flow itself is exact.
+JACOBIAN_DP_FLOOR = 1.0e4
+_SQRT_FLOOR = math.sqrt(JACOBIAN_DP_FLOOR)
+
+_jit = numba.njit(cache=True, fastmath=False)
+
+
+class LegParams(NamedTuple):
+    """Everything the leg step reads, SI units; one record for all legs (seed app. A by default)."""
+
+    p_s0: float  # supply pressure P_s [Pa] (the pump's set level with a supply model)
+    p_t: float  # tank pressure P_t [Pa]
+    c_v: float  # orifice constant C_d sqrt(2/rho) [m^1.5/kg^0.5] (eq. 3.4)
+    a1: float  # bottom (piston) area A1 [m^2]
+    a2: float  # rod-side annulus area A2 [m^2]
+    bulk_modulus: float  # E [Pa]
+    v_pl: float  # pipeline volume V_pl [m^3]
+    u_v_max: float  # valve setpoint range [V]
+    x_v_max: float  # spool travel at u_v,max [m]
+    overlap: float  # O_l [m] (sharp-edged area, eq. 3.3)
+    u_0: float  # null offset: u_v at which the spool is centred [V]
+    port_width: float  # pi d, full-perimeter port width [m] (eq. 3.3)
+    smooth_gain: float  # area gain of eq. 3.11 [m^2/m^2]
+    sharp: float  # 1.0: sharp-edged area (eq. 3.3); 0.0: smooth (eq. 3.11)
+    arctan_gain: float  # k of eq. 3.9 [s/m]
+    arctan_scale: float  # 2/pi if the arctan is normalised to ±1, else 1
+    sigma_neg: float  # viscous friction for ydot < 0 [N s/m]
+    f_c_neg: float  # Coulomb level for ydot < 0 [N]
+    f_s_neg: float  # Stribeck level for ydot < 0 [N]
+    c_s_neg: float  # Stribeck velocity for ydot < 0 [m/s]
+    sigma_pos: float  # the same four for ydot >= 0
+    f_c_pos: float
+    f_s_pos: float
+    c_s_pos: float
+    r_s: float  # supply resistance R_s [Pa s/m^3]; 0: ideal supply
+    tau_s: float  # supply time constant [s]
+    f_v: float  # spool natural frequency [Hz]; 0: ideal spool (eq. 3.2)
+    zeta_v: float  # spool damping [-]
+    play: float  # spool play half width h [V]
+    c_l: float  # internal leakage C_l [m^3/(s Pa)]
+    k_pa: float  # supply-edge gain [-]
+    k_at: float  # return-edge gain [-]
+
+
+def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
+    """The record the compiled leg functions read, from the hydraulic parameters and the effects."""
+    neg, pos = hyd.stribeck_table
+    return LegParams(
+        hyd.supply_pressure, hyd.tank_pressure, hyd.orifice_constant, hyd.area_bottom, hyd.area_rod,
+        hyd.bulk_modulus, hyd.pipeline_volume, hyd.u_v_max, hyd.x_v_max, hyd.overlap, hyd.null_offset,
+        math.pi * hyd.spool_diameter, hyd.smooth_area_gain, float(hyd.flow_area == "sharp"), hyd.arctan_gain,
+        2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
+        eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
+        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at)
+
+
+class PlantState(NamedTuple):
+    """Hydraulic state of n legs, arrays (n,), changed in place by :func:`step_legs`: P1 [Pa], P_s seen
+    by each leg [Pa], spool position x_v [m] and velocity v_v [m/s], setpoint after the spool play u_b [V]."""
+
+    p1: np.ndarray
+    p_s: np.ndarray
+    x_v: np.ndarray
+    v_v: np.ndarray
+    u_b: np.ndarray
+
+    @classmethod
+    def at_rest(cls, p1, u_v, hyd: HydraulicParams, p_s=None) -> "PlantState":
+        """Steady state: spool at its setpoint, no play taken up, supply at ``p_s`` (default nominal)."""
+        p1 = np.array(p1, dtype=float)
+        u_v = np.broadcast_to(np.asarray(u_v, dtype=float), p1.shape).copy()
+        p_s = np.full(p1.shape, hyd.supply_pressure) if p_s is None else np.broadcast_to(p_s, p1.shape).astype(float)
+        return cls(p1=p1, p_s=p_s, x_v=spool_position(u_v, leg_params(hyd)), v_v=np.zeros_like(p1), u_b=u_v)
+
+    def copy(self) -> "PlantState":
+        return PlantState(*(np.array(a, dtype=float) for a in self))
+
+
+# ---------------------------------------------------------------------------------------------------
+# scalar physics, one function per equation
+
+
+@_jit
+def spool_position(u_v, P):
+    """x_v [m] of an ideal spool at setpoint u_v [V]: (u_v - u_0) x_v,max / u_v,max (seed eq. 3.2)."""
+    return (u_v - P.u_0) * (P.x_v_max / P.u_v_max)
+
+
+@_jit
+def flow_areas(x_v, P):
+    """Openings (a1 P→A, a2 A→T) [m^2] at spool position x_v [m]: sharp edges with overlap (seed eq.
+    3.3) or the smooth 300 x_v^2 (eq. 3.11) on the side x_v opens; edge gains not applied."""
+    if P.sharp > 0.5:
+        return P.port_width * max(x_v - P.overlap, 0.0), P.port_width * max(-x_v - P.overlap, 0.0)
+    a = P.smooth_gain * x_v * x_v
+    a1 = a if x_v > 0.0 else 0.0
+    return a1, a - a1
+
+
+@_jit
+def orifice(x_v, p1, p_s, P):
+    """(phi_1, d phi_1/d P1): flow into the bottom chamber [m^3/s] through both edges (seed eq. 3.4,
+    signed square roots, edge gains k_PA, k_AT) and its derivative, the pressure difference floored
+    at :data:`JACOBIAN_DP_FLOOR` in the derivative only."""
+    a1, a2 = flow_areas(x_v, P)
+    a1 *= P.k_pa
+    a2 *= P.k_at
+    dp1 = p_s - p1
+    dp2 = p1 - P.p_t
+    s1 = math.sqrt(abs(dp1))
+    s2 = math.sqrt(abs(dp2))
+    phi = P.c_v * (a1 * math.copysign(s1, dp1) - a2 * math.copysign(s2, dp2))
+    dphi = -0.5 * P.c_v * (a1 / max(s1, _SQRT_FLOOR) + a2 / max(s2, _SQRT_FLOOR))
+    return phi, dphi
+
+
+@_jit
+def pressure_step(p1, x_v, p_s, y, ydot, dt, P):
+    """P1 [Pa] after a step dt [s] of eq. (3.7), E / (y A1 + V_pl) (phi_1 + C_l (P_s - P1) - ydot A1),
+    linearly implicit (Rosenbrock–Euler) in P1; ydot is the piston velocity at the start of the step."""
+    phi, dphi = orifice(x_v, p1, p_s, P)
+    if P.c_l != 0.0:
+        phi += P.c_l * (p_s - p1)
+        dphi -= P.c_l
+    stiff = P.bulk_modulus / (max(y, 0.0) * P.a1 + P.v_pl)
+    return p1 + dt * stiff * (phi - ydot * P.a1) / (1.0 - dt * stiff * dphi)
+
+
+@_jit
+def friction(v, P):
+    """Asymmetric Stribeck friction F_f [N] at piston velocity v [m/s] (seed eq. 3.9):
+    sigma v + arctan(k v) [F_c + F_s exp(-|v| / c_s)], the "+" set for v >= 0."""
+    shape = math.atan(P.arctan_gain * v) * P.arctan_scale
+    if v >= 0.0:
+        return P.sigma_pos * v + shape * (P.f_c_pos + P.f_s_pos * math.exp(-abs(v) / P.c_s_pos))
+    return P.sigma_neg * v + shape * (P.f_c_neg + P.f_s_neg * math.exp(-abs(v) / P.c_s_neg))
+
+
+@_jit
+def leg_force(p1, p_s, ydot, P):
+    """Hydraulic force on the piston along the leg [N]: P1 A1 - P_s A2 - F_f(ydot) (seed eq. 3.8
+    without the -M g, which the rigid-body simulator applies)."""
+    return p1 * P.a1 - p_s * P.a2 - friction(ydot, P)
+
+
+@_jit
+def _spool_step(i, u, dt, S, P):
+    """Spool play (backlash of half width h) and the second-order spool loop (semi-implicit Euler,
+    x_v limited to ±x_v,max) of leg i, in place in the state S."""
+    if P.play > 0.0:
+        S.u_b[i] = min(max(S.u_b[i], u - P.play), u + P.play)
+    else:
+        S.u_b[i] = u
+    x_set = spool_position(S.u_b[i], P)
+    if P.f_v > 0.0:
+        w = 2.0 * math.pi * P.f_v
+        S.v_v[i] = S.v_v[i] + dt * (w * w * (x_set - S.x_v[i]) - 2.0 * P.zeta_v * w * S.v_v[i])
+        S.x_v[i] = S.x_v[i] + dt * S.v_v[i]
+        if abs(S.x_v[i]) > P.x_v_max:
+            S.x_v[i] = math.copysign(P.x_v_max, S.x_v[i])
+            S.v_v[i] = 0.0
+    else:
+        S.x_v[i] = x_set
+
+
+@_jit
+def step_legs(P, dt, u, y, ydot, S, force, groups):
+    """One step dt [s] of n legs, in place: valve setpoints u (n,) [V], piston positions y and
+    velocities ydot (n,) at the start of the step, state S (:class:`PlantState`), leg forces out
+    ``force`` (n,) [N]; ``groups`` (n,) ints: the supply manifold of each leg.
+
+    Order: spool play, spool dynamics, P1 (:func:`pressure_step`), then the supply pressure of each
+    manifold (exact first-order update, dP_s/dt = (P_s0 - R_s phi_s - P_s) / tau_s, with the step's
+    supply flow phi_s = sum of phi_PA + C_l (P_s - P1) - ydot A2), then the leg force with the new P1
+    and P_s (:func:`leg_force`)."""
+    n = S.p1.shape[0]
+    demand = np.zeros(n)
+    for i in range(n):
+        _spool_step(i, u[i], dt, S, P)
+        S.p1[i] = pressure_step(S.p1[i], S.x_v[i], S.p_s[i], y[i], ydot[i], dt, P)
+        if P.r_s > 0.0:
+            dps = S.p_s[i] - S.p1[i]
+            phi_pa = P.c_v * (flow_areas(S.x_v[i], P)[0] * P.k_pa) * math.copysign(math.sqrt(abs(dps)), dps)
+            demand[groups[i]] += phi_pa + P.c_l * dps - ydot[i] * P.a2
+    if P.r_s > 0.0:
+        decay = math.exp(-dt / P.tau_s)
+        for i in range(n):
+            target = P.p_s0 - P.r_s * demand[groups[i]]
+            S.p_s[i] = max(target + (S.p_s[i] - target) * decay, P.p_t)
+    for i in range(n):
+        force[i] = leg_force(S.p1[i], S.p_s[i], ydot[i], P)
+
+
+def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams, eff: Effects,
+               groups: np.ndarray | None = None) -> tuple[PlantState, np.ndarray]:
+    """Advance n legs by ``dt`` [s] from Python: valve setpoints u_v [V] (n,) or scalar, piston positions
+    y [m] and velocities ydot [m/s] (n,) at the start of the step. Returns (new state, leg forces (n,) [N]);
+    ``state`` is left unchanged. ``groups`` (n,) ints: legs sharing a supply manifold (the hexapod: all
+    zeros); default each leg its own supply. Runs :func:`step_legs`, the compiled runners' step."""
+    new = state.copy()
+    n = new.p1.shape[0]
+    u = np.broadcast_to(np.asarray(u_v, dtype=float), (n,)).copy()
+    groups = np.arange(n) if groups is None else np.asarray(groups, dtype=np.intp)
+    force = np.empty(n)
+    step_legs(leg_params(hyd, eff), float(dt), u, np.asarray(y, dtype=float), np.asarray(ydot, dtype=float), new,
+              force, groups)
+    return new, force
