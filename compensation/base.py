@@ -5,7 +5,9 @@ from __future__ import annotations
 import abc
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
+import numba
 import numpy as np
 from scipy.signal import butter
 
@@ -125,6 +127,77 @@ class ReplayedCompensation(Compensator):
         self._k += 1
         return row.copy()
 
+    def advance(self, ticks: int) -> None:
+        """Skip ``ticks`` rows (a compiled runner read them from :attr:`table` itself)."""
+        self._k += int(ticks)
+
+
+class ObserverFilter(NamedTuple):
+    """The observer's 2nd-order Butterworth (b0, b1, b2, 1, a1, a2 of ``scipy.signal.butter``) and the
+    controller period dt [s]."""
+
+    b0: float
+    b1: float
+    b2: float
+    a1: float
+    a2: float
+    dt: float
+
+
+class ObserverState(NamedTuple):
+    """What the observer keeps between samples, for n legs: the filter's delay elements z (2, 2, n)
+    [delay, signal (u_v, velocity), leg]; the previous measured position y_prev (n,) [m] and whether
+    there is one, started (n,) (1.0); running min/max of the filtered u_v u_range (2, n) [V] and of the
+    filtered velocity v_range (2, n) [m/s]; the previous filtered u_v u_prev (n,) [V]; the slope s (n,)
+    [(m/s)/V]; du_v/dt u_dot (n,) [V/s]."""
+
+    z: np.ndarray
+    y_prev: np.ndarray
+    started: np.ndarray
+    u_range: np.ndarray
+    v_range: np.ndarray
+    u_prev: np.ndarray
+    slope: np.ndarray
+    u_dot: np.ndarray
+
+    @classmethod
+    def zeros(cls, n_legs: int) -> "ObserverState":
+        z = np.zeros
+        return cls(z((2, 2, n_legs)), z(n_legs), z(n_legs), z((2, n_legs)), z((2, n_legs)), z(n_legs), z(n_legs),
+                   z(n_legs))
+
+
+@numba.njit(cache=True)
+def observer_tick(f, S, u_v, y, u_f, v_f):
+    """One sample of :class:`FlowCurveObserver` for every leg, in place: valve setpoint u_v (n,) [V] and
+    measured position y (n,) [m] in, filtered u_v and velocity out in u_f, v_f (n,). The filter is the
+    transposed direct form II of ``scipy.signal.lfilter`` (out = b0 x + z0; z0 = b1 x - a1 out + z1;
+    z1 = b2 x - a2 out); the slope s = (max v - min v) / (max u - min u) once u has moved by 10 mV
+    (seed §5.3), else 0."""
+    for i in range(u_v.shape[0]):
+        if S.started[i] < 0.5:
+            S.y_prev[i] = y[i]
+            S.started[i] = 1.0
+        x0 = u_v[i]
+        x1 = (y[i] - S.y_prev[i]) / f.dt
+        S.y_prev[i] = y[i]
+        o0 = f.b0 * x0 + S.z[0, 0, i]
+        o1 = f.b0 * x1 + S.z[0, 1, i]
+        S.z[0, 0, i] = f.b1 * x0 - f.a1 * o0 + S.z[1, 0, i]
+        S.z[0, 1, i] = f.b1 * x1 - f.a1 * o1 + S.z[1, 1, i]
+        S.z[1, 0, i] = f.b2 * x0 - f.a2 * o0
+        S.z[1, 1, i] = f.b2 * x1 - f.a2 * o1
+        S.u_dot[i] = (o0 - S.u_prev[i]) / f.dt
+        S.u_prev[i] = o0
+        S.u_range[0, i] = min(S.u_range[0, i], o0)
+        S.u_range[1, i] = max(S.u_range[1, i], o0)
+        S.v_range[0, i] = min(S.v_range[0, i], o1)
+        S.v_range[1, i] = max(S.v_range[1, i], o1)
+        du = S.u_range[1, i] - S.u_range[0, i]
+        S.slope[i] = (S.v_range[1, i] - S.v_range[0, i]) / max(du, 0.01) if du > 0.01 else 0.0
+        u_f[i] = o0
+        v_f[i] = o1
+
 
 class FlowCurveObserver:
     """The flow curve a motion computer can see: filtered u_v and velocity from the measured position.
@@ -132,11 +205,10 @@ class FlowCurveObserver:
     Velocity = backward difference of the measured position, low-passed by a 2nd-order Butterworth at
     ``cutoff_hz`` (``scipy.signal.butter``); u_v passes the same filter so the pair keeps the same phase
     (seed §4.4 filters the valve setpoint "with the same filter to obtain a flow-curve as realistic as
-    possible"). The filter runs one sample per controller tick in the transposed direct form II of
-    ``scipy.signal.lfilter`` (the same recursion, tests/test_compensation_functions.py checks it against
-    lfilter), written out because lfilter's call overhead per single sample is ten times the arithmetic.
+    possible"). The filter runs one sample per controller tick (:func:`observer_tick`, compiled; the
+    same recursion as ``scipy.signal.lfilter``, which tests/test_compensation_functions.py checks).
     Also keeps the seed's online estimate of the desired slope s = (max ẏ - min ẏ) / (max u_v - min u_v)
-    (§5.3) in :attr:`slope`. Arrays (n_legs,).
+    (§5.3) in :attr:`slope`. Arrays (n_legs,). Raises SettingsError for a cutoff at or above Nyquist.
     """
 
     def __init__(self, n_legs: int, rate_hz: float, cutoff_hz: float) -> None:
@@ -144,35 +216,21 @@ class FlowCurveObserver:
             raise SettingsError(f"velocity_cutoff_hz {cutoff_hz} must be below the Nyquist rate {rate_hz / 2}")
         self.dt = 1.0 / rate_hz
         self.b, self.a = butter(2, cutoff_hz / (rate_hz / 2))
-        self._z = np.zeros((2, 2, n_legs))  # filter state: [delay element, signal (u_v, velocity), leg]
-        self._x = np.zeros((2, n_legs))
-        self._y_prev: np.ndarray | None = None
-        self.u_range = np.zeros((2, n_legs))  # running min, max of filtered u_v
-        self.v_range = np.zeros((2, n_legs))
-        self.u_dot = np.zeros(n_legs)  # rate of change of filtered u_v [V/s]
-        self._u_prev = np.zeros(n_legs)
-        self.slope = np.zeros(n_legs)  # s [(m/s)/V] per leg; 0 until u_v has moved by 10 mV
+        self.filter = ObserverFilter(*map(float, self.b), float(self.a[1]), float(self.a[2]), self.dt)
+        self.state = ObserverState.zeros(n_legs)
+
+    @property
+    def slope(self) -> np.ndarray:
+        """s [(m/s)/V] per leg (n_legs,); 0 until u_v has moved by 10 mV."""
+        return self.state.slope
+
+    @property
+    def u_dot(self) -> np.ndarray:
+        """Rate of change of the filtered u_v [V/s] (n_legs,)."""
+        return self.state.u_dot
 
     def update(self, u_v: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u_f, ydot_f): filtered valve setpoint [V] and filtered velocity [m/s], each (n_legs,)."""
-        if self._y_prev is None:
-            self._y_prev = y.copy()
-        x = self._x
-        x[0] = u_v
-        np.subtract(y, self._y_prev, out=x[1])
-        x[1] /= self.dt
-        self._y_prev = y.copy()
-        b, a, z = self.b, self.a, self._z
-        out = b[0] * x + z[0]
-        z[0] = b[1] * x - a[1] * out + z[1]
-        z[1] = b[2] * x - a[2] * out
-        u_f, v_f = out
-        self.u_dot = (u_f - self._u_prev) / self.dt
-        self._u_prev = u_f
-        np.minimum(self.u_range[0], u_f, out=self.u_range[0])
-        np.maximum(self.u_range[1], u_f, out=self.u_range[1])
-        np.minimum(self.v_range[0], v_f, out=self.v_range[0])
-        np.maximum(self.v_range[1], v_f, out=self.v_range[1])
-        du = self.u_range[1] - self.u_range[0]
-        self.slope = np.where(du > 0.01, (self.v_range[1] - self.v_range[0]) / np.maximum(du, 0.01), 0.0)
+        u_f, v_f = np.empty(len(self.state.slope)), np.empty(len(self.state.slope))
+        observer_tick(self.filter, self.state, np.asarray(u_v, dtype=float), np.asarray(y, dtype=float), u_f, v_f)
         return u_f, v_f

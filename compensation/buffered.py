@@ -11,8 +11,8 @@ shape of the compensation is nearly the right one after the first update" (seed 
 reversals and the hexapod's heave peaks end 64 % instead of 69 % below the uncompensated ones.)
 When the buffers are full (appendix C):
 
-1. each buffer passes appendix C's discrete low-pass (``scipy.signal.lfilter``; its 32 ms time constant
-   re-discretised at the controller rate);
+1. each buffer passes appendix C's discrete low-pass (1 - p) / (1 - p z^-1), zero initial state (the
+   recursion of ``scipy.signal.lfilter``; its 32 ms time constant re-discretised at the controller rate);
 2. UC and UV are weighted by W(i) = 1 / (1 + exp(-10 i / l)), i = 1…l: appendix C's exponent scale. The
    text's eq. (5.4) writes 10 / (2 l), which weights the oldest sample 0.5 and the newest 0.993; appendix
    C's code, which produced Fig. 5.12/5.13, goes from 0.5 to 0.99995. We use the code's;
@@ -30,71 +30,175 @@ The directional compensator keeps two such parameter sets, one fed while u_v ris
 falls, and blends them by tanh(du_v/dt / direction_rate): a flow curve with hysteresis (seed §4.4,
 Fig. 4.3, friction depending on the direction of motion) has a different zero-velocity setpoint on the
 way up and on the way down, which one curve cannot match (seed ch. 6 recommends this distinction).
+
+Written once, compiled: :func:`buffered_tick` is the compensator's sample; the classes hold its state
+as named records (:class:`BufferedParams`, :class:`~compensation.base.ObserverState`,
+:class:`Buffers`) and call it from Python; the compiled runner (:mod:`hexsim.native`) calls the same
+function on the same records inside its loop.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
+import numba
 import numpy as np
-from scipy.signal import lfilter
 
-from compensation.base import Compensator, FlowCurveObserver
+from compensation.base import Compensator, FlowCurveObserver, ObserverFilter, ObserverState, observer_tick
 from compensation.functions import function2
 
 
-class ParameterBuffers:
-    """UV, UC, UY buffers of ``length`` samples for n legs, and the (a, b, c) they give (appendix C)."""
+class BufferedParams(NamedTuple):
+    """Constants of :func:`buffered_tick`: the observer's filter and the controller period; the velocity
+    band k [m/s]; the fade gain per sample [-]; appendix C's low-pass pole [-]; the directional blend's
+    rate [V/s]."""
 
-    def __init__(self, n_legs: int, length: int, rate_hz: float, tau: float) -> None:
-        self.length = length
-        self.uv = np.zeros((length, n_legs))
-        self.uc = np.zeros((length, n_legs))
-        self.uy = np.full((length, n_legs), np.nan)  # NaN where the velocity was not near zero
-        self.fill = np.zeros(n_legs, dtype=int)
-        pole = math.exp(-1.0 / (rate_hz * tau))
-        self.num, self.den = [1.0 - pole], [1.0, -pole]
+    filter: ObserverFilter
+    velocity_band: float
+    fade: float
+    pole: float
+    direction_rate: float
+
+
+class Buffers(NamedTuple):
+    """The buffers of D parameter sets (1 buffered, 2 directional) of length L for n legs: UV, UC, UY
+    (D, L, n) (UY NaN where the velocity was not near zero); samples in each, fill (D, n) int; the
+    (a, b, c) of the last update, abc (D, 3, n); the faded (a, b, c) applied (D, 3, n); appendix C's
+    weights W(i) (L,); updates per set (D,) int."""
+
+    uv: np.ndarray
+    uc: np.ndarray
+    uy: np.ndarray
+    fill: np.ndarray
+    abc: np.ndarray
+    applied: np.ndarray
+    weights: np.ndarray
+    updates: np.ndarray
+
+    @classmethod
+    def empty(cls, sets: int, length: int, n_legs: int) -> "Buffers":
         i = np.arange(1, length + 1)
-        self.weights = (1.0 / (1.0 + np.exp(-10.0 * i / length)))[:, None]
-        self.abc = np.zeros((3, n_legs))  # (a, b, c) per leg; appendix C: aold, bold, c start at 0
-        self.a, self.b, self.c = self.abc  # views
-        self.updates = 0
+        return cls(np.zeros((sets, length, n_legs)), np.zeros((sets, length, n_legs)),
+                   np.full((sets, length, n_legs), np.nan), np.zeros((sets, n_legs), dtype=np.int64),
+                   np.zeros((sets, 3, n_legs)), np.zeros((sets, 3, n_legs)), 1.0 / (1.0 + np.exp(-10.0 * i / length)),
+                   np.zeros(sets, dtype=np.int64))
 
-    def add(self, legs: np.ndarray, uv: np.ndarray, uc: np.ndarray, uy: np.ndarray) -> None:
-        """Append one sample for the legs selected by the boolean mask ``legs``; update when full."""
-        rows = self.fill[legs]
-        self.uv[rows, legs] = uv[legs]
-        self.uc[rows, legs] = uc[legs]
-        self.uy[rows, legs] = uy[legs]
-        self.fill[legs] += 1
-        if self.fill.max() >= self.length:
-            self._update(np.flatnonzero(self.fill >= self.length))
 
-    def _update(self, legs: np.ndarray) -> None:
-        uvf = lfilter(self.num, self.den, self.uv[:, legs], axis=0) * self.weights
-        ucf = lfilter(self.num, self.den, self.uc[:, legs], axis=0) * self.weights
-        a_new = ucf.max(axis=0)
-        q = np.abs(uvf).max(axis=0)
-        b_new = np.where(q > 0, 1.0 / np.maximum(q, 1e-12), 0.0)
-        self.a[legs] = np.maximum(self.a[legs], a_new)
-        self.b[legs] = np.maximum(self.b[legs], b_new)
-        # safety bound (not in the seed): a <= q/4 = 1/(4 b), the exact amplitude for the seed's quadratic
-        # flow area (eq. 5.1), as the iterative compensators limit a (seed §5.4: "parameter a could be
-        # limited"); a buffer shorter than the motion's period otherwise ratchets a up without bound
-        b = self.b[legs]
-        self.a[legs] = np.where(b > 0, np.minimum(self.a[legs], 0.25 / np.maximum(b, 1e-12)), self.a[legs])
-        for leg in legs:
-            uy = self.uy[:, leg]
-            uy = uy[np.isfinite(uy)]
-            if uy.size:
-                self.c[leg] = self.b[leg] * float(np.mean(lfilter(self.num, self.den, uy)))
-        self.uy[:, legs] = np.nan
-        self.fill[legs] = 0
-        self.updates += 1
+@numba.njit(cache=True)
+def lowpass(x, out, pole):
+    """Appendix C's discrete low-pass (1 - pole) / (1 - pole z^-1) over x (L,), zero initial state, into
+    out: the recursion of ``scipy.signal.lfilter`` for this filter (y = b0 x + z, z = pole y)."""
+    z = 0.0
+    b0 = 1.0 - pole
+    for t in range(x.shape[0]):
+        y = x[t] * b0 + z
+        z = pole * y
+        out[t] = y
+
+
+@numba.njit(cache=True)
+def update_parameters(B, d, i, pole, scratch):
+    """Appendix C's update of set d, leg i, from its full buffers (steps 1–3 of the module doc), then
+    the buffers of that leg cleared: a = max(W UC_f), b = 1/max|W UV_f|, both only ever increased, a
+    limited to 1/(4 b); c = b mean(UY_f) over the samples at zero velocity (kept if there were none)."""
+    L = B.uv.shape[1]
+    w = B.weights
+    lowpass(B.uv[d, :, i], scratch, pole)
+    q = 0.0
+    for t in range(L):
+        q = max(q, abs(scratch[t] * w[t]))
+    lowpass(B.uc[d, :, i], scratch, pole)
+    a_new = -np.inf
+    for t in range(L):
+        a_new = max(a_new, scratch[t] * w[t])
+    b_new = 1.0 / max(q, 1e-12) if q > 0 else 0.0
+    a = max(B.abc[d, 0, i], a_new)
+    b = max(B.abc[d, 1, i], b_new)
+    if b > 0:
+        a = min(a, 0.25 / max(b, 1e-12))
+    B.abc[d, 0, i] = a
+    B.abc[d, 1, i] = b
+    m = 0
+    for t in range(L):
+        if math.isfinite(B.uy[d, t, i]):
+            scratch[m] = B.uy[d, t, i]
+            m += 1
+    if m > 0:
+        zf = scratch[:m].copy()
+        lowpass(zf, scratch, pole)
+        total = 0.0
+        for t in range(m):
+            total += scratch[t]
+        B.abc[d, 2, i] = b * (total / m)
+    for t in range(L):
+        B.uy[d, t, i] = np.nan
+    B.fill[d, i] = 0
+
+
+@numba.njit(cache=True)
+def _add_samples(B, d, u_f, v_f, s, u_dot, band, pole):
+    """Append this sample of every leg whose slope is known (and, for D = 2, whose u_v moves in set d's
+    direction) to set d; update the legs whose buffers are full."""
+    n = u_f.shape[0]
+    L = B.uv.shape[1]
+    full = False
+    for i in range(n):
+        if s[i] <= 0:
+            continue
+        if B.uv.shape[0] == 2 and (u_dot[i] >= 0) != (d == 0):
+            continue
+        row = B.fill[d, i]
+        B.uv[d, row, i] = u_f[i]
+        B.uc[d, row, i] = u_f[i] - v_f[i] / s[i]
+        B.uy[d, row, i] = u_f[i] if abs(v_f[i]) < band else np.nan
+        B.fill[d, i] = row + 1
+        full = full or row + 1 >= L
+    if full:
+        scratch = np.empty(L)
+        for i in range(n):
+            if B.fill[d, i] >= L:
+                update_parameters(B, d, i, pole, scratch)
+        B.updates[d] += 1
+
+
+@numba.njit(cache=True)
+def buffered_tick(P, obs, B, u_p, y, u_c, stat):
+    """One controller sample of the buffered (D = 1) or directional (D = 2) compensator, in place:
+    u_p (n,) the P controller's output [V], y (n,) the measured position [m]; writes U_c (n,) [V] and
+    the logged state ``stat`` (4, n): a, b, c, s (as :meth:`BufferedCompensator.state`). P a
+    :class:`BufferedParams`, obs an :class:`~compensation.base.ObserverState`, B :class:`Buffers`."""
+    n = u_p.shape[0]
+    D = B.uv.shape[0]
+    u_f = np.empty(n)
+    v_f = np.empty(n)
+    observer_tick(P.filter, obs, u_p, y, u_f, v_f)
+    for d in range(D):
+        _add_samples(B, d, u_f, v_f, obs.slope, obs.u_dot, P.velocity_band, P.pole)
+    for d in range(D):
+        for r in range(3):
+            for i in range(n):
+                B.applied[d, r, i] += P.fade * (B.abc[d, r, i] - B.applied[d, r, i])
+    for i in range(n):
+        stat[3, i] = obs.slope[i]
+        if D == 1:
+            u_c[i] = function2(u_p[i], B.applied[0, 0, i], B.applied[0, 1, i], B.applied[0, 2, i])
+            for r in range(3):
+                stat[r, i] = B.applied[0, r, i]
+        else:
+            w = 0.5 * (1.0 + math.tanh(obs.u_dot[i] / P.direction_rate))
+            u_c[i] = w * function2(u_p[i], B.applied[0, 0, i], B.applied[0, 1, i], B.applied[0, 2, i]) + \
+                (1.0 - w) * function2(u_p[i], B.applied[1, 0, i], B.applied[1, 1, i], B.applied[1, 2, i])
+            for r in range(3):
+                stat[r, i] = w * B.applied[0, r, i] + (1.0 - w) * B.applied[1, r, i]
 
 
 class BufferedCompensator(Compensator):
-    """Seed §5.5 / appendix C: parameters of function (2) from filtered, weighted buffers."""
+    """Seed §5.5 / appendix C: parameters of function (2) from filtered, weighted buffers.
+
+    The state lives in :attr:`params`, :attr:`observer` (its ``state``) and :attr:`buffers`; each
+    :meth:`update` runs :func:`buffered_tick`. :meth:`kernel_state` hands the records to a compiled
+    runner, which advances them in place."""
 
     name = "buffered"
     directions = 1
@@ -105,52 +209,29 @@ class BufferedCompensator(Compensator):
         n = self.n_legs
         self.observer = FlowCurveObserver(n, self.rate_hz, st.velocity_cutoff_hz)
         length = max(2, int(round(st.buffer_time * self.rate_hz / self.directions)))
-        self.sets = [ParameterBuffers(n, length, self.rate_hz, st.buffer_filter_tau) for _ in range(self.directions)]
-        self.applied = np.zeros((self.directions, 3, n))  # faded (a, b, c) per direction
-        self._fade = 1.0 - math.exp(-1.0 / (self.rate_hz * st.fade_time))
+        self.buffers = Buffers.empty(self.directions, length, n)
+        pole = math.exp(-1.0 / (self.rate_hz * st.buffer_filter_tau))
+        fade = 1.0 - math.exp(-1.0 / (self.rate_hz * st.fade_time))
+        self.params = BufferedParams(self.observer.filter, st.velocity_band, fade, pole, st.direction_rate)
+        self._stat = np.zeros((4, n))
 
-    def _direction_weights(self) -> np.ndarray:
-        """(directions, n) blend weights, summing to 1 per leg."""
-        return np.ones((1, self.n_legs))
+    def kernel_state(self) -> tuple[BufferedParams, ObserverState, Buffers]:
+        """The records :func:`buffered_tick` reads and changes in place (not copies)."""
+        return self.params, self.observer.state, self.buffers
 
     def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
-        st = self.settings
-        u_f, v_f = self.observer.update(u_v, y_measured)
-        s = self.observer.slope
-        ready = s > 0
-        uc_sample = np.where(ready, u_f - v_f / np.where(ready, s, 1.0), 0.0)
-        uy_sample = np.where(np.abs(v_f) < st.velocity_band, u_f, np.nan)
-        if self.directions == 1:
-            masks = [ready]
-        else:
-            rising = self.observer.u_dot >= 0
-            masks = [ready & rising, ready & ~rising]
-        for buffers, mask in zip(self.sets, masks):
-            if mask.any():
-                buffers.add(mask, u_f, uc_sample, uy_sample)
-        for k, buffers in enumerate(self.sets):
-            self.applied[k] += self._fade * (buffers.abc - self.applied[k])
-        if self.directions == 1:
-            return function2(u_v, *self.applied[0])
-        w = self._direction_weights()
-        a, b, c = self.applied[:, 0], self.applied[:, 1], self.applied[:, 2]
-        return np.sum(w * function2(u_v[None, :], a, b, c), axis=0)
+        u_c = np.empty(self.n_legs)
+        buffered_tick(*self.kernel_state(), np.asarray(u_v, dtype=float), np.asarray(y_measured, dtype=float), u_c,
+                      self._stat)
+        return u_c
 
     def state(self) -> dict[str, np.ndarray]:
-        if self.directions == 1:
-            a, b, c = self.applied[0].copy()
-        else:
-            w = self._direction_weights()
-            a, b, c = (np.sum(w * self.applied[:, k], axis=0) for k in range(3))
-        return {"a": a, "b": b, "c": c, "s": self.observer.slope.copy()}
+        """(a, b, c) applied at the last sample (for the directional one: blended as U_c is) and s."""
+        return {key: self._stat[k].copy() for k, key in enumerate(("a", "b", "c", "s"))}
 
 
 class DirectionalCompensator(BufferedCompensator):
-    """Two buffered curves, for rising and for falling u_v, blended by the direction of u_v's change."""
+    """Two buffered curves, for rising and for falling u_v, blended by tanh(du_v/dt / direction_rate)."""
 
     name = "directional"
     directions = 2
-
-    def _direction_weights(self) -> np.ndarray:
-        rising = 0.5 * (1.0 + np.tanh(self.observer.u_dot / self.settings.direction_rate))
-        return np.stack([rising, 1.0 - rising])

@@ -6,7 +6,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
   their static forces) — the baseline (a);
 * ``hexapod_full``: :func:`hexsim.simulation.simulate` on heave with the buffered compensator: six legs'
   hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
-  :mod:`compensation.native`), all inside the kernel, sensors recorded at 1 kHz — (b);
+  :func:`compensation.buffered.buffered_tick`), all inside the kernel, sensors recorded at 1 kHz — (b);
 * ``hexapod_python``: the same with the Python control callback and the Python compensator, for the
   gain of the kernel;
 * ``hexapod_uncompensated``: heave without a compensator;

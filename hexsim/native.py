@@ -18,10 +18,33 @@ import mujoco
 import numba
 import numpy as np
 
-import compensation.native
-from compensation.native import buffered_tick
+import compensation.buffered
+from compensation import CompensatorSettings
+from compensation.base import Compensator, NoCompensator, ReplayedCompensation
+from compensation.buffered import BufferedCompensator, buffered_tick
 from hexsim import jitcache, plant
 from hexsim.plant import step_legs
+
+#: Compensators the compiled controller runs, and its ``comp_mode`` for each (:func:`run_block`: 0 U_c = 0,
+#: 1 :func:`compensation.buffered.buffered_tick`, 2 a table row per sample); any other compensator (a
+#: user's own included) runs in Python between kernel calls.
+COMPILED = {NoCompensator: 0, BufferedCompensator: 1, ReplayedCompensation: 2}
+
+
+def comp_mode(compensator: Compensator) -> int | None:
+    """The kernel's ``comp_mode`` for ``compensator`` (subclasses of the buffered one that keep its
+    ``update`` included: they share its tick), or None if only Python can run it."""
+    if isinstance(compensator, BufferedCompensator) and type(compensator).update is BufferedCompensator.update:
+        return 1
+    return COMPILED.get(type(compensator))
+
+
+def kernel_state(compensator: Compensator, n_legs: int) -> tuple:
+    """The records :func:`run_block` hands to the compiled compensator: a buffered one's own (changed
+    in place), for the others a placeholder of the same types (so the kernel compiles once)."""
+    if isinstance(compensator, BufferedCompensator):
+        return compensator.kernel_state()
+    return BufferedCompensator(n_legs, 500.0, settings=CompensatorSettings(buffer_time=0.004)).kernel_state()
 
 _lib_path = sorted(pathlib.Path(mujoco.__file__).parent.glob("libmujoco.so*"))
 _lib_path = _lib_path or sorted(pathlib.Path(mujoco.__file__).parent.glob("*mujoco*.dylib"))
@@ -86,7 +109,7 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
     ``ctrl_div`` > 0: the P controller runs here too (:class:`hexsim.controller.PController`): at every
     step k with k % ctrl_div == 0, u_p = K_p (r_j - y_m) with r_j = setpoints[j], j = k // ctrl_div,
     y_m = y_measured + noise_j; U_c = 0 (``comp_mode`` 0), the compiled buffered/directional
-    compensator's :func:`compensation.native.buffered_tick` on (u_p, y_m) with the state tuple ``comp``
+    compensator's :func:`compensation.buffered.buffered_tick` on (u_p, y_m) with the records ``comp``
     (``comp_mode`` 1), or row min(j, last) of ``ff_table`` (n_ticks, n) (``comp_mode`` 2: a logged
     compensation fed forward, :class:`compensation.base.ReplayedCompensation`); u = sat(u_p + U_c,
     ±u_v,max). ``saturated[0]`` counts the samples with a leg saturated; rows also get the setpoint, u_v
@@ -118,7 +141,7 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
                 y_m[i] = hist[(k + 1) % L, i] + noise[j, i]
                 u_p[i] = kp * (setpoints[j, i] - y_m[i])
             if comp_mode == 1:
-                buffered_tick(comp, u_p, y_m, u_c, stat)
+                buffered_tick(comp[0], comp[1], comp[2], u_p, y_m, u_c, stat)
             elif comp_mode == 2:
                 row = min(k // ctrl_div, ff_table.shape[0] - 1)
                 for i in range(n):
@@ -174,4 +197,5 @@ def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aad
 
 
 # the runners compile in the leg step and the compensator from other files: drop their cache when those change
-jitcache.guard((run_block, valve_replay), plant.__file__, compensation.native.__file__)
+jitcache.guard((run_block, valve_replay), plant.__file__, compensation.buffered.__file__,
+              compensation.base.__file__, compensation.functions.__file__)

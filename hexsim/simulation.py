@@ -412,13 +412,13 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
                  rec_sensors, viol, bar, n_total) -> float:
     """The compiled path: :func:`hexsim.native.run_block` steps the legs and MuJoCo, recording into the
     ``rec_*`` rings. Without faults or warming oil, and with no compensator, the buffered or the
-    directional one (compiled: :mod:`compensation.native`) or a replayed compensation table, the kernel
+    directional one (compiled: :func:`compensation.buffered.buffered_tick`, on the compensator's own
+    state records) or a replayed compensation table, the kernel
     runs the P controller and the compensator too and Python calls it every 0.5 s; otherwise Python
     samples controller and compensator at every controller tick (``coupling.ctrl_div`` steps) and the
     kernel runs until the next tick. Same order of operations as :class:`HydraulicCoupling`
     (tests/test_native.py checks the trajectories agree). Returns the wall time [s], compilation (or
     loading from numba's cache) excluded."""
-    from compensation.native import comp_mode, export_state, import_state
     from hexsim import native
 
     n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
@@ -443,10 +443,10 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
     mujoco.mj_forward(m, d)
 
     # without faults or warming oil, the P controller and the compensator (none, buffered, directional,
-    # a replayed table: compensation.native) run inside the kernel as well
-    mode = comp_mode(compensator)
+    # a replayed table) run inside the kernel as well
+    mode = native.comp_mode(compensator)
     inner = mode is not None and not coupling.faults and coupling.warm_up is None
-    cstate = export_state(compensator, n)
+    cstate = native.kernel_state(compensator, n)
     ff_table = compensator.table if mode == 2 else np.zeros((1, n))
     rec_comp = np.empty((n_rec if inner and mode == 1 else 1, 4, n))
     saturated = np.zeros(1, dtype=np.int64)
@@ -474,7 +474,8 @@ def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s,
             bar.update(round(k * dt - bar.n, 3))
         temperature[:] = coupling.temperature
         ctrl.saturated_samples += int(saturated[0])
-        import_state(compensator, cstate, -(-total // ctrl_div))
+        if mode == 2:
+            compensator.advance(-(-total // ctrl_div))
         if mode == 1:
             for c, key in enumerate(("a", "b", "c", "s")):  # rows of rec_comp, as BufferedCompensator.state()
                 comp_state[key][:] = rec_comp[:, c]

@@ -9,7 +9,7 @@ import pytest
 from scipy.signal import lfilter
 
 from compensation import CompensatorSettings, FlowCurveObserver, SettingsError, make_compensator
-from compensation.buffered import ParameterBuffers
+from compensation.buffered import Buffers, update_parameters
 from compensation.functions import function1, function2, signed_sqrt
 
 
@@ -67,37 +67,62 @@ def test_observer_filter_is_lfilter_one_sample_at_a_time():
     assert np.allclose(out[:, 1], lfilter(obs.b, obs.a, v_raw, axis=0), rtol=0, atol=1e-12)
 
 
+POLE = math.exp(-1.0 / (500.0 * 0.032))  # appendix C's 32 ms low-pass at 500 Hz
+
+
+def _fill_and_update(B, uv, uc, uy):
+    """Put one full buffer of samples (L,) into set 0, leg 0 and run appendix C's update."""
+    B.uv[0, :, 0], B.uc[0, :, 0], B.uy[0, :, 0] = uv, uc, uy
+    B.fill[0, 0] = len(uv)
+    update_parameters(B, 0, 0, POLE, np.empty(len(uv)))
+
+
+def _appendix_c(uv, uc, uy, a_old, b_old):
+    """Appendix C written out with scipy: filter, weight, a = max, b = 1/max|.|, c = b mean(filtered UY)."""
+    num, den = [1.0 - POLE], [1.0, -POLE]
+    w = 1.0 / (1.0 + np.exp(-10.0 * np.arange(1, len(uv) + 1) / len(uv)))
+    b = max(b_old, 1.0 / np.abs(lfilter(num, den, uv) * w).max())
+    a = min(max(a_old, (lfilter(num, den, uc) * w).max()), 0.25 / b)
+    kept = uy[np.isfinite(uy)]
+    return a, b, b * np.mean(lfilter(num, den, kept))
+
+
+def test_buffer_update_is_appendix_c():
+    rng = np.random.default_rng(2)
+    n = 700
+    uv, uc = rng.normal(0, 0.5, n), rng.normal(0, 0.05, n) + 0.1
+    uy = np.where(rng.random(n) < 0.1, rng.normal(0.02, 0.005, n), np.nan)
+    B = Buffers.empty(1, n, 1)
+    _fill_and_update(B, uv, uc, uy)
+    np.testing.assert_allclose(B.abc[0, :, 0], _appendix_c(uv, uc, uy, 0.0, 0.0), rtol=1e-12)
+    assert B.fill[0, 0] == 0 and np.all(np.isnan(B.uy))  # emptied for the next round
+
+
 def test_buffers_give_appendix_c_parameters_and_only_increase():
     n = 1000  # 2 s at 500 Hz holding one period of a 0.5 Hz motion
-    buf = ParameterBuffers(1, n, 500.0, 0.032)
-    all_legs = np.array([True])
+    B = Buffers.empty(1, n, 1)
     phase = np.linspace(0, 2 * np.pi, n)
     u, uc = 0.8 * np.sin(phase), 0.2 * np.abs(np.sin(phase))
-    for k in range(n):
-        uy = np.array([0.03 if k % 50 == 0 else np.nan])
-        buf.add(all_legs, np.array([u[k]]), np.array([uc[k]]), uy)
-    assert buf.updates == 1
+    uy = np.where(np.arange(n) % 50 == 0, 0.03, np.nan)
+    _fill_and_update(B, u, uc, uy)
+    a, b, c = B.abc[0, :, 0]
     # the maxima fall in the second half of the buffer, where W(i) = 1/(1 + exp(-10 i/l)) is 0.99…1;
     # the 32 ms low-pass barely touches 0.5 Hz
-    assert buf.a[0] == pytest.approx(0.2, rel=0.03)
-    assert buf.b[0] == pytest.approx(1 / 0.8, rel=0.03)
-    assert 0 < buf.c[0] / buf.b[0] <= 0.03  # b times the mean of the filtered UY (0.03 V samples)
-    a1, b1 = buf.a[0], buf.b[0]
-    for k in range(n):  # a second buffer with half the compensation: a and b are kept
-        buf.add(all_legs, np.array([u[k]]), np.array([0.5 * uc[k]]), np.array([np.nan]))
-    assert buf.updates == 2 and buf.a[0] == a1 and buf.b[0] == b1
+    assert a == pytest.approx(0.2, rel=0.03)
+    assert b == pytest.approx(1 / 0.8, rel=0.03)
+    assert 0 < c / b <= 0.03  # b times the mean of the filtered UY (0.03 V samples)
+    _fill_and_update(B, u, 0.5 * uc, np.full(n, np.nan))  # half the compensation: a and b are kept
+    assert B.abc[0, 0, 0] == a and B.abc[0, 1, 0] == b and B.abc[0, 2, 0] == c  # no UY samples: c kept
 
 
 def test_buffered_amplitude_is_limited_to_a_quarter_of_the_valve_range():
     """A buffer that saw a small valve range but large u_v - ydot/s (e.g. shorter than the motion's period)
     must not set a above q/4 = 1/(4 b) (safety bound, as the iterative compensators)."""
     n = 500
-    buf = ParameterBuffers(1, n, 500.0, 0.032)
-    phase = np.linspace(0, 2 * np.pi, n)
-    for k in range(n):
-        buf.add(np.array([True]), np.array([0.4 * np.sin(phase[k])]), np.array([3.0]), np.array([np.nan]))
-    assert buf.b[0] == pytest.approx(1 / 0.4, rel=0.03)
-    assert buf.a[0] == pytest.approx(0.25 / buf.b[0])
+    B = Buffers.empty(1, n, 1)
+    _fill_and_update(B, 0.4 * np.sin(np.linspace(0, 2 * np.pi, n)), np.full(n, 3.0), np.full(n, np.nan))
+    assert B.abc[0, 1, 0] == pytest.approx(1 / 0.4, rel=0.03)
+    assert B.abc[0, 0, 0] == pytest.approx(0.25 / B.abc[0, 1, 0])
 
 
 def test_settings_are_validated():
