@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import pathlib
+from typing import NamedTuple
 
 import llvmlite.binding as llvm
 import mujoco
@@ -54,145 +55,256 @@ _lib_path = _lib_path or sorted(pathlib.Path(mujoco.__file__).parent.glob("*mujo
 llvm.load_library_permanently(str(_lib_path[0]))
 _mj_step = numba.types.ExternalFunction("mj_step", numba.types.void(numba.types.int64, numba.types.int64))
 
+class MjView(NamedTuple):
+    """What the runners touch of MuJoCo: the raw ``mjModel*``/``mjData*`` (for ``mj_step``), the
+    bindings' numpy views of ``qpos``, ``qvel``, ``ctrl``, ``sensordata``, ``site_xpos`` (the same
+    memory), and per leg the addresses of its slide joint (qpos, dof) and actuator; site1/site2 the
+    anchor sites of the connect constraints (empty: none)."""
+
+    model: int
+    data: int
+    qpos: np.ndarray
+    qvel: np.ndarray
+    ctrl: np.ndarray
+    sensordata: np.ndarray
+    site_xpos: np.ndarray
+    qpos_adr: np.ndarray
+    dof_adr: np.ndarray
+    actuator_id: np.ndarray
+    site1: np.ndarray
+    site2: np.ndarray
+
+
+def mj_view(m: mujoco.MjModel, d: mujoco.MjData, idx, site1=None, site2=None) -> MjView:
+    """The :class:`MjView` of model ``m`` with data ``d`` and the legs of ``idx``
+    (:class:`hexsim.model.PlantIndex`)."""
+    none = np.zeros(0, dtype=np.int64)
+    return MjView(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, d.site_xpos,
+                  *(np.asarray(a, dtype=np.int64) for a in (idx.qpos_adr, idx.dof_adr, idx.actuator_id)),
+                  none if site1 is None else site1, none if site2 is None else site2)
+
+
+class Legs(NamedTuple):
+    """The leg plant of a runner: parameters (:class:`hexsim.plant.LegParams`), step dt [s], state
+    (:class:`hexsim.plant.PlantState`, changed in place), supply manifold per leg (n,) int, the leg
+    forces (n,) [N] of the last step, the ring of measured positions (L, n) that makes the sensor delay."""
+
+    params: plant.LegParams
+    dt: float
+    state: plant.PlantState
+    groups: np.ndarray
+    force: np.ndarray
+    history: np.ndarray
+
+
+class Control(NamedTuple):
+    """The P controller and compensator in the kernel: physics steps per controller sample ``div`` (0:
+    the valve setpoints are given), K_p [V/m], piston setpoints and sensor noise per sample (n_ticks, n)
+    [m], the compensator ``mode`` (:func:`comp_mode`) with its records ``comp`` or table ``table``
+    (n_ticks, n) [V], and the count of samples with a leg saturated (1,)."""
+
+    div: int
+    kp: float
+    setpoints: np.ndarray
+    noise: np.ndarray
+    mode: int
+    comp: tuple
+    table: np.ndarray
+    saturated: np.ndarray
+
+
+class Recorder(NamedTuple):
+    """Rows the kernel writes every ``div`` physics steps, ``n_total`` samples in all, kept as a ring of
+    len(k) rows (sample r goes to row r % len(k)): step k, sensordata, P1 (n), P_s of leg 0, leg force,
+    measured position, connect violation [m], setpoint, u_v, U_c, compensator (a, b, c, s) (rows, 4, n);
+    ``status[0]``: the first step whose state is not finite, else -1."""
+
+    div: int
+    n_total: int
+    k: np.ndarray
+    sens: np.ndarray
+    p1: np.ndarray
+    p_s: np.ndarray
+    force: np.ndarray
+    y: np.ndarray
+    viol: np.ndarray
+    ref: np.ndarray
+    u: np.ndarray
+    uc: np.ndarray
+    comp: np.ndarray
+    status: np.ndarray
+
+
+class ReplayOut(NamedTuple):
+    """Outputs of :func:`valve_replay`, each (k legs, n rows): position [m], P1 [Pa], P_s [Pa] and
+    acceleration [m/s^2] of each leg."""
+
+    position: np.ndarray
+    p1: np.ndarray
+    p_s: np.ndarray
+    acceleration: np.ndarray
+
+
 @numba.njit(cache=True)
-def valve_replay(m_addr, d_addr, qpos, qvel, ctrl, sens, qadr, dadr, aadr, acc_adr, P, u_sched, sub, dt,
-                 S, out_pos, out_p1, out_ps, out_acc):
+def _read_legs(mj, y, yd):
+    for i in range(y.shape[0]):
+        y[i] = mj.qpos[mj.qpos_adr[i]]
+        yd[i] = mj.qvel[mj.dof_adr[i]]
+
+
+@numba.njit(cache=True)
+def _apply_forces(mj, force):
+    for i in range(force.shape[0]):
+        mj.ctrl[mj.actuator_id[i]] = force[i]
+    _mj_step(mj.model, mj.data)
+
+
+@numba.njit(cache=True)
+def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
     """Open-loop replay of k independent legs, in the order of :func:`hexsim.replay.replay` (which see):
-    row j's setpoints u_sched[:, j] drive the ``sub`` steps from row j to row j+1; row j records the
-    position, P1 and P_s at its time and the acceleration MuJoCo computes in the first of those steps.
-    Outputs (k, n); P a :class:`hexsim.plant.LegParams`, S the :class:`hexsim.plant.PlantState` of the
-    k legs (in place). Returns -1, or the first row at which P1 is not finite."""
+    row j's setpoints u_sched[:, j] (k, n) [V] drive the ``sub`` steps from row j to row j+1; row j of
+    ``out`` (:class:`ReplayOut`) records the position, P1 and P_s at its time and the acceleration
+    (sensordata at ``acc_adr`` (k,)) MuJoCo computes in the first of those steps. ``legs.state`` changes
+    in place. Returns -1, or the first row at which P1 is not finite."""
     k, n = u_sched.shape
     y = np.empty(k)
     yd = np.empty(k)
-    force = np.empty(k)
-    groups = np.arange(k)
+    S = legs.state
     for j in range(n):
         for s in range(sub):
-            for i in range(k):
-                y[i] = qpos[qadr[i]]
-                yd[i] = qvel[dadr[i]]
+            _read_legs(mj, y, yd)
             if s == 0:
                 for i in range(k):
-                    out_pos[i, j] = y[i]
-                    out_p1[i, j] = S.p1[i]
-                    out_ps[i, j] = S.p_s[i]
-            step_legs(P, dt, u_sched[:, j], y, yd, S, force, groups)
-            for i in range(k):
-                ctrl[aadr[i]] = force[i]
-            _mj_step(m_addr, d_addr)
+                    out.position[i, j] = y[i]
+                    out.p1[i, j] = S.p1[i]
+                    out.p_s[i, j] = S.p_s[i]
+            step_legs(legs.params, legs.dt, u_sched[:, j], y, yd, S, legs.force, legs.groups)
+            _apply_forces(mj, legs.force)
             if s == 0:
                 for i in range(k):
-                    out_acc[i, j] = sens[acc_adr[i]]
+                    out.acceleration[i, j] = mj.sensordata[acc_adr[i]]
         if not np.isfinite(S.p1).all():
             return j
     return -1
 
 
 @numba.njit(cache=True)
-def run_block(m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2, P, dt, u, groups,
-              S, force, hist, k0, nsteps, rec_div, r0, rec_k, rec_sens, rec_p1, rec_ps,
-              rec_force, rec_y, rec_viol, status, ctrl_div, kp, setpoints, noise, rec_ref, rec_u, saturated,
-              n_total, comp_mode, comp, ff_table, rec_uc, rec_comp):
-    """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs with the valve setpoints ``u`` (n,) held (ZOH),
-    in the order of :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the
-    sensor-delay ring ``hist`` (L, n) (Python pushed it for step k0 before the controller sample);
-    advance the leg hydraulics (:class:`hexsim.plant.LegParams` P, :class:`hexsim.plant.PlantState` S)
-    by the step ``dt`` [s] (:func:`hexsim.plant.step_legs`); write the leg forces to
-    ``ctrl``; ``mj_step``.
-    Every step k with k % rec_div == 0 fills row r of the ``rec_*`` arrays with the state at t_k: k,
-    P1, P_s of leg 0 and the measured position before the step, the sensor data and site positions
-    MuJoCo computed at the start of the step (``rec_viol``: largest distance between the connect
-    anchor sites ``site1[i]``/``site2[i]``) and the force applied over the step. Returns the next row;
-    ``status[0]`` = the first step whose state is not finite, else -1.
-
-    ``ctrl_div`` > 0: the P controller runs here too (:class:`hexsim.controller.PController`): at every
-    step k with k % ctrl_div == 0, u_p = K_p (r_j - y_m) with r_j = setpoints[j], j = k // ctrl_div,
-    y_m = y_measured + noise_j; U_c = 0 (``comp_mode`` 0), the compiled buffered/directional
-    compensator's :func:`compensation.buffered.buffered_tick` on (u_p, y_m) with the records ``comp``
-    (``comp_mode`` 1), or row min(j, last) of ``ff_table`` (n_ticks, n) (``comp_mode`` 2: a logged
-    compensation fed forward, :class:`compensation.base.ReplayedCompensation`); u = sat(u_p + U_c,
-    ±u_v,max). ``saturated[0]`` counts the samples with a leg saturated; rows also get the setpoint, u_v
-    and U_c in force and the compensator's (a, b, c, s) (``rec_ref``, ``rec_u``, ``rec_uc``,
-    ``rec_comp`` (rows, 4, n)). Blocks must start at a controller sample (k0 % ctrl_div == 0). 0: ``u``
-    is given and held, and Python fills those rows. Rows are a ring: sample r (of ``n_total``) goes to
-    row r % len(rec_k), so a long run can keep only its last part."""
-    n = S.p1.shape[0]
-    L = hist.shape[0]
-    y = np.empty(n)
-    yd = np.empty(n)
+def _controller_sample(ctl, legs, k, u, u_c, stat):
+    """The P controller at step k (:class:`hexsim.controller.PController`): u_p = K_p (r_j - y_m),
+    r_j = setpoints[j], j = k // div, y_m = the delayed measured position + noise_j; U_c = 0 (mode 0),
+    :func:`compensation.buffered.buffered_tick` on (u_p, y_m) (mode 1) or row j of the table (mode 2:
+    a logged compensation fed forward); u = sat(u_p + U_c, ±u_v,max), in place. Returns j."""
+    n = u.shape[0]
+    L = legs.history.shape[0]
+    j = min(k // ctl.div, ctl.setpoints.shape[0] - 1)
     y_m = np.empty(n)
     u_p = np.empty(n)
+    for i in range(n):
+        y_m[i] = legs.history[(k + 1) % L, i] + ctl.noise[j, i]
+        u_p[i] = ctl.kp * (ctl.setpoints[j, i] - y_m[i])
+    if ctl.mode == 1:
+        buffered_tick(ctl.comp[0], ctl.comp[1], ctl.comp[2], u_p, y_m, u_c, stat)
+    elif ctl.mode == 2:
+        row = min(k // ctl.div, ctl.table.shape[0] - 1)
+        for i in range(n):
+            u_c[i] = ctl.table[row, i]
+    hit = False
+    u_max = legs.params.u_v_max
+    for i in range(n):
+        v = u_p[i] + u_c[i]
+        u[i] = min(max(v, -u_max), u_max)
+        hit = hit or u[i] != v
+    if hit:
+        ctl.saturated[0] += 1
+    return j
+
+
+@numba.njit(cache=True)
+def _record_inputs(rec, w, k, legs, ctl, j, u, u_c, stat):
+    """Row w at step k, before the step: k, P1, P_s of leg 0, the measured position and (with the
+    controller in the kernel) setpoint, u_v, U_c and the compensator's (a, b, c, s)."""
+    S = legs.state
+    L = legs.history.shape[0]
+    rec.k[w] = k
+    rec.p_s[w] = S.p_s[0]
+    for i in range(S.p1.shape[0]):
+        rec.p1[w, i] = S.p1[i]
+        rec.y[w, i] = legs.history[(k + 1) % L, i]
+        if ctl.div > 0:
+            rec.ref[w, i] = ctl.setpoints[j, i]
+            rec.u[w, i] = u[i]
+            rec.uc[w, i] = u_c[i]
+            if ctl.mode == 1:
+                for c in range(4):
+                    rec.comp[w, c, i] = stat[c, i]
+
+
+@numba.njit(cache=True)
+def _record_outputs(rec, w, mj, force):
+    """Row w after the step: the sensor data and site positions MuJoCo computed at its start, the
+    largest distance between connect anchor sites, the force applied over the step."""
+    for c in range(mj.sensordata.shape[0]):
+        rec.sens[w, c] = mj.sensordata[c]
+    worst = 0.0
+    for e in range(mj.site1.shape[0]):
+        a, b = mj.site1[e], mj.site2[e]
+        dx = mj.site_xpos[a, 0] - mj.site_xpos[b, 0]
+        dy = mj.site_xpos[a, 1] - mj.site_xpos[b, 1]
+        dz = mj.site_xpos[a, 2] - mj.site_xpos[b, 2]
+        worst = max(worst, math.sqrt(dx * dx + dy * dy + dz * dz))
+    rec.viol[w] = worst
+    for i in range(force.shape[0]):
+        rec.force[w, i] = force[i]
+
+
+@numba.njit(cache=True)
+def _finite(mj, S):
+    for i in range(S.p1.shape[0]):
+        if not (math.isfinite(S.p1[i]) and math.isfinite(mj.qpos[mj.qpos_adr[i]])
+                and math.isfinite(mj.qvel[mj.dof_adr[i]])):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
+    """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs, in the order of
+    :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the sensor-delay ring (Python
+    pushed it for step k0 before its controller sample); with ``ctl.div`` > 0, at every controller
+    sample run :func:`_controller_sample` (else the valve setpoints ``u`` (n,) [V] are given and held);
+    record (:class:`Recorder`, row r for every ``rec.div``-th step); advance the legs
+    (:func:`hexsim.plant.step_legs`), write the forces to ``ctrl``, ``mj_step``. Blocks with the
+    controller inside start at a controller sample. Returns the next row r; ``rec.status[0]`` = the first
+    step whose state is not finite, else -1."""
+    S = legs.state
+    n = S.p1.shape[0]
+    L = legs.history.shape[0]
+    y = np.empty(n)
+    yd = np.empty(n)
     u_c = np.zeros(n)
     stat = np.zeros((4, n))
     r = r0
     j = 0
     for s in range(nsteps):
         k = k0 + s
-        for i in range(n):
-            y[i] = qpos[qadr[i]]
-            yd[i] = qvel[dadr[i]]
-        if s > 0 or ctrl_div > 0:
-            for i in range(n):
-                hist[k % L, i] = y[i]
-        if ctrl_div > 0 and k % ctrl_div == 0:
-            j = min(k // ctrl_div, setpoints.shape[0] - 1)
-            for i in range(n):
-                y_m[i] = hist[(k + 1) % L, i] + noise[j, i]
-                u_p[i] = kp * (setpoints[j, i] - y_m[i])
-            if comp_mode == 1:
-                buffered_tick(comp[0], comp[1], comp[2], u_p, y_m, u_c, stat)
-            elif comp_mode == 2:
-                row = min(k // ctrl_div, ff_table.shape[0] - 1)
-                for i in range(n):
-                    u_c[i] = ff_table[row, i]
-            hit = False
-            for i in range(n):
-                v = u_p[i] + u_c[i]
-                u[i] = min(max(v, -P.u_v_max), P.u_v_max)
-                hit = hit or u[i] != v
-            if hit:
-                saturated[0] += 1
-        record = k % rec_div == 0 and r < n_total
-        w = r % rec_k.shape[0]
+        _read_legs(mj, y, yd)
+        if s > 0 or ctl.div > 0:
+            legs.history[k % L, :] = y
+        if ctl.div > 0 and k % ctl.div == 0:
+            j = _controller_sample(ctl, legs, k, u, u_c, stat)
+        record = k % rec.div == 0 and r < rec.n_total
+        w = r % rec.k.shape[0]
         if record:
-            rec_k[w] = k
-            rec_ps[w] = S.p_s[0]
-            for i in range(n):
-                rec_p1[w, i] = S.p1[i]
-                rec_y[w, i] = hist[(k + 1) % L, i]
-                if ctrl_div > 0:
-                    rec_ref[w, i] = setpoints[j, i]
-                    rec_u[w, i] = u[i]
-                    rec_uc[w, i] = u_c[i]
-                    if comp_mode == 1:
-                        for c in range(4):
-                            rec_comp[w, c, i] = stat[c, i]
-        step_legs(P, dt, u, y, yd, S, force, groups)
-        for i in range(n):
-            ctrl[aadr[i]] = force[i]
-        _mj_step(m_addr, d_addr)
-        finite = True
-        for i in range(n):
-            if not (math.isfinite(S.p1[i]) and math.isfinite(qpos[qadr[i]]) and math.isfinite(qvel[dadr[i]])):
-                finite = False
-        if not finite:
-            status[0] = k
+            _record_inputs(rec, w, k, legs, ctl, j, u, u_c, stat)
+        step_legs(legs.params, legs.dt, u, y, yd, S, legs.force, legs.groups)
+        _apply_forces(mj, legs.force)
+        if not _finite(mj, S):
+            rec.status[0] = k
             return r
         if record:
-            for c in range(sens.shape[0]):
-                rec_sens[w, c] = sens[c]
-            worst = 0.0
-            for e in range(site1.shape[0]):
-                dx = site_xpos[site1[e], 0] - site_xpos[site2[e], 0]
-                dy = site_xpos[site1[e], 1] - site_xpos[site2[e], 1]
-                dz = site_xpos[site1[e], 2] - site_xpos[site2[e], 2]
-                worst = max(worst, math.sqrt(dx * dx + dy * dy + dz * dz))
-            rec_viol[w] = worst
-            for i in range(n):
-                rec_force[w, i] = force[i]
+            _record_outputs(rec, w, mj, legs.force)
             r += 1
-    status[0] = -1
+    rec.status[0] = -1
     return r
 
 

@@ -207,9 +207,9 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
 
         u_sched = windows.take(u_log)
         out["u_v"] = u_sched
-        bad = kernel.valve_replay(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, idx.qpos_adr,
-                                  idx.dof_adr, idx.actuator_id, acc_adr, leg_params(hyd, eff), u_sched, sub, dt,
-                                  state, out["position"], out["p1"], out["p_s"], out["acceleration"])
+        legs = kernel.Legs(leg_params(hyd, eff), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)))
+        bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
+                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
     else:  # the straightforward Python loop

@@ -411,109 +411,109 @@ def _loop_python(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, tempera
 def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
                  rec_sensors, viol, bar, n_total) -> float:
     """The compiled path: :func:`hexsim.native.run_block` steps the legs and MuJoCo, recording into the
-    ``rec_*`` rings. Without faults or warming oil, and with no compensator, the buffered or the
-    directional one (compiled: :func:`compensation.buffered.buffered_tick`, on the compensator's own
-    state records) or a replayed compensation table, the kernel
-    runs the P controller and the compensator too and Python calls it every 0.5 s; otherwise Python
-    samples controller and compensator at every controller tick (``coupling.ctrl_div`` steps) and the
-    kernel runs until the next tick. Same order of operations as :class:`HydraulicCoupling`
-    (tests/test_native.py checks the trajectories agree). Returns the wall time [s], compilation (or
-    loading from numba's cache) excluded."""
+    rows of a :class:`hexsim.native.Recorder`. Without faults or warming oil, and with no compensator,
+    the buffered or the directional one (:func:`compensation.buffered.buffered_tick`, on the
+    compensator's own state records) or a replayed compensation table, the kernel runs the P controller
+    and the compensator too and Python calls it every 0.5 s (:func:`_run_inner`); otherwise Python
+    samples controller and compensator (any Python compensator) at every controller tick and the kernel
+    runs until the next tick (:func:`_run_ticks`). Same order of operations as
+    :class:`HydraulicCoupling` (tests/test_native.py checks the trajectories agree). Returns the wall
+    time [s], compilation (or loading from numba's cache) excluded."""
     from hexsim import native
 
-    n, dt, ctrl_div = idx.n_legs, idx.dt, coupling.ctrl_div
-    S = coupling.state.copy()
-    p1, ps = S.p1, S.p_s
-    force = np.zeros(n)
-    groups = coupling.groups
-    hist = coupling._y_history
-    L = len(hist)
+    n, dt = idx.n_legs, idx.dt
     eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
     if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
         raise InputError("the native engine needs connect constraints between sites")
-    site1, site2 = m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64)
-    n_rec = len(t)  # rows kept: the last n_rec of the n_total samples, as a ring
-    rec_k = np.empty(n_rec, dtype=np.int64)
-    rec_sens = np.empty((n_rec, m.nsensordata))
-    status = np.full(1, -1, dtype=np.int64)
-    qadr, dadr, aadr = (a.astype(np.int64) for a in (idx.qpos_adr, idx.dof_adr, idx.actuator_id))
-    hyd = coupling.hyd
-    P = leg_params(hyd, coupling.effects)
-    total = n_total * rec_div
-    mujoco.mj_forward(m, d)
-
-    # without faults or warming oil, the P controller and the compensator (none, buffered, directional,
-    # a replayed table) run inside the kernel as well
+    mj = native.mj_view(m, d, idx, m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64))
+    legs = native.Legs(leg_params(coupling.hyd, coupling.effects), dt, coupling.state.copy(), coupling.groups,
+                       np.zeros(n), coupling._y_history)
+    # without faults or warming oil, the P controller and the compensator run inside the kernel as well
     mode = native.comp_mode(compensator)
     inner = mode is not None and not coupling.faults and coupling.warm_up is None
-    cstate = native.kernel_state(compensator, n)
-    ff_table = compensator.table if mode == 2 else np.zeros((1, n))
-    rec_comp = np.empty((n_rec if inner and mode == 1 else 1, 4, n))
-    saturated = np.zeros(1, dtype=np.int64)
-    ctrl = coupling.controller
+    ctl = native.Control(coupling.ctrl_div if inner else 0, coupling.controller.params.kp, coupling.setpoints,
+                         coupling.noise, mode or 0, native.kernel_state(compensator, n),
+                         compensator.table if mode == 2 else np.zeros((1, n)), np.zeros(1, dtype=np.int64))
+    n_rec = len(t)  # rows kept: the last n_rec of the n_total samples, as a ring
+    recorder = native.Recorder(rec_div, n_total, np.empty(n_rec, dtype=np.int64), np.empty((n_rec, m.nsensordata)),
+                               rec["p1"], p_s, rec["force"], rec["y"], viol, rec["y_ref"], rec["u_v"], rec["u_c"],
+                               np.empty((n_rec if inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64))
+    mujoco.mj_forward(m, d)
+    native.run_block(mj, legs, ctl, recorder, np.zeros(n), 0, 0, 0)  # compile or load from the cache first
+    start = time.perf_counter()
+    if inner:
+        _run_inner(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, n_total * rec_div, bar)
+        temperature[:] = coupling.temperature
+        if mode == 1:
+            for c, key in enumerate(("a", "b", "c", "s")):  # as BufferedCompensator.state()
+                comp_state[key][:] = recorder.comp[:, c]
+    else:
+        _run_ticks(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, n_total * rec_div, bar, temperature,
+                   comp_state)
+    wall = time.perf_counter() - start
+    _check_finite(legs.state.p1, d, idx, d.time)  # the kernel checks the legs at every step, this the platform too
+    t[:] = recorder.k * dt
+    s = idx.sensor
+    rec["ydot"][:] = recorder.sens[:, [s[f"leg{i + 1}_vel"].start for i in range(n)]]
+    for name, out in rec_sensors.items():
+        out[:] = recorder.sens[:, s[name]]
+    coupling.state = legs.state
+    coupling.force = legs.force
+    return wall
 
-    def block(u_v, k, steps, r, ctrl_div=0):
-        return native.run_block(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, d.site_xpos, qadr,
-                                dadr, aadr, site1, site2, P, dt, u_v, groups, S, force, hist, k, steps, rec_div, r, rec_k, rec_sens, rec["p1"], p_s, rec["force"], rec["y"],
-                                viol, status, ctrl_div, ctrl.params.kp, coupling.setpoints, coupling.noise,
-                                rec["y_ref"], rec["u_v"], saturated, n_total, mode or 0, cstate, ff_table,
-                                rec["u_c"], rec_comp)
+
+def _run_inner(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, total, bar) -> None:
+    """``total`` steps with the controller in the kernel, in chunks of about 0.5 s (progress, checks)."""
+    from hexsim import native
 
     warnings = d.warning.number  # a view of MuJoCo's warning counters
-    block(np.zeros(n), 0, 0, 0)  # compile or load from the cache before the clock starts
-    start = time.perf_counter()
+    u_v = np.zeros(idx.n_legs)
+    chunk = max(1, int(round(0.5 / (ctl.div * idx.dt)))) * ctl.div
     k = r = 0
-    if inner:  # in chunks of about 0.5 s, for the progress bar and the checks
-        u_v = np.zeros(n)
-        chunk = max(1, int(round(0.5 / (ctrl_div * dt)))) * ctrl_div
-        while k < total:
-            steps = min(chunk, total - k)
-            r = block(u_v, k, steps, r, ctrl_div)
-            _check_block(m, d, idx, status, p1, warnings)
-            k += steps
-            bar.update(round(k * dt - bar.n, 3))
-        temperature[:] = coupling.temperature
-        ctrl.saturated_samples += int(saturated[0])
-        if mode == 2:
-            compensator.advance(-(-total // ctrl_div))
-        if mode == 1:
-            for c, key in enumerate(("a", "b", "c", "s")):  # rows of rec_comp, as BufferedCompensator.state()
-                comp_state[key][:] = rec_comp[:, c]
     while k < total:
-        y = d.qpos[idx.qpos_adr]
-        hist[k % L] = y
-        y_measured = hist[(k + 1) % L].copy()
-        new_hyd = coupling.tick(k, y_measured)
+        steps = min(chunk, total - k)
+        r = native.run_block(mj, legs, ctl, recorder, u_v, k, steps, r)
+        _check_block(m, d, idx, recorder.status, legs.state.p1, warnings)
+        k += steps
+        bar.update(round(k * idx.dt - bar.n, 3))
+    coupling.controller.saturated_samples += int(ctl.saturated[0])
+    if ctl.mode == 2:
+        compensator.advance(-(-total // ctl.div))
+
+
+def _run_ticks(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, total, bar, temperature,
+               comp_state) -> None:
+    """``total`` steps with the controller sampled in Python (:meth:`HydraulicCoupling.tick`: warming oil,
+    faults, any compensator) and the kernel run from one controller tick to the next."""
+    from hexsim import native
+
+    warnings = d.warning.number
+    hist, ctrl_div = legs.history, coupling.ctrl_div
+    L, n_rec = len(hist), len(recorder.k)
+    hyd = coupling.hyd
+    k = r = 0
+    while k < total:
+        hist[k % L] = d.qpos[idx.qpos_adr]
+        new_hyd = coupling.tick(k, hist[(k + 1) % L].copy())
         if new_hyd is not hyd:
             hyd = new_hyd
-            P = leg_params(hyd, coupling.effects)
+            legs = legs._replace(params=leg_params(hyd, coupling.effects))
         if coupling.supply_level is not None:
-            ps[:] = coupling.supply_level
-        r_set, u_v, u_c = coupling.r, coupling.u_v, coupling.u_c
+            legs.state.p_s[:] = coupling.supply_level
         steps = min(ctrl_div, total - k)
-        r_next = block(u_v, k, steps, r)
-        _check_block(m, d, idx, status, p1, warnings)
+        r_next = native.run_block(mj, legs, ctl, recorder, coupling.u_v, k, steps, r)
+        _check_block(m, d, idx, recorder.status, legs.state.p1, warnings)
         rows = np.arange(r, r_next) % n_rec
-        rec["y_ref"][rows] = r_set
-        rec["u_v"][rows] = u_v
-        rec["u_c"][rows] = u_c
+        recorder.ref[rows] = coupling.r
+        recorder.u[rows] = coupling.u_v
+        recorder.uc[rows] = coupling.u_c
         temperature[rows] = coupling.temperature
         for key, value in compensator.state().items():
             comp_state[key][rows] = value
         r = r_next
         k += steps
         if k % (50 * ctrl_div) == 0:
-            bar.update(round(k * dt - bar.n, 3))
-    wall = time.perf_counter() - start
-    _check_finite(p1, d, idx, d.time)  # the kernel checks the legs at every step, this the platform too
-    t[:] = rec_k * dt
-    s = idx.sensor
-    rec["ydot"][:] = rec_sens[:, [s[f"leg{i + 1}_vel"].start for i in range(n)]]
-    for name, out in rec_sensors.items():
-        out[:] = rec_sens[:, s[name]]
-    coupling.state = S
-    coupling.force = force
-    return wall
+            bar.update(round(k * idx.dt - bar.n, 3))
 
 
 def _check_block(m, d, idx: PlantIndex, status: np.ndarray, p1: np.ndarray, warnings: np.ndarray) -> None:
