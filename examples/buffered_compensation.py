@@ -25,7 +25,8 @@ from hexsim import hydraulics  # noqa: E402
 from hexsim.metrics import run_smoothness  # noqa: E402
 from hexsim.params import HydraulicParams  # noqa: E402
 from hexsim.scenario import make_scenario  # noqa: E402
-from hexsim.simulation import RunConfig, simulate  # noqa: E402
+from hexsim.simulation import RunConfig  # noqa: E402
+from hexsim.runner import simulate  # noqa: E402
 from hexsim.temperature import WarmUp  # noqa: E402
 
 

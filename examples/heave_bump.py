@@ -20,7 +20,8 @@ import numpy as np  # noqa: E402
 
 from hexsim.metrics import run_smoothness  # noqa: E402
 from hexsim.scenario import make_scenario  # noqa: E402
-from hexsim.simulation import RunConfig, simulate  # noqa: E402
+from hexsim.simulation import RunConfig  # noqa: E402
+from hexsim.runner import simulate  # noqa: E402
 
 
 def main() -> None:

@@ -27,7 +27,8 @@ import numpy as np  # noqa: E402
 from hexsim import hydraulics  # noqa: E402
 from hexsim.params import ControllerParams, HydraulicParams  # noqa: E402
 from hexsim.scenario import make_scenario  # noqa: E402
-from hexsim.simulation import RunConfig, simulate  # noqa: E402
+from hexsim.simulation import RunConfig  # noqa: E402
+from hexsim.runner import simulate  # noqa: E402
 
 M = 40.0  # [kg] seed app. A; the same number is in models/single_actuator.xml
 

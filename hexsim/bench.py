@@ -4,7 +4,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 
 * ``bare_mj_step``: the hexapod model, no control callback, ``mj_step`` at dt = 1e-4 s (legs held by
   their static forces) — the baseline (a);
-* ``hexapod_full``: :func:`hexsim.simulation.simulate` on heave with the buffered compensator: six legs'
+* ``hexapod_full``: :func:`hexsim.runner.simulate` on heave with the buffered compensator: six legs'
   hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
   :func:`compensation.buffered.buffered_tick`), all inside the kernel, sensors recorded at 1 kHz — (b);
 * ``hexapod_python``: the same with the Python control callback and the Python compensator, for the
@@ -59,7 +59,8 @@ def _bare(duration: float, system: str = "hexapod", timestep: float | None = Non
 
 def _full(system: str, compensator: str, duration: float, engine: str = "native", timestep: float | None = None) -> float:
     from hexsim.scenario import make_scenario
-    from hexsim.simulation import RunConfig, simulate
+    from hexsim.simulation import RunConfig
+    from hexsim.runner import simulate
 
     scenario = make_scenario("heave" if system == "hexapod" else "actuator", duration=duration, frequency=2.0)
     return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep)).wall_time_s
@@ -73,7 +74,7 @@ def _sweep(jobs: int, start_method: str | None = None) -> float:
     with ``jobs`` workers started by ``start_method`` (None: the default), start-up included."""
     from hexsim.scenario import make_scenario
     from hexsim.simulation import RunConfig
-    from hexsim.sweep import expand, run_sweep
+    from hexsim.sweeps import expand, run_sweep
 
     scenario = make_scenario("heave", duration=20.0, frequency=1.0)
     points = expand({"seed": list(range(SWEEP_RUNS))},

@@ -16,7 +16,7 @@ from compensation import COMPENSATORS, CompensatorSettings, SettingsError
 from hexsim.errors import HexsimError, InputError
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
-from hexsim.compare import ORDER
+from hexsim.comparison import ORDER
 from hexsim.tables import write_atomic
 from hexsim.temperature import WarmUp
 from hexsim.workers import START_METHODS
@@ -316,7 +316,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.plotting import plot_run
     from hexsim.report import run_report, summary_table, write_json
     from hexsim.rerun_log import write_rrd
-    from hexsim.simulation import simulate
+    from hexsim.runner import simulate
 
     _check_outputs(args)
     config = _run_config(args, args.compensator)
@@ -342,7 +342,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from hexsim.compare import compare, league_table
+    from hexsim.comparison import compare, league_table
     from hexsim.plotting import plot_compare
     from hexsim.report import write_json
 
@@ -412,7 +412,7 @@ def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     import io
     import json
 
-    from hexsim.sweep import METRICS, expand, run_sweep
+    from hexsim.sweeps import METRICS, expand, run_sweep
 
     _check_outputs(args)
     if args.jobs < 1:

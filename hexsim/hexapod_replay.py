@@ -4,7 +4,7 @@ model's own loop, every channel compared.
 Why closed loop for the hexapod: the six legs share one platform, so a leg cannot be replayed on its own
 the way :func:`hexsim.replay.replay` replays the single actuator in windows, and an open-loop valve
 replay of the whole platform drifts within a fraction of a second. The replay therefore runs the full
-chain of :func:`hexsim.simulation.simulate` (compiled engine, 10 kHz): the piston setpoints are the
+chain of :func:`hexsim.runner.simulate` (compiled engine, 10 kHz): the piston setpoints are the
 logged ``leg{i}_ref_m`` (held between rows), the P controller has the logged K_p and rate, and the
 compensation the machine applied is fed forward as logged, U_c = u_v - K_p (r - y) from the logged
 valve commands, positions and setpoints (a compensator that acted on the machine is not in the model).
@@ -24,7 +24,8 @@ from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
 from hexsim.residuals import noise_of
 from hexsim.signals import near_reversals, zero_order_hold
-from hexsim.simulation import RunConfig, SimulationResult, simulate
+from hexsim.simulation import RunConfig, SimulationResult
+from hexsim.runner import simulate
 
 #: Start of the log left out of the error [s]: the model starts at rest in the neutral pose.
 SETTLE_S = 0.5
@@ -42,7 +43,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
                    effects: Effects | None = None, timestep: float | None = None) -> SimulationResult:
     """The closed-loop replay of a hexapod log (see the module doc) as a simulation result sampled at
     t = i ms. Raises InputError if the log is not a hexapod log or lacks the leg setpoints and valve
-    commands, WorkspaceError / PhysicsError as :func:`hexsim.simulation.simulate`."""
+    commands, WorkspaceError / PhysicsError as :func:`hexsim.runner.simulate`."""
     if log.system != "hexapod":
         raise InputError(f"{log.path}: closed-loop hexapod replay needs a hexapod log (this is {log.system})")
     c = log.columns

@@ -49,7 +49,7 @@ def sidecar(result: SimulationResult) -> dict:
         "controller": {"type": "P", "kp_V_per_m": cfg.controller.kp, "rate_hz": cfg.controller.rate_hz},
         "parameters": "seed appendix A (nominal)" if cfg.hydraulics == type(cfg.hydraulics)() else "hexsim custom",
         "oil_temperature_C": 35.0,
-        "description": f"hexsim simulation: scenario {cfg.scenario.name}, compensator {cfg.compensator}, seed {cfg.seed}",
+        "description": f"hexsim simulation: scenario {cfg.scenario.name}, compensator {cfg.compensator_name}, seed {cfg.seed}",
     }
 
 

@@ -87,7 +87,8 @@ def mj_view(m: mujoco.MjModel, d: mujoco.MjData, idx, site1=None, site2=None) ->
 class Legs(NamedTuple):
     """The leg plant of a runner: parameters (:class:`hexsim.plant.LegParams`), step dt [s], state
     (:class:`hexsim.plant.PlantState`, changed in place), supply manifold per leg (n,) int, the leg
-    forces (n,) [N] of the last step, the ring of measured positions (L, n) that makes the sensor delay."""
+    forces (n,) [N] of the last step, the ring of measured positions (L, n) that makes the sensor delay,
+    the supply flow per manifold (n,) [m^3/s] of the last step (with a supply model)."""
 
     params: plant.LegParams
     dt: float
@@ -95,6 +96,7 @@ class Legs(NamedTuple):
     groups: np.ndarray
     force: np.ndarray
     history: np.ndarray
+    supply_flow: np.ndarray
 
 
 class Control(NamedTuple):
@@ -178,7 +180,7 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
                     out.position[i, j] = y[i]
                     out.p1[i, j] = S.p1[i]
                     out.p_s[i, j] = S.p_s[i]
-            step_legs(legs.params, legs.dt, u_sched[:, j], y, yd, S, legs.force, legs.groups)
+            step_legs(legs.params, legs.dt, u_sched[:, j], y, yd, S, legs.force, legs.groups, legs.supply_flow)
             _apply_forces(mj, legs.force)
             if s == 0:
                 for i in range(k):
@@ -189,120 +191,105 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
 
 
 @numba.njit(cache=True)
-def _controller_sample(ctl, legs, k, u, u_c, stat):
-    """The P controller at step k (:class:`hexsim.controller.PController`): u_p = K_p (r_j - y_m),
-    r_j = setpoints[j], j = k // div, y_m = the delayed measured position + noise_j; U_c = 0 (mode 0),
-    :func:`compensation.buffered.buffered_tick` on (u_p, y_m) (mode 1) or row j of the table (mode 2:
-    a logged compensation fed forward); u = sat(u_p + U_c, ±u_v,max), in place. Returns j."""
-    n = u.shape[0]
-    L = legs.history.shape[0]
-    j = min(k // ctl.div, ctl.setpoints.shape[0] - 1)
-    y_m = np.empty(n)
-    u_p = np.empty(n)
-    for i in range(n):
-        y_m[i] = legs.history[(k + 1) % L, i] + ctl.noise[j, i]
-        u_p[i] = ctl.kp * (ctl.setpoints[j, i] - y_m[i])
-    if ctl.mode == 1:
-        buffered_tick(ctl.comp[0], ctl.comp[1], ctl.comp[2], u_p, y_m, u_c, stat)
-    elif ctl.mode == 2:
-        row = min(k // ctl.div, ctl.table.shape[0] - 1)
-        for i in range(n):
-            u_c[i] = ctl.table[row, i]
-    hit = False
-    u_max = legs.params.u_v_max
-    for i in range(n):
-        v = u_p[i] + u_c[i]
-        u[i] = min(max(v, -u_max), u_max)
-        hit = hit or u[i] != v
-    if hit:
-        ctl.saturated[0] += 1
-    return j
-
-
-@numba.njit(cache=True)
-def _record_inputs(rec, w, k, legs, ctl, j, u, u_c, stat):
-    """Row w at step k, before the step: k, P1, P_s of leg 0, the measured position and (with the
-    controller in the kernel) setpoint, u_v, U_c and the compensator's (a, b, c, s)."""
-    S = legs.state
-    L = legs.history.shape[0]
-    rec.k[w] = k
-    rec.p_s[w] = S.p_s[0]
-    for i in range(S.p1.shape[0]):
-        rec.p1[w, i] = S.p1[i]
-        rec.y[w, i] = legs.history[(k + 1) % L, i]
-        if ctl.div > 0:
-            rec.ref[w, i] = ctl.setpoints[j, i]
-            rec.u[w, i] = u[i]
-            rec.uc[w, i] = u_c[i]
-            if ctl.mode == 1:
-                for c in range(4):
-                    rec.comp[w, c, i] = stat[c, i]
-
-
-@numba.njit(cache=True)
-def _record_outputs(rec, w, mj, force):
-    """Row w after the step: the sensor data and site positions MuJoCo computed at its start, the
-    largest distance between connect anchor sites, the force applied over the step."""
-    for c in range(mj.sensordata.shape[0]):
-        rec.sens[w, c] = mj.sensordata[c]
-    worst = 0.0
-    for e in range(mj.site1.shape[0]):
-        a, b = mj.site1[e], mj.site2[e]
-        dx = mj.site_xpos[a, 0] - mj.site_xpos[b, 0]
-        dy = mj.site_xpos[a, 1] - mj.site_xpos[b, 1]
-        dz = mj.site_xpos[a, 2] - mj.site_xpos[b, 2]
-        worst = max(worst, math.sqrt(dx * dx + dy * dy + dz * dz))
-    rec.viol[w] = worst
-    for i in range(force.shape[0]):
-        rec.force[w, i] = force[i]
-
-
-@numba.njit(cache=True)
-def _finite(mj, S):
-    for i in range(S.p1.shape[0]):
-        if not (math.isfinite(S.p1[i]) and math.isfinite(mj.qpos[mj.qpos_adr[i]])
-                and math.isfinite(mj.qvel[mj.dof_adr[i]])):
-            return False
-    return True
-
-
-@numba.njit(cache=True)
 def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs, in the order of
-    :class:`hexsim.simulation.HydraulicCoupling`: read y, ydot; push y into the sensor-delay ring (Python
-    pushed it for step k0 before its controller sample); with ``ctl.div`` > 0, at every controller
-    sample run :func:`_controller_sample` (else the valve setpoints ``u`` (n,) [V] are given and held);
-    record (:class:`Recorder`, row r for every ``rec.div``-th step); advance the legs
-    (:func:`hexsim.plant.step_legs`), write the forces to ``ctrl``, ``mj_step``. Blocks with the
-    controller inside start at a controller sample. Returns the next row r; ``rec.status[0]`` = the first
-    step whose state is not finite, else -1."""
+    :class:`hexsim.simulation.HydraulicCoupling`. Per step k: read y, ydot; push y into the sensor-delay
+    ring (Python pushed it for step k0 before its controller sample); with ``ctl.div`` > 0 and k a
+    controller sample, the P controller (:class:`hexsim.controller.PController`): u_p = K_p (r_j - y_m),
+    r_j = setpoints[j], j = k // div, y_m = the delayed measured position + noise_j; U_c = 0 (mode 0),
+    :func:`compensation.buffered.buffered_tick` on (u_p, y_m) (mode 1) or row j of the table (mode 2: a
+    logged compensation fed forward); u = sat(u_p + U_c, ±u_v,max) (with ``ctl.div`` = 0 the setpoints
+    ``u`` (n,) [V] are given and held); every ``rec.div``-th step, a :class:`Recorder` row (the state at
+    t_k, the sensors MuJoCo computes at the start of the step, the force applied over it); advance the
+    legs (:func:`hexsim.plant.step_legs`), write the forces to ``ctrl``, ``mj_step``. Blocks with the
+    controller inside start at a controller sample. Returns the next row; ``rec.status[0]`` = the first
+    step whose state is not finite, else -1.
+
+    The records are unpacked once here and the loop reads plain arrays: passing the records to helper
+    functions at every step cost 0.6 µs per step (measured on the single actuator at dt 1e-3 s)."""
     S = legs.state
-    n = S.p1.shape[0]
-    L = legs.history.shape[0]
+    P, dt, force, groups, supply_flow, hist = legs.params, legs.dt, legs.force, legs.groups, legs.supply_flow, \
+        legs.history
+    m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2 = mj
+    p1 = S.p1
+    n = p1.shape[0]
+    L = hist.shape[0]
+    div, kp, setpoints, noise, mode, comp, table, saturated = ctl
+    rec_div, n_total, rk, rsens, rp1, rps, rforce, ry, rviol, rref, ru, ruc, rcomp, status = rec
     y = np.empty(n)
     yd = np.empty(n)
     u_c = np.zeros(n)
     stat = np.zeros((4, n))
+    y_m = np.empty(n)
+    u_p = np.empty(n)
     r = r0
     j = 0
+    rows = rec.k.shape[0]
     for s in range(nsteps):
         k = k0 + s
-        _read_legs(mj, y, yd)
-        if s > 0 or ctl.div > 0:
-            legs.history[k % L, :] = y
-        if ctl.div > 0 and k % ctl.div == 0:
-            j = _controller_sample(ctl, legs, k, u, u_c, stat)
-        record = k % rec.div == 0 and r < rec.n_total
-        w = r % rec.k.shape[0]
+        for i in range(n):
+            y[i] = qpos[qadr[i]]
+            yd[i] = qvel[dadr[i]]
+        if s > 0 or div > 0:
+            for i in range(n):
+                hist[k % L, i] = y[i]
+        if div > 0 and k % div == 0:
+            j = min(k // div, setpoints.shape[0] - 1)
+            for i in range(n):
+                y_m[i] = hist[(k + 1) % L, i] + noise[j, i]
+                u_p[i] = kp * (setpoints[j, i] - y_m[i])
+            if mode == 1:
+                buffered_tick(comp[0], comp[1], comp[2], u_p, y_m, u_c, stat)
+            elif mode == 2:
+                row = min(k // div, table.shape[0] - 1)
+                for i in range(n):
+                    u_c[i] = table[row, i]
+            hit = False
+            for i in range(n):
+                v = u_p[i] + u_c[i]
+                u[i] = min(max(v, -P.u_v_max), P.u_v_max)
+                hit = hit or u[i] != v
+            if hit:
+                saturated[0] += 1
+        record = k % rec_div == 0 and r < n_total
+        w = r % rows
         if record:
-            _record_inputs(rec, w, k, legs, ctl, j, u, u_c, stat)
-        step_legs(legs.params, legs.dt, u, y, yd, S, legs.force, legs.groups)
-        _apply_forces(mj, legs.force)
-        if not _finite(mj, S):
+            rk[w] = k
+            rps[w] = S.p_s[0]
+            for i in range(n):
+                rp1[w, i] = p1[i]
+                ry[w, i] = hist[(k + 1) % L, i]
+                if div > 0:
+                    rref[w, i] = setpoints[j, i]
+                    ru[w, i] = u[i]
+                    ruc[w, i] = u_c[i]
+                    if mode == 1:
+                        for c in range(4):
+                            rcomp[w, c, i] = stat[c, i]
+        step_legs(P, dt, u, y, yd, S, force, groups, supply_flow)
+        for i in range(n):
+            ctrl[aadr[i]] = force[i]
+        _mj_step(m_addr, d_addr)
+        finite = True
+        for i in range(n):
+            if not (math.isfinite(p1[i]) and math.isfinite(qpos[qadr[i]]) and math.isfinite(qvel[dadr[i]])):
+                finite = False
+        if not finite:
             rec.status[0] = k
             return r
         if record:
-            _record_outputs(rec, w, mj, legs.force)
+            for c in range(sens.shape[0]):
+                rsens[w, c] = sens[c]
+            worst = 0.0
+            for e in range(site1.shape[0]):
+                a, b = site1[e], site2[e]
+                dx = site_xpos[a, 0] - site_xpos[b, 0]
+                dy = site_xpos[a, 1] - site_xpos[b, 1]
+                dz = site_xpos[a, 2] - site_xpos[b, 2]
+                worst = max(worst, math.sqrt(dx * dx + dy * dy + dz * dz))
+            rviol[w] = worst
+            for i in range(n):
+                rforce[w, i] = force[i]
             r += 1
     rec.status[0] = -1
     return r

@@ -34,6 +34,9 @@ JACOBIAN_DP_FLOOR = 1.0e4
 _SQRT_FLOOR = math.sqrt(JACOBIAN_DP_FLOOR)
 
 _jit = numba.njit(cache=True, fastmath=False)
+# the scalar equations are inlined into the loops that call them (numba IR inlining): a call per equation
+# would pass the parameter record by value each time
+_inline = numba.njit(cache=True, fastmath=False, inline="always")
 
 
 class LegParams(NamedTuple):
@@ -111,13 +114,13 @@ class PlantState(NamedTuple):
 # scalar physics, one function per equation
 
 
-@_jit
+@_inline
 def spool_position(u_v, P):
     """x_v [m] of an ideal spool at setpoint u_v [V]: (u_v - u_0) x_v,max / u_v,max (seed eq. 3.2)."""
     return (u_v - P.u_0) * (P.x_v_max / P.u_v_max)
 
 
-@_jit
+@_inline
 def flow_areas(x_v, P):
     """Openings (a1 P→A, a2 A→T) [m^2] at spool position x_v [m]: sharp edges with overlap (seed eq.
     3.3) or the smooth 300 x_v^2 (eq. 3.11) on the side x_v opens; edge gains not applied."""
@@ -128,7 +131,7 @@ def flow_areas(x_v, P):
     return a1, a - a1
 
 
-@_jit
+@_inline
 def orifice(x_v, p1, p_s, P):
     """(phi_1, d phi_1/d P1): flow into the bottom chamber [m^3/s] through both edges (seed eq. 3.4,
     signed square roots, edge gains k_PA, k_AT) and its derivative, the pressure difference floored
@@ -145,7 +148,7 @@ def orifice(x_v, p1, p_s, P):
     return phi, dphi
 
 
-@_jit
+@_inline
 def pressure_step(p1, x_v, p_s, y, ydot, dt, P):
     """P1 [Pa] after a step dt [s] of eq. (3.7), E / (y A1 + V_pl) (phi_1 + C_l (P_s - P1) - ydot A1),
     linearly implicit (Rosenbrock–Euler) in P1; ydot is the piston velocity at the start of the step."""
@@ -157,7 +160,7 @@ def pressure_step(p1, x_v, p_s, y, ydot, dt, P):
     return p1 + dt * stiff * (phi - ydot * P.a1) / (1.0 - dt * stiff * dphi)
 
 
-@_jit
+@_inline
 def friction(v, P):
     """Asymmetric Stribeck friction F_f [N] at piston velocity v [m/s] (seed eq. 3.9):
     sigma v + arctan(k v) [F_c + F_s exp(-|v| / c_s)], the "+" set for v >= 0."""
@@ -167,59 +170,62 @@ def friction(v, P):
     return P.sigma_neg * v + shape * (P.f_c_neg + P.f_s_neg * math.exp(-abs(v) / P.c_s_neg))
 
 
-@_jit
+@_inline
 def leg_force(p1, p_s, ydot, P):
     """Hydraulic force on the piston along the leg [N]: P1 A1 - P_s A2 - F_f(ydot) (seed eq. 3.8
     without the -M g, which the rigid-body simulator applies)."""
     return p1 * P.a1 - p_s * P.a2 - friction(ydot, P)
 
 
-@_jit
+@_inline
 def _spool_step(i, u, dt, S, P):
     """Spool play (backlash of half width h) and the second-order spool loop (semi-implicit Euler,
     x_v limited to ±x_v,max) of leg i, in place in the state S."""
-    if P.play > 0.0:
-        S.u_b[i] = min(max(S.u_b[i], u - P.play), u + P.play)
-    else:
-        S.u_b[i] = u
-    x_set = spool_position(S.u_b[i], P)
+    u_b = min(max(S.u_b[i], u - P.play), u + P.play) if P.play > 0.0 else u
+    S.u_b[i] = u_b
+    x_set = spool_position(u_b, P)
     if P.f_v > 0.0:
         w = 2.0 * math.pi * P.f_v
-        S.v_v[i] = S.v_v[i] + dt * (w * w * (x_set - S.x_v[i]) - 2.0 * P.zeta_v * w * S.v_v[i])
-        S.x_v[i] = S.x_v[i] + dt * S.v_v[i]
-        if abs(S.x_v[i]) > P.x_v_max:
-            S.x_v[i] = math.copysign(P.x_v_max, S.x_v[i])
-            S.v_v[i] = 0.0
+        v_v = S.v_v[i] + dt * (w * w * (x_set - S.x_v[i]) - 2.0 * P.zeta_v * w * S.v_v[i])
+        x_v = S.x_v[i] + dt * v_v
+        if abs(x_v) > P.x_v_max:
+            x_v = math.copysign(P.x_v_max, x_v)
+            v_v = 0.0
+        S.v_v[i] = v_v
+        S.x_v[i] = x_v
     else:
         S.x_v[i] = x_set
 
 
 @_jit
-def step_legs(P, dt, u, y, ydot, S, force, groups):
+def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
     """One step dt [s] of n legs, in place: valve setpoints u (n,) [V], piston positions y and
     velocities ydot (n,) at the start of the step, state S (:class:`PlantState`), leg forces out
-    ``force`` (n,) [N]; ``groups`` (n,) ints: the supply manifold of each leg.
+    ``force`` (n,) [N]; ``groups`` (n,) ints: the supply manifold of each leg; ``supply_flow`` (n,) out:
+    the flow phi_s [m^3/s] drawn from manifold g in entry g (computed with a supply model, R_s > 0).
 
     Order: spool play, spool dynamics, P1 (:func:`pressure_step`), then the supply pressure of each
     manifold (exact first-order update, dP_s/dt = (P_s0 - R_s phi_s - P_s) / tau_s, with the step's
     supply flow phi_s = sum of phi_PA + C_l (P_s - P1) - ydot A2), then the leg force with the new P1
     and P_s (:func:`leg_force`)."""
-    n = S.p1.shape[0]
-    demand = np.zeros(n)
+    p1, p_s, x_v = S.p1, S.p_s, S.x_v
+    n = p1.shape[0]
+    if P.r_s > 0.0:
+        supply_flow[:] = 0.0
     for i in range(n):
         _spool_step(i, u[i], dt, S, P)
-        S.p1[i] = pressure_step(S.p1[i], S.x_v[i], S.p_s[i], y[i], ydot[i], dt, P)
+        p1[i] = pressure_step(p1[i], x_v[i], p_s[i], y[i], ydot[i], dt, P)
         if P.r_s > 0.0:
             dps = S.p_s[i] - S.p1[i]
             phi_pa = P.c_v * (flow_areas(S.x_v[i], P)[0] * P.k_pa) * math.copysign(math.sqrt(abs(dps)), dps)
-            demand[groups[i]] += phi_pa + P.c_l * dps - ydot[i] * P.a2
+            supply_flow[groups[i]] += phi_pa + P.c_l * dps - ydot[i] * P.a2
     if P.r_s > 0.0:
         decay = math.exp(-dt / P.tau_s)
         for i in range(n):
-            target = P.p_s0 - P.r_s * demand[groups[i]]
+            target = P.p_s0 - P.r_s * supply_flow[groups[i]]
             S.p_s[i] = max(target + (S.p_s[i] - target) * decay, P.p_t)
     for i in range(n):
-        force[i] = leg_force(S.p1[i], S.p_s[i], ydot[i], P)
+        force[i] = leg_force(p1[i], p_s[i], ydot[i], P)
 
 
 def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams, eff: Effects,
@@ -234,5 +240,5 @@ def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams,
     groups = np.arange(n) if groups is None else np.asarray(groups, dtype=np.intp)
     force = np.empty(n)
     step_legs(leg_params(hyd, eff), float(dt), u, np.asarray(y, dtype=float), np.asarray(ydot, dtype=float), new,
-              force, groups)
+              force, groups, np.zeros(n))
     return new, force

@@ -19,10 +19,10 @@ from hexsim.tables import write_atomic  # noqa: E402
 def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
     """Write the six-panel PNG for a run to ``path`` (atomically)."""
     sc = result.config.scenario
-    compensated = result.config.compensator != "none"
+    compensated = result.config.compensator_name != "none"
     rows = 4 if compensated else 3
     fig, ax = plt.subplots(rows, 2, figsize=(13, 3.7 * rows), constrained_layout=True)
-    fig.suptitle(f"hexsim {sc.name}: {sc.system}, {sc.frequency:g} Hz, compensator {result.config.compensator}")
+    fig.suptitle(f"hexsim {sc.name}: {sc.system}, {sc.frequency:g} Hz, compensator {result.config.compensator_name}")
 
     a = ax[0, 0]
     a.plot(sm.t, sm.fit + sm.noise, lw=0.8, label="measured")
@@ -75,7 +75,7 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
         a = ax[3, 0]
         for key, values in result.compensator_state.items():
             a.plot(result.t, values[:, 0], lw=1, label=key)
-        a.set(title=f"{result.config.compensator}: parameters, leg1", xlabel="time [s]")
+        a.set(title=f"{result.config.compensator_name}: parameters, leg1", xlabel="time [s]")
         if a.lines:
             a.legend(fontsize=8)
         a = ax[3, 1]

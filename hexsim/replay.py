@@ -1,5 +1,5 @@
 """Replaying a measurement log through the model: the same hydraulics and MuJoCo mechanics as
-:func:`hexsim.simulation.simulate`, with the log in place of the scenario.
+:func:`hexsim.runner.simulate`, with the log in place of the scenario.
 
 **Valve replay** of a single-actuator log (identification and the per-channel errors): the logged valve
 setpoints u_v drive the model open loop over windows short enough that the integrating position does
@@ -155,7 +155,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
     plus ``u_v`` (the valve setpoint applied).
 
-    Timing follows hexsim's own logs (:func:`hexsim.simulation.simulate`): row j holds the state at its
+    Timing follows hexsim's own logs (:func:`hexsim.runner.simulate`): row j holds the state at its
     time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration of the step that
     starts at t_j. The state of row 0 is the measured one; the logged u_v drives each window open loop.
     The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
@@ -207,7 +207,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
 
         u_sched = windows.take(u_log)
         out["u_v"] = u_sched
-        legs = kernel.Legs(leg_params(hyd, eff), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)))
+        legs = kernel.Legs(leg_params(hyd, eff), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
         bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
                                   kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
         if bad >= 0:

@@ -22,7 +22,7 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "axis": sc.axis_name,
         "frequency_hz": sc.frequency,
         "amplitude": sc.amplitude,
-        "compensator": cfg.compensator,
+        "compensator": cfg.compensator_name,
         "seed": cfg.seed,
         "flow_area": cfg.hydraulics.flow_area,
         "kp_V_per_m": cfg.controller.kp,

@@ -58,6 +58,23 @@ class Scenario:
     #: row (a measurement log's leg{i}_ref_m); no platform setpoint then
     legs: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
 
+    @classmethod
+    def sine(cls, name: str = "heave", *, amplitude: float | None = None, frequency: float | None = None,
+             duration: float | None = None) -> "Scenario":
+        """A sine in one degree of freedom (``surge``, ``sway``, ``heave``, ``roll``, ``pitch``, ``yaw``;
+        amplitude [m or rad], default 0.05 m / 5°) or the single ``actuator`` (amplitude [m] about mid
+        stroke), at ``frequency`` [Hz] (default 0.5), faded in over one period; ``duration`` [s]
+        (default max(20, 6 periods)). Raises InputError for an unknown name or a bad value."""
+        if name.startswith("file:"):
+            raise InputError("Scenario.sine: use Scenario.from_file for a setpoint file")
+        return make_scenario(name, duration=duration, amplitude=amplitude, frequency=frequency)
+
+    @classmethod
+    def from_file(cls, path, *, duration: float | None = None) -> "Scenario":
+        """Platform setpoints from a CSV (``time_s`` and any of ``dof_ref_*``, see the module doc);
+        ``duration`` [s] default the file's. Raises InputError naming the file, column or row."""
+        return _file_scenario(pathlib.Path(path), duration)
+
     @property
     def axis_name(self) -> str:
         return "piston" if self.axis < 0 else DOF_NAMES[self.axis]

@@ -1,32 +1,28 @@
-"""Coupling of the hydraulics to MuJoCo and the simulation run: scenario → IK → P control → valve →
-chamber → leg force (MuJoCo control callback at every 10 kHz physics step) → rigid bodies → sensors.
-
-The control callback (``mujoco.set_mjcb_control``) is process-global; :func:`simulate` installs it for
-the duration of one run and always removes it.
+"""What a run is and what it gives: :class:`RunConfig`, :class:`SimulationResult`, the coupling of the
+leg hydraulics to MuJoCo (:class:`HydraulicCoupling`, the control callback of the ``python`` engine and
+the controller sample of both), the start-up statics and the piston setpoints. The loop that steps a
+run is :mod:`hexsim.runner`.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
-from tqdm import tqdm
 
-from compensation import CompensatorSettings, PlantTruth, SettingsError, make_compensator
-from compensation.base import ReplayedCompensation
-from hexsim import hydraulics
+from compensation import CompensatorSettings, PlantTruth
+from compensation.base import Compensator
 from hexsim.controller import PController
 from hexsim.effects import Effects
-from hexsim.errors import InputError, PhysicsError, WorkspaceError
+from hexsim.errors import InputError, WorkspaceError
 from hexsim.faults import Fault, FaultInjector
 from hexsim.kinematics import HexapodGeometry
-from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
+from hexsim.model import PlantIndex
 from hexsim.params import ControllerParams, HydraulicParams
-from hexsim.plant import PlantState, leg_params, step_plant
+from hexsim.plant import PlantState, step_plant
 from hexsim.scenario import Scenario
 from hexsim.signals import zero_order_hold
 from hexsim.temperature import WarmUp
@@ -45,7 +41,9 @@ class RunConfig:
     scenario: Scenario
     hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
     controller: ControllerParams = field(default_factory=ControllerParams)
-    compensator: str = "none"
+    # a built-in by name (compensation.COMPENSATORS), or a class/factory called as
+    # cls(n_legs, rate_hz, u_v_max, settings) returning a compensation.Compensator (runs in Python)
+    compensator: str | Callable[..., Compensator] = "none"
     compensator_settings: CompensatorSettings = field(default_factory=CompensatorSettings)
     warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C
     effects: Effects = field(default_factory=Effects)  # extensions of the seed model; default: none
@@ -62,6 +60,8 @@ class RunConfig:
     feedforward: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.compensator, str) or callable(self.compensator)):
+            raise InputError(f"compensator must be a name or a Compensator class, got {self.compensator!r}")
         if self.engine not in ENGINES:
             raise InputError(f"engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
         if self.keep_last_s is not None and not (math.isfinite(self.keep_last_s) and self.keep_last_s > 0):
@@ -69,8 +69,19 @@ class RunConfig:
         if self.timestep is not None:
             if not (math.isfinite(self.timestep) and 1e-6 <= self.timestep <= 1e-3):
                 raise InputError(f"timestep must be within 1e-6…1e-3 s, got {self.timestep!r}")
-            _divider(self.controller.rate_hz, self.timestep, f"controller rate (timestep {self.timestep:g} s)")
-            _divider(self.record_rate_hz or 1000.0, self.timestep, f"record rate (timestep {self.timestep:g} s)")
+            divider(self.controller.rate_hz, self.timestep, f"controller rate (timestep {self.timestep:g} s)")
+            divider(self.record_rate_hz or 1000.0, self.timestep, f"record rate (timestep {self.timestep:g} s)")
+
+
+    @property
+    def compensator_name(self) -> str:
+        """The compensator's name for reports: the built-in's, or a user class's ``name`` (else its
+        class name)."""
+        c = self.compensator
+        if isinstance(c, str):
+            return c
+        name = getattr(c, "name", None)
+        return name if isinstance(name, str) and name != "base" else getattr(c, "__name__", type(c).__name__)
 
 
 @dataclass
@@ -263,291 +274,10 @@ def _within_stroke(y: np.ndarray, t: np.ndarray, idx: PlantIndex) -> np.ndarray:
     return y
 
 
-def simulate(config: RunConfig) -> SimulationResult:
-    """Run one scenario headless and record it. See the module doc for the chain.
-
-    Raises WorkspaceError for an unreachable setpoint, InputError for inconsistent settings and
-    PhysicsError for a MuJoCo warning or a non-finite state (naming the time and the leg).
-    """
-    sc, hyd, cp = config.scenario, config.hydraulics, config.controller
-    m = load_model(sc.system)
-    apply_load(m, config.effects)
-    if config.timestep is not None:
-        m.opt.timestep = config.timestep
-    d = mujoco.MjData(m)
-    idx = PlantIndex.from_model(m)
-    dt = idx.dt
-    ctrl_div = _divider(cp.rate_hz, dt, "controller rate")
-    record_rate = config.record_rate_hz or 1000.0
-    rec_div = _divider(record_rate, dt, "record rate")
-
-    n_ticks = int(math.ceil(sc.duration * cp.rate_hz)) + 1
-    t_ticks = np.arange(n_ticks) / cp.rate_hz
-    setpoints, _ = piston_setpoints(m, idx, sc, t_ticks)
-    rng = np.random.default_rng(config.seed)
-    noise = rng.normal(0.0, cp.position_noise, size=setpoints.shape)
-
-    mujoco.set_mjcb_control(None)
-    reset_neutral(m, d)
-    p1_0 = hydraulics.equilibrium_pressure(static_leg_forces(m, d, idx), hyd)
-    for i, p in enumerate(p1_0):
-        if not hyd.tank_pressure < p < hyd.supply_pressure:
-            raise PhysicsError(
-                f"leg{i + 1} needs P1 = {p / 1e5:.1f} bar to hold the neutral pose, outside tank…supply "
-                f"({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)"
-            )
-    plant = PlantTruth(params=hyd, p1_static=p1_0.copy())
-    try:
-        if config.feedforward is not None:
-            compensator = ReplayedCompensation(np.ascontiguousarray(config.feedforward, dtype=float), cp.rate_hz,
-                                               hyd.u_v_max)
-        else:
-            compensator = make_compensator(config.compensator, idx.n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
-                                           settings=config.compensator_settings, plant=plant)
-    except SettingsError as exc:
-        raise InputError(str(exc)) from None
-    controller = PController(cp, hyd.u_v_max, compensator)
-    injector = FaultInjector(config.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
-    coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, ctrl_div, config.warm_up, plant,
-                                 config.effects, injector)
-
-    n_total = int(round(sc.duration / dt)) // rec_div  # samples the run records
-    n_rec = n_total if config.keep_last_s is None else min(n_total, max(1, int(round(config.keep_last_s * record_rate))))
-    n = idx.n_legs
-    rec = {k: np.empty((n_rec, n)) for k in ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")}
-    t = np.empty(n_rec)
-    p_s = np.empty(n_rec)
-    acc = np.empty((n_rec, 3))
-    hexapod = sc.system == "hexapod"
-    gyro, angacc = (np.empty((n_rec, 3)), np.empty((n_rec, 3))) if hexapod else (None, None)
-    pos, quat = (np.empty((n_rec, 3)), np.empty((n_rec, 4))) if hexapod else (None, None)
-    viol = np.zeros(n_rec)
-    temperature = np.empty(n_rec)
-    comp_state = {k: np.empty((n_rec, n)) for k in compensator.state()}
-
-    rec_sensors = {"platform_acc": acc}
-    if hexapod:
-        rec_sensors.update(platform_gyro=gyro, platform_angacc=angacc, platform_pos=pos, platform_quat=quat)
-    bar = tqdm(total=round(sc.duration, 3), unit="sim s", disable=not config.progress, leave=False,
-               bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
-    if config.engine == "python":
-        wall = _loop_python(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
-                           viol, bar, n_total)
-    else:
-        wall = _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
-                            rec_sensors, viol, bar, n_total)
-    bar.close()
-    if n_total > n_rec:  # a ring of the last n_rec samples: put them in time order
-        shift = n_total % n_rec
-        kept = [t, p_s, acc, viol, temperature, *rec.values(), *comp_state.values()]
-        for arr in kept + [x for x in (gyro, angacc, pos, quat) if x is not None]:
-            arr[:] = np.roll(arr, -shift, axis=0)
-
-    pose = pose_ref = None
-    if hexapod:
-        geom = HexapodGeometry.from_model(m)
-        rpy = Rotation.from_quat(quat[:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
-        pose = np.concatenate([pos - geom.neutral_position, rpy], axis=1)
-        pose_ref = sc.poses(t) if sc.legs is None else None
-    return SimulationResult(
-        config=config, t=t, **rec, p_s=p_s, acc=acc, gyro=gyro, angacc=angacc,
-        pose=pose, pose_ref=pose_ref, constraint_violation=viol, oil_temperature=temperature,
-        compensator_state=comp_state, p1_initial=p1_0,
-        saturated_samples=controller.saturated_samples, wall_time_s=wall, gravity=float(-m.opt.gravity[2]),
-        stroke=idx.stroke.copy(), timestep=dt,
-    )
-
-
-def _loop_python(m, d, idx, coupling, compensator, rec_div, t, rec, p_s, temperature, comp_state, rec_sensors,
-                viol, bar, n_total) -> float:
-    """The straightforward loop: :class:`HydraulicCoupling` as MuJoCo's control callback; every ``rec_div``-th
-    step k records the state at t_k (the sensors MuJoCo evaluates at the start of the step, P1 before
-    the step's update); ``n_total`` samples, kept in the arrays as a ring (row i % len(t)). Returns the
-    wall time [s]."""
-    s = idx.sensor
-    n = idx.n_legs
-    dt = idx.dt
-    leg_vel = np.array([s[f"leg{i + 1}_vel"].start for i in range(n)])
-    start = time.perf_counter()
-    mujoco.set_mjcb_control(coupling)
-    try:
-        for i in range(n_total):
-            w = i % len(t)
-            p1_before, p_s_before = coupling.state.p1.copy(), coupling.state.p_s[0]
-            mujoco.mj_step(m, d)  # step k = i * rec_div: the sensors see t_k
-            if coupling.error is not None:
-                raise coupling.error
-            _check_state(m, d, idx, coupling)
-            sd = d.sensordata
-            t[w] = i * rec_div * dt
-            rec["y"][w] = coupling.y_measured  # the position sensor, y(t_k - tau_y)
-            rec["ydot"][w] = sd[leg_vel]
-            rec["y_ref"][w] = coupling.r
-            rec["u_v"][w] = coupling.u_v
-            rec["u_c"][w] = coupling.u_c
-            rec["p1"][w] = p1_before
-            p_s[w] = p_s_before
-            rec["force"][w] = coupling.force
-            temperature[w] = coupling.temperature
-            for key, value in compensator.state().items():
-                comp_state[key][w] = value
-            for name, out in rec_sensors.items():
-                out[w] = sd[s[name]]
-            eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-            if np.any(eq):
-                viol[w] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
-            if i % 100 == 0:
-                bar.update(round(d.time - bar.n, 3))
-            if rec_div > 1:
-                mujoco.mj_step(m, d, rec_div - 1)
-                if coupling.error is not None:
-                    raise coupling.error
-                _check_state(m, d, idx, coupling)
-    finally:
-        mujoco.set_mjcb_control(None)
-    return time.perf_counter() - start
-
-
-def _loop_native(m, d, idx, coupling, compensator, config, rec_div, t, rec, p_s, temperature, comp_state,
-                 rec_sensors, viol, bar, n_total) -> float:
-    """The compiled path: :func:`hexsim.native.run_block` steps the legs and MuJoCo, recording into the
-    rows of a :class:`hexsim.native.Recorder`. Without faults or warming oil, and with no compensator,
-    the buffered or the directional one (:func:`compensation.buffered.buffered_tick`, on the
-    compensator's own state records) or a replayed compensation table, the kernel runs the P controller
-    and the compensator too and Python calls it every 0.5 s (:func:`_run_inner`); otherwise Python
-    samples controller and compensator (any Python compensator) at every controller tick and the kernel
-    runs until the next tick (:func:`_run_ticks`). Same order of operations as
-    :class:`HydraulicCoupling` (tests/test_native.py checks the trajectories agree). Returns the wall
-    time [s], compilation (or loading from numba's cache) excluded."""
-    from hexsim import native
-
-    n, dt = idx.n_legs, idx.dt
-    eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
-    if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
-        raise InputError("the native engine needs connect constraints between sites")
-    mj = native.mj_view(m, d, idx, m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64))
-    legs = native.Legs(leg_params(coupling.hyd, coupling.effects), dt, coupling.state.copy(), coupling.groups,
-                       np.zeros(n), coupling._y_history)
-    # without faults or warming oil, the P controller and the compensator run inside the kernel as well
-    mode = native.comp_mode(compensator)
-    inner = mode is not None and not coupling.faults and coupling.warm_up is None
-    ctl = native.Control(coupling.ctrl_div if inner else 0, coupling.controller.params.kp, coupling.setpoints,
-                         coupling.noise, mode or 0, native.kernel_state(compensator, n),
-                         compensator.table if mode == 2 else np.zeros((1, n)), np.zeros(1, dtype=np.int64))
-    n_rec = len(t)  # rows kept: the last n_rec of the n_total samples, as a ring
-    recorder = native.Recorder(rec_div, n_total, np.empty(n_rec, dtype=np.int64), np.empty((n_rec, m.nsensordata)),
-                               rec["p1"], p_s, rec["force"], rec["y"], viol, rec["y_ref"], rec["u_v"], rec["u_c"],
-                               np.empty((n_rec if inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64))
-    mujoco.mj_forward(m, d)
-    native.run_block(mj, legs, ctl, recorder, np.zeros(n), 0, 0, 0)  # compile or load from the cache first
-    start = time.perf_counter()
-    if inner:
-        _run_inner(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, n_total * rec_div, bar)
-        temperature[:] = coupling.temperature
-        if mode == 1:
-            for c, key in enumerate(("a", "b", "c", "s")):  # as BufferedCompensator.state()
-                comp_state[key][:] = recorder.comp[:, c]
-    else:
-        _run_ticks(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, n_total * rec_div, bar, temperature,
-                   comp_state)
-    wall = time.perf_counter() - start
-    _check_finite(legs.state.p1, d, idx, d.time)  # the kernel checks the legs at every step, this the platform too
-    t[:] = recorder.k * dt
-    s = idx.sensor
-    rec["ydot"][:] = recorder.sens[:, [s[f"leg{i + 1}_vel"].start for i in range(n)]]
-    for name, out in rec_sensors.items():
-        out[:] = recorder.sens[:, s[name]]
-    coupling.state = legs.state
-    coupling.force = legs.force
-    return wall
-
-
-def _run_inner(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, total, bar) -> None:
-    """``total`` steps with the controller in the kernel, in chunks of about 0.5 s (progress, checks)."""
-    from hexsim import native
-
-    warnings = d.warning.number  # a view of MuJoCo's warning counters
-    u_v = np.zeros(idx.n_legs)
-    chunk = max(1, int(round(0.5 / (ctl.div * idx.dt)))) * ctl.div
-    k = r = 0
-    while k < total:
-        steps = min(chunk, total - k)
-        r = native.run_block(mj, legs, ctl, recorder, u_v, k, steps, r)
-        _check_block(m, d, idx, recorder.status, legs.state.p1, warnings)
-        k += steps
-        bar.update(round(k * idx.dt - bar.n, 3))
-    coupling.controller.saturated_samples += int(ctl.saturated[0])
-    if ctl.mode == 2:
-        compensator.advance(-(-total // ctl.div))
-
-
-def _run_ticks(m, d, idx, mj, legs, ctl, recorder, coupling, compensator, total, bar, temperature,
-               comp_state) -> None:
-    """``total`` steps with the controller sampled in Python (:meth:`HydraulicCoupling.tick`: warming oil,
-    faults, any compensator) and the kernel run from one controller tick to the next."""
-    from hexsim import native
-
-    warnings = d.warning.number
-    hist, ctrl_div = legs.history, coupling.ctrl_div
-    L, n_rec = len(hist), len(recorder.k)
-    hyd = coupling.hyd
-    k = r = 0
-    while k < total:
-        hist[k % L] = d.qpos[idx.qpos_adr]
-        new_hyd = coupling.tick(k, hist[(k + 1) % L].copy())
-        if new_hyd is not hyd:
-            hyd = new_hyd
-            legs = legs._replace(params=leg_params(hyd, coupling.effects))
-        if coupling.supply_level is not None:
-            legs.state.p_s[:] = coupling.supply_level
-        steps = min(ctrl_div, total - k)
-        r_next = native.run_block(mj, legs, ctl, recorder, coupling.u_v, k, steps, r)
-        _check_block(m, d, idx, recorder.status, legs.state.p1, warnings)
-        rows = np.arange(r, r_next) % n_rec
-        recorder.ref[rows] = coupling.r
-        recorder.u[rows] = coupling.u_v
-        recorder.uc[rows] = coupling.u_c
-        temperature[rows] = coupling.temperature
-        for key, value in compensator.state().items():
-            comp_state[key][rows] = value
-        r = r_next
-        k += steps
-        if k % (50 * ctrl_div) == 0:
-            bar.update(round(k * idx.dt - bar.n, 3))
-
-
-def _check_block(m, d, idx: PlantIndex, status: np.ndarray, p1: np.ndarray, warnings: np.ndarray) -> None:
-    """After a kernel call: raise PhysicsError for the non-finite state the kernel stopped at (naming
-    the leg and the time of the step, :func:`_check_finite`) or for a MuJoCo warning."""
-    if status[0] >= 0:
-        t = status[0] * idx.dt
-        _check_finite(p1, d, idx, t)
-        raise PhysicsError(f"non-finite state at t = {t:.4f} s")  # the kernel saw it; the arrays hold it
-    if warnings.any():
-        check_warnings(m, d)
-
-
-def _divider(rate_hz: float, dt: float, what: str) -> int:
+def divider(rate_hz: float, dt: float, what: str) -> int:
+    """Physics steps per period of ``rate_hz`` [Hz] at step dt [s]; InputError naming ``what`` if the
+    rate does not divide the physics rate."""
     div = 1.0 / (rate_hz * dt)
     if div < 1 or abs(div - round(div)) > 1e-9:
         raise InputError(f"{what} {rate_hz:g} Hz must divide the physics rate {1 / dt:g} Hz")
     return int(round(div))
-
-
-def _check_state(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex, coupling: HydraulicCoupling) -> None:
-    """After a step of the Python engine: :func:`_check_finite`, then MuJoCo's warnings."""
-    _check_finite(coupling.state.p1, d, idx, d.time)
-    check_warnings(m, d)
-
-
-def _check_finite(p1: np.ndarray, d: mujoco.MjData, idx: PlantIndex, t: float) -> None:
-    """PhysicsError naming the first leg whose P1 (n_legs,) [Pa] or piston position/velocity is not
-    finite, or the platform, at time ``t`` [s]; nothing if all is finite."""
-    bad_p1 = ~np.isfinite(p1)
-    bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
-    if np.any(bad_p1 | bad_q):
-        leg = int(np.flatnonzero(bad_p1 | bad_q)[0]) + 1
-        what = "P1" if bad_p1[leg - 1] else "piston position/velocity"
-        raise PhysicsError(f"non-finite {what} of leg{leg} at t = {t:.4f} s")
-    if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-        raise PhysicsError(f"non-finite platform state at t = {t:.4f} s")

@@ -15,7 +15,7 @@ import numpy as np
 from hexsim.candidates import CANDIDATES
 from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Identification,
                              identify, signal_labels, within_budget)
-from hexsim.measurement import MeasurementLog
+from hexsim.measurement import MeasurementLog, read_log
 from hexsim.residuals import analyse
 from hexsim.tables import json_text, write_atomic
 
@@ -355,11 +355,16 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
     plt.close(fig)
 
 
-def validate(log: MeasurementLog, *, report: pathlib.Path | None = None, json_path: pathlib.Path | None = None,
-             jobs: int = 2, progress: bool = False, notify=None) -> dict:
-    """Identify (see :func:`hexsim.identify.identify`), then write the report folder (report.md +
-    residuals.png) and/or the JSON. Returns the JSON document. Raises InputError for a log the replay
-    cannot use or a report folder that cannot be created."""
+def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None) -> dict:
+    """Identify (see :func:`hexsim.identify.identify`) on ``log`` (a :class:`MeasurementLog` or the path of
+    a log, ``docs/measurement-log.md``), then write the report folder ``report`` (report.md +
+    residuals.png + validation.json) and/or the JSON file ``json_path``. Returns the JSON document
+    (verdict, added effects, calibration, noise budget, errors before/after). Raises InputError for a
+    log that cannot be read or replayed or a report folder that cannot be created."""
+    if not isinstance(log, MeasurementLog):
+        log = read_log(log)
+    report = None if report is None else pathlib.Path(report)
+    json_path = None if json_path is None else pathlib.Path(json_path)
     ident = identify(log, jobs=jobs, progress=progress, notify=notify)
     doc = summary(ident)
     if report is not None:

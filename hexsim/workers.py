@@ -4,7 +4,7 @@ Workers are forked from the calling process where the platform can (Linux), so t
 scipy, MuJoCo and the compiled kernels already imported, in milliseconds; spawned workers (the only way
 on macOS and Windows, or ``start_method="spawn"``) import all of it first, about 2.5 s each on a 2-vCPU
 machine. Each worker loads its own MuJoCo model. MuJoCo's control callback is process-global: at the
-fork the caller runs no simulation, so none is installed (:func:`hexsim.simulation.simulate` installs it
+fork the caller runs no simulation, so none is installed (:func:`hexsim.runner.simulate` installs it
 only for a python-engine run and always removes it), and a worker installs its own.
 """
 

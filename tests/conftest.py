@@ -6,7 +6,8 @@ import pytest
 
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 
 #: The seed's Simulink model (seed Fig. 3.3) has a continuous-time P controller and no sensor noise;
 #: the seed checks run the controller at the 10 kHz physics rate to match it.

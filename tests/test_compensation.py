@@ -1,6 +1,6 @@
 """The seed's chapter-5 findings and the compensation targets, reproduced in simulation.
 
-Runs go through hexsim.compare (two worker processes), which measures on the last quarter of each run.
+Runs go through hexsim.comparison (two worker processes), which measures on the last quarter of each run.
 Margins: the seed's figures are qualitative, so the tests check directions and ratios with room for the
 run-to-run spread seen between seeds (about ±15 % on the final reversal peaks).
 """
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from compensation import CompensatorSettings
-from hexsim.compare import compare
+from hexsim.comparison import compare
 from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
 from hexsim.temperature import WarmUp

@@ -7,7 +7,8 @@ import pytest
 
 from hexsim.metrics import run_smoothness
 from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,8 @@ import pytest
 from hexsim.cli import main
 from hexsim.faults import Fault
 from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 
 T0 = 0.8
 

@@ -12,7 +12,8 @@ from hexsim.errors import InputError
 from hexsim.metrics import STANDARD_GRAVITY, run_smoothness
 from hexsim.scenario import Scenario, make_scenario
 from hexsim.signals import fit_fundamental
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 from helpers import write_heave_pitch_profile
 
 
@@ -119,14 +120,14 @@ def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
 
 
 def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypatch):
-    from hexsim import simulation
+    from hexsim import runner
     from hexsim.errors import PhysicsError
 
-    real = simulation.leg_params
+    real = runner.leg_params
 
     def poisoned(hyd, eff):
         return real(hyd, eff)._replace(bulk_modulus=np.nan)  # every P1 goes bad in the first step
 
-    monkeypatch.setattr(simulation, "leg_params", poisoned)
+    monkeypatch.setattr(runner, "leg_params", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))

@@ -13,7 +13,8 @@ from hexsim.cli import main
 from hexsim.effects import Effects
 from hexsim.logio import write_log
 from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)
 

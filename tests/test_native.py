@@ -12,7 +12,8 @@ from hexsim.measurement import read_log
 from hexsim.params import HydraulicParams
 from hexsim.replay import PlantModel, Windows, replay
 from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 
 
 def test_native_replay_equals_the_python_loop(tmp_path):

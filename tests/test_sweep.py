@@ -7,7 +7,7 @@ import json
 from hexsim.cli import main
 from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
-from hexsim.sweep import evaluate_point
+from hexsim.sweeps import evaluate_point
 
 
 def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):

@@ -17,7 +17,8 @@ from hexsim.effects import EFFECT_NAMES, Effects
 from hexsim.logio import write_log
 from hexsim.params import HydraulicParams
 from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 
 DURATION = 6.0  # [s] per log (the shortest actuator scenario): 13 replay windows of 0.45 s
 

@@ -22,7 +22,8 @@ from hexsim.logio import write_log
 from hexsim.measurement import read_log
 from hexsim.params import HydraulicParams
 from hexsim.scenario import Scenario
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 from hexsim.tables import read_numeric_csv
 
 DURATION = 6.0

@@ -15,7 +15,8 @@ import numpy as np
 
 from compensation import COMPENSATORS
 from hexsim.metrics import Smoothness, run_smoothness
-from hexsim.simulation import RunConfig, simulate
+from hexsim.simulation import RunConfig
+from hexsim.runner import simulate
 from hexsim.workers import worker_pool
 
 #: Order of the league table: the baseline first, the yardstick last.
@@ -109,7 +110,7 @@ def evaluate(config: RunConfig) -> Entry:
         s_est = np.full((1, 1), np.ptp(result.ydot[:, 0]) / max(np.ptp(result.u_v[:, 0]), 1e-9))
     traces["s"] = float(s_est[-1, 0])
     return Entry(
-        compensator=config.compensator, noise_ratio=final.noise_ratio, peak_noise_g=final.peak_noise_g,
+        compensator=config.compensator_name, noise_ratio=final.noise_ratio, peak_noise_g=final.peak_noise_g,
         peak_noise=final.peak_noise, mean_reversal_peak=final.mean_reversal_peak,
         settling_time_s=settling_time(times, levels, final_level), saturated_samples=result.saturated_samples,
         unit=final.unit, final_parameters={k: v[-1].tolist() for k, v in result.compensator_state.items()},

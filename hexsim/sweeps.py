@@ -9,6 +9,7 @@ method (tests/test_sweep.py checks it against serial runs).
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 from concurrent.futures import as_completed
@@ -17,9 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm import tqdm
 
-from hexsim.compare import final_window_start
+from hexsim.comparison import final_window_start
+from hexsim.errors import InputError
 from hexsim.metrics import max_tracking_error, run_smoothness
-from hexsim.simulation import RunConfig, simulate
+from hexsim.runner import simulate
+from hexsim.scenario import make_scenario
+from hexsim.simulation import RunConfig
 from hexsim.workers import worker_pool
 
 #: Metric columns of a sweep row, after the grid's own columns. Wall times are printed, not tabled, so
@@ -102,3 +106,44 @@ def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
 def _finite_or_none(value):
     """NaN (a metric that does not exist, e.g. no reversal in the window) as None: empty in CSV, null in JSON."""
     return None if isinstance(value, float) and not np.isfinite(value) else value
+
+
+#: What a Python sweep grid may vary, by where the name lives.
+_SCENARIO_KEYS = ("duration", "amplitude", "frequency")
+
+
+def vary(base: RunConfig, settings: dict) -> RunConfig:
+    """``base`` with ``settings`` applied: a scenario name or keyword (``scenario``, ``duration``,
+    ``amplitude``, ``frequency``: the scenario is rebuilt by :func:`hexsim.scenario.make_scenario`), a
+    :class:`RunConfig` field (``compensator``, ``seed``, ``engine``, ``timestep``, ``effects``, …), a
+    field of :class:`~hexsim.params.HydraulicParams`, :class:`~hexsim.params.ControllerParams` or
+    :class:`~compensation.CompensatorSettings`. Raises InputError naming an unknown setting."""
+    sc_keys = {k: v for k, v in settings.items() if k in _SCENARIO_KEYS or k == "scenario"}
+    changes: dict = {}
+    if sc_keys:
+        name = sc_keys.pop("scenario", base.scenario.name)
+        kept = {} if "scenario" in settings else {"duration": base.scenario.duration,
+                                                    "amplitude": base.scenario.amplitude,
+                                                    "frequency": base.scenario.frequency}
+        changes["scenario"] = make_scenario(name, **{**kept, **sc_keys})
+    groups = {"hydraulics": base.hydraulics, "controller": base.controller,
+              "compensator_settings": base.compensator_settings}
+    fields = {f.name for f in dataclasses.fields(RunConfig)}
+    for key, value in settings.items():
+        if key in _SCENARIO_KEYS or key == "scenario":
+            continue
+        owner = next((g for g, obj in groups.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
+        if owner is not None:
+            groups[owner] = dataclasses.replace(groups[owner], **{key: value})
+            changes[owner] = groups[owner]
+        elif key in fields:
+            changes[key] = value
+        else:
+            raise InputError(f"sweep: {key!r} is not a scenario keyword, a RunConfig field or a parameter")
+    return dataclasses.replace(base, **changes)
+
+
+def sweep(base: RunConfig, grid: dict[str, list], *, jobs: int = 2, progress: bool = False) -> list[dict]:
+    """Every combination of ``grid`` (name -> values, see :func:`vary` for the names), run in ``jobs``
+    worker processes; one row per point: its settings and the :data:`METRICS`, in grid order."""
+    return run_sweep(expand(grid, lambda settings: vary(base, settings)), jobs=jobs, progress=progress)[0]
