@@ -1,9 +1,9 @@
 """Reversal-bump compensators: per-leg feedforward voltages U_c added to the valve setpoint.
 
-A compensator sees only what a real motion computer sees (seed §5.1): the valve setpoint u_v that the
-position controller computed and the measured piston position, at the controller rate. It returns the
-compensation voltage U_c [V], which the controller adds to u_v before the ±u_v,max saturation
-(seed Fig. 5.3).
+A compensator sees only what a real motion computer sees (seed §5.1): the output u_p of the position
+controller (the valve setpoint before compensation; the seed calls it u_v in ch. 5) and the measured
+piston position, at the controller rate. It returns the compensation voltage U_c [V]; the valve gets
+u_v = sat(u_p + U_c, ±u_v,max) (seed Fig. 5.3).
 
 - ``none``: U_c = 0.
 - ``iterative-1``, ``iterative-2``: seed §5.3-5.4, look-up table + function (1) / (2).
@@ -14,31 +14,46 @@ compensation voltage U_c [V], which the controller adds to u_v before the ±u_v,
 
 from __future__ import annotations
 
-from compensation.base import (Compensator, CompensatorSettings, FlowCurveObserver, NoCompensator, PlantTruth,
-                               SettingsError)
-from compensation.buffered import BufferedCompensator, DirectionalCompensator
-from compensation.iterative import Iterative1, Iterative2
-from compensation.oracle import OracleCompensator
+import importlib
 
-#: Compensators selectable with ``hexsim run --compensator NAME``.
-COMPENSATORS: dict[str, type[Compensator]] = {
-    c.name: c
-    for c in (NoCompensator, Iterative1, Iterative2, BufferedCompensator, DirectionalCompensator, OracleCompensator)
-}
+from compensation.settings import CompensatorSettings, SettingsError
+
+#: Names of the built-in compensators, in league order (``hexsim run --compensator NAME``).
+NAMES = ("none", "iterative-1", "iterative-2", "buffered", "directional", "oracle")
+
+#: public name -> module; the compensators (numba, scipy) load on first use
+_LAZY = {"Compensator": "compensation.base", "FlowCurveObserver": "compensation.base",
+         "NoCompensator": "compensation.base", "PlantTruth": "compensation.base",
+         "BufferedCompensator": "compensation.buffered", "DirectionalCompensator": "compensation.buffered",
+         "Iterative1": "compensation.iterative", "Iterative2": "compensation.iterative",
+         "OracleCompensator": "compensation.oracle"}
+
+
+def __getattr__(name: str):
+    if name == "COMPENSATORS":
+        classes = [__getattr__(n) for n in ("NoCompensator", "Iterative1", "Iterative2", "BufferedCompensator",
+                                             "DirectionalCompensator", "OracleCompensator")]
+        value = {c.name: c for c in classes}  # in the order of NAMES
+    elif name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+    else:
+        raise AttributeError(f"module 'compensation' has no attribute {name!r}")
+    globals()[name] = value
+    return value
 
 
 def make_compensator(name: str, n_legs: int, rate_hz: float, *, u_v_max: float = 10.0,
-                     settings: CompensatorSettings | None = None, plant: PlantTruth | None = None) -> Compensator:
+                     settings: CompensatorSettings | None = None, plant=None):
     """A compensator by name for ``n_legs`` legs driven at ``rate_hz`` [Hz].
 
-    ``plant`` is passed to the oracle only. Raises SettingsError (a ValueError) naming the choices for an
-    unknown name or a bad setting.
+    ``plant`` (:class:`~compensation.base.PlantTruth`) is passed to the oracle only. Raises SettingsError
+    (a ValueError) naming the choices for an unknown name or a bad setting.
     """
-    if name not in COMPENSATORS:
-        raise SettingsError(f"unknown compensator {name!r}; choose one of {', '.join(COMPENSATORS)}")
+    if name not in NAMES:
+        raise SettingsError(f"unknown compensator {name!r}; choose one of {', '.join(NAMES)}")
     kwargs = {"plant": plant} if name == "oracle" else {}
-    return COMPENSATORS[name](n_legs, rate_hz, u_v_max, settings, **kwargs)
+    return __getattr__("COMPENSATORS")[name](n_legs, rate_hz, u_v_max, settings, **kwargs)
 
 
-__all__ = ["COMPENSATORS", "Compensator", "CompensatorSettings", "FlowCurveObserver", "NoCompensator", "PlantTruth",
-           "SettingsError", "make_compensator"]
+__all__ = ["COMPENSATORS", "NAMES", "Compensator", "CompensatorSettings", "FlowCurveObserver", "NoCompensator",
+           "PlantTruth", "SettingsError", "make_compensator", *sorted(set(_LAZY) - {"Compensator"})]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import abc
-import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -11,74 +10,27 @@ import numba
 import numpy as np
 from scipy.signal import butter
 
-
-class SettingsError(ValueError):
-    """A compensator setting out of range (names the setting and the value)."""
-
-
-@dataclass(frozen=True)
-class CompensatorSettings:
-    """Settings of the adaptive compensators, defaults from the seed where it gives one (ch. 5, app. C).
-
-    velocity_cutoff_hz: low-pass [Hz] on the differentiated measured position and, for the same phase
-        lag, on u_v (seed §4.4: filter before differentiating; the seed gives no value);
-    velocity_band: k± [m/s], |ẏ| below which u_v counts as "at zero velocity" (seed §5.3: 1e-3);
-    q_threshold: [V] start value of the valve range q before the measured range exceeds it (seed §5.3's
-        threshold for b; no value given: 0.5 V, below the ~0.9 V a 0.05 m / 0.5 Hz motion needs, so the
-        measured range takes over; a threshold above the range used fixes b too small, the function's zero
-        falls short of the range and the iterative table diverges);
-    iterative_gain: [V/(m/s)] look-up table update per visit and velocity error (seed §5.3, no value);
-    table_size: elements of the look-up table over ±u_v,max (seed §5.3: 1001, element 501 = 0 V);
-    buffer_time: [s] time the buffers UV, UC, UY are filled before an update (seed §5.5: 30000 samples
-        of the 10 kHz Simulink model = 3 s);
-    buffer_filter_tau: [s] time constant of appendix C's discrete low-pass 0.003137 / (1 - 0.9969 z^-1)
-        at 10 kHz (-1 / (10^4 ln 0.9969) = 32 ms), re-discretised at the controller rate;
-    fade_time: [s] time constant of the low-pass through which new parameters are faded in (seed §5.5:
-        "filtered again with a low-pass filter"; no value given);
-    direction_rate: [V/s] rate of change of u_v over which the directional compensator blends its two
-        curves (tanh scale);
-    oracle_u_ref: [V] valve setpoint at which the oracle's linear flow curve meets the true one;
-    held_maximum: how the iterative compensators read a off their table, ``"per-side"`` (default) or the
-        seed's ``"seed"`` (see :mod:`compensation.iterative`).
-    """
-
-    velocity_cutoff_hz: float = 20.0
-    velocity_band: float = 1e-3
-    q_threshold: float = 0.5
-    iterative_gain: float = 2.0
-    table_size: int = 1001
-    buffer_time: float = 3.0
-    buffer_filter_tau: float = -1.0 / (1e4 * math.log(0.9969))
-    fade_time: float = 1.0
-    direction_rate: float = 0.5
-    oracle_u_ref: float = 1.0
-    held_maximum: str = "per-side"
-
-    def __post_init__(self) -> None:
-        for name in ("velocity_cutoff_hz", "velocity_band", "q_threshold", "iterative_gain", "buffer_time",
-                     "buffer_filter_tau", "fade_time", "direction_rate", "oracle_u_ref"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise SettingsError(f"compensator setting {name} must be a finite positive number, got {value!r}")
-        if self.held_maximum not in ("per-side", "seed"):
-            raise SettingsError(f"compensator setting held_maximum must be 'per-side' or 'seed', got {self.held_maximum!r}")
-        if self.table_size < 3 or self.table_size % 2 == 0:
-            raise SettingsError(f"compensator setting table_size must be an odd number >= 3, got {self.table_size}")
+from compensation.settings import CompensatorSettings, SettingsError
 
 
 @dataclass
 class PlantTruth:
     """What only the oracle may read: the plant's true hydraulic parameters (updated by the simulator as
-    the oil warms) and each leg's static bottom-chamber pressure P1 [Pa], shape (n_legs,)."""
+    the oil warms), each leg's static bottom-chamber pressure P1 [Pa], shape (n_legs,), and the plant's
+    static flow curve ``flow_curve(u_v, p1, params)`` -> piston velocity [m/s] (seed eq. 5.1; the
+    simulator passes :func:`hexsim.hydraulics.static_velocity`, so this package imports nothing of it)."""
 
     params: object
     p1_static: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    flow_curve: object = None
 
 
 class Compensator(abc.ABC):
-    """Per-leg compensation voltage U_c [V] from the valve setpoint u_v [V] and the measured position [m].
+    """Per-leg compensation voltage U_c [V] from the P controller's output u_p [V] and the measured
+    position [m]; the controller sends u_v = sat(u_p + U_c, ±u_v,max) to the valve (seed Fig. 5.3).
 
-    Subclasses implement :meth:`update`. ``n_legs`` legs, called at ``rate_hz`` [Hz] (the motion
+    Subclasses implement :meth:`update` (and optionally :meth:`state`); a user's class is passed to the
+    simulator as ``RunConfig(compensator=cls)`` and built as ``cls(n_legs, rate_hz, u_v_max, settings)``. ``n_legs`` legs, called at ``rate_hz`` [Hz] (the motion
     computer's 500 Hz, seed §2.2.4). A compensator never sees the simulator's true velocity: velocity,
     if needed, comes from differentiating the measured position with a filter (seed §4.4, §5.1).
     """
@@ -93,8 +45,8 @@ class Compensator(abc.ABC):
         self.settings = settings or CompensatorSettings()
 
     @abc.abstractmethod
-    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
-        """U_c (n_legs,) [V] for this controller sample; u_v and y_measured are (n_legs,)."""
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        """U_c (n_legs,) [V] for this controller sample; u_p and y_measured are (n_legs,)."""
 
     def state(self) -> dict[str, np.ndarray]:
         """Parameters worth logging (name -> (n_legs,) array); empty if the compensator has none."""
@@ -106,7 +58,7 @@ class NoCompensator(Compensator):
 
     name = "none"
 
-    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         return np.zeros(self.n_legs)
 
 
@@ -122,7 +74,7 @@ class ReplayedCompensation(Compensator):
         self.table = table
         self._k = 0
 
-    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         row = self.table[min(self._k, len(self.table) - 1)]
         self._k += 1
         return row.copy()
@@ -168,17 +120,18 @@ class ObserverState(NamedTuple):
 
 
 @numba.njit(cache=True)
-def observer_tick(f, S, u_v, y, u_f, v_f):
-    """One sample of :class:`FlowCurveObserver` for every leg, in place: valve setpoint u_v (n,) [V] and
-    measured position y (n,) [m] in, filtered u_v and velocity out in u_f, v_f (n,). The filter is the
+def observer_tick(f, S, u_p, y, u_f, v_f):
+    """One sample of :class:`FlowCurveObserver` for every leg, in place: the P output u_p (n,) [V] (the
+    valve setpoint before compensation) and measured position y (n,) [m] in, filtered u_p and velocity
+    out in u_f, v_f (n,). The filter is the
     transposed direct form II of ``scipy.signal.lfilter`` (out = b0 x + z0; z0 = b1 x - a1 out + z1;
     z1 = b2 x - a2 out); the slope s = (max v - min v) / (max u - min u) once u has moved by 10 mV
     (seed §5.3), else 0."""
-    for i in range(u_v.shape[0]):
+    for i in range(u_p.shape[0]):
         if S.started[i] < 0.5:
             S.y_prev[i] = y[i]
             S.started[i] = 1.0
-        x0 = u_v[i]
+        x0 = u_p[i]
         x1 = (y[i] - S.y_prev[i]) / f.dt
         S.y_prev[i] = y[i]
         o0 = f.b0 * x0 + S.z[0, 0, i]
@@ -229,8 +182,8 @@ class FlowCurveObserver:
         """Rate of change of the filtered u_v [V/s] (n_legs,)."""
         return self.state.u_dot
 
-    def update(self, u_v: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def update(self, u_p: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u_f, ydot_f): filtered valve setpoint [V] and filtered velocity [m/s], each (n_legs,)."""
         u_f, v_f = np.empty(len(self.state.slope)), np.empty(len(self.state.slope))
-        observer_tick(self.filter, self.state, np.asarray(u_v, dtype=float), np.asarray(y, dtype=float), u_f, v_f)
+        observer_tick(self.filter, self.state, np.asarray(u_p, dtype=float), np.asarray(y, dtype=float), u_f, v_f)
         return u_f, v_f

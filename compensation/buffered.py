@@ -1,5 +1,8 @@
 """Buffered compensator (seed §5.5, appendix C) and its direction-dependent extension (seed ch. 6).
 
+In this module u_v is the seed's name for what the compensator receives: the P controller's output
+(``u_p`` in the code), the valve setpoint before compensation.
+
 Per leg, three buffers are filled over ``buffer_time`` (the seed's 30000 samples of its 10 kHz model =
 3 s): UV the valve setpoints, UC "the computed compensation out of the actual difference between u_v
 and ẏ/s" (seed §5.5), i.e. u_v - ẏ/s with s the desired slope, and UY the valve setpoints at zero
@@ -219,9 +222,9 @@ class BufferedCompensator(Compensator):
         """The records :func:`buffered_tick` reads and changes in place (not copies)."""
         return self.params, self.observer.state, self.buffers
 
-    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         u_c = np.empty(self.n_legs)
-        buffered_tick(*self.kernel_state(), np.asarray(u_v, dtype=float), np.asarray(y_measured, dtype=float), u_c,
+        buffered_tick(*self.kernel_state(), np.asarray(u_p, dtype=float), np.asarray(y_measured, dtype=float), u_c,
                       self._stat)
         return u_c
 

@@ -76,9 +76,9 @@ class IterativeCompensator(Compensator):
     def c(self) -> np.ndarray:
         return self.b * self.r
 
-    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         st = self.settings
-        u_f, v_f = self.observer.update(u_v, y_measured)
+        u_f, v_f = self.observer.update(u_p, y_measured)
         s = self.observer.slope
         rows = np.arange(self.n_legs)
         idx = np.clip(np.rint(u_f / self._du).astype(int) + self._half, 0, st.table_size - 1)
@@ -98,8 +98,8 @@ class IterativeCompensator(Compensator):
         still = np.abs(v_f) < st.velocity_band
         self.r = np.where(still, self.r + self._alpha_r * (u_f - self.r), self.r)
         b, c = self.b, self.c
-        a = np.where(b * u_v - c >= 0.0, self.a_pos, self.a_neg)
-        return self._f(u_v, a, b, c)
+        a = np.where(b * u_p - c >= 0.0, self.a_pos, self.a_neg)
+        return self._f(u_p, a, b, c)
 
     @property
     def a(self) -> np.ndarray:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 from compensation.base import Compensator, SettingsError
-from hexsim import hydraulics
 
 GRID_POINTS = 4001
 
@@ -24,8 +23,8 @@ class OracleCompensator(Compensator):
 
     def __init__(self, *args, plant=None, **kwargs) -> None:
         super().__init__(*args, plant=plant, **kwargs)
-        if plant is None:
-            raise SettingsError("the oracle compensator needs the plant's true parameters (PlantTruth)")
+        if plant is None or plant.flow_curve is None:
+            raise SettingsError("the oracle compensator needs the plant's true parameters and flow curve (PlantTruth)")
         self.plant = plant
         self._params = None
         self._grid = np.linspace(-self.u_v_max, self.u_v_max, GRID_POINTS)
@@ -37,16 +36,16 @@ class OracleCompensator(Compensator):
         self._params = p
         p1 = np.asarray(self.plant.p1_static, dtype=float)
         # (n_legs, grid) static velocity; a vanishing slope keeps it strictly increasing inside the overlap
-        self._curve = hydraulics.static_velocity(self._grid[None, :], p1[:, None], p) + 1e-12 * self._grid[None, :]
+        self._curve = self.plant.flow_curve(self._grid[None, :], p1[:, None], p) + 1e-12 * self._grid[None, :]
         u_ref = self.settings.oracle_u_ref
         ends = np.stack([np.interp([-u_ref, u_ref], self._grid, row) for row in self._curve])
         self.slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)
 
-    def update(self, u_v: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         self._refresh()
-        target = self.slope * u_v
+        target = self.slope * u_p
         v = np.array([np.interp(target[i], self._curve[i], self._grid) for i in range(self.n_legs)])
-        return v - u_v
+        return v - u_p
 
     def state(self) -> dict[str, np.ndarray]:
         self._refresh()

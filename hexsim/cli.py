@@ -12,11 +12,12 @@ import os
 import pathlib
 import sys
 
-from compensation import COMPENSATORS, CompensatorSettings, SettingsError
+from compensation import NAMES as COMPENSATORS
+from compensation import CompensatorSettings, SettingsError
+from hexsim import __version__
 from hexsim.errors import HexsimError, InputError
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
-from hexsim.comparison import ORDER
 from hexsim.tables import write_atomic
 from hexsim.temperature import WarmUp
 from hexsim.workers import START_METHODS
@@ -37,6 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="hexsim",
         description="Six-DOF hydraulic motion platform simulator (Micro Motion System): the reversal bump and its compensation.",
     )
+    parser.add_argument("--version", action="version", version=f"hexsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser(
         "run",
@@ -62,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
         "against none and settling time, measured on the last quarter of the run.",
     )
     _scenario_options(cmp)
-    cmp.add_argument("--compensators", default=",".join(ORDER[1:]),
+    cmp.add_argument("--compensators", default=",".join(COMPENSATORS[1:]),
                      help="comma-separated compensators to compare (none is always included)")
     cmp.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison PNG (seed Fig. 5.12 layout)")
@@ -267,7 +269,6 @@ def _run_config(args: argparse.Namespace, compensator: str):
     from hexsim.effects import Effects
     from hexsim.faults import Fault
     from hexsim.paramfile import read_params
-    from hexsim.simulation import RunConfig
 
     if args.params is not None:
         given = read_params(args.params)
@@ -291,6 +292,8 @@ def _run_config(args: argparse.Namespace, compensator: str):
         raise InputError(str(exc)) from None
     warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
     faults = tuple(Fault.parse(text) for text in args.fault)
+    from hexsim.simulation import RunConfig  # MuJoCo and the kernels: only once the options are checked
+
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last,
@@ -311,6 +314,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    _check_outputs(args)
+    config = _run_config(args, args.compensator)  # every option checked before the heavy imports
     from hexsim.logio import write_log
     from hexsim.metrics import run_smoothness
     from hexsim.plotting import plot_run
@@ -318,8 +323,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.rerun_log import write_rrd
     from hexsim.runner import simulate
 
-    _check_outputs(args)
-    config = _run_config(args, args.compensator)
     result = simulate(config)
     sm = run_smoothness(result)
     report = run_report(result, sm)

@@ -17,8 +17,8 @@ from scipy.spatial.transform import Rotation
 
 from hexsim.errors import WorkspaceError
 from hexsim.model import PlantIndex, reset_neutral
+from hexsim.scenario import DOF_NAMES
 
-DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")  # surge, sway, heave, roll, pitch, yaw
 
 
 def rotation_matrices(rpy: np.ndarray) -> np.ndarray:

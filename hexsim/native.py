@@ -11,6 +11,7 @@ memory. tests/test_native.py checks the loops against the Python control callbac
 from __future__ import annotations
 
 import math
+import os
 import pathlib
 from typing import NamedTuple
 
@@ -293,6 +294,15 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
             r += 1
     rec.status[0] = -1
     return r
+
+
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds the compiled runner (False: the next run compiles it, ~15 s).
+    Reads numba's private cache layout; if that changes, answers True (no message rather than a wrong one)."""
+    try:
+        return run_block.signatures != [] or os.path.exists(run_block._cache._cache_file._index_path)
+    except AttributeError:
+        return True
 
 
 # the runners compile in the leg step and the compensator from other files: drop their cache when those change

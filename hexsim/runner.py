@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import math
+import sys
 import time
 
 import mujoco
@@ -91,7 +92,7 @@ class Simulator:
                     f"leg{i + 1} needs P1 = {p / 1e5:.1f} bar to hold the neutral pose, outside tank…supply "
                     f"({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)")
         self.p1_initial = p1_0
-        plant = PlantTruth(params=hyd, p1_static=p1_0.copy())
+        plant = PlantTruth(params=hyd, p1_static=p1_0.copy(), flow_curve=hydraulics.static_velocity)
         self.compensator = _make_compensator(cfg, idx.n_legs, plant)
         controller = PController(cp, hyd.u_v_max, self.compensator)
         injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
@@ -136,6 +137,9 @@ class Simulator:
             rec["p_s"], rec["force"], rec["y"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
             np.empty((n_rec if self.inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64))
         mujoco.mj_forward(m, d)
+        if self.config.progress and not native.kernels_cached():
+            print("hexsim: compiling the simulation kernels (once, about 15 s; cached on disk)", file=sys.stderr,
+                  flush=True)
         native.run_block(self.mj, self.legs, self.ctl, self.recorder, np.zeros(n), 0, 0, 0)  # compile / load
 
     # ------------------------------------------------------------------ stepping

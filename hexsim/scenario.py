@@ -18,10 +18,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hexsim.errors import InputError
-from hexsim.kinematics import DOF_NAMES
-from hexsim.signals import dominant_frequency
 from hexsim.tables import read_numeric_csv
 
+#: The platform's degrees of freedom, in the order of a pose (N, 6): x (surge), y (sway), z (heave) [m],
+#: roll, pitch, yaw [rad].
+DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 SINE_DOFS = {"surge": 0, "sway": 1, "heave": 2, "roll": 3, "pitch": 4, "yaw": 5}
 #: Default sine amplitude per scenario [m or rad] and frequency [Hz] (the seed's 0.05 m at 0.5 Hz).
 DEFAULT_AMPLITUDE = {"actuator": 0.05, "surge": 0.05, "sway": 0.05, "heave": 0.05,
@@ -41,7 +42,7 @@ class Scenario:
     """What to drive and how to judge it.
 
     system: ``"hexapod"`` or ``"actuator"``; duration [s]; axis: index of the DOF the metrics use
-    (0…5 as in :data:`~hexsim.kinematics.DOF_NAMES`, or -1 for the actuator's piston);
+    (0…5 as in :data:`DOF_NAMES`, or -1 for the actuator's piston);
     frequency: drive frequency [Hz] (for a file, the dominant frequency of the motion axis);
     fade_period: fade-in time [s] after which metrics may start.
     """
@@ -142,6 +143,8 @@ def _check_duration(duration: float, minimum: float, why: str) -> None:
 
 
 def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
+    from hexsim.signals import dominant_frequency  # scipy.optimize: only for files, so --help stays quick
+
     cols = read_numeric_csv(path)
     unknown = [c for c in cols if c != "time_s" and c not in FILE_COLUMNS]
     if unknown:

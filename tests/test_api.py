@@ -102,3 +102,21 @@ def test_import_hexsim_is_quick_and_loads_no_simulator():
     assert out.strip() == "False"
     assert set(hexsim.__all__) >= {"simulate", "Simulator", "RunConfig", "Scenario", "HydraulicParams", "Effects",
                                    "smoothness", "read_log", "validate", "compare", "sweep"}
+
+
+def test_the_command_line_answers_help_version_and_bad_options_before_loading_the_simulator():
+    """`hexsim --help`, `--version` and a refused option never import MuJoCo, numba or scipy (that is
+    what made them take 4–10 s); `python -m hexsim` is the same command."""
+    from importlib.metadata import version
+
+    code = ("import sys, contextlib, io\n"
+            "from hexsim.cli import main\n"
+            "err = io.StringIO()\n"
+            "with contextlib.redirect_stderr(err):\n"
+            "    rc = main(['run', 'bounce'])\n"
+            "heavy = [m for m in ('mujoco', 'numba', 'scipy', 'matplotlib', 'rerun') if m in sys.modules]\n"
+            "print(rc, heavy, err.getvalue().strip())\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.startswith("2 [] hexsim: error: unknown scenario 'bounce'")
+    shown = subprocess.run([sys.executable, "-m", "hexsim", "--version"], capture_output=True, text=True, check=True)
+    assert shown.stdout.strip() == f"hexsim {version('hexsim')}" == f"hexsim {hexsim.__version__}"

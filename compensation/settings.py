@@ -1,0 +1,61 @@
+"""Settings of the compensators and their error, importable without the compensators themselves (the
+command line reads the defaults before it loads anything heavy)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+class SettingsError(ValueError):
+    """A compensator setting out of range (names the setting and the value)."""
+
+
+@dataclass(frozen=True)
+class CompensatorSettings:
+    """Settings of the adaptive compensators, defaults from the seed where it gives one (ch. 5, app. C).
+
+    velocity_cutoff_hz: low-pass [Hz] on the differentiated measured position and, for the same phase
+        lag, on u_v (seed §4.4: filter before differentiating; the seed gives no value);
+    velocity_band: k± [m/s], |ẏ| below which u_v counts as "at zero velocity" (seed §5.3: 1e-3);
+    q_threshold: [V] start value of the valve range q before the measured range exceeds it (seed §5.3's
+        threshold for b; no value given: 0.5 V, below the ~0.9 V a 0.05 m / 0.5 Hz motion needs, so the
+        measured range takes over; a threshold above the range used fixes b too small, the function's zero
+        falls short of the range and the iterative table diverges);
+    iterative_gain: [V/(m/s)] look-up table update per visit and velocity error (seed §5.3, no value);
+    table_size: elements of the look-up table over ±u_v,max (seed §5.3: 1001, element 501 = 0 V);
+    buffer_time: [s] time the buffers UV, UC, UY are filled before an update (seed §5.5: 30000 samples
+        of the 10 kHz Simulink model = 3 s);
+    buffer_filter_tau: [s] time constant of appendix C's discrete low-pass 0.003137 / (1 - 0.9969 z^-1)
+        at 10 kHz (-1 / (10^4 ln 0.9969) = 32 ms), re-discretised at the controller rate;
+    fade_time: [s] time constant of the low-pass through which new parameters are faded in (seed §5.5:
+        "filtered again with a low-pass filter"; no value given);
+    direction_rate: [V/s] rate of change of u_v over which the directional compensator blends its two
+        curves (tanh scale);
+    oracle_u_ref: [V] valve setpoint at which the oracle's linear flow curve meets the true one;
+    held_maximum: how the iterative compensators read a off their table, ``"per-side"`` (default) or the
+        seed's ``"seed"`` (see :mod:`compensation.iterative`).
+    """
+
+    velocity_cutoff_hz: float = 20.0
+    velocity_band: float = 1e-3
+    q_threshold: float = 0.5
+    iterative_gain: float = 2.0
+    table_size: int = 1001
+    buffer_time: float = 3.0
+    buffer_filter_tau: float = -1.0 / (1e4 * math.log(0.9969))
+    fade_time: float = 1.0
+    direction_rate: float = 0.5
+    oracle_u_ref: float = 1.0
+    held_maximum: str = "per-side"
+
+    def __post_init__(self) -> None:
+        for name in ("velocity_cutoff_hz", "velocity_band", "q_threshold", "iterative_gain", "buffer_time",
+                     "buffer_filter_tau", "fade_time", "direction_rate", "oracle_u_ref"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise SettingsError(f"compensator setting {name} must be a finite positive number, got {value!r}")
+        if self.held_maximum not in ("per-side", "seed"):
+            raise SettingsError(f"compensator setting held_maximum must be 'per-side' or 'seed', got {self.held_maximum!r}")
+        if self.table_size < 3 or self.table_size % 2 == 0:
+            raise SettingsError(f"compensator setting table_size must be an odd number >= 3, got {self.table_size}")
