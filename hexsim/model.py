@@ -30,8 +30,20 @@ def model_path(name: str) -> pathlib.Path:
 
 
 def load_model(name: str) -> mujoco.MjModel:
-    """Compile a built-in model (``"hexapod"`` or ``"actuator"``)."""
-    return mujoco.MjModel.from_xml_path(str(model_path(name)))
+    """Compile a built-in model (``"hexapod"`` or ``"actuator"``), with island discovery off
+    (:func:`no_islands`)."""
+    return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
+
+
+def no_islands(m: mujoco.MjModel) -> mujoco.MjModel:
+    """``m`` with MuJoCo's constraint-island discovery switched off (``mjDSBL_ISLAND``, where this MuJoCo
+    has it), in place. The hexapod is one island (every leg is tied to the platform) and the single
+    actuators are one body each, so discovering islands at every step is work without effect: the
+    results are bit-identical (tests/test_hexapod.py) and a hexapod step is about 10 % cheaper."""
+    flag = getattr(mujoco.mjtDisableBit, "mjDSBL_ISLAND", None)
+    if flag is not None:
+        m.opt.disableflags |= int(flag)
+    return m
 
 
 def _id(m: mujoco.MjModel, objtype, name: str) -> int:

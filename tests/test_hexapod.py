@@ -131,3 +131,19 @@ def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypa
     monkeypatch.setattr(runner, "leg_params", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))
+
+
+def test_island_discovery_off_changes_nothing(monkeypatch):
+    """hexsim switches MuJoCo's island discovery off (hexsim.model.no_islands) for speed; the hexapod is
+    one island, so the run must be bit-identical to one with discovery on."""
+    import mujoco
+
+    from hexsim import model, runner
+
+    config = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), compensator="buffered", seed=2)
+    off = simulate(config)
+    assert mujoco.mjtDisableBit.mjDSBL_ISLAND & runner.load_model("hexapod").opt.disableflags
+    monkeypatch.setattr(runner, "load_model", lambda name: mujoco.MjModel.from_xml_path(str(model.model_path(name))))
+    on = simulate(config)
+    for name in ("y", "p1", "u_c", "acc", "pose"):
+        np.testing.assert_array_equal(getattr(off, name), getattr(on, name), err_msg=name)
