@@ -35,8 +35,8 @@ from hexsim.faults import FaultInjector
 from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.plant import PlantState, leg_params
-from hexsim.simulation import (HydraulicCoupling, RunConfig, SimulationResult, divider, piston_setpoints,
-                               static_leg_forces)
+from hexsim.simulation import (HydraulicCoupling, RunConfig, SimulationResult, check_timestep, divider,
+                               leg_mobility, piston_setpoints)
 
 #: recorded channels of shape (samples, n_legs)
 _LEG_CHANNELS = ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")
@@ -85,7 +85,9 @@ class Simulator:
         noise = np.random.default_rng(cfg.seed).normal(0.0, cp.position_noise, size=setpoints.shape)
         mujoco.set_mjcb_control(None)
         reset_neutral(m, d)
-        p1_0 = hydraulics.equilibrium_pressure(static_leg_forces(m, d, idx), hyd)
+        mobility, acc0 = leg_mobility(m, d, idx)
+        check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt)
+        p1_0 = hydraulics.equilibrium_pressure(np.linalg.solve(mobility, -acc0), hyd)
         for i, p in enumerate(p1_0):
             if not hyd.tank_pressure < p < hyd.supply_pressure:
                 raise PhysicsError(

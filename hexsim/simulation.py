@@ -224,13 +224,11 @@ class HydraulicCoupling:
         return hyd
 
 
-def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> np.ndarray:
-    """Leg forces (n_legs,) [N] that hold the current configuration at rest (slide accelerations zero).
-
-    The slide accelerations are affine in the actuator forces (equality constraints only), so one
-    ``mj_forward`` with zero force and one per unit force give the linear system. Gravity, the legs' own
-    weight and the closed-loop constraints are all MuJoCo's. Call with no control callback installed.
-    """
+def leg_mobility(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> tuple[np.ndarray, np.ndarray]:
+    """(A, a0) at the current configuration at rest: the slide accelerations (n_legs,) [m/s^2] are
+    a0 + A f for leg forces f (n_legs,) [N]; A (n_legs, n_legs) [1/kg] is the inverse of the legs'
+    effective inertia, constraints included (equality constraints only, so the map is affine: one
+    ``mj_forward`` with zero force and one per unit force). Call with no control callback installed."""
     d.ctrl[:] = 0.0
     mujoco.mj_forward(m, d)
     acc0 = d.qacc[idx.dof_adr].copy()
@@ -242,7 +240,50 @@ def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> n
         sens[:, j] = d.qacc[idx.dof_adr] - acc0
     d.ctrl[:] = 0.0
     mujoco.mj_forward(m, d)
+    return sens, acc0
+
+
+def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> np.ndarray:
+    """Leg forces (n_legs,) [N] that hold the current configuration at rest (slide accelerations zero),
+    from :func:`leg_mobility`. Gravity, the legs' own weight and the closed-loop constraints are all
+    MuJoCo's."""
+    sens, acc0 = leg_mobility(m, d, idx)
     return np.linalg.solve(sens, -acc0)
+
+
+#: Largest ω·dt hexsim allows for the stiffest oil-spring mode of a run: the explicit (semi-implicit
+#: Euler) mechanics step is stable below 2; 1.5 leaves room for the piston passing its setpoint.
+OMEGA_DT_LIMIT = 1.5
+
+
+def check_timestep(mobility: np.ndarray, y_min: np.ndarray, hyd: HydraulicParams, dt: float) -> None:
+    """InputError if the step dt [s] cannot integrate the oil springs of the legs at their lowest piston
+    setpoints y_min (n_legs,) [m]: stiffness E A1^2 / (y A1 + V_pl) per leg (seed eq. 3.7), stiffest mode
+    ω = sqrt(max eig(A K)) with A the legs' mobility (:func:`leg_mobility`); refused if ω dt exceeds
+    :data:`OMEGA_DT_LIMIT`. The message names the bound, the leg, its lowest setpoint and the step that
+    would do."""
+    volume = np.maximum(y_min, 0.0) * hyd.area_bottom + hyd.pipeline_volume
+    stiffness = hyd.bulk_modulus * hyd.area_bottom**2 / volume
+    modes, shapes = np.linalg.eig(mobility @ np.diag(stiffness))
+    k = int(np.argmax(modes.real))
+    omega = float(np.sqrt(max(modes.real[k], 0.0)))
+    if omega * dt <= OMEGA_DT_LIMIT:
+        return
+    leg = int(np.argmax(np.abs(shapes[:, k])))
+    raise InputError(
+        f"timestep {dt:g} s is too long for this motion: the oil springs stiffen as the pistons retract, and "
+        f"at leg{leg + 1}'s lowest setpoint y = {1e3 * y_min[leg]:.1f} mm the stiffest mode is "
+        f"{omega / (2 * math.pi):.0f} Hz (ω·dt = {omega * dt:.2f}; the explicit mechanics step is stable "
+        f"below 2, hexsim allows {OMEGA_DT_LIMIT}); use --timestep {_shorter_step(omega):g} or less, or keep "
+        f"the pistons farther from the retracted end")
+
+
+def _shorter_step(omega: float) -> float:
+    """The longest of 5e-4, 2e-4, 1e-4, 5e-5, … s within :data:`OMEGA_DT_LIMIT` at ω [rad/s]."""
+    for dt in (5e-4, 2.5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5):
+        if omega * dt <= OMEGA_DT_LIMIT:
+            return dt
+    return 1e-6
 
 
 def piston_setpoints(m: mujoco.MjModel, idx: PlantIndex, scenario: Scenario, t: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:

@@ -73,6 +73,11 @@ CASES = {
     "unknown scenario": (lambda tmp: ["run", "bounce"], r"unknown scenario 'bounce'"),
     "unknown compensator": (lambda tmp: RUN + ["--compensator", "magic"], r"invalid choice: 'magic'"),
     "timestep not dividing": (lambda tmp: RUN + ["--timestep", "3e-4"], r"timestep 0\.0003 s.*must divide"),
+    # the seed's actuator at 1 ms runs (ω·dt 0.97 at its lowest setpoint, 50 mm); 95 mm of amplitude takes
+    # the piston to 5 mm, where the oil spring is 470 Hz and the explicit step blows up (44 000 m/s²)
+    "timestep too long for the motion": (lambda tmp: ["run", "actuator", "--duration", "6", "--timestep", "1e-3",
+                                                      "--amplitude", "0.095"],
+                                         r"timestep 0\.001 s is too long .* leg1's lowest setpoint y = 5\.0 mm .*470 Hz"),
     "zero buffer time": (lambda tmp: RUN + ["--buffer-time", "0"], r"buffer_time must be a finite positive.*0"),
     "filter above Nyquist": (lambda tmp: RUN + ["--compensator", "buffered", "--velocity-cutoff", "400"],
                              r"velocity_cutoff_hz 400.* Nyquist"),
