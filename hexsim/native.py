@@ -149,20 +149,6 @@ class ReplayOut(NamedTuple):
 
 
 @numba.njit(cache=True)
-def _read_legs(mj, y, yd):
-    for i in range(y.shape[0]):
-        y[i] = mj.qpos[mj.qpos_adr[i]]
-        yd[i] = mj.qvel[mj.dof_adr[i]]
-
-
-@numba.njit(cache=True)
-def _apply_forces(mj, force):
-    for i in range(force.shape[0]):
-        mj.ctrl[mj.actuator_id[i]] = force[i]
-    _mj_step(mj.model, mj.data)
-
-
-@numba.njit(cache=True)
 def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
     """Open-loop replay of k independent legs, in the order of :func:`hexsim.replay.replay` (which see):
     row j's setpoints u_sched[:, j] (k, n) [V] drive the ``sub`` steps from row j to row j+1; row j of
@@ -170,22 +156,28 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
     (sensordata at ``acc_adr`` (k,)) MuJoCo computes in the first of those steps. ``legs.state`` changes
     in place. Returns -1, or the first row at which P1 is not finite."""
     k, n = u_sched.shape
+    m_addr, d_addr, qpos, qvel, ctrl, sens, _, qadr, dadr, aadr, _, _ = mj  # once: see run_block
+    P, dt, force, groups, supply_flow = legs.params, legs.dt, legs.force, legs.groups, legs.supply_flow
+    S = legs.state
     y = np.empty(k)
     yd = np.empty(k)
-    S = legs.state
     for j in range(n):
         for s in range(sub):
-            _read_legs(mj, y, yd)
+            for i in range(k):
+                y[i] = qpos[qadr[i]]
+                yd[i] = qvel[dadr[i]]
             if s == 0:
                 for i in range(k):
                     out.position[i, j] = y[i]
                     out.p1[i, j] = S.p1[i]
                     out.p_s[i, j] = S.p_s[i]
-            step_legs(legs.params, legs.dt, u_sched[:, j], y, yd, S, legs.force, legs.groups, legs.supply_flow)
-            _apply_forces(mj, legs.force)
+            step_legs(P, dt, u_sched[:, j], y, yd, S, force, groups, supply_flow)
+            for i in range(k):
+                ctrl[aadr[i]] = force[i]
+            _mj_step(m_addr, d_addr)
             if s == 0:
                 for i in range(k):
-                    out.acceleration[i, j] = mj.sensordata[acc_adr[i]]
+                    out.acceleration[i, j] = sens[acc_adr[i]]
         if not np.isfinite(S.p1).all():
             return j
     return -1
