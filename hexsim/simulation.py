@@ -15,6 +15,7 @@ import numpy as np
 
 from compensation import CompensatorSettings, PlantTruth
 from compensation.base import Compensator
+from hexsim import hydraulics
 from hexsim.controller import PController
 from hexsim.effects import Effects
 from hexsim.errors import InputError, WorkspaceError
@@ -262,8 +263,7 @@ def check_timestep(mobility: np.ndarray, y_min: np.ndarray, hyd: HydraulicParams
     ω = sqrt(max eig(A K)) with A the legs' mobility (:func:`leg_mobility`); refused if ω dt exceeds
     :data:`OMEGA_DT_LIMIT`. The message names the bound, the leg, its lowest setpoint and the step that
     would do."""
-    volume = np.maximum(y_min, 0.0) * hyd.area_bottom + hyd.pipeline_volume
-    stiffness = hyd.bulk_modulus * hyd.area_bottom**2 / volume
+    stiffness = hyd.bulk_modulus * hyd.area_bottom**2 / hydraulics.chamber_volume(y_min, hyd)
     modes, shapes = np.linalg.eig(mobility @ np.diag(stiffness))
     k = int(np.argmax(modes.real))
     omega = float(np.sqrt(max(modes.real[k], 0.0)))
