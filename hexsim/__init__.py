@@ -12,7 +12,7 @@ The Python face, everything a notebook needs (imported on first use, so ``import
 
 * runs: :func:`simulate`, :class:`Simulator` (stepped), :class:`RunConfig`, :class:`Scenario` (``Scenario.sine``,
   ``Scenario.from_file``), :class:`SimulationResult`;
-* the plant: :class:`HydraulicParams`, :class:`ControllerParams`, :class:`Effects`, :class:`WarmUp`;
+* the plant: :class:`HydraulicParams`, :class:`ControllerParams`, :class:`Effects`, :class:`LegChange`, :class:`WarmUp`;
 * compensation: :class:`Compensator` (subclass it and pass the class as ``RunConfig(compensator=...)``),
   :class:`CompensatorSettings`;
 * judging: :func:`smoothness` (of a result), :func:`compare`, :func:`sweep`;
@@ -39,6 +39,7 @@ _FACE = {
     "HydraulicParams": ("hexsim.params", "HydraulicParams"),
     "ControllerParams": ("hexsim.params", "ControllerParams"),
     "Effects": ("hexsim.effects", "Effects"),
+    "LegChange": ("hexsim.effects", "LegChange"),
     "WarmUp": ("hexsim.temperature", "WarmUp"),
     "Compensator": ("compensation.base", "Compensator"),
     "CompensatorSettings": ("compensation.base", "CompensatorSettings"),

@@ -14,7 +14,7 @@ The equations of the effects are written once, in the leg step of :mod:`hexsim.p
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 
 from hexsim.errors import InputError
@@ -74,3 +74,43 @@ class Effects:
 
 
 NOMINAL = Effects()
+
+#: Parameters one leg cannot have on its own: the supply and tank are one manifold, the sensor delay is
+#: the motion computer's, the load a rigid-body fact, the valve range the controller's saturation.
+SHARED_FIELDS = frozenset({"supply_pressure", "tank_pressure", "supply_resistance", "supply_time_constant",
+                           "sensor_delay", "mass_kg", "inclination_deg", "u_v_max"})
+
+
+@dataclass(frozen=True)
+class LegChange:
+    """Parameters of one leg that differ from the others' (a worn valve edge, a leaking seal, a drifted
+    null point): ``leg`` 1…n and ``values`` ((field, value), …) of
+    :class:`~hexsim.params.HydraulicParams` or :class:`Effects` fields, SI units. Fields of
+    :data:`SHARED_FIELDS` are refused. Build with ``LegChange.of(3, leakage=3e-12, null_offset=0.1)``.
+    Raises InputError for an unknown or shared field or a leg below 1 (the upper limit is checked
+    against the model by the runner)."""
+
+    leg: int
+    values: tuple[tuple[str, float], ...]
+
+    @classmethod
+    def of(cls, leg: int, **values: float) -> "LegChange":
+        return cls(int(leg), tuple(sorted((k, float(v)) for k, v in values.items())))
+
+    def __post_init__(self) -> None:
+        from hexsim.params import HydraulicParams
+
+        known = {f.name for f in fields(HydraulicParams)} | {f.name for f in fields(Effects)}
+        if self.leg < 1:
+            raise InputError(f"LegChange: leg must be 1 or more, got {self.leg}")
+        for name, _ in self.values:
+            if name not in known:
+                raise InputError(f"LegChange of leg{self.leg}: unknown parameter {name!r}")
+            if name in SHARED_FIELDS:
+                raise InputError(f"LegChange of leg{self.leg}: {name} is shared by all legs, not one leg's")
+
+    def apply(self, hyd, eff: Effects):
+        """(hydraulics, effects) of this leg: ``hyd`` and ``eff`` with the values replaced (validated)."""
+        own = {f.name for f in fields(Effects)}
+        return (hyd.replace(**{k: v for k, v in self.values if k not in own}),
+                eff.replace(**{k: v for k, v in self.values if k in own}))

@@ -86,12 +86,12 @@ def mj_view(m: mujoco.MjModel, d: mujoco.MjData, idx, site1=None, site2=None) ->
 
 
 class Legs(NamedTuple):
-    """The leg plant of a runner: parameters (:class:`hexsim.plant.LegParams`), step dt [s], state
+    """The leg plant of a runner: parameters (:func:`hexsim.plant.leg_table`, (n,) records), step dt [s], state
     (:class:`hexsim.plant.PlantState`, changed in place), supply manifold per leg (n,) int, the leg
     forces (n,) [N] of the last step, the ring of measured positions (L, n) that makes the sensor delay,
     the supply flow per manifold (n,) [m^3/s] of the last step (with a supply model)."""
 
-    params: plant.LegParams
+    params: np.ndarray
     dt: float
     state: plant.PlantState
     groups: np.ndarray
@@ -240,7 +240,7 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
             hit = False
             for i in range(n):
                 v = u_p[i] + u_c[i]
-                u[i] = min(max(v, -P.u_v_max), P.u_v_max)
+                u[i] = min(max(v, -P[i].u_v_max), P[i].u_v_max)
                 hit = hit or u[i] != v
             if hit:
                 saturated[0] += 1

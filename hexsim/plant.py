@@ -8,9 +8,10 @@ friction curve, statics) map the same scalar functions over arrays; the Python c
 (``engine="python"``) calls :func:`step_plant`, which runs :func:`step_legs` too. There is no second
 translation to keep in step.
 
-Parameters travel as one named record, :class:`LegParams` (a ``NamedTuple`` of floats, which numba
-passes by value), built from :class:`~hexsim.params.HydraulicParams` and
-:class:`~hexsim.effects.Effects` by :func:`leg_params`. The state of n legs is :class:`PlantState`,
+Parameters travel as one named record, :class:`LegParams` (a ``NamedTuple`` of floats), built from
+:class:`~hexsim.params.HydraulicParams` and :class:`~hexsim.effects.Effects` by :func:`leg_params`; the
+leg step reads one record per leg from a structured array (:func:`leg_table`, dtype
+:data:`LEG_DTYPE`), so a leg may differ from the others (:class:`~hexsim.effects.LegChange`). The state of n legs is :class:`PlantState`,
 a ``NamedTuple`` of five arrays (n,), updated in place by the compiled step.
 
 Sign conventions: piston position y [m] is 0 fully retracted and grows when the leg extends; flow
@@ -25,7 +26,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from hexsim.effects import NOMINAL, Effects
+from hexsim.effects import NOMINAL, Effects, LegChange
 from hexsim.params import HydraulicParams
 
 #: Pressure difference [Pa] below which the Jacobian of the orifice flow is evaluated as if it were this
@@ -86,6 +87,25 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
         eff.leakage, eff.edge_gain_pa, eff.edge_gain_at)
+
+
+#: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
+LEG_DTYPE = np.dtype([(name, np.float64) for name in LegParams._fields])
+
+
+def leg_table(hyd: HydraulicParams, eff: Effects, n: int, changes: tuple[LegChange, ...] = ()) -> np.ndarray:
+    """The parameters of n legs, a structured array (n,) of :data:`LEG_DTYPE`: every leg ``hyd`` and
+    ``eff``, legs named in ``changes`` with their own values. The supply fields are read from entry 0
+    (shared: :data:`hexsim.effects.SHARED_FIELDS`). Raises InputError for a change of a leg above n."""
+    from hexsim.errors import InputError
+
+    table = np.empty(n, dtype=LEG_DTYPE)
+    table[:] = tuple(leg_params(hyd, eff))
+    for change in changes:
+        if change.leg > n:
+            raise InputError(f"LegChange of leg{change.leg}: the model has {n} leg{'s' if n > 1 else ''}")
+        table[change.leg - 1] = tuple(leg_params(*change.apply(hyd, eff)))
+    return table
 
 
 class PlantState(NamedTuple):
@@ -199,10 +219,11 @@ def _spool_step(i, u, dt, S, P):
 
 @_jit
 def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
-    """One step dt [s] of n legs, in place: valve setpoints u (n,) [V], piston positions y and
-    velocities ydot (n,) at the start of the step, state S (:class:`PlantState`), leg forces out
-    ``force`` (n,) [N]; ``groups`` (n,) ints: the supply manifold of each leg; ``supply_flow`` (n,) out:
-    the flow phi_s [m^3/s] drawn from manifold g in entry g (computed with a supply model, R_s > 0).
+    """One step dt [s] of n legs, in place: parameters P (:func:`leg_table`, (n,) records; the supply's
+    from P[0]), valve setpoints u (n,) [V], piston positions y and velocities ydot (n,) at the start of
+    the step, state S (:class:`PlantState`), leg forces out ``force`` (n,) [N]; ``groups`` (n,) ints:
+    the supply manifold of each leg; ``supply_flow`` (n,) out: the flow phi_s [m^3/s] drawn from
+    manifold g in entry g (computed with a supply model, R_s > 0).
 
     Order: spool play, spool dynamics, P1 (:func:`pressure_step`), then the supply pressure of each
     manifold (exact first-order update, dP_s/dt = (P_s0 - R_s phi_s - P_s) / tau_s, with the step's
@@ -210,35 +231,44 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
     and P_s (:func:`leg_force`)."""
     p1, p_s, x_v = S.p1, S.p_s, S.x_v
     n = p1.shape[0]
-    if P.r_s > 0.0:
+    supply = P[0]
+    if supply.r_s > 0.0:
         supply_flow[:] = 0.0
     for i in range(n):
-        _spool_step(i, u[i], dt, S, P)
-        p1[i] = pressure_step(p1[i], x_v[i], p_s[i], y[i], ydot[i], dt, P)
-        if P.r_s > 0.0:
+        Pi = P[i]
+        _spool_step(i, u[i], dt, S, Pi)
+        p1[i] = pressure_step(p1[i], x_v[i], p_s[i], y[i], ydot[i], dt, Pi)
+        if supply.r_s > 0.0:
             dps = S.p_s[i] - S.p1[i]
-            phi_pa = P.c_v * (flow_areas(S.x_v[i], P)[0] * P.k_pa) * math.copysign(math.sqrt(abs(dps)), dps)
-            supply_flow[groups[i]] += phi_pa + P.c_l * dps - ydot[i] * P.a2
-    if P.r_s > 0.0:
-        decay = math.exp(-dt / P.tau_s)
+            phi_pa = Pi.c_v * (flow_areas(S.x_v[i], Pi)[0] * Pi.k_pa) * math.copysign(math.sqrt(abs(dps)), dps)
+            supply_flow[groups[i]] += phi_pa + Pi.c_l * dps - ydot[i] * Pi.a2
+    if supply.r_s > 0.0:
+        decay = math.exp(-dt / supply.tau_s)
         for i in range(n):
-            target = P.p_s0 - P.r_s * supply_flow[groups[i]]
-            S.p_s[i] = max(target + (S.p_s[i] - target) * decay, P.p_t)
+            target = supply.p_s0 - supply.r_s * supply_flow[groups[i]]
+            S.p_s[i] = max(target + (S.p_s[i] - target) * decay, supply.p_t)
     for i in range(n):
-        force[i] = leg_force(p1[i], p_s[i], ydot[i], P)
+        force[i] = leg_force(p1[i], p_s[i], ydot[i], P[i])
 
 
 def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams, eff: Effects,
-               groups: np.ndarray | None = None) -> tuple[PlantState, np.ndarray]:
+               groups: np.ndarray | None = None, changes: tuple[LegChange, ...] = ()) -> tuple[PlantState, np.ndarray]:
     """Advance n legs by ``dt`` [s] from Python: valve setpoints u_v [V] (n,) or scalar, piston positions
     y [m] and velocities ydot [m/s] (n,) at the start of the step. Returns (new state, leg forces (n,) [N]);
     ``state`` is left unchanged. ``groups`` (n,) ints: legs sharing a supply manifold (the hexapod: all
-    zeros); default each leg its own supply. Runs :func:`step_legs`, the compiled runners' step."""
+    zeros); default each leg its own supply. ``changes``: legs whose parameters differ
+    (:func:`leg_table`). Runs :func:`step_legs`, the compiled runners' step."""
+    return advance_legs(state, u_v, y, ydot, dt, leg_table(hyd, eff, state.p1.shape[0], changes), groups)
+
+
+def advance_legs(state: PlantState, u_v, y, ydot, dt: float, table: np.ndarray,
+                 groups: np.ndarray | None = None) -> tuple[PlantState, np.ndarray]:
+    """:func:`step_plant` with the parameters already as a :func:`leg_table` (n,)."""
     new = state.copy()
     n = new.p1.shape[0]
     u = np.broadcast_to(np.asarray(u_v, dtype=float), (n,)).copy()
     groups = np.arange(n) if groups is None else np.asarray(groups, dtype=np.intp)
     force = np.empty(n)
-    step_legs(leg_params(hyd, eff), float(dt), u, np.asarray(y, dtype=float), np.asarray(ydot, dtype=float), new,
-              force, groups, np.zeros(n))
+    step_legs(table, float(dt), u, np.asarray(y, dtype=float), np.asarray(ydot, dtype=float), new, force, groups,
+              np.zeros(n))
     return new, force

@@ -29,7 +29,7 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.model import PlantIndex, apply_load, check_warnings, model_path
 from hexsim.params import HydraulicParams
-from hexsim.plant import PlantState, leg_params, step_plant
+from hexsim.plant import PlantState, leg_table, step_plant
 
 #: Channels compared, in report order: name -> (log column of the single actuator, unit, floor of the scale).
 CHANNELS = {
@@ -207,7 +207,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
 
         u_sched = windows.take(u_log)
         out["u_v"] = u_sched
-        legs = kernel.Legs(leg_params(hyd, eff), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
+        legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
         bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
                                   kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
         if bad >= 0:

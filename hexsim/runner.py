@@ -34,7 +34,7 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.faults import FaultInjector
 from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
-from hexsim.plant import PlantState, leg_params
+from hexsim.plant import PlantState
 from hexsim.simulation import (HydraulicCoupling, RunConfig, SimulationResult, check_timestep, divider,
                                leg_mobility, piston_setpoints)
 
@@ -99,7 +99,7 @@ class Simulator:
         controller = PController(cp, hyd.u_v_max, self.compensator)
         injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
         self.coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, self.ctrl_div, cfg.warm_up,
-                                          plant, cfg.effects, injector)
+                                          plant, cfg.effects, injector, cfg.leg_changes)
 
     def _setup_recording(self) -> None:
         cfg, n = self.config, self.idx.n_legs
@@ -124,7 +124,7 @@ class Simulator:
             raise InputError("the native engine needs connect constraints between sites")
         self.mj = native.mj_view(m, d, idx, m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64))
         self._hyd = coupling.hyd  # the parameters the kernel has
-        self.legs = native.Legs(leg_params(coupling.hyd, coupling.effects), self.dt, coupling.state.copy(),
+        self.legs = native.Legs(coupling.leg_table(), self.dt, coupling.state.copy(),
                                 coupling.groups, np.zeros(n), coupling._y_history, np.zeros(n))
         # without faults or warming oil, the P controller and the compensator run inside the kernel as well
         mode = native.comp_mode(self.compensator)
@@ -265,8 +265,8 @@ class Simulator:
             hist[k % L] = self.data.qpos[idx.qpos_adr]
             hyd = coupling.tick(k, hist[(k + 1) % L].copy())
             if hyd is not self._hyd:  # the oil warmed: new parameters
-                self._hyd = hyd
-                legs = self.legs = legs._replace(params=leg_params(hyd, coupling.effects))
+                self._hyd = coupling.hyd = hyd
+                legs = self.legs = legs._replace(params=coupling.leg_table())
             if coupling.supply_level is not None:
                 legs.state.p_s[:] = coupling.supply_level
             steps = min(self.ctrl_div, k_end - k)

@@ -17,13 +17,13 @@ from compensation import CompensatorSettings, PlantTruth
 from compensation.base import Compensator
 from hexsim import hydraulics
 from hexsim.controller import PController
-from hexsim.effects import Effects
+from hexsim.effects import Effects, LegChange
 from hexsim.errors import InputError, WorkspaceError
 from hexsim.faults import Fault, FaultInjector
 from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex
 from hexsim.params import ControllerParams, HydraulicParams
-from hexsim.plant import PlantState, step_plant
+from hexsim.plant import PlantState, advance_legs, leg_table
 from hexsim.scenario import Scenario
 from hexsim.signals import zero_order_hold
 from hexsim.temperature import WarmUp
@@ -59,6 +59,8 @@ class RunConfig:
     # U_c per controller sample (n_ticks, n_legs) [V] replayed instead of a compensator (measured-data
     # replay, hexsim.hexapod_replay); None: the compensator named above
     feedforward: np.ndarray | None = field(default=None, repr=False, compare=False)
+    # legs whose parameters differ from the others' (a leaking seal, a worn edge on one leg); default none
+    leg_changes: tuple[LegChange, ...] = ()
 
     def __post_init__(self) -> None:
         if not (isinstance(self.compensator, str) or callable(self.compensator)):
@@ -149,7 +151,7 @@ class HydraulicCoupling:
     def __init__(self, idx: PlantIndex, hyd: HydraulicParams, controller: PController, setpoints: np.ndarray,
                  noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int, warm_up: WarmUp | None = None,
                  plant: PlantTruth | None = None, effects: Effects | None = None,
-                 faults: FaultInjector | None = None) -> None:
+                 faults: FaultInjector | None = None, leg_changes: tuple[LegChange, ...] = ()) -> None:
         self.idx = idx
         self.hyd = hyd
         self.base_hyd = hyd
@@ -163,6 +165,7 @@ class HydraulicCoupling:
         self.dt = idx.dt
         self.effects = effects or Effects()
         self.faults = faults
+        self.leg_changes = tuple(leg_changes)
         self.groups = np.zeros(idx.n_legs, dtype=np.intp)  # one supply manifold for all legs
         n = idx.n_legs
         self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd)
@@ -191,13 +194,20 @@ class HydraulicCoupling:
                     self.hyd = self.tick(k, self.y_measured)
                     if self.supply_level is not None:
                         self.state.p_s[:] = self.supply_level
-                self.state, self.force = step_plant(self.state, self.u_v, y, ydot, self.dt, self.hyd, self.effects,
-                                                    self.groups)
+                self.state, self.force = advance_legs(self.state, self.u_v, y, ydot, self.dt, self.leg_table(),
+                                                      self.groups)
             d.ctrl[self.idx.actuator_id] = self.force
         except Exception as exc:  # noqa: BLE001 - re-raised by simulate() after the step
             self.error = exc
             d.ctrl[self.idx.actuator_id] = 0.0
 
+
+    def leg_table(self) -> np.ndarray:
+        """The legs' parameters now in force (:func:`hexsim.plant.leg_table`), rebuilt when the oil warms."""
+        if getattr(self, "_table_of", None) is not self.hyd:
+            self._table = leg_table(self.hyd, self.effects, self.idx.n_legs, self.leg_changes)
+            self._table_of = self.hyd
+        return self._table
 
     def tick(self, k: int, y_measured: np.ndarray) -> HydraulicParams:
         """The controller sample at step ``k`` (both engines): oil temperature, setpoint, P control with

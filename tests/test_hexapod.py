@@ -147,3 +147,26 @@ def test_island_discovery_off_changes_nothing(monkeypatch):
     on = simulate(config)
     for name in ("y", "p1", "u_c", "acc", "pose"):
         np.testing.assert_array_equal(getattr(off, name), getattr(on, name), err_msg=name)
+
+
+def test_one_leg_may_differ_from_the_others():
+    """LegChange: the same change on every leg is the global effect, bit for bit; on one leg it moves that
+    leg most; both engines agree; shared or unknown fields and legs the model lacks are refused."""
+    from hexsim.effects import Effects, LegChange
+
+    sc = make_scenario("heave", duration=1.5, frequency=2.0)
+    every = simulate(RunConfig(sc, effects=Effects(leakage=3e-12), seed=1))
+    each = simulate(RunConfig(sc, leg_changes=tuple(LegChange.of(i, leakage=3e-12) for i in range(1, 7)), seed=1))
+    assert np.array_equal(every.p1, each.p1) and np.array_equal(every.y, each.y)
+    nominal = simulate(RunConfig(sc, seed=1))
+    one = RunConfig(sc, leg_changes=(LegChange.of(3, leakage=3e-12),), seed=1)
+    leg3 = simulate(one)
+    moved = np.abs(leg3.y - nominal.y).max(axis=0)
+    assert np.argmax(moved) == 2 and moved[2] > 5 * np.delete(moved, 2).max()
+    python = simulate(RunConfig(sc, leg_changes=one.leg_changes, seed=1, engine="python"))
+    assert np.allclose(python.y, leg3.y, atol=1e-9)
+    for bad in ({"supply_pressure": 6e6}, {"bore": 0.1}):
+        with pytest.raises(InputError, match="leg3"):
+            LegChange.of(3, **bad)
+    with pytest.raises(InputError, match="leg7"):
+        simulate(RunConfig(sc, leg_changes=(LegChange.of(7, leakage=1e-12),)))
