@@ -154,7 +154,7 @@ def _progress_line(text: str) -> None:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from hexsim.measurement import read_log
-    from hexsim.validation import plus_minus, validate
+    from hexsim.validation import effect_label, plus_minus, validate
 
     _check_outputs(args)
     if args.jobs < 1:
@@ -174,15 +174,15 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"  {line}")
     print(f"added effect: {doc['added_effect']}")
     for effect in doc["added_effects"]:
-        print(f"  {effect['name']}: " + ", ".join(f"{k} = {plus_minus(v)}" for k, v in effect["parameters"].items()))
+        print(f"  {effect_label(effect)}: " + ", ".join(f"{k} = {plus_minus(v)}" for k, v in effect["parameters"].items()))
     print(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s} {'held-out RMS / budget':>22s}")
     for ch, before in doc["error_before"].items():
         print(f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g} {doc['held_out_rms_in_budgets'][ch]:22.3g}")
     if doc["candidates"]:
-        print(f"{'candidate':16s} {'on top of':>16s} {'held-out gain':>13s} {'p':>9s}  verdict")
+        print(f"{'candidate':20s} {'on top of':>16s} {'held-out gain':>13s} {'p':>9s}  verdict")
     for c in doc["candidates"]:
         why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
-        print(f"{c['effect']:16s} {'+'.join(c['on_top_of']) or 'nominal':>16s} {c['held_out_gain']:+13.3f} "
+        print(f"{effect_label(c):20s} {'+'.join(c['on_top_of']) or 'nominal':>16s} {c['held_out_gain']:+13.3f} "
               f"{c['p_value']:9.2g}  {why}")
     for path in (args.report, args.json):
         if path is not None:
@@ -215,6 +215,21 @@ def cmd_friction(args: argparse.Namespace) -> int:
     return 0
 
 
+def _payload(text: str) -> tuple[float, tuple[float, float, float]]:
+    """``KG``, ``KG@X,Y`` or ``KG@X,Y,Z`` -> (kg, (x, y, z) m); z 0 if not given."""
+    mass, _, at = text.partition("@")
+    try:
+        xyz = tuple(float(v) for v in at.split(",")) if at else (0.0, 0.0, 0.0)
+        value = float(mass)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not KG[@X,Y[,Z]]: {text!r}") from None
+    if len(xyz) == 2:
+        xyz = (*xyz, 0.0)
+    if len(xyz) != 3 or not all(math.isfinite(v) for v in (value, *xyz)):
+        raise argparse.ArgumentTypeError(f"not KG[@X,Y[,Z]] with finite numbers: {text!r}")
+    return value, xyz
+
+
 def _scenario_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw or file:PATH")
     p.add_argument("--duration", type=_number, help="simulated time [s] (default: max(20 s, 6 periods); file: its length)")
@@ -236,6 +251,9 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                    help="inject a fault (repeatable): valve_stuck:leg=N,t=S,value=V | supply_loss:t=S[,ramp=S] | "
                         "sensor_frozen:leg=N,t=S | sensor_dropout:leg=N,t=S | end_stop:leg=N,t=S[,value=M] "
                         "(see hexsim/faults.py)")
+    p.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
+                   help="hexapod: a payload of KG kg added to the 600 kg platform, its centre of gravity at X,Y,Z m "
+                        "in the platform frame (default its centre; Z default 0); negative KG: a lighter platform")
     p.add_argument("--keep-last", type=_number, metavar="SECONDS",
                    help="keep only the last SECONDS of the 1 kHz recording (long runs: memory stays flat; the "
                         "metrics and outputs cover that window)")
@@ -281,6 +299,8 @@ def _run_config(args: argparse.Namespace, compensator: str):
         controller = controller.replace(position_noise=args.sensor_noise)
     if args.flow_area is not None:
         hydraulics = hydraulics.replace(flow_area=args.flow_area)
+    if args.payload is not None:
+        effects = effects.replace(payload_kg=args.payload[0], payload_at_m=args.payload[1])
     scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
                              frequency=args.frequency, controller_rate_hz=controller.rate_hz)
     try:

@@ -222,7 +222,7 @@ def apply_terms(model: PlantModel, found: dict[str, float], mean_dp: float = 0.0
         if cp >= 0 and cn >= 0:
             hyd = hyd.replace(coulomb_pos=cp, coulomb_neg=cn)
             applied.append(key)
-    return PlantModel(hyd, eff), applied
+    return model.replace(hydraulics=hyd, effects=eff), applied
 
 
 def discover(problem, base: PlantModel, base_scored, budget, score=None) -> dict:

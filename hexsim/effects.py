@@ -5,8 +5,8 @@ eq. 3.2), no leakage and an exact position sensor. On the real Micro Motion Syst
 the supply pressure move, gravity not along the actuator and hysteresis in the flow curve (ch. 4) and
 left them open. :class:`Effects` switches such extensions on; every field's zero value is the seed's
 model, so ``Effects()`` reproduces the nominal plant exactly. Null offset, bulk modulus and friction are
-fields of :class:`~hexsim.params.HydraulicParams`; mass and inclination of the actuator are rigid-body
-facts and change the MuJoCo model (:func:`hexsim.model.apply_load`).
+fields of :class:`~hexsim.params.HydraulicParams`; mass and inclination of the actuator and a payload on
+the hexapod's platform are rigid-body facts and change the MuJoCo model (:func:`hexsim.model.apply_load`).
 
 The equations of the effects are written once, in the leg step of :mod:`hexsim.plant`.
 """
@@ -42,7 +42,9 @@ class Effects:
     C_l (P_s - P1) into the bottom chamber. Sensor delay: the position the controller and the log see
     is y(t - tau_y). Edge asymmetry: the supply (P→A) and return (A→T) edges of the spool pass k_PA and
     k_AT times the flow of eq. (3.4) (ground edges differ by manufacturing tolerance and wear; the seed's
-    measured flow curve is not symmetric either, §4.2).
+    measured flow curve is not symmetric either, §4.2). Payload (hexapod): a point mass m_p at c_p on the
+    platform (platform frame, origin at the platform body), added to the platform's mass, centre of mass
+    and inertia (parallel-axis theorem); the seed's 600 kg is the Micro Motion System's maximum payload.
     """
 
     supply_resistance: float = 0.0  # R_s [Pa s/m^3], P_s sag per unit supply flow; 0: ideal supply
@@ -56,6 +58,8 @@ class Effects:
     edge_gain_at: float = 1.0  # k_AT [-], flow gain of the return edge A→T relative to eq. (3.4); 1: seed
     mass_kg: float | None = None  # moving mass M [kg] of the single actuator; None: the MJCF's
     inclination_deg: float | None = None  # actuator axis from vertical [deg]; None: vertical (the MJCF)
+    payload_kg: float = 0.0  # hexapod: mass added to the platform [kg] (< 0: a lighter platform); 0: the MJCF's
+    payload_at_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # its centre of gravity, platform frame [m]
 
     def __post_init__(self) -> None:
         _check_nonnegative(self, "supply_resistance", "supply_time_constant", "spool_frequency", "spool_damping",
@@ -64,6 +68,10 @@ class Effects:
             raise InputError("Effects.supply_time_constant must be > 0 when supply_resistance > 0")
         if self.mass_kg is not None and not (math.isfinite(self.mass_kg) and self.mass_kg > 0):
             raise InputError(f"Effects.mass_kg must be a finite positive number, got {self.mass_kg!r}")
+        if not (math.isfinite(self.payload_kg) and len(self.payload_at_m) == 3
+                and all(math.isfinite(v) for v in self.payload_at_m)):
+            raise InputError(f"Effects.payload_kg / payload_at_m must be finite (a mass and x, y, z), got "
+                             f"{self.payload_kg!r} at {self.payload_at_m!r}")
         if self.inclination_deg is not None and not (math.isfinite(self.inclination_deg)
                                                      and 0.0 <= self.inclination_deg <= 90.0):
             raise InputError(f"Effects.inclination_deg must be within 0…90, got {self.inclination_deg!r}")
@@ -78,7 +86,7 @@ NOMINAL = Effects()
 #: Parameters one leg cannot have on its own: the supply and tank are one manifold, the sensor delay is
 #: the motion computer's, the load a rigid-body fact, the valve range the controller's saturation.
 SHARED_FIELDS = frozenset({"supply_pressure", "tank_pressure", "supply_resistance", "supply_time_constant",
-                           "sensor_delay", "mass_kg", "inclination_deg", "u_v_max"})
+                           "sensor_delay", "mass_kg", "inclination_deg", "payload_kg", "payload_at_m", "u_v_max"})
 
 
 @dataclass(frozen=True)

@@ -35,13 +35,14 @@ from __future__ import annotations
 import math
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 from tqdm import tqdm
 
-from hexsim.candidates import CANDIDATES, Candidate, plausibility, plausible_bounds
+from hexsim.candidates import CANDIDATES, LEG_LEVEL, applier, candidate_key, parse_key, plausibility, plausible_bounds
 from hexsim.discovery import discover
 from hexsim.effects import EFFECT_NAMES, Effects
 from hexsim.errors import InputError, PhysicsError
@@ -76,6 +77,11 @@ SCALED = ("position", "acceleration")
 #: a few percent (±5 % uncalibrated); position transducers are linear to far better than 1 %, and a looser
 #: position scale trades with the valve's flow gain (the increments of a window scale with both).
 SCALE_LIMIT = {"position": 0.01, "acceleration": 0.05}
+#: A scale is fitted only to a signal whose replayed motion is at least this many times the log's noise
+#: estimate (standard deviations; that estimate includes the accelerometer's real high-frequency content,
+#: 0.26 m/s^2 on a single-actuator log whose motion is 1.4 m/s^2): a hexapod's accelerometer axes across
+#: a heave motion replay at ~0.05 of it, and their scale clamped at the limit by chance.
+SCALE_MIN_SNR = 3.0
 
 
 def available_channels(log: MeasurementLog) -> list[str]:
@@ -181,6 +187,18 @@ def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
     return Budget(noise, tol)
 
 
+def with_model_tolerance(problem, model: PlantModel, budget: Budget) -> Budget:
+    """``budget`` with each channel's numerical tolerance the larger of its own and ``model``'s (the same
+    Richardson estimate on that model's replay): a model with effects (a heavier platform, a sagging
+    supply) has its own discretisation error, which the nominal's does not measure."""
+    fine = problem.simulate(model)
+    coarse = problem.simulate(model, dt=RICHARDSON * REPLAY_DT)
+    s = problem.settle
+    tol = {ch: max(budget.tolerance[ch], float(np.sqrt(np.mean((fine[ch] - coarse[ch])[:, s:] ** 2))))
+           for ch in problem.channels}
+    return Budget(budget.noise, tol)
+
+
 def _lstsq1(x: np.ndarray, y: np.ndarray) -> float:
     den = float(x @ x)
     return float(x @ y) / den if den > 0 else 0.0
@@ -194,7 +212,8 @@ def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[di
     """Residuals with the sensor calibration fitted on ``rows`` (least squares, scored samples):
     measured ≈ offset + scale · simulated, the scale for :data:`SCALED` channels only. For windowed
     replays the position starts each window at the measured value, so only its scale is fitted, on the
-    increments from the window start. Scales are limited to 1 ± :data:`SCALE_LIMIT`. Returns (calibrated residual = offset + scale sim - measured per
+    increments from the window start. Scales are limited to 1 ± :data:`SCALE_LIMIT` and fitted only to
+    signals that move (:data:`SCALE_MIN_SNR`). Returns (calibrated residual = offset + scale sim - measured per
     channel, calibration: channel -> {"offset": [...], "scale": [...]} per signal)."""
     out, cal = {}, {}
     s0 = problem.settle
@@ -212,7 +231,7 @@ def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[di
                 offsets.append(0.0)
                 scales.append(1.0 + beta)
                 continue
-            if ch in SCALED:
+            if ch in SCALED and np.std(x[rows, s0:]) >= SCALE_MIN_SNR * problem.log_noise[ch]:
                 a = np.stack([np.ones(r.size), x[rows, s0:].ravel()], axis=1)
                 offset, beta = np.linalg.lstsq(a, -r, rcond=None)[0]
                 if abs(beta) > SCALE_LIMIT[ch]:  # clamp the scale, refit the offset
@@ -290,55 +309,64 @@ class FitResult:
     p_value: float = float("nan")
     accepted: bool = False
     reasons: list[str] = field(default_factory=list)  # why not accepted
+    leg: int | None = None  # the leg it acts on alone (hexapod), None: all legs / the single actuator
+
+    @property
+    def key(self) -> str:
+        return candidate_key(self.name, self.leg)
 
     def as_dict(self) -> dict:
-        return {"effect": self.name, "on_top_of": list(self.on_top_of), "parameters": self.parameters,
+        return {"effect": self.name, "leg": self.leg, "on_top_of": list(self.on_top_of), "parameters": self.parameters,
                 "held_out_gain": self.held_out_gain, "p_value": self.p_value, "accepted": self.accepted,
                 "rejected_because": self.reasons, "held_out_rms": self.scored.held_out_rms,
                 "calibration": self.scored.calibration, "function_evaluations": self.nfev}
 
 
-def fit_candidate(problem, name: str, base: PlantModel, budget: Budget,
-                  on_top_of: tuple[str, ...] = ()) -> FitResult:
-    """Fit one candidate on top of ``base`` (its parameters held) on the fit windows; score it on all.
-    See :func:`_least_squares`."""
-    cand: Candidate = CANDIDATES[name]
+def fit_candidate(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...] = (),
+                  starts=None) -> FitResult:
+    """Fit one candidate (a :func:`hexsim.candidates.candidate_key`: all legs, or one leg) on top of
+    ``base`` (its parameters held) on the fit windows of ``problem``; score it on all of them. The search
+    starts from the best of ``starts`` (default the candidate's own). See :func:`_least_squares`."""
+    cand, leg = parse_key(key)
     lower, upper = plausible_bounds(cand, problem.log)
-    starts = [np.clip(np.array(x, dtype=float), lower, upper) for x in cand.starts(problem.log)]
-    x, se, scored, nfev = _least_squares(problem, lambda x: cand.apply(base, x), lower, upper, starts, budget)
+    given = cand.starts(problem.log) if starts is None else starts
+    starts = [np.clip(np.array(x, dtype=float), lower, upper) for x in given]
+    apply = applier(cand, leg)
+    x, se, scored, nfev = _least_squares(problem, lambda x: apply(base, x), lower, upper, starts, budget)
     params = {p: {"value": float(v), "std_error": float(e), "unit": u}
               for p, v, e, u in zip(cand.parameters, x, se, cand.units)}
-    return FitResult(name=name, on_top_of=on_top_of, parameters=params, x=x, model=cand.apply(base, x),
-                     scored=scored, nfev=nfev)
+    return FitResult(name=cand.name, on_top_of=on_top_of, parameters=params, x=x, model=apply(base, x),
+                     scored=scored, nfev=nfev, leg=leg)
 
 
 def refit_jointly(problem, fits: list[FitResult], budget: Budget) -> list[FitResult]:
     """All accepted effects refitted together from their values (forward selection refits the whole model
     after each step, so an effect fitted first does not keep what the next one explains). Returns one
     FitResult per effect, each holding the joint model and scores."""
-    cands = [CANDIDATES[f.name] for f in fits]
-    bounds = [plausible_bounds(c, problem.log) for c in cands]
+    parsed = [parse_key(f.key) for f in fits]
+    bounds = [plausible_bounds(c, problem.log) for c, _ in parsed]
     lower = np.concatenate([b[0] for b in bounds])
     upper = np.concatenate([b[1] for b in bounds])
-    sizes = np.cumsum([0] + [len(c.parameters) for c in cands])
+    sizes = np.cumsum([0] + [len(c.parameters) for c, _ in parsed])
+    appliers = [applier(c, leg) for c, leg in parsed]
 
     def apply(x):
         model = problem.nominal
-        for i, c in enumerate(cands):
-            model = c.apply(model, x[sizes[i]:sizes[i + 1]])
+        for i, a in enumerate(appliers):
+            model = a(model, x[sizes[i]:sizes[i + 1]])
         return model
 
     x0 = np.clip(np.concatenate([f.x for f in fits]), lower, upper)
     x, se, scored, nfev = _least_squares(problem, apply, lower, upper, [x0], budget)
     model = apply(x)
     out = []
-    for i, (f, c) in enumerate(zip(fits, cands)):
+    for i, (f, (c, leg)) in enumerate(zip(fits, parsed)):
         sl = slice(sizes[i], sizes[i + 1])
         params = {p: {"value": float(v), "std_error": float(e), "unit": u}
                   for p, v, e, u in zip(c.parameters, x[sl], se[sl], c.units)}
         out.append(FitResult(name=f.name, on_top_of=f.on_top_of, parameters=params, x=x[sl], model=model,
                              scored=scored, nfev=nfev, held_out_gain=f.held_out_gain, p_value=f.p_value,
-                             accepted=f.accepted, reasons=f.reasons))
+                             accepted=f.accepted, reasons=f.reasons, leg=leg))
     return out
 
 
@@ -426,8 +454,9 @@ def within_budget(scored: Scored, budget: Budget) -> dict[str, float]:
     return {ch: (rms / b[ch]) ** 2 for ch, rms in scored.held_out_rms.items()}
 
 
-#: Candidates that apply to a hexapod log: the load (mass, inclination) is a single-axis fact.
-HEXAPOD_CANDIDATES = tuple(n for n in EFFECT_NAMES if n != "load")
+#: Candidates that apply to a hexapod log: the load (mass, inclination) is a single-axis fact, the
+#: payload the hexapod's.
+HEXAPOD_CANDIDATES = (*(n for n in EFFECT_NAMES if n != "load"), "payload")
 
 
 def make_problem(log: MeasurementLog):
@@ -441,9 +470,78 @@ def make_problem(log: MeasurementLog):
     return Problem(log)
 
 
-def _fit_in_worker(log: MeasurementLog, name: str, base: PlantModel, budget: Budget,
-                   on_top_of: tuple[str, ...]) -> FitResult:
-    return fit_candidate(make_problem(log), name, base, budget, on_top_of)
+#: Hexapod: candidates are searched on the first this many segments of the log (a closed-loop replay of
+#: 0.5 s + 4 s instead of the whole log), then scored and judged on the whole log.
+SEARCH_SEGMENTS = 16
+#: Hexapod: candidates fitted per round. All are screened first by the cost of their best start on the
+#: search segments (one replay per start); the best this many are fitted, the others are reported as
+#: screened out.
+FIT_PER_ROUND = 4
+#: Hexapod: a leg "stands out" when its held-out RMS (position or P1) is above sqrt(WITHIN) budgets and
+#: this many times the legs' median; leg-level candidates are then tried on that leg alone.
+LEG_STANDOUT = 3.0
+MAX_LEGS = 2
+
+
+def search_problem(problem):
+    """The problem candidates are searched on: a hexapod log's first :data:`SEARCH_SEGMENTS` segments
+    (the problem itself if it is not longer), a single-actuator log's own windows."""
+    if getattr(problem, "segments", 0) > SEARCH_SEGMENTS:
+        return problem.prefix(SEARCH_SEGMENTS)
+    return problem
+
+
+def _fit_one(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...],
+             starts=None) -> FitResult:
+    """Fit on the search problem, score on the whole log."""
+    search = search_problem(problem)
+    fit = fit_candidate(search, key, base, budget, on_top_of, starts)
+    if search is not problem:
+        fit.scored = score(problem, problem.simulate(fit.model), budget)
+    return fit
+
+
+def _fit_in_worker(log: MeasurementLog, key: str, base: PlantModel, budget: Budget,
+                   on_top_of: tuple[str, ...], starts=None) -> FitResult:
+    return _fit_one(make_problem(log), key, base, budget, on_top_of, starts)
+
+
+def start_cost(problem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
+    """(best start, its cost on the fit windows of the search problem) of a candidate: one replay per
+    start. A start the model cannot run scores infinite."""
+    search = search_problem(problem)
+    cand, leg = parse_key(key)
+    lower, upper = plausible_bounds(cand, search.log)
+    apply = applier(cand, leg)
+    best = (None, math.inf)
+    for x in cand.starts(search.log):
+        x = tuple(float(v) for v in np.clip(np.array(x, dtype=float), lower, upper))
+        try:
+            cost = float(np.sum(residual_vector(search, search.simulate(apply(base, np.array(x))), budget,
+                                                search.fit_rows) ** 2))
+        except (PhysicsError, FloatingPointError, ValueError):
+            cost = math.inf
+        if cost < best[1] or best[0] is None:
+            best = (x, cost)
+    return best
+
+
+def _start_cost_in_worker(log, key, base, budget):
+    return start_cost(make_problem(log), key, base, budget)
+
+
+def standout_legs(problem, scored: Scored, budget: Budget) -> list[int]:
+    """Hexapod legs (1-6) whose held-out position or P1 error stands out of the others' (see
+    :data:`LEG_STANDOUT`), worst first, at most :data:`MAX_LEGS`; [] for a single actuator."""
+    if problem.log.system != "hexapod":
+        return []
+    b = budget.total
+    ratio = np.max([np.asarray(scored.held_out_rms_signals[ch]) / b[ch] for ch in ("position", "p1")
+                    if ch in scored.held_out_rms_signals], axis=0)
+    median = float(np.median(ratio))
+    legs = [j + 1 for j in np.argsort(-ratio)
+            if ratio[j] > math.sqrt(WITHIN) and ratio[j] > LEG_STANDOUT * median]
+    return legs[:MAX_LEGS]
 
 
 @dataclass
@@ -458,6 +556,9 @@ class Identification:
     final: Scored  # the nominal plus the accepted effects
     verdict: str  # none | explained | partial | unexplained
     discovery: dict | None = None  # hexsim.discovery.discover, for partial and unexplained verdicts
+    # hexapod: per round, every candidate screened: key, the cost of its best start on the search
+    # segments relative to the model it extends, and whether it was fitted
+    screening: list[list[dict]] = field(default_factory=list)
 
     @property
     def added_effect(self) -> str:
@@ -488,27 +589,65 @@ class Identification:
         return self.nrmse(self.final)
 
 
-def _fit_round(problem, log, names, base: PlantModel, budget: Budget, on_top_of, jobs, bar,
-               notify) -> list[FitResult]:
+def _parallel(jobs: int, fn, worker, log, calls: list[tuple]) -> list:
+    """``fn(*args)`` for each args of ``calls``, in order; in worker processes as ``worker(log, *args)``
+    (which rebuilds the problem from the log) when jobs > 1."""
+    if jobs > 1 and len(calls) > 1:
+        with worker_pool(min(jobs, len(calls))) as pool:
+            futures = [pool.submit(worker, log, *args) for args in calls]
+            return [f.result() for f in futures]
+    return [fn(*args) for args in calls]
+
+
+def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, base_cost: float, jobs: int,
+            notify) -> tuple[list[str], dict[str, tuple], list[dict]]:
+    """Hexapod: the cost of each candidate's best start on the search segments (:func:`start_cost`); the
+    :data:`FIT_PER_ROUND` lowest go on to be fitted from that start. Returns (keys to fit, their start,
+    the screening table)."""
+    if log.system != "hexapod" or len(keys) <= FIT_PER_ROUND:
+        return keys, {}, []
+    notify(f"screening {len(keys)} candidates by their best start on the first {SEARCH_SEGMENTS} segments")
+    costs = _parallel(jobs, partial(start_cost, problem), _start_cost_in_worker, log,
+                      [(k, base, budget) for k in keys])
+    ranked = sorted(range(len(keys)), key=lambda i: costs[i][1])
+    chosen = [keys[i] for i in ranked[:FIT_PER_ROUND]]
+    table = [{"candidate": keys[i], "start": list(costs[i][0]), "start_cost_ratio": costs[i][1] / base_cost
+              if base_cost > 0 else float("nan"), "fitted": keys[i] in chosen} for i in ranked]
+    return chosen, {keys[i]: (costs[i][0],) for i in ranked[:FIT_PER_ROUND]}, table
+
+
+def _fit_round(problem, log, keys, base: PlantModel, budget: Budget, on_top_of, jobs, bar, notify,
+               starts: dict[str, tuple] | None = None) -> list[FitResult]:
+    starts = starts or {}
     results = []
 
     def done(fit: FitResult) -> None:
         results.append(fit)
-        bar.set_postfix_str(fit.name)
+        bar.set_postfix_str(fit.key)
         bar.update()
-        notify(f"fitted {fit.name}{' on top of ' + '+'.join(on_top_of) if on_top_of else ''} "
-               f"({len(results)}/{len(names)})")
+        notify(f"fitted {fit.key}{' on top of ' + '+'.join(on_top_of) if on_top_of else ''} "
+               f"({len(results)}/{len(keys)})")
 
-    if jobs > 1 and len(names) > 1:
-        with worker_pool(min(jobs, len(names))) as pool:
-            futures = [pool.submit(_fit_in_worker, log, n, base, budget, on_top_of) for n in names]
+    if jobs > 1 and len(keys) > 1:
+        with worker_pool(min(jobs, len(keys))) as pool:
+            futures = [pool.submit(_fit_in_worker, log, k, base, budget, on_top_of, starts.get(k)) for k in keys]
             for fut in as_completed(futures):
                 done(fut.result())
     else:
-        for n in names:
-            done(fit_candidate(problem, n, base, budget, on_top_of))
-    order = {n: i for i, n in enumerate(names)}
-    return sorted(results, key=lambda r: order[r.name])
+        for k in keys:
+            done(_fit_one(problem, k, base, budget, on_top_of, starts.get(k)))
+    order = {k: i for i, k in enumerate(keys)}
+    return sorted(results, key=lambda r: order[r.key])
+
+
+def _round_keys(problem, candidates, accepted: list[FitResult], legs: list[int]) -> list[str]:
+    """The candidates of a round: every name not yet accepted on all legs, and on a hexapod the
+    leg-level ones on each leg that stands out (:func:`standout_legs`)."""
+    taken = {a.key for a in accepted}
+    keys = [n for n in candidates if n not in taken]
+    keys += [candidate_key(n, leg) for leg in legs for n in candidates
+             if n in LEG_LEVEL and candidate_key(n, leg) not in taken]
+    return keys
 
 
 def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
@@ -516,10 +655,10 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
     select effects forward (see the module doc).
 
-    ``candidates``: default every effect that applies to the log's system. ``jobs`` worker processes
-    fit candidates in parallel (1: in this process). ``progress``: a progress bar (terminals);
-    ``notify``: called with one line of text per step (logs, pipes). Raises InputError for a log the
-    replay cannot use.
+    ``candidates``: default every effect that applies to the log's system (on a hexapod also on one leg
+    alone for the legs that stand out). ``jobs`` worker processes fit candidates in parallel (1: in this
+    process). ``progress``: a progress bar (terminals); ``notify``: called with one line of text per
+    step (logs, pipes). Raises InputError for a log the replay cannot use.
     """
     notify = notify or (lambda text: None)
     problem = make_problem(log)
@@ -532,19 +671,28 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     notify("noise budget measured; held-out RMS / budget: " + ", ".join(
         f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
     rounds: list[list[FitResult]] = []
+    screening: list[list[dict]] = []
     accepted: list[FitResult] = []
     current, model = nominal, problem.nominal
+    search = search_problem(problem)
     if max(within_budget(nominal, budget).values()) > WITHIN:
+        legs = standout_legs(problem, nominal, budget)
+        if legs:
+            notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in legs))
         bar = tqdm(desc="fitting effects", unit="fit", disable=not progress, leave=False)
         while len(accepted) < MAX_EFFECTS:
-            names = [n for n in candidates if n not in {a.name for a in accepted}]
-            if not names:
+            keys = _round_keys(problem, candidates, accepted, legs)
+            if not keys:
                 break
-            on_top = tuple(a.name for a in accepted)
-            notify(f"round {len(rounds) + 1}: fitting {len(names)} candidates")
-            fits = _fit_round(problem, log, names, model, budget, on_top, jobs, bar, notify)
+            on_top = tuple(a.key for a in accepted)
+            base_cost = float(np.sum(residual_vector(search, search.simulate(model), budget, search.fit_rows) ** 2)) \
+                if log.system == "hexapod" and len(keys) > FIT_PER_ROUND else 0.0
+            keys, starts, table = _screen(problem, log, keys, model, budget, base_cost, jobs, notify)
+            screening.append(table)
+            notify(f"round {len(rounds) + 1}: fitting {len(keys)} candidates")
+            fits = _fit_round(problem, log, keys, model, budget, on_top, jobs, bar, notify, starts)
             for f in fits:
-                judge(problem, current, f, budget, len(names))
+                judge(problem, current, f, budget, len(keys))
             rounds.append(fits)
             passed = [f for f in fits if f.accepted]
             if not passed:
@@ -552,9 +700,17 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
             best = max(passed, key=lambda f: f.held_out_gain)
             accepted.append(best)
             if len(accepted) > 1:
-                accepted = refit_jointly(problem, accepted, budget)
+                accepted = refit_jointly(search, accepted, budget)
+                if search is not problem:
+                    joint = score(problem, problem.simulate(accepted[-1].model), budget)
+                    for a in accepted:
+                        a.scored = joint
             current, model = accepted[-1].scored, accepted[-1].model
             if max(within_budget(current, budget).values()) <= WITHIN:
+                break
+            judged = with_model_tolerance(problem, model, budget)  # the accepted model's own tolerance
+            if max(within_budget(current, judged).values()) <= WITHIN:
+                budget = judged
                 break
         bar.close()
     if not rounds:
@@ -567,4 +723,4 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         notify("discovery: sparse correction of the model's equations")
     found = discover(problem, model, current, budget, score) if verdict in ("partial", "unexplained") else None
     return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,
-                          final=current, verdict=verdict, discovery=found)
+                          final=current, verdict=verdict, discovery=found, screening=screening)

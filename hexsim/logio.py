@@ -47,7 +47,9 @@ def sidecar(result: SimulationResult) -> dict:
         "system": "single-actuator" if cfg.scenario.system == "actuator" else "hexapod",
         "sample_rate_hz": round(rate, 6),
         "controller": {"type": "P", "kp_V_per_m": cfg.controller.kp, "rate_hz": cfg.controller.rate_hz},
-        "parameters": "seed appendix A (nominal)" if cfg.hydraulics == type(cfg.hydraulics)() else "hexsim custom",
+        "parameters": ("seed appendix A (nominal)" if cfg.hydraulics == type(cfg.hydraulics)()
+                       and cfg.effects == type(cfg.effects)() and not cfg.leg_changes
+                       else "hexsim with parameters other than the seed's (not stated here)"),
         "oil_temperature_C": 35.0,
         "description": f"hexsim simulation: scenario {cfg.scenario.name}, compensator {cfg.compensator_name}, seed {cfg.seed}",
     }

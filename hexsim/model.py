@@ -122,16 +122,23 @@ def check_warnings(m: mujoco.MjModel, d: mujoco.MjData) -> None:
 
 
 def apply_load(m: mujoco.MjModel, effects) -> None:
-    """Change the moving mass and the inclination of a single-actuator model in place.
+    """Change the rigid bodies in place for the load of ``effects`` (:class:`hexsim.effects.Effects`).
 
-    ``effects.mass_kg`` [kg] replaces the mass of the body that slide ``leg1`` carries;
+    Single actuator: ``effects.mass_kg`` [kg] replaces the mass of the body that slide ``leg1`` carries;
     ``effects.inclination_deg`` [deg] tilts gravity so the actuator axis is that far from vertical: only
     g cos(angle) acts along the axis (the seed's model is vertical, eq. 3.8; the seed notes gravity is
-    not along the hexapod's legs, ch. 4). Raises InputError on a model with more than one leg.
+    not along the hexapod's legs, ch. 4). Hexapod: ``effects.payload_kg`` [kg] at
+    ``effects.payload_at_m`` (platform frame [m]) is added to the body ``platform`` as a point mass
+    (:func:`add_point_mass`). Raises InputError for a load the model cannot take (mass or inclination on
+    the hexapod, a payload on the single actuator or one that leaves the platform without mass).
     """
+    idx = PlantIndex.from_model(m)
+    if effects.payload_kg != 0.0:
+        if idx.n_legs == 1:
+            raise InputError("a payload applies to the hexapod's platform; the single actuator takes mass_kg")
+        add_point_mass(m, _id(m, mujoco.mjtObj.mjOBJ_BODY, "platform"), effects.payload_kg, effects.payload_at_m)
     if effects.mass_kg is None and effects.inclination_deg is None:
         return
-    idx = PlantIndex.from_model(m)
     if idx.n_legs != 1:
         raise InputError("mass_kg and inclination_deg apply to the single-actuator model only")
     if effects.mass_kg is not None:
@@ -140,3 +147,37 @@ def apply_load(m: mujoco.MjModel, effects) -> None:
         g = float(np.linalg.norm(m.opt.gravity))
         angle = np.deg2rad(effects.inclination_deg)
         m.opt.gravity[:] = (g * np.sin(angle), 0.0, -g * np.cos(angle))
+
+
+def add_point_mass(m: mujoco.MjModel, body: int, mass: float, at) -> None:
+    """Add a point mass ``mass`` [kg] (negative: take mass away) at ``at`` (3,) [m, body frame] to body
+    ``body`` of a compiled model, in place: new mass, centre of mass (``body_ipos``) and inertia about it
+    (parallel-axis theorem on the full tensor, then principal axes into ``body_inertia`` /
+    ``body_iquat``). Raises InputError if the body would be left with no mass or an inertia that is not
+    positive definite."""
+    m0, c0 = float(m.body_mass[body]), np.array(m.body_ipos[body], dtype=float)
+    p = np.asarray(at, dtype=float)
+    total = m0 + mass
+    if total <= 0.0:
+        raise InputError(f"a payload of {mass:g} kg leaves the {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body)} "
+                         f"with {total:g} kg")
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, m.body_iquat[body])
+    rot = rot.reshape(3, 3)
+    inertia0 = rot @ np.diag(m.body_inertia[body]) @ rot.T  # about c0, body frame
+    c = (m0 * c0 + mass * p) / total
+
+    def shift(mass_i, r):  # inertia of a point mass mass_i at offset r
+        return mass_i * (np.dot(r, r) * np.eye(3) - np.outer(r, r))
+
+    inertia = inertia0 + shift(m0, c0 - c) + shift(mass, p - c)
+    values, vectors = np.linalg.eigh(inertia)
+    if values.min() <= 0.0:
+        raise InputError(f"a payload of {mass:g} kg at {tuple(p)} m leaves an inertia that is not positive definite")
+    if np.linalg.det(vectors) < 0:
+        vectors[:, 0] = -vectors[:, 0]
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, vectors.reshape(-1))
+    m.body_mass[body], m.body_ipos[body] = total, c
+    m.body_inertia[body], m.body_iquat[body] = values, quat
+    mujoco.mj_setConst(m, mujoco.MjData(m))  # subtree masses and the other constants derived from the bodies

@@ -15,6 +15,7 @@ joint and one accelerometer per window), built from the shipped ``single_actuato
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -24,7 +25,7 @@ import numpy as np
 from scipy.signal import cont2discrete, savgol_filter
 
 from hexsim import hydraulics
-from hexsim.effects import Effects
+from hexsim.effects import Effects, LegChange
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
 from hexsim.model import PlantIndex, apply_load, check_warnings, model_path
@@ -99,10 +100,16 @@ class Windows:
 
 @dataclass(frozen=True)
 class PlantModel:
-    """The model being confronted with the log: hydraulics, effects and the declared load."""
+    """The model being confronted with the log: hydraulics, effects and the declared load, and the legs
+    whose parameters differ from the others' (hexapod; :class:`hexsim.effects.LegChange`)."""
 
     hydraulics: HydraulicParams
     effects: Effects
+    leg_changes: tuple[LegChange, ...] = ()
+
+    def replace(self, **changes) -> "PlantModel":
+        """A copy with ``changes`` (hydraulics, effects, leg_changes) applied; leg changes are kept."""
+        return dataclasses.replace(self, **changes)
 
 
 def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:

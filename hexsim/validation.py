@@ -13,8 +13,8 @@ import pathlib
 import numpy as np
 
 from hexsim.candidates import CANDIDATES
-from hexsim.identify import (ALPHA, MAX_EFFECTS, SCALED, WITHIN, WORSE_REL, Identification,
-                             identify, signal_labels, within_budget)
+from hexsim.identify import (ALPHA, FIT_PER_ROUND, MAX_EFFECTS, SCALED, SEARCH_SEGMENTS, WITHIN, WORSE_REL,
+                             Identification, identify, signal_labels, within_budget)
 from hexsim.measurement import MeasurementLog, read_log
 from hexsim.residuals import analyse
 from hexsim.tables import json_text, write_atomic
@@ -30,13 +30,14 @@ PAYLOAD_INCONSISTENCY = 0.1
 
 
 def hexapod_payload(ident: Identification) -> dict | None:
-    """:func:`hexsim.hexapod_replay.payload_from_statics` on the nominal model's P1 calibration offsets of
+    """:func:`hexsim.hexapod_replay.payload_from_statics` on the P1 calibration offsets of the final model
+    (the nominal plus the accepted effects: a supply sag the nominal lacks also shifts every leg's P1) of
     a hexapod log, or None (single actuator, no P1, or offsets that are not one consistent load)."""
-    if ident.problem.log.system != "hexapod" or "p1" not in ident.nominal.calibration:
+    if ident.problem.log.system != "hexapod" or "p1" not in ident.final.calibration:
         return None
     from hexsim.hexapod_replay import payload_from_statics
 
-    found = payload_from_statics(np.array(ident.nominal.calibration["p1"]["offset"]))
+    found = payload_from_statics(np.array(ident.final.calibration["p1"]["offset"]))
     if abs(found["mass_kg"]) >= PAYLOAD_MIN_KG and found["inconsistency"] <= PAYLOAD_INCONSISTENCY:
         return found
     return None
@@ -98,7 +99,7 @@ def _leg_sentences(ident: Identification) -> list[str]:
     """Hexapod: one leg's position offset standing out, a payload in the legs' P1 offsets, one leg's
     residual standing out."""
     out, p = [], ident.problem
-    offsets = ident.nominal.calibration.get("position", {}).get("offset", [])
+    offsets = ident.final.calibration.get("position", {}).get("offset", [])
     if len(offsets) >= 3 and not p.windowed:
         mags = np.abs(offsets)
         j = int(np.argmax(mags))
@@ -141,14 +142,19 @@ def _direction_sentences(before: dict, off: list[str]) -> list[str]:
     return out
 
 
+def _label(fit) -> str:
+    """``leakage`` or ``leakage on leg3``."""
+    return fit.name if fit.leg is None else f"{fit.name} on leg{fit.leg}"
+
+
 def _verdict_sentences(ident: Identification) -> list[str]:
     out = []
     if ident.verdict == "explained":
-        out.append("Accepted: " + " + ".join(f.name for f in ident.accepted) + "; with it every channel is within "
+        out.append("Accepted: " + " + ".join(_label(f) for f in ident.accepted) + "; with it every channel is within "
                    "its budget.")
     elif ident.verdict == "partial":
         left = [ch for ch, v in within_budget(ident.final, ident.budget).items() if v > WITHIN]
-        out.append("Accepted: " + " + ".join(f.name for f in ident.accepted) + f"; structure is left in "
+        out.append("Accepted: " + " + ".join(_label(f) for f in ident.accepted) + f"; structure is left in "
                    f"{', '.join(left)} that no library effect explains.")
     elif ident.verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
@@ -180,7 +186,7 @@ def summary(ident: Identification) -> dict:
         "system": p.log.system,
         "verdict": ident.verdict,
         "added_effect": ident.added_effect,
-        "added_effects": [{"name": f.name, "leg": None, "parameters": f.parameters} for f in ident.accepted],
+        "added_effects": [{"name": f.name, "leg": f.leg, "parameters": f.parameters} for f in ident.accepted],
         "parameters": first.parameters if first else {},
         "calibration": {"nominal": ident.nominal.calibration, "final": ident.final.calibration},
         "budget": ident.budget.as_dict(p.units),
@@ -198,12 +204,16 @@ def summary(ident: Identification) -> dict:
         "units": p.units,
         "candidates": [c.as_dict() | {"physics": CANDIDATES[c.name].physics,
                                       "plausible_range_source": CANDIDATES[c.name].source} for c in ident.candidates],
+        "screening": ident.screening,
         "selection": (f"forward selection (at most {MAX_EFFECTS}): a candidate is accepted if its held-out "
                       f"improvement beyond the numerical tolerance passes a one-sided t-test over the held-out "
                       f"windows at {ALPHA:g} / (candidates in the round), no signal's (each leg's) held-out RMS "
                       f"rises by more than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
                       f"off the bounds and above the log's resolution; a channel is explained within "
-                      f"sqrt({WITHIN:g}) budgets"),
+                      f"sqrt({WITHIN:g}) budgets. Hexapod: leg-level candidates also on each leg whose residual "
+                      f"stands out, every candidate screened by its best start on the first {SEARCH_SEGMENTS} "
+                      f"segments, the best {FIT_PER_ROUND} fitted there and judged on the whole log (the "
+                      f"Bonferroni count is the candidates fitted)"),
         "conclusions": conclusions(ident, before),
         "payload_from_statics": hexapod_payload(ident),
         "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
@@ -260,12 +270,18 @@ def _discovery_markdown(doc: dict) -> list[str]:
     return lines
 
 
+def effect_label(entry: dict) -> str:
+    """Name of an added effect or candidate of the JSON, with its leg: ``leakage@leg3``."""
+    name = entry.get("name", entry.get("effect"))
+    return name if entry.get("leg") is None else f"{name}@leg{entry['leg']}"
+
+
 def markdown(doc: dict, png_names: list[str]) -> str:
-    effects = " + ".join(f"`{e['name']}`" for e in doc["added_effects"]) or "none"
+    effects = " + ".join(f"`{effect_label(e)}`" for e in doc["added_effects"]) or "none"
     lines = [f"# Validation of `{doc['log']}`", "", f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
     lines += [f"- {c}" for c in doc["conclusions"]] + [""]
     for e in doc["added_effects"]:
-        lines.append(f"`{e['name']}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))
+        lines.append(f"`{effect_label(e)}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))
     lines += ["", f"Replay: {doc['replay']}", "", "## Error per channel", "",
               "| channel | NRMSE before | NRMSE after | budget (noise, tolerance) |", "|---|---|---|---|"]
     for ch, before in doc["error_before"].items():
@@ -291,10 +307,15 @@ def markdown(doc: dict, png_names: list[str]) -> str:
         for c in doc["candidates"]:
             ps = ", ".join(f"{k} = {plus_minus(v)}" for k, v in c["parameters"].items())
             why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
-            lines.append(f"| {c['effect']} | {', '.join(c['on_top_of']) or 'nominal'} | {_md(ps)} | "
+            lines.append(f"| {effect_label(c)} | {', '.join(c['on_top_of']) or 'nominal'} | {_md(ps)} | "
                          f"{c['held_out_gain']:+.3f} | {c['p_value']:.2g} | {_md(why)} |")
     else:
         lines += ["", "No candidate was fitted: the nominal model leaves nothing beyond noise and tolerance."]
+    for i, table in enumerate(doc.get("screening") or []):
+        if table:
+            out = [f"{t['candidate']} ({t['start_cost_ratio']:.3g})" for t in table if not t["fitted"]]
+            lines += ["", f"Screened out in round {i + 1} (cost of the best start on the search segments relative "
+                      f"to the model it extends; only the best were fitted): " + _md(", ".join(out)) + "."]
     lines += _discovery_markdown(doc)
     lines += ["", "## Residual before → after", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
               "spectrum peak [Hz] |", "|---|---|---|---|"]
@@ -348,7 +369,7 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
         ax[i, 2].set_xlabel("frequency [Hz]")
         ax[i, 2].set_ylabel("PSD")
     ax[-1, 0].set_xlabel("time [s]")
-    added = " + ".join(f.name for f in ident.accepted) or "nothing"
+    added = " + ".join(_label(f) for f in ident.accepted) or "nothing"
     fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {added} (blue), verdict {ident.verdict}")
     fig.tight_layout()
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))

@@ -1,7 +1,9 @@
-"""Measured-data loop on hexapod logs (issue 4): the closed-loop replay of the logged leg setpoints
-(with the logged compensation fed forward) names a hidden supply-pressure effect and answers `none` for
-a log of the nominal plant run with the buffered compensator. The logs come from hexsim's own six-leg
-simulation with sensor noise; the identifier sees only the CSV and its sidecar."""
+"""Measured-data loop on hexapod logs (issues 4, 13): the closed-loop replay of the logged leg setpoints
+(with the logged compensation fed forward) names a hidden supply-pressure effect, names a leakage on one
+leg (which leg, its size) without touching the healthy legs, finds a payload off the platform centre,
+and answers `none` for a log of the
+nominal plant run with the buffered compensator. The logs come from hexsim's own six-leg simulation with
+sensor noise; the identifier sees only the CSV and its sidecar."""
 
 import json
 
@@ -10,7 +12,7 @@ import pytest
 
 from compensation import CompensatorSettings
 from hexsim.cli import main
-from hexsim.effects import Effects
+from hexsim.effects import Effects, LegChange
 from hexsim.logio import write_log
 from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
@@ -24,13 +26,20 @@ def answers(tmp_path_factory):
     folder = tmp_path_factory.mktemp("hexapod_logs")
     rng = np.random.default_rng(11)
     r_s = rng.uniform(0.5, 2.0)  # hidden supply resistance [bar/(L/min)]
+    leg, c_l = int(rng.integers(1, 7)), rng.uniform(2e-12, 6e-12)  # hidden leakage of one leg
+    angle, radius = rng.uniform(0, 2 * np.pi), rng.uniform(0.15, 0.3)  # hidden payload, off centre
+    payload = (rng.uniform(80.0, 150.0), radius * np.cos(angle), radius * np.sin(angle))
     cases = {
         "none": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), compensator="buffered",
                           compensator_settings=CompensatorSettings(buffer_time=1.0, fade_time=0.2), seed=3),
         "supply_pressure": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=4,
                                      effects=Effects(supply_resistance=r_s * BAR_PER_LPM, supply_time_constant=0.03)),
+        "leg": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=8,
+                         leg_changes=(LegChange.of(leg, leakage=c_l),)),
+        "payload": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=9,
+                             effects=Effects(payload_kg=payload[0], payload_at_m=(payload[1], payload[2], 0.0))),
     }
-    out = {"r_s": r_s}
+    out = {"r_s": r_s, "leg_truth": (leg, c_l), "payload_truth": payload}
     for name, config in cases.items():
         result = simulate(config)
         path = folder / f"{name}.csv"
@@ -55,6 +64,33 @@ def test_hexapod_log_with_a_sagging_supply_is_named_and_error_drops(answers):
     for ch in ("position", "p1", "p_s", "acceleration"):
         assert doc["error_after"][ch] <= 0.5 * doc["error_before"][ch], ch
     assert doc["parameters"]["R_s"]["value"] == pytest.approx(answers["r_s"], rel=0.1)
+
+
+def test_hexapod_leakage_on_one_leg_is_named_on_that_leg(answers):
+    """The leg-level candidates on the leg whose residual stands out, judged against their all-legs
+    versions on held-out data: the right leg, the right size, and the healthy legs not made worse."""
+    doc = answers["leg"]
+    leg, c_l = answers["leg_truth"]
+    assert doc["verdict"] == "explained", doc["conclusions"]
+    assert [(e["name"], e["leg"]) for e in doc["added_effects"]] == [("leakage", leg)]
+    assert doc["added_effects"][0]["parameters"]["C_l"]["value"] == pytest.approx(c_l * 1e12, rel=0.15)
+    budget = doc["budget"]["position"]["budget"]
+    for label, rms in doc["held_out_rms_per_signal"]["position"].items():
+        assert rms["after"] <= rms["before"] + budget, label
+    assert doc["error_after"]["position"] <= 0.2 * doc["error_before"]["position"]
+
+
+def test_hexapod_payload_off_centre_is_found_with_its_place(answers):
+    """A payload off the platform centre: named as such (not a supply or a friction change), its mass
+    and centre of gravity recovered from the closed-loop replay."""
+    doc = answers["payload"]
+    mass, x, y = answers["payload_truth"]
+    assert [e["name"] for e in doc["added_effects"]] == ["payload"], doc["conclusions"]
+    found = doc["added_effects"][0]["parameters"]
+    assert found["m_p"]["value"] == pytest.approx(mass, rel=0.05)
+    assert found["x_p"]["value"] == pytest.approx(x, abs=0.03) and found["y_p"]["value"] == pytest.approx(y, abs=0.03)
+    for ch in ("position", "p1"):
+        assert doc["error_after"][ch] <= 0.5 * doc["error_before"][ch], ch
 
 
 def _hexapod_log(folder, name: str, leg3_null_offset: float) -> str:
