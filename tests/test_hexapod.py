@@ -107,28 +107,30 @@ def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
     from hexsim import simulation
     from hexsim.errors import PhysicsError
 
-    real = simulation.step_plant
+    real = simulation.advance_legs
 
     def poisoned(*args, **kwargs):
         state, force = real(*args, **kwargs)
         state.p1[2] = np.nan  # leg3's chamber pressure goes bad
         return state, force
 
-    monkeypatch.setattr(simulation, "step_plant", poisoned)
+    monkeypatch.setattr(simulation, "advance_legs", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg3 at t = 0\.\d+ s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02), engine="python"))
 
 
 def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypatch):
-    from hexsim import runner
+    from hexsim import simulation
     from hexsim.errors import PhysicsError
 
-    real = runner.leg_params
+    real = simulation.leg_table
 
-    def poisoned(hyd, eff):
-        return real(hyd, eff)._replace(bulk_modulus=np.nan)  # every P1 goes bad in the first step
+    def poisoned(*args):
+        table = real(*args)
+        table["bulk_modulus"] = np.nan  # every P1 goes bad in the first step
+        return table
 
-    monkeypatch.setattr(runner, "leg_params", poisoned)
+    monkeypatch.setattr(simulation, "leg_table", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))
 
