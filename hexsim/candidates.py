@@ -213,6 +213,13 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               lambda m, x: _eff(m, edge_gain_pa=x[0], edge_gain_at=x[1]),
               "valve edge asymmetry: the supply edge P→A and the return edge A→T pass k_PA and k_AT times the "
               "flow of eq. (3.4)"),
+    Candidate("entrained_air", ("a",), ("%",), lambda log: ((0.2,), (1.0,), (5.0,)), (0.0,), (20.0,),
+              "undissolved air in mineral oil: well bled systems well under 1 %, aerated oil up to ~10-20 % "
+              "by volume at atmospheric pressure (Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), "
+              "2011)",
+              lambda m, x: _eff(m, air_fraction=x[0] * 1e-2),
+              "entrained air: a volume fraction a of air at atmospheric pressure (adiabatic, n = 1.4) makes the "
+              "oil's bulk modulus fall at low pressure (hexsim.plant.bulk_modulus)", (0.0,)),
     Candidate("payload", ("m_p", "x_p", "y_p"), ("kg", "m", "m"), _payload_starts, (-200.0, -0.6, -0.6),
               (600.0, 0.6, 0.6),
               "the Micro Motion System carries a payload of up to about 600 kg (seed §2.2.1); a "
@@ -272,7 +279,8 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray) -> list[st
 
 #: Candidates that can act on one leg of a hexapod alone; the supply, the sensor delay (the motion
 #: computer's) and the load are shared by the legs (:data:`hexsim.effects.SHARED_FIELDS`).
-LEG_LEVEL = ("spool_dynamics", "null_offset", "hysteresis", "leakage", "friction", "bulk_modulus", "edge_asymmetry")
+LEG_LEVEL = ("spool_dynamics", "null_offset", "hysteresis", "leakage", "friction", "bulk_modulus", "edge_asymmetry",
+             "entrained_air")
 
 
 def candidate_key(name: str, leg: int | None = None) -> str:

@@ -22,7 +22,7 @@ from hexsim.params import _check_nonnegative
 
 #: Names of the candidate effects of the identifier (issue 4), in the order they are tried.
 EFFECT_NAMES = ("supply_pressure", "spool_dynamics", "null_offset", "hysteresis", "leakage", "load", "friction",
-                "bulk_modulus", "sensor_delay", "edge_asymmetry")
+                "bulk_modulus", "sensor_delay", "edge_asymmetry", "entrained_air")
 
 
 @dataclass(frozen=True)
@@ -42,7 +42,9 @@ class Effects:
     C_l (P_s - P1) into the bottom chamber. Sensor delay: the position the controller and the log see
     is y(t - tau_y). Edge asymmetry: the supply (P→A) and return (A→T) edges of the spool pass k_PA and
     k_AT times the flow of eq. (3.4) (ground edges differ by manufacturing tolerance and wear; the seed's
-    measured flow curve is not symmetric either, §4.2). Payload (hexapod): a point mass m_p at c_p on the
+    measured flow curve is not symmetric either, §4.2). Entrained air: a volume fraction a of undissolved
+    air at atmospheric pressure makes the oil softer the lower the pressure (:func:`hexsim.plant.bulk_modulus`).
+    Payload (hexapod): a point mass m_p at c_p on the
     platform (platform frame, origin at the platform body), added to the platform's mass, centre of mass
     and inertia (parallel-axis theorem); the seed's 600 kg is the Micro Motion System's maximum payload.
     """
@@ -58,12 +60,17 @@ class Effects:
     edge_gain_at: float = 1.0  # k_AT [-], flow gain of the return edge A→T relative to eq. (3.4); 1: seed
     mass_kg: float | None = None  # moving mass M [kg] of the single actuator; None: the MJCF's
     inclination_deg: float | None = None  # actuator axis from vertical [deg]; None: vertical (the MJCF)
+    air_fraction: float = 0.0  # a [-], entrained (undissolved) air per volume of oil at atmospheric pressure
+    air_exponent: float = 1.4  # n [-], polytropic exponent of that air (1: isothermal, 1.4: adiabatic)
     payload_kg: float = 0.0  # hexapod: mass added to the platform [kg] (< 0: a lighter platform); 0: the MJCF's
     payload_at_m: tuple[float, float, float] = (0.0, 0.0, 0.0)  # its centre of gravity, platform frame [m]
 
     def __post_init__(self) -> None:
         _check_nonnegative(self, "supply_resistance", "supply_time_constant", "spool_frequency", "spool_damping",
-                           "spool_play", "leakage", "sensor_delay", "edge_gain_pa", "edge_gain_at")
+                           "spool_play", "leakage", "sensor_delay", "edge_gain_pa", "edge_gain_at", "air_fraction")
+        if not (math.isfinite(self.air_exponent) and 1.0 <= self.air_exponent <= 1.4):
+            raise InputError(f"Effects.air_exponent must be within 1 (isothermal) … 1.4 (adiabatic), got "
+                             f"{self.air_exponent!r}")
         if self.supply_resistance > 0 and self.supply_time_constant <= 0:
             raise InputError("Effects.supply_time_constant must be > 0 when supply_resistance > 0")
         if self.mass_kg is not None and not (math.isfinite(self.mass_kg) and self.mass_kg > 0):

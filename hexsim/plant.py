@@ -75,6 +75,8 @@ class LegParams(NamedTuple):
     c_l: float  # internal leakage C_l [m^3/(s Pa)]
     k_pa: float  # supply-edge gain [-]
     k_at: float  # return-edge gain [-]
+    air: float  # entrained air: volume fraction at atmospheric pressure [-]; 0: none
+    air_exponent: float  # polytropic exponent of the air [-]
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -86,7 +88,7 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         math.pi * hyd.spool_diameter, hyd.smooth_area_gain, float(hyd.flow_area == "sharp"), hyd.arctan_gain,
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
-        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at)
+        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent)
 
 
 #: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
@@ -168,15 +170,34 @@ def orifice(x_v, p1, p_s, P):
     return phi, dphi
 
 
+#: Atmospheric pressure [Pa]: the model's pressures are gauge (P_t = 0), the air's law is absolute.
+P_ATM = 101325.0
+
+
+@_inline
+def bulk_modulus(p1, P):
+    """Effective bulk modulus [Pa] of the oil at gauge pressure p1 [Pa]: E without entrained air; with an
+    air volume fraction a at atmospheric pressure (polytropic exponent n), oil and air springs in series,
+    E_eff = E (1 + r) / (1 + r E / (n p)), r = a (p_atm / p)^(1/n), p the absolute pressure (floored at
+    1 kPa) — the entrained-air model of hydraulic simulators (e.g. MapleSim's Hydraulics library,
+    "Constant Volume"; Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), 2011)."""
+    if P.air <= 0.0:
+        return P.bulk_modulus
+    p = max(p1 + P_ATM, 1e3)
+    r = P.air * (P_ATM / p) ** (1.0 / P.air_exponent)
+    return P.bulk_modulus * (1.0 + r) / (1.0 + r * P.bulk_modulus / (P.air_exponent * p))
+
+
 @_inline
 def pressure_step(p1, x_v, p_s, y, ydot, dt, P):
     """P1 [Pa] after a step dt [s] of eq. (3.7), E / (y A1 + V_pl) (phi_1 + C_l (P_s - P1) - ydot A1),
-    linearly implicit (Rosenbrock–Euler) in P1; ydot is the piston velocity at the start of the step."""
+    linearly implicit (Rosenbrock–Euler) in P1 (E = :func:`bulk_modulus` at the step's start P1); ydot
+    is the piston velocity at the start of the step."""
     phi, dphi = orifice(x_v, p1, p_s, P)
     if P.c_l != 0.0:
         phi += P.c_l * (p_s - p1)
         dphi -= P.c_l
-    stiff = P.bulk_modulus / (max(y, 0.0) * P.a1 + P.v_pl)
+    stiff = bulk_modulus(p1, P) / (max(y, 0.0) * P.a1 + P.v_pl)
     return p1 + dt * stiff * (phi - ydot * P.a1) / (1.0 - dt * stiff * dphi)
 
 

@@ -147,6 +147,31 @@ def _label(fit) -> str:
     return fit.name if fit.leg is None else f"{fit.name} on leg{fit.leg}"
 
 
+#: Another candidate that passed leaves at most this much more held-out cost than the accepted one: the
+#: log hardly tells them apart, and the report says so.
+CLOSE_CALL = 1.1
+
+
+def _close_call_sentences(ident: Identification) -> list[str]:
+    """One sentence per round in which a candidate that also passed explains the held-out data about as
+    well as the accepted one (left-over cost within :data:`CLOSE_CALL`)."""
+    chosen = {f.key for f in ident.accepted}
+    out = []
+    for fits in ident.rounds:
+        passed = [f for f in fits if f.accepted]
+        best = [f for f in passed if f.key in chosen]
+        if not best:
+            continue
+        left = 1.0 - best[0].held_out_gain
+        close = [f for f in passed if f.key not in chosen and 1.0 - f.held_out_gain <= CLOSE_CALL * left]
+        if close:
+            others = ", ".join(f"{_label(f)} ({f.held_out_gain:.3f})" for f in close)
+            out.append(f"{others} explain{'s' if len(close) == 1 else ''} the held-out data almost as well as "
+                       f"{_label(best[0])} (held-out gain {best[0].held_out_gain:.3f}): the log hardly tells them "
+                       f"apart; {_label(best[0])} is reported as the better one.")
+    return out
+
+
 def _verdict_sentences(ident: Identification) -> list[str]:
     out = []
     if ident.verdict == "explained":
@@ -158,6 +183,7 @@ def _verdict_sentences(ident: Identification) -> list[str]:
                    f"{', '.join(left)} that no library effect explains.")
     elif ident.verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
+    out += _close_call_sentences(ident)
     found = ident.discovery or {}
     for term in found.get("terms", []):
         out.append(f"Discovered in the {term['equation']} equation: {term['meaning']} "
