@@ -83,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
     val.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
     val.add_argument("--jobs", type=int, default=2, help="worker processes for the fits (default 2)")
+    val.add_argument("--without", default="", metavar="EFFECT[,EFFECT…]",
+                     help="leave these library effects out of the candidates (an effect you know the machine "
+                          "cannot have, or a check of what the tool says about an effect outside its list)")
     val.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per step otherwise)")
 
@@ -159,6 +162,12 @@ def cmd_validate(args: argparse.Namespace) -> int:
     _check_outputs(args)
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    from hexsim.effects import CANDIDATE_NAMES
+
+    without = tuple(name.strip() for name in args.without.split(",") if name.strip())
+    for name in without:
+        if name not in CANDIDATE_NAMES:
+            raise InputError(f"--without: unknown effect {name!r} (the library: {', '.join(CANDIDATE_NAMES)})")
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(f"--report {args.report}: exists and is not a folder")
     log = read_log(args.log)
@@ -166,7 +175,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"assumed: {note}")
     if log.missing:
         print(f"not checked (missing columns): {', '.join(log.missing)}")
-    doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs,
+    doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs, without=without,
                    progress=not args.quiet and sys.stderr.isatty(),
                    notify=None if args.quiet or sys.stderr.isatty() else _progress_line)
     print(f"verdict: {doc['verdict']}")

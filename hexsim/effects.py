@@ -23,6 +23,8 @@ from hexsim.params import _check_nonnegative
 #: Names of the candidate effects of the identifier (issue 4), in the order they are tried.
 EFFECT_NAMES = ("supply_pressure", "spool_dynamics", "null_offset", "hysteresis", "leakage", "load", "friction",
                 "bulk_modulus", "sensor_delay", "edge_asymmetry", "entrained_air")
+#: Every candidate of the identifier: the effects above and, on the hexapod, the payload.
+CANDIDATE_NAMES = (*EFFECT_NAMES, "payload")
 
 
 @dataclass(frozen=True)

@@ -459,6 +459,11 @@ def within_budget(scored: Scored, budget: Budget) -> dict[str, float]:
 HEXAPOD_CANDIDATES = (*(n for n in EFFECT_NAMES if n != "load"), "payload")
 
 
+def default_candidates(system: str) -> tuple[str, ...]:
+    """The candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``)."""
+    return HEXAPOD_CANDIDATES if system == "hexapod" else EFFECT_NAMES
+
+
 def make_problem(log: MeasurementLog):
     """The identification problem of a log: windowed valve replay for a single actuator
     (:class:`Problem`), closed-loop replay in segments for a hexapod
@@ -664,7 +669,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     problem = make_problem(log)
     notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
     if candidates is None:
-        candidates = HEXAPOD_CANDIDATES if log.system == "hexapod" else EFFECT_NAMES
+        candidates = default_candidates(log.system)
     nominal_sim = problem.simulate(problem.nominal)
     budget = measure_budget(problem, nominal_sim)
     nominal = score(problem, nominal_sim, budget)

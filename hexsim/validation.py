@@ -14,7 +14,7 @@ import numpy as np
 
 from hexsim.candidates import CANDIDATES
 from hexsim.identify import (ALPHA, FIT_PER_ROUND, MAX_EFFECTS, SCALED, SEARCH_SEGMENTS, WITHIN, WORSE_REL,
-                             Identification, identify, signal_labels, within_budget)
+                             Identification, default_candidates, identify, signal_labels, within_budget)
 from hexsim.measurement import MeasurementLog, read_log
 from hexsim.residuals import analyse
 from hexsim.tables import json_text, write_atomic
@@ -50,8 +50,49 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
     ``before``: the residual analysis of the nominal model (:func:`hexsim.residuals.analyse`)."""
     ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, ident.budget).items()}
     off = [ch for ch, r in ratio.items() if r * r > WITHIN]
-    return (_channel_sentences(ratio, off) + _calibration_sentences(ident) + _leg_sentences(ident)
-            + _direction_sentences(before, off) + _verdict_sentences(ident))
+    return (_channel_sentences(ratio, off) + _calibration_sentences(ident) + sensor_consistency(ident.problem.log)
+            + _leg_sentences(ident) + _direction_sentences(before, off) + _verdict_sentences(ident))
+
+
+#: Band [Hz] in which the accelerometer is compared with the position's second derivative: above the
+#: drift of a double integration, below the oil-spring ringing and the derivative filter's roll-off.
+CONSISTENCY_BAND_HZ = (0.2, 20.0)
+
+
+def sensor_consistency(log: MeasurementLog) -> list[str]:
+    """Sensors checked against each other before any model: the single actuator's accelerometer against
+    the second derivative of its position (Savitzky–Golay, 51 ms; both band-passed to
+    :data:`CONSISTENCY_BAND_HZ`, zero-phase Butterworth), by the least-squares slope s and the correlation
+    r. A sentence if they disagree: |s - 1| > 5 % with |r| > 0.9 (a scale error of one sensor, or a sign /
+    axis problem for s < 0), or |r| < 0.5 with the position moving (a channel that does not belong to this
+    axis). Nothing for a hexapod log (its accelerometer is the platform's) or without both columns."""
+    from scipy.signal import butter, savgol_filter, sosfiltfilt
+
+    c, fs = log.columns, log.sample_rate_hz
+    if log.system != "single-actuator" or "acc_mps2" not in c or "pos_m" not in c or fs <= 4 * CONSISTENCY_BAND_HZ[1]:
+        return []
+    n = max(5, int(round(0.051 * fs)) | 1)
+    if len(log.time) < 10 * n:
+        return []
+    sos = butter(2, CONSISTENCY_BAND_HZ, btype="bandpass", fs=fs, output="sos")
+    from_position = sosfiltfilt(sos, savgol_filter(c["pos_m"], n, 3, deriv=2, delta=1.0 / fs))
+    measured = sosfiltfilt(sos, c["acc_mps2"])
+    trim = slice(int(fs), len(measured) - int(fs)) if len(measured) > 4 * fs else slice(None)
+    x, y = from_position[trim], measured[trim]
+    if float(x @ x) <= 0 or np.std(x) < 0.05:  # the motion is too slow to compare (< 0.05 m/s^2 rms)
+        return []
+    slope, r = float(x @ y / (x @ x)), float(np.corrcoef(x, y)[0, 1])
+    band = f"{CONSISTENCY_BAND_HZ[0]:g}–{CONSISTENCY_BAND_HZ[1]:g} Hz"
+    if abs(r) > 0.9 and abs(slope - 1.0) > 0.05:
+        what = ("a sign or axis problem of one of them" if slope < 0 else
+                "a scale error of one of the two sensors (accelerometer sensitivity or position transducer gain)")
+        return [f"Sensors against each other: the accelerometer reads {slope:.3f} times the second derivative of "
+                f"the position ({band}, correlation {r:.3f}): {what}."]
+    if abs(r) < 0.5:
+        return [f"Sensors against each other: the accelerometer hardly follows the second derivative of the "
+                f"position ({band}, correlation {r:.2f}): a channel of another axis, or a sensor that is not "
+                f"working."]
+    return []
 
 
 def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
@@ -402,18 +443,21 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
     plt.close(fig)
 
 
-def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None) -> dict:
+def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
+             without: tuple[str, ...] = ()) -> dict:
     """Identify (see :func:`hexsim.identify.identify`) on ``log`` (a :class:`MeasurementLog` or the path of
     a log, ``docs/measurement-log.md``), then write the report folder ``report`` (report.md +
     residuals.png + validation.json) and/or the JSON file ``json_path``. Returns the JSON document
-    (verdict, added effects, calibration, noise budget, errors before/after). Raises InputError for a
+    (verdict, added effects, calibration, noise budget, errors before/after). ``without``: library
+    effects left out of the candidates (listed in the JSON as ``left_out``). Raises InputError for a
     log that cannot be read or replayed or a report folder that cannot be created."""
     if not isinstance(log, MeasurementLog):
         log = read_log(log)
     report = None if report is None else pathlib.Path(report)
     json_path = None if json_path is None else pathlib.Path(json_path)
-    ident = identify(log, jobs=jobs, progress=progress, notify=notify)
-    doc = summary(ident)
+    candidates = tuple(n for n in default_candidates(log.system) if n not in without)
+    ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify)
+    doc = summary(ident) | {"left_out": list(without)}
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
         plot(ident, report / "residuals.png")

@@ -119,6 +119,8 @@ CASES = {
                            r"missing column 'valve_cmd_V'"),
     "log NaN": (lambda tmp: ["validate", str(_log(tmp, lambda h, r: (h, _set(r, 7, 3, "nan"))))],
                 r"'pos_m', row 9: value nan is not finite"),
+    "validate without an unknown effect": (lambda tmp: ["validate", str(_log(tmp)), "--without", "leakage,magic"],
+                                           r"--without: unknown effect 'magic' \(the library: supply_pressure"),
     "log duplicate column": (lambda tmp: ["validate", str(_log(tmp, lambda h, r: (h[:5] + ["pos_m"], r)))],
                              r"column 'pos_m' appears more than once"),
     # parameter files

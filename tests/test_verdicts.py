@@ -167,3 +167,19 @@ def test_nothing_finer_than_the_log_resolves_is_a_finding(logs):
     assert upper[0] <= 0.5 * log.sample_rate_hz
     flagged = plausibility(CANDIDATES["bulk_modulus"], log, np.array([2.0]))
     assert flagged and "bound" in flagged[0]
+
+
+def test_sensors_are_checked_against_each_other(logs):
+    """The accelerometer against the position's second derivative, before any model: a consistent log
+    says nothing; a 10 % sensitivity error and a flipped sign are each named in one sentence."""
+    from hexsim.validation import sensor_consistency
+
+    log = read_log(logs["null_random"])
+    assert sensor_consistency(log) == []
+    acc = log.columns["acc_mps2"].copy()
+    log.columns["acc_mps2"] = 1.1 * acc
+    (scale,) = sensor_consistency(log)
+    assert "scale error" in scale and "reads 1.0" in scale
+    log.columns["acc_mps2"] = -acc
+    (sign,) = sensor_consistency(log)
+    assert "sign or axis problem" in sign
