@@ -303,14 +303,24 @@ def applier(cand: Candidate, leg: int | None) -> Callable[[PlantModel, np.ndarra
         return cand.apply
 
     def apply(model: PlantModel, x: np.ndarray) -> PlantModel:
-        others = tuple(c for c in model.leg_changes if c.leg != leg)
-        own = [c for c in model.leg_changes if c.leg == leg]
-        hyd, eff = own[0].apply(model.hydraulics, model.effects) if own else (model.hydraulics, model.effects)
-        changed = cand.apply(PlantModel(hyd, eff), x)
-        values = {f.name: getattr(changed.hydraulics, f.name) for f in fields(changed.hydraulics)
-                  if getattr(changed.hydraulics, f.name) != getattr(model.hydraulics, f.name)}
-        values |= {f.name: getattr(changed.effects, f.name) for f in fields(changed.effects)
-                   if getattr(changed.effects, f.name) != getattr(model.effects, f.name)}
-        return model.replace(leg_changes=others + ((LegChange.of(leg, **values),) if values else ()))
+        return with_leg(model, leg, cand.apply(leg_model(model, leg), x))
 
     return apply
+
+
+def leg_model(model: PlantModel, leg: int) -> PlantModel:
+    """The parameters leg ``leg`` (1…n) runs with: the shared ones with its :class:`LegChange`, if any."""
+    own = [c for c in model.leg_changes if c.leg == leg]
+    return PlantModel(*own[0].apply(model.hydraulics, model.effects)) if own else PlantModel(model.hydraulics,
+                                                                                              model.effects)
+
+
+def with_leg(model: PlantModel, leg: int, changed: PlantModel) -> PlantModel:
+    """``model`` with leg ``leg`` running ``changed``'s parameters: a :class:`LegChange` holding every value
+    that differs from the shared model's (replacing the leg's former change)."""
+    others = tuple(c for c in model.leg_changes if c.leg != leg)
+    values = {f.name: getattr(changed.hydraulics, f.name) for f in fields(changed.hydraulics)
+              if getattr(changed.hydraulics, f.name) != getattr(model.hydraulics, f.name)}
+    values |= {f.name: getattr(changed.effects, f.name) for f in fields(changed.effects)
+               if getattr(changed.effects, f.name) != getattr(model.effects, f.name)}
+    return model.replace(leg_changes=others + ((LegChange.of(leg, **values),) if values else ()))

@@ -51,17 +51,18 @@ class Term:
     equation: str
     unit: str
     words: str  # format string with {c} (the coefficient) and {pct} (100 |c|) and {more} (more/less)
+    limit: float | None = None  # largest |c| that is a correction of the model's own term (relative terms)
 
 
 FLOW_TERMS = (
-    Term("phi_PA", "flow", "-", "the supply edge P→A passes {pct:.0f} % {more} flow than eq. (3.4)"),
-    Term("phi_AT", "flow", "-", "the return edge A→T passes {pct:.0f} % {more} flow than eq. (3.4)"),
+    Term("phi_PA", "flow", "-", "the supply edge P→A passes {pct:.0f} % {more} flow than eq. (3.4)", 0.5),
+    Term("phi_AT", "flow", "-", "the return edge A→T passes {pct:.0f} % {more} flow than eq. (3.4)", 0.5),
     Term("p_s - p1", "flow", "m^3/(s Pa)", "a flow of {c:.3g} m^3/(s Pa) times (P_s - P1) into the bottom chamber "
          "(leakage across the piston)"),
     Term("1", "flow", "m^3/s", "a constant flow of {c:.3g} m^3/s into the bottom chamber (a null offset or an "
          "external leak)"),
     Term("A1 ydot", "flow", "-", "the bottom chamber takes {pct:.1f} % {more} oil per metre of stroke than A1 "
-         "(effective area)"),
+         "(effective area)", 0.2),
 )
 FORCE_TERMS = (
     Term("ydot", "force", "N s/m", "a viscous force of {c:.4g} N s/m times the velocity (along the motion if > 0)"),
@@ -117,9 +118,12 @@ def equation_errors(log, model: PlantModel) -> dict[str, tuple[np.ndarray, np.nd
     return {"flow": flow, "force": (force_target, force_x)}
 
 
-def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[list[dict], dict[str, float]]:
+def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[list[dict], dict[str, float], bool]:
     """:func:`sparse_fit` on the ``fit`` samples, then the materiality cut on the ``test`` samples; the
-    kept terms as JSON-ready dicts and as {"equation:term": coefficient}."""
+    kept terms as JSON-ready dicts, as {"equation:term": coefficient}, and whether the equation is far
+    off: a relative term beyond its :attr:`Term.limit` (an edge passing half its flow more or less, an
+    area 20 % off) is no correction of the model's own equation, and no term is returned then (the caller
+    says so, :func:`_far_off`)."""
     coef, se = sparse_fit(target[fit], x[fit])
     r_test = target[test]
     before = float(np.mean(r_test ** 2))
@@ -130,6 +134,8 @@ def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[li
         if share < MIN_SHARE:
             coef[j], se[j] = 0.0, np.nan
     after = float(np.mean((r_test - x[test] @ coef) ** 2))
+    if any(t.limit is not None and abs(coef[j]) > t.limit for j, t in enumerate(dictionary)):
+        return [], {}, True
     terms, found = [], {}
     for j, term in enumerate(dictionary):
         if coef[j] == 0:
@@ -141,29 +147,72 @@ def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[li
                       "std_error": float(se[j]), "unit": term.unit,
                       "meaning": (f"leg{leg}: " if leg else "") + words,
                       "equation_error_held_out": {"before": before, "after": after}})
-    return terms, found
+    return terms, found, False
 
 
-def _discover_legs(problem, base: PlantModel) -> dict:
-    """The flow equation of each hexapod leg on its own logged signals: a leg-level flow effect (leakage,
-    a null offset, an edge) shows in that leg's equation error only. Reported per leg; the plant has no
-    per-leg effects yet, so nothing is added to the model."""
+def _discover_legs(problem, base: PlantModel, base_scored, budget, score) -> dict:
+    """The flow equation of each hexapod leg on its own logged signals (with that leg's own parameters):
+    a leg-level flow effect (leakage, a null offset, an edge) shows in that leg's equation error only.
+    The terms that map onto a parameter are added to their leg (:class:`hexsim.effects.LegChange`), the
+    log is replayed, and the held-out error before and after is reported; nothing is kept if it does not
+    fall."""
+    from hexsim.candidates import leg_model, with_leg
+
     log, c = problem.log, problem.log.columns
     segments = problem.rows.reshape(problem.shape)
     fit, test = segments[problem.fit_rows].ravel(), segments[problem.test_rows].ravel()
     p_s = c["ps_Pa"] if "ps_Pa" in c else np.full(len(log.time), base.hydraulics.supply_pressure)
-    terms = []
+    terms, per_leg, far = [], {}, []
     for leg in range(1, 7):
         if f"leg{leg}_p1_Pa" not in c:
             return {"done": False, "why": "discovery needs the legs' P1 (leg*_p1_Pa)"}
+        own = leg_model(base, leg)
         target, x = flow_equation(c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"], p_s,
-                                  log.sample_rate_hz, base)
-        terms += _sparse_terms(target, x, fit, test, FLOW_TERMS, leg)[0]
-    return {"done": True, "method": f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
-            f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of "
-            "the held-out equation error", "terms": terms, "added_to_model": [],
-            "why": "per-leg effects are not in the plant yet: the terms are reported from the equation error "
-                   "only, not replayed" if terms else "no term of any leg's flow equation stands out of the noise"}
+                                  log.sample_rate_hz, own)
+        t_leg, f_leg, off = _sparse_terms(target, x, fit, test, FLOW_TERMS, leg)
+        if off:
+            far.append(leg)
+        terms += t_leg
+        if f_leg:
+            per_leg[leg] = (own, f_leg, float(np.mean(p_s - c[f"leg{leg}_p1_Pa"])))
+    out = {"done": True, "method": f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
+           f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of "
+           "the held-out equation error", "terms": terms, "added_to_model": []}
+    if far:
+        out["far_off_legs"] = far
+    if not per_leg:
+        why = "no term of any leg's flow equation stands out of the noise"
+        if far:
+            why = _far_off(far)
+        return out | {"why": why}
+    model, applied = base, []
+    for leg, (own, found, mean_dp) in per_leg.items():
+        changed, keys = apply_terms(own, found, mean_dp)
+        if keys:
+            model = with_leg(model, leg, changed)
+            applied += [f"leg{leg}:{k}" for k in keys]
+    if not applied or score is None:
+        return out | {"why": "no term maps onto a parameter of its leg: reported, not replayed"}
+    scored = score(problem, problem.simulate(model), budget)
+    before = float(base_scored.window_cost[problem.test_rows].sum())
+    after = float(scored.window_cost[problem.test_rows].sum())
+    if after >= before:
+        return out | {"why": "adding the legs' terms did not lower the held-out error of the replay: reported, "
+                             "not kept"}
+    out |= {"added_to_model": applied, "held_out_rms_before": base_scored.held_out_rms,
+            "held_out_rms_after": scored.held_out_rms,
+            "held_out_cost_recovered": 1.0 - after / before if before > 0 else 0.0,
+            "leg_changes": [{"leg": ch.leg, "values": dict(ch.values)} for ch in model.leg_changes]}
+    out["_scored"] = scored
+    return out
+
+
+def _far_off(legs: list[int]) -> str:
+    """Why no term is reported for an equation that does not close (``legs`` [] : the single actuator)."""
+    where = "every leg" if len(legs) == 6 else ", ".join(f"leg{leg}" for leg in legs) if legs else "the actuator"
+    return (f"the flow equation of {where} does not close with a correction of the model's own terms (an edge "
+            f"or the piston area would have to change by more than half / a fifth): the model is far off there, "
+            f"not short of a small term")
 
 
 def sparse_fit(target: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -231,11 +280,11 @@ def discover(problem, base: PlantModel, base_scored, budget, score=None) -> dict
     stands on and its :class:`hexsim.identify.Scored`; ``score(problem, sim, budget)`` scores a replay the
     same way (:func:`hexsim.identify.score`, passed in so this module does not import the identifier).
     Returns the JSON-ready account; ``terms`` empty
-    if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation, reported only
-    (:func:`_discover_legs`)."""
+    if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation, its terms added to
+    that leg (:func:`_discover_legs`)."""
     log = problem.log
     if log.system == "hexapod":
-        return _discover_legs(problem, base)
+        return _discover_legs(problem, base, base_scored, budget, score)
     if "p1_Pa" not in log.columns:
         return {"done": False, "why": "discovery needs the bottom-chamber pressure p1_Pa"}
     errors = equation_errors(log, base)
@@ -243,16 +292,18 @@ def discover(problem, base: PlantModel, base_scored, budget, score=None) -> dict
     edge = max(5, int(round(SMOOTH_S * log.sample_rate_hz)))
     rows = lambda sel: (w.starts[sel][:, None] + np.arange(edge, w.length - edge)[None, :]).ravel()  # noqa: E731
     fit, test = rows(problem.fit_rows), rows(problem.test_rows)
-    terms, found = [], {}
+    terms, found, far = [], {}, False
     for eq, dictionary in (("flow", FLOW_TERMS), ("force", FORCE_TERMS)):
-        t_eq, f_eq = _sparse_terms(*errors[eq], fit, test, dictionary, None)
+        t_eq, f_eq, off = _sparse_terms(*errors[eq], fit, test, dictionary, None)
         terms += t_eq
         found |= f_eq
+        far = far or off
     out = {"done": True, "method": "LassoLarsIC (BIC) on the equation errors of the fit windows, least squares "
            f"on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of the held-out "
            "equation error", "terms": terms}
     if not found:
-        return out | {"added_to_model": [], "why": "no term stands out of the equation noise"}
+        why = (_far_off([]) if far else "no term stands out of the equation noise")
+        return out | {"added_to_model": [], "why": why}
     test_rows = problem.test_rows
     cost_before = float(base_scored.window_cost[test_rows].sum())
     # the representable terms together, then each alone: the replay on held-out windows decides

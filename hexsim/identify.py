@@ -13,9 +13,11 @@ engineer would sign it.
 4. **Accept** (:func:`judge`) only if, on the *held-out* windows (odd):
    the log cost ratio per window (the candidate charged with the cost the numerical tolerance alone
    accounts for) is positive in a one-sided t-test over the held-out windows at level :data:`ALPHA` /
-   (candidates tried in the round) (Bonferroni: the family of one round); no signal's (each leg's on a
-   hexapod) held-out RMS gets worse by more than its budget and :data:`WORSE_REL`; and every parameter lies inside
-   its plausible range, off its bounds and above what the log resolves.
+   (candidates tried in the round) (Bonferroni: the family of one round); it removes at least
+   :data:`MIN_EXCESS_SHARE` of the held-out cost beyond the budget (material, not only significant); no
+   signal's (each leg's on a hexapod) held-out RMS gets worse by more than its budget and
+   :data:`WORSE_REL`; and every parameter lies inside its plausible range, off its bounds and above what
+   the log resolves.
 5. **Forward selection**: after an accepted effect, every other candidate is fitted on top of it and
    judged the same way; the accepted effects are then refitted jointly; at most :data:`MAX_EFFECTS`.
 6. **Discovery** (:mod:`hexsim.discovery`): for ``partial`` and ``unexplained``, a sparse correction of
@@ -71,6 +73,10 @@ WITHIN = 2.0
 #: by more than this fraction.
 WORSE_REL = 0.10
 MAX_EFFECTS = 3
+#: A candidate must remove at least this share of the held-out cost its base model leaves beyond the
+#: budget (WITHIN budgets^2 per sample): significance alone lets a wrong effect that soaks up a few
+#: percent of a large residual pass (null offset 1.73 V on a leaking leg: 4 %, p = 6e-12).
+MIN_EXCESS_SHARE = 0.25
 #: Channels whose sensors get a calibration scale (the others an offset only).
 SCALED = ("position", "acceleration")
 #: Largest calibration scale error fitted per channel, |scale - 1|: accelerometers' sensitivity tolerance is
@@ -283,6 +289,11 @@ def _as_vector(problem, res: dict[str, np.ndarray], budget: Budget, rows: np.nda
     return np.concatenate([(res[ch][rows, problem.settle:] / b[ch]).ravel() for ch in problem.channels])
 
 
+def samples_per_window(problem) -> int:
+    """Scored samples of one window, all channels and signals together."""
+    return sum(_signals(problem.measured[ch])[0, problem.settle:].size for ch in problem.channels)
+
+
 def tolerance_cost(problem, budget: Budget) -> float:
     """Cost per window that the numerical tolerance alone accounts for: sum over channels of
     (scored samples x signals) tau_c^2 / b_c^2."""
@@ -428,6 +439,14 @@ def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> 
     if not fit.p_value < level:
         reasons.append(f"held-out improvement beyond the numerical tolerance not significant "
                        f"(p = {fit.p_value:.2g} >= {level:.2g})")
+    # material: it must remove a real share of what the base model leaves beyond the budget, or a
+    # significant but small improvement (a wrong effect soaking up a little of a large residual) passes
+    floor = WITHIN * samples_per_window(problem) * len(test)
+    excess = float(before.sum()) - floor
+    removed = float(before.sum() - after.sum())
+    if excess > 0 and removed < MIN_EXCESS_SHARE * excess:
+        reasons.append(f"removes only {max(removed, 0.0) / excess:.0%} of the held-out error beyond the budget "
+                       f"(at least {MIN_EXCESS_SHARE:.0%} needed): not the explanation")
     b = budget.total
     for ch in problem.channels:  # every signal: a candidate on all legs must not spoil the healthy ones
         labels = signal_labels(problem, ch)

@@ -13,8 +13,8 @@ import pathlib
 import numpy as np
 
 from hexsim.candidates import CANDIDATES
-from hexsim.identify import (ALPHA, FIT_PER_ROUND, MAX_EFFECTS, SCALED, SEARCH_SEGMENTS, WITHIN, WORSE_REL,
-                             Identification, default_candidates, identify, signal_labels, within_budget)
+from hexsim.identify import (ALPHA, FIT_PER_ROUND, MAX_EFFECTS, MIN_EXCESS_SHARE, SCALED, SEARCH_SEGMENTS, WITHIN,
+                             WORSE_REL, Identification, default_candidates, identify, signal_labels, within_budget)
 from hexsim.measurement import MeasurementLog, read_log
 from hexsim.residuals import analyse
 from hexsim.tables import json_text, write_atomic
@@ -274,7 +274,8 @@ def summary(ident: Identification) -> dict:
         "screening": ident.screening,
         "selection": (f"forward selection (at most {MAX_EFFECTS}): a candidate is accepted if its held-out "
                       f"improvement beyond the numerical tolerance passes a one-sided t-test over the held-out "
-                      f"windows at {ALPHA:g} / (candidates in the round), no signal's (each leg's) held-out RMS "
+                      f"windows at {ALPHA:g} / (candidates in the round), it removes at least "
+                      f"{MIN_EXCESS_SHARE:.0%} of the held-out cost beyond the budget, no signal's (each leg's) held-out RMS "
                       f"rises by more than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
                       f"off the bounds and above the log's resolution; a channel is explained within "
                       f"sqrt({WITHIN:g}) budgets. Hexapod: leg-level candidates also on each leg whose residual "
@@ -325,6 +326,7 @@ def _discovery_markdown(doc: dict) -> list[str]:
             lines += ["| equation | term | coefficient ± s.e. | meaning | added to the model |", "|---|---|---|---|---|"]
             for t in disc["terms"]:
                 key = f"{t['equation']}:{t['term']}"
+                key = f"leg{t['leg']}:{key}" if t.get("leg") else key
                 lines.append(f"| {t['equation']} | {_md(t['term'])} | {t['coefficient']:.4g} ± {t['std_error']:.2g} "
                              f"{_md(t['unit'])} | {_md(t['meaning'])} | {'yes' if key in disc['added_to_model'] else 'no'} |")
             if disc.get("added_to_model"):

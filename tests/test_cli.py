@@ -175,3 +175,32 @@ def test_same_command_twice_writes_the_same_bytes(tmp_path):
                      "--buffer-time", "0.5", "--quiet", "--json", str(d / "run.json"), "--log", str(d / "log.csv")]) == 0
         outputs.append([(d / f).read_bytes() for f in ("run.json", "log.csv", "log.json")])
     assert outputs[0] == outputs[1]
+
+
+def test_each_run_is_a_recording_of_its_own_with_the_bump_on_its_own_axis(heave_outputs, tmp_path):
+    """Two recordings of the same run opened together stay two (`rerun a.rrd b.rrd`); the bump has its
+    own entity (and panel); an uncompensated run has no compensator entity. Read back with `rerun rrd
+    print`, the format's own tool."""
+    _, out = heave_outputs
+    rerun = pathlib.Path(sys.executable).with_name("rerun")
+    rerun = str(rerun) if rerun.exists() else shutil.which("rerun")
+    env = {**os.environ, "RERUN_ANALYTICS": "off"}
+
+    def printed(path):
+        proc = subprocess.run([rerun, "rrd", "print", "--verbose", str(path)], capture_output=True, text=True,
+                              timeout=120, env=env)
+        assert proc.returncode == 0, proc.stderr
+        return proc.stdout + proc.stderr
+
+    first = printed(out / "out.rrd")
+    ids = set(re.findall(r'"(hexsim-heave-[^"]+)"', first))
+    assert len(ids) == 1, ids
+    assert "/bump/noise" in first and "/compensator" not in first
+    from types import SimpleNamespace
+
+    from hexsim.rerun_log import recording_id
+    from hexsim.scenario import make_scenario
+    from hexsim.simulation import RunConfig
+
+    run = SimpleNamespace(config=RunConfig(make_scenario("heave")))
+    assert recording_id(run) != recording_id(run)
