@@ -47,6 +47,10 @@ def answers(tmp_path_factory):
         doc_path = folder / f"{name}.answer.json"
         assert main(["validate", str(path), "--json", str(doc_path), "--quiet"]) == 0
         out[name] = json.loads(doc_path.read_text())
+    # the leaking leg again, the leakage taken out of the library: an effect outside the list
+    doc_path = folder / "leg_outside.answer.json"
+    assert main(["validate", str(folder / "leg.csv"), "--without", "leakage", "--json", str(doc_path), "--quiet"]) == 0
+    out["leg_outside"] = json.loads(doc_path.read_text())
     return out
 
 
@@ -78,6 +82,22 @@ def test_hexapod_leakage_on_one_leg_is_named_on_that_leg(answers):
     for label, rms in doc["held_out_rms_per_signal"]["position"].items():
         assert rms["after"] <= rms["before"] + budget, label
     assert doc["error_after"]["position"] <= 0.2 * doc["error_before"]["position"]
+
+
+def test_leg_effect_outside_the_list_is_never_named_and_discovery_finds_it_on_its_leg(answers):
+    """The leakage candidate removed: no confident wrong name with a channel made worse; the sparse
+    correction of that leg's flow equation finds the (P_s - P1) term on that leg, added to the leg it
+    recovers at least half of the held-out error."""
+    doc = answers["leg_outside"]
+    leg, c_l = answers["leg_truth"]
+    assert doc["left_out"] == ["leakage"]
+    assert doc["verdict"] in ("partial", "unexplained"), doc["conclusions"]
+    for ch, after in doc["error_after"].items():
+        assert after <= doc["error_before"][ch] * 1.1 + 1e-12, ch
+    found = [t for t in doc["discovery"]["terms"] if t["term"] == "p_s - p1"]
+    assert [t["leg"] for t in found] == [leg]
+    assert found[0]["coefficient"] == pytest.approx(c_l, rel=0.2)
+    assert doc["discovery"]["held_out_cost_recovered"] >= 0.5
 
 
 def test_hexapod_payload_off_centre_is_found_with_its_place(answers):
