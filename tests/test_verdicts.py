@@ -1,6 +1,6 @@
 """Verdicts that say what the data support (issue 13), on single-actuator logs the identifier is not told
-about: nominal logs with other references and another integration step (model mismatch without an
-effect -> `none`), sensor calibration errors and an accelerometer without gravity (-> `none`, reported
+about: nominal logs with sine, two-tone, step and random references and another integration step (model
+mismatch without an effect -> `none`), sensor calibration errors and an accelerometer without gravity (-> `none`, reported
 as calibration), two effects at once, and an effect outside the candidate list (-> `partial` or
 `unexplained`, never a confident wrong name, and the discovery step finds the missing term).
 
@@ -37,6 +37,8 @@ def _reference(kind: str) -> tuple[np.ndarray, np.ndarray]:
     fade = np.clip(t, 0, 1)
     if kind == "twotone":
         r = 0.03 * np.sin(2 * np.pi * 0.5 * t) + 0.01 * np.sin(2 * np.pi * 2.3 * t)
+    elif kind == "sine":  # the seed's 0.5 Hz sine, 5 cm
+        r = 0.05 * np.sin(2 * np.pi * 0.5 * t)
     elif kind == "steps":  # steps of ±1 cm, rounded by a 3 Hz filter (the valve would cavitate on a jump)
         b, a = butter(2, 3.0 / 250)
         r = filtfilt(b, a, 0.01 * np.sign(np.sin(2 * np.pi * 0.4 * t)))
@@ -63,6 +65,7 @@ def _cases():
         "null_twotone": ("twotone", e, h),
         "null_steps": ("steps", e, h),
         "null_random": ("random", e, h),
+        "null_sine": ("sine", e, h),
         "leakage": ("twotone", Effects(leakage=rng.uniform(2e-12, 5e-12)), h),
         "edge": ("random", Effects(edge_gain_at=rng.uniform(0.6, 0.8)), h),
         "supply_and_hysteresis": ("twotone", Effects(supply_resistance=rng.uniform(1.0, 2.0) * BAR_PER_LPM,
@@ -98,7 +101,7 @@ def answers(logs):
     return {name: summary(identify(read_log(path), jobs=2)) for name, path in logs.items()}
 
 
-@pytest.mark.parametrize("name", ["null_twotone", "null_steps", "null_random"])
+@pytest.mark.parametrize("name", ["null_sine", "null_twotone", "null_steps", "null_random"])
 def test_nominal_logs_from_another_integration_are_answered_none(answers, name):
     doc = answers[name]
     assert doc["verdict"] == "none", (doc["held_out_rms_in_budgets"], doc["conclusions"])
