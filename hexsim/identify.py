@@ -289,20 +289,16 @@ def _as_vector(problem, res: dict[str, np.ndarray], budget: Budget, rows: np.nda
     return np.concatenate([(res[ch][rows, problem.settle:] / b[ch]).ravel() for ch in problem.channels])
 
 
-def samples_per_window(problem) -> int:
-    """Scored samples of one window, all channels and signals together."""
-    return sum(_signals(problem.measured[ch])[0, problem.settle:].size for ch in problem.channels)
+def window_samples(problem, channel: str) -> int:
+    """Scored samples of one window of ``channel``, all its signals together."""
+    return problem.measured[channel][0, problem.settle:].size
 
 
 def tolerance_cost(problem, budget: Budget) -> float:
     """Cost per window that the numerical tolerance alone accounts for: sum over channels of
     (scored samples x signals) tau_c^2 / b_c^2."""
     b = budget.total
-    total = 0.0
-    for ch in problem.channels:
-        per_window = problem.measured[ch][0, problem.settle:].size
-        total += per_window * (budget.tolerance[ch] / b[ch]) ** 2
-    return total
+    return sum(window_samples(problem, ch) * (budget.tolerance[ch] / b[ch]) ** 2 for ch in problem.channels)
 
 
 @dataclass
@@ -441,7 +437,7 @@ def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> 
                        f"(p = {fit.p_value:.2g} >= {level:.2g})")
     # material: it must remove a real share of what the base model leaves beyond the budget, or a
     # significant but small improvement (a wrong effect soaking up a little of a large residual) passes
-    floor = WITHIN * samples_per_window(problem) * len(test)
+    floor = WITHIN * sum(window_samples(problem, ch) for ch in problem.channels) * len(test)
     excess = float(before.sum()) - floor
     removed = float(before.sum() - after.sum())
     if excess > 0 and removed < MIN_EXCESS_SHARE * excess:
@@ -613,14 +609,24 @@ class Identification:
         return self.nrmse(self.final)
 
 
-def _parallel(jobs: int, fn, worker, log, calls: list[tuple]) -> list:
-    """``fn(*args)`` for each args of ``calls``, in order; in worker processes as ``worker(log, *args)``
-    (which rebuilds the problem from the log) when jobs > 1."""
+def _parallel(jobs: int, fn, worker, log, calls: list[tuple], on_done=None) -> list:
+    """``fn(*args)`` for each args of ``calls``, results in the order of ``calls``; in worker processes as
+    ``worker(log, *args)`` (which rebuilds the problem from the log) when jobs > 1. ``on_done(result)``
+    is called as each finishes (progress)."""
+    on_done = on_done or (lambda result: None)
     if jobs > 1 and len(calls) > 1:
         with worker_pool(min(jobs, len(calls))) as pool:
-            futures = [pool.submit(worker, log, *args) for args in calls]
-            return [f.result() for f in futures]
-    return [fn(*args) for args in calls]
+            futures = {pool.submit(worker, log, *args): i for i, args in enumerate(calls)}
+            results = [None] * len(calls)
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                on_done(results[futures[fut]])
+            return results
+    results = []
+    for args in calls:
+        results.append(fn(*args))
+        on_done(results[-1])
+    return results
 
 
 def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, base_cost: float, jobs: int,
@@ -643,25 +649,17 @@ def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, bas
 def _fit_round(problem, log, keys, base: PlantModel, budget: Budget, on_top_of, jobs, bar, notify,
                starts: dict[str, tuple] | None = None) -> list[FitResult]:
     starts = starts or {}
-    results = []
+    count = [0]
 
     def done(fit: FitResult) -> None:
-        results.append(fit)
+        count[0] += 1
         bar.set_postfix_str(fit.key)
         bar.update()
         notify(f"fitted {fit.key}{' on top of ' + '+'.join(on_top_of) if on_top_of else ''} "
-               f"({len(results)}/{len(keys)})")
+               f"({count[0]}/{len(keys)})")
 
-    if jobs > 1 and len(keys) > 1:
-        with worker_pool(min(jobs, len(keys))) as pool:
-            futures = [pool.submit(_fit_in_worker, log, k, base, budget, on_top_of, starts.get(k)) for k in keys]
-            for fut in as_completed(futures):
-                done(fut.result())
-    else:
-        for k in keys:
-            done(_fit_one(problem, k, base, budget, on_top_of, starts.get(k)))
-    order = {k: i for i, k in enumerate(keys)}
-    return sorted(results, key=lambda r: order[r.key])
+    return _parallel(jobs, partial(_fit_one, problem), _fit_in_worker, log,
+                     [(k, base, budget, on_top_of, starts.get(k)) for k in keys], done)
 
 
 def _round_keys(problem, candidates, accepted: list[FitResult], legs: list[int]) -> list[str]:
