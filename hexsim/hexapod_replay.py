@@ -146,12 +146,13 @@ class HexapodProblem:
         return {g: self._cut(np.stack([np.interp(t, result.t, sim[g][:, k]) for k in range(sim[g].shape[1])],
                                       axis=1)) for g in self.channels}
 
-    # what the report needs (hexsim.validation); the residual analysis looks at leg 1 (position, P1), the
-    # supply and the platform's vertical acceleration, with leg 1's motion state
+    # what the report needs (hexsim.validation); the residual analysis looks at one leg (position, P1:
+    # :attr:`focus_leg`, the identifier sets it to the leg that stands out, else leg 1), the supply and the
+    # platform's vertical acceleration, with that leg's motion state
+    focus_leg = 1
     replay_mode = ("closed loop: the logged leg setpoints through the model's P control (logged K_p and rate) "
                    "plus the logged compensation u_v - K_p (r - y), from the neutral pose at rest")
     scored = f"segments of {SEGMENT_S:g} s after the first {SETTLE_S:g} s, all legs / axes"
-    _view = {"position": 0, "p1": 0, "p_s": 0, "acceleration": 2}
 
     @property
     def units(self) -> dict[str, str]:
@@ -163,17 +164,18 @@ class HexapodProblem:
                 "held_out": "odd segments"}
 
     def analysis_view(self, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {g: r[:, :, self._view[g]] for g, r in res.items()}
+        view = {"position": self.focus_leg - 1, "p1": self.focus_leg - 1, "p_s": 0, "acceleration": 2}
+        return {g: r[:, :, view[g]] for g, r in res.items()}
 
     def motion_state(self):
         from hexsim.replay import measured_velocity
 
-        c = self.log.columns
-        pos = c["leg1_pos_m"]
+        c, leg = self.log.columns, self.focus_leg
+        pos = c[f"leg{leg}_pos_m"]
         vel = measured_velocity(self.log, pos)
         near = near_reversals(self.log.time, vel)
         take = lambda x: x[self.rows].reshape(self.shape)  # noqa: E731
-        return take(c["leg1_valve_cmd_V"]), take(vel), take(pos), take(near)
+        return take(c[f"leg{leg}_valve_cmd_V"]), take(vel), take(pos), take(near)
 
     def sample_times(self) -> np.ndarray:
         return self.log.time[self.rows].reshape(self.shape)

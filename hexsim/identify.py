@@ -559,7 +559,7 @@ def standout_legs(problem, scored: Scored, budget: Budget) -> list[int]:
     ratio = np.max([np.asarray(scored.held_out_rms_signals[ch]) / b[ch] for ch in ("position", "p1")
                     if ch in scored.held_out_rms_signals], axis=0)
     median = float(np.median(ratio))
-    legs = [j + 1 for j in np.argsort(-ratio)
+    legs = [int(j) + 1 for j in np.argsort(-ratio)
             if ratio[j] > math.sqrt(WITHIN) and ratio[j] > LEG_STANDOUT * median]
     return legs[:MAX_LEGS]
 
@@ -701,6 +701,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         legs = standout_legs(problem, nominal, budget)
         if legs:
             notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in legs))
+            problem.focus_leg = legs[0]  # the report's residual analysis looks at it
         bar = tqdm(desc="fitting effects", unit="fit", disable=not progress, leave=False)
         while len(accepted) < MAX_EFFECTS:
             keys = _round_keys(problem, candidates, accepted, legs)

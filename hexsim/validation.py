@@ -286,6 +286,7 @@ def summary(ident: Identification) -> dict:
         "payload_from_statics": hexapod_payload(ident),
         "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
                                                             if not k.startswith("_")},
+        "residuals_leg": getattr(p, "focus_leg", None),  # hexapod: the leg the residual analysis looks at
         "residuals_before": before,
         "residuals_after": after,
         "windows": p.window_doc,
@@ -386,7 +387,8 @@ def markdown(doc: dict, png_names: list[str]) -> str:
             lines += ["", f"Screened out in round {i + 1} (cost of the best start on the search segments relative "
                       f"to the model it extends; only the best were fitted): " + _md(", ".join(out)) + "."]
     lines += _discovery_markdown(doc)
-    lines += ["", "## Residual before → after", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
+    where = f" (position and P1 of leg{doc['residuals_leg']})" if doc.get("residuals_leg") else ""
+    lines += ["", f"## Residual before → after{where}", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
               "spectrum peak [Hz] |", "|---|---|---|---|"]
     for ch in doc["residuals_before"]:
         b, a = doc["residuals_before"][ch], doc["residuals_after"][ch]
@@ -426,7 +428,8 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
         b, a = before[ch], after[ch]
         ax[i, 0].plot(tw.ravel(), b.ravel(), ",", color="C3", label="before")
         ax[i, 0].plot(tw.ravel(), a.ravel(), ",", color="C0", label="after")
-        ax[i, 0].set_ylabel(f"{ch} residual [{p.units[ch]}]")
+        leg = f" leg{p.focus_leg}" if getattr(p, "focus_leg", None) and ch in ("position", "p1") else ""
+        ax[i, 0].set_ylabel(f"{ch}{leg} residual [{p.units[ch]}]")
         ax[i, 0].legend(loc="upper right", markerscale=20)
         ax[i, 1].plot(vel.ravel(), b.ravel(), ",", color="C3")
         ax[i, 1].plot(vel.ravel(), a.ravel(), ",", color="C0")
