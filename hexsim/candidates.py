@@ -72,7 +72,9 @@ def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     fit decides; this only keeps it from starting in a far valley (a 3 s hexapod log with a true
     1.2 bar/(L/min), 30 ms converged to 1.42 from the generic starts)."""
     from scipy.optimize import least_squares
-    from scipy.signal import lfilter, savgol_filter
+    from scipy.signal import lfilter
+
+    from hexsim.signals import savgol
 
     from hexsim import hydraulics
     from hexsim.params import HydraulicParams
@@ -82,7 +84,7 @@ def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
         return None
     hyd, fs = HydraulicParams(), log.sample_rate_hz
     p_s = log.columns["ps_Pa"]
-    ydot = savgol_filter(y, max(5, int(round(0.021 * fs)) | 1), 3, deriv=1, delta=1.0 / fs, axis=0)
+    ydot = savgol(y, fs, 0.021, deriv=1, axis=0)
     a1, _ = hydraulics.flow_areas(hydraulics.spool_position(u, hyd), hyd)
     dp = p_s[:, None] - p1
     phi = np.sum(hyd.orifice_constant * a1 * np.sign(dp) * np.sqrt(np.abs(dp)) - hyd.area_rod * ydot, axis=1)

@@ -21,12 +21,12 @@ import pathlib
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import savgol_filter
 
 from hexsim.errors import InputError
 from hexsim.measurement import MeasurementLog
 from hexsim.params import HydraulicParams
 from hexsim.residuals import effective_n
+from hexsim.signals import savgol, savgol_length
 from hexsim.tables import json_text, write_atomic
 
 G = 9.8  # [m/s^2], seed app. A (the models' gravity)
@@ -71,18 +71,16 @@ def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None
     mass = log.mass_kg or MODEL_MASS
     g_axis = G * np.cos(np.deg2rad(log.inclination_deg))
     if "acc_mps2" in c:  # M (ydd + g cos θ) measured: no second derivative of the position
-        n = max(5, int(round(ACC_WINDOW_S * fs)) | 1)
-        _check_length(log, n)
+        _check_length(log, savgol_length(fs, ACC_WINDOW_S))
         specific = c["acc_mps2"]
         if abs(float(np.mean(specific))) < 0.5 * g_axis:  # the log holds acceleration, not specific force
             specific = specific + g_axis
-        vel = savgol_filter(c["pos_m"], n, 3, deriv=1, delta=1 / fs)
-        return vel, savgol_filter(f_l - mass * specific, n, 3), source, "accelerometer (acc_mps2)"
-    n = max(5, int(round(DERIVATIVE_WINDOW_S * fs)) | 1)
-    _check_length(log, n)
-    vel = savgol_filter(c["pos_m"], n, 3, deriv=1, delta=1 / fs)
-    acc = savgol_filter(c["pos_m"], n, 3, deriv=2, delta=1 / fs)
-    f_l = savgol_filter(f_l, n, 3)
+        vel = savgol(c["pos_m"], fs, ACC_WINDOW_S, deriv=1)
+        return vel, savgol(f_l - mass * specific, fs, ACC_WINDOW_S), source, "accelerometer (acc_mps2)"
+    _check_length(log, savgol_length(fs, DERIVATIVE_WINDOW_S))
+    vel = savgol(c["pos_m"], fs, DERIVATIVE_WINDOW_S, deriv=1)
+    acc = savgol(c["pos_m"], fs, DERIVATIVE_WINDOW_S, deriv=2)
+    f_l = savgol(f_l, fs, DERIVATIVE_WINDOW_S)
     return vel, f_l - mass * acc - mass * g_axis, source, "second derivative of the position"
 
 

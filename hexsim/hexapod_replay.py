@@ -23,7 +23,7 @@ from hexsim.measurement import MeasurementLog
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import Scenario
 from hexsim.residuals import noise_of
-from hexsim.signals import near_reversals, zero_order_hold
+from hexsim.signals import near_reversals, savgol, zero_order_hold
 from hexsim.simulation import RunConfig, SimulationResult
 from hexsim.runner import simulate
 
@@ -63,7 +63,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
         duration = min(duration, math.ceil(until_s * 1000.0 - 1e-6) / 1000.0)
     ticks = np.arange(int(math.ceil(duration * controller.rate_hz)) + 1) / controller.rate_hz
     held = lambda x: zero_order_hold(t, x, ticks)  # noqa: E731
-    feedforward = held(u_v) - controller.kp * (held(ref) - held(_smoothed(pos, log.sample_rate_hz)))
+    feedforward = held(u_v) - controller.kp * (held(ref) - held(savgol(pos, log.sample_rate_hz, FEEDFORWARD_SMOOTH_S, axis=0)))
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
     config = RunConfig(scenario, hydraulics=hydraulics or HydraulicParams(), controller=controller,
                        effects=effects or Effects(), feedforward=feedforward, timestep=timestep,
@@ -75,13 +75,6 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
 #: feedforward. Unsmoothed, the position sensor's noise enters the replay's valve command as
 #: K_p × noise (0.4 mV for 2 µm) and rings the 28–55 Hz oil-spring modes the logged run did not have.
 FEEDFORWARD_SMOOTH_S = 0.021
-
-
-def _smoothed(x: np.ndarray, fs: float) -> np.ndarray:
-    from scipy.signal import savgol_filter
-
-    n = max(5, int(round(FEEDFORWARD_SMOOTH_S * fs)) | 1)
-    return savgol_filter(x, n, 3, axis=0)
 
 
 #: Length of the scored segments [s]: even segments fit, odd segments are held out.

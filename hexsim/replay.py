@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from scipy.signal import cont2discrete, savgol_filter
+from scipy.signal import cont2discrete
 
 from hexsim import hydraulics
 from hexsim.effects import Effects, LegChange
@@ -31,6 +31,7 @@ from hexsim.measurement import MeasurementLog
 from hexsim.model import PlantIndex, apply_load, check_warnings, model_path
 from hexsim.params import HydraulicParams
 from hexsim.plant import PlantState, leg_table, step_plant
+from hexsim.signals import savgol
 
 #: Channels compared, in report order: name -> (log column of the single actuator, unit, floor of the scale).
 CHANNELS = {
@@ -115,8 +116,7 @@ class PlantModel:
 def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:
     """Piston velocity [m/s] from the measured position (N,) by a Savitzky–Golay derivative (cubic,
     21 samples at 1 kHz: noise of a few µm gives < 1 mm/s)."""
-    n = max(5, int(round(0.021 * log.sample_rate_hz)) | 1)
-    return savgol_filter(pos, n, 3, deriv=1, delta=1.0 / log.sample_rate_hz)
+    return savgol(pos, log.sample_rate_hz, 0.021, deriv=1)
 
 
 def supply_from_log(log: MeasurementLog, hyd: HydraulicParams) -> HydraulicParams:

@@ -1,10 +1,22 @@
 """Small signal helpers shared by scenarios, metrics and replays: fundamental fit, zero crossings,
-zero-order hold."""
+zero-order hold, Savitzky–Golay smoothing and derivatives."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import minimize_scalar
+from scipy.signal import savgol_filter
+
+
+def savgol_length(fs: float, window_s: float) -> int:
+    """Samples of a Savitzky–Golay window of ``window_s`` [s] at ``fs`` [Hz]: odd, at least 5."""
+    return max(5, int(round(window_s * fs)) | 1)
+
+
+def savgol(x: np.ndarray, fs: float, window_s: float, deriv: int = 0, axis: int = -1) -> np.ndarray:
+    """Cubic Savitzky–Golay smoothing (``deriv`` 0) or derivative of samples ``x`` at ``fs`` [Hz] over
+    a window of ``window_s`` [s] (:func:`savgol_length`), along ``axis`` (scipy.signal.savgol_filter)."""
+    return savgol_filter(x, savgol_length(fs, window_s), 3, deriv=deriv, delta=1.0 / fs, axis=axis)
 
 
 def fit_fundamental(t: np.ndarray, x: np.ndarray, frequency: float) -> tuple[float, float, float, np.ndarray]:

@@ -66,16 +66,17 @@ def sensor_consistency(log: MeasurementLog) -> list[str]:
     r. A sentence if they disagree: |s - 1| > 5 % with |r| > 0.9 (a scale error of one sensor, or a sign /
     axis problem for s < 0), or |r| < 0.5 with the position moving (a channel that does not belong to this
     axis). Nothing for a hexapod log (its accelerometer is the platform's) or without both columns."""
-    from scipy.signal import butter, savgol_filter, sosfiltfilt
+    from scipy.signal import butter, sosfiltfilt
+
+    from hexsim.signals import savgol, savgol_length
 
     c, fs = log.columns, log.sample_rate_hz
     if log.system != "single-actuator" or "acc_mps2" not in c or "pos_m" not in c or fs <= 4 * CONSISTENCY_BAND_HZ[1]:
         return []
-    n = max(5, int(round(0.051 * fs)) | 1)
-    if len(log.time) < 10 * n:
+    if len(log.time) < 10 * savgol_length(fs, 0.051):
         return []
     sos = butter(2, CONSISTENCY_BAND_HZ, btype="bandpass", fs=fs, output="sos")
-    from_position = sosfiltfilt(sos, savgol_filter(c["pos_m"], n, 3, deriv=2, delta=1.0 / fs))
+    from_position = sosfiltfilt(sos, savgol(c["pos_m"], fs, 0.051, deriv=2))
     measured = sosfiltfilt(sos, c["acc_mps2"])
     trim = slice(int(fs), len(measured) - int(fs)) if len(measured) > 4 * fs else slice(None)
     x, y = from_position[trim], measured[trim]
