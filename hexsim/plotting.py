@@ -38,8 +38,9 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
            label="reversal peaks")
     for tr in sm.reversal_times:
         a.axvline(tr, color="0.7", lw=0.6)
-    a.set(title=f"acceleration noise: noise ratio {sm.noise_ratio:.3f}, mean reversal peak "
+    a.set(title=f"acceleration noise: ratio {sm.noise_ratio:.3f}, mean reversal peak "
                 f"{sm.mean_reversal_peak:.3g} {sm.unit}", xlabel="time [s]", ylabel=f"[{sm.unit}]")
+    a.title.set_fontsize("medium")  # the whole title inside the panel (a long one ran past the figure edge)
     a.legend(loc="upper right", fontsize=8)
 
     a = ax[1, 0]
