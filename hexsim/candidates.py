@@ -18,6 +18,7 @@ import numpy as np
 
 from hexsim.effects import EFFECT_NAMES, LegChange
 from hexsim.measurement import MeasurementLog
+from hexsim.model import moving_mass
 from hexsim.replay import PlantModel
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
@@ -87,7 +88,7 @@ def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     ydot = savgol(y, fs, 0.021, deriv=1, axis=0)
     a1, _ = hydraulics.flow_areas(hydraulics.spool_position(u, hyd), hyd)
     dp = p_s[:, None] - p1
-    phi = np.sum(hyd.orifice_constant * a1 * np.sign(dp) * np.sqrt(np.abs(dp)) - hyd.area_rod * ydot, axis=1)
+    phi = np.sum(hydraulics.edge_flow(a1, dp, hyd) - hyd.area_rod * ydot, axis=1)
 
     def resid(x):
         a = math.exp(-1.0 / (fs * x[1] * 1e-3))
@@ -187,8 +188,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               lambda m, x: _eff(m, leakage=x[0] * 1e-12),
               "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber", (0.0,)),
     Candidate("load", ("M", "inclination"), ("kg", "deg"),
-              lambda log: ((log.mass_kg or 40.0, max(log.inclination_deg, 1.0)),
-                           (1.5 * (log.mass_kg or 40.0), 30.0)), (5.0, 0.0), (400.0, 89.0),
+              lambda log: ((log.mass_kg or moving_mass(), max(log.inclination_deg, 1.0)),
+                           (1.5 * (log.mass_kg or moving_mass()), 30.0)), (5.0, 0.0), (400.0, 89.0),
               "a moving mass of 5-400 kg per axis (seed app. A: 40 kg) and any inclination short of "
               "horizontal",
               _load, "moving mass and inclination of the axis differ from the declared (seed ch. 4: gravity not "

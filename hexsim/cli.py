@@ -117,6 +117,16 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--csv", type=pathlib.Path, help="write the table as CSV")
     sw.add_argument("--json", type=pathlib.Path, help="write the table as JSON")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    mo = sub.add_parser(
+        "modes",
+        help="oil-spring modes of the hexapod (linearised, Hz, with the dominant degree of freedom)",
+        description="Linearise the hexapod at the neutral pose: each leg's oil column a spring E A1^2 / V1 (seed "
+        "eq. 3.7), the inertia MuJoCo's (platform, legs, constraints); print the six modes in Hz with the degree "
+        "of freedom that holds most of each mode's kinetic energy.",
+    )
+    mo.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
+                    help="a payload of KG kg added to the 600 kg platform at X,Y,Z m (platform frame), as for run")
+    mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON")
     be = sub.add_parser(
         "bench",
         help="time the simulator against bare mj_step on the same model (ratios, real-time factors)",
@@ -224,6 +234,30 @@ def cmd_friction(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_modes(args: argparse.Namespace) -> int:
+    import json
+
+    from hexsim.effects import Effects
+    from hexsim.modes import modes_table, oil_spring_modes
+
+    _check_outputs(args)
+    effects, payload = Effects(), "600 kg platform"
+    if args.payload is not None:
+        kg, at = args.payload
+        effects = effects.replace(payload_kg=kg, payload_at_m=at)
+        payload = f"600 kg platform with {kg:g} kg at ({', '.join(f'{v:g}' for v in at)}) m"
+    modes = oil_spring_modes(effects=effects)
+    print(modes_table(modes, payload))
+    if args.json:
+        data = {"configuration": payload, "pose": "neutral",
+                "modes": [{"frequency_hz": mode.frequency_hz, "dominant": mode.dominant, "share": mode.share,
+                           "shape": dict(zip(("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"),
+                                             mode.shape.tolist()))} for mode in modes]}
+        write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
+        print(f"wrote {args.json}")
+    return 0
+
+
 def _payload(text: str) -> tuple[float, tuple[float, float, float]]:
     """``KG``, ``KG@X,Y`` or ``KG@X,Y,Z`` -> (kg, (x, y, z) m); z 0 if not given."""
     mass, _, at = text.partition("@")
@@ -251,9 +285,10 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                    help="parameter file: sections hydraulics / controller / effects overriding the seed's values "
                         "(see hexsim/paramfile.py); the options below override the file")
     p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default {ControllerParams.kp:g})")
-    p.add_argument("--flow-area", choices=("smooth", "sharp"),
-                   help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) or sharp-edged with "
-                        "overlap (eq. 3.3) (default smooth)")
+    p.add_argument("--flow-area", choices=("smooth", "quadratic", "sharp"),
+                   help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) blended onto the port's "
+                        "opening above 0.78 V (default), quadratic (3.11 at every opening, as the seed simulated) or "
+                        "sharp-edged with overlap (eq. 3.3)")
     p.add_argument("--sensor-noise", type=_number,
                    help=f"rms noise on the measured piston position [m] (default {ControllerParams.position_noise:g})")
     p.add_argument("--fault", action="append", default=[], metavar="KIND:key=value,…",
@@ -496,7 +531,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "sweep":
             return cmd_sweep(args, parser)
         commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
-                    "bench": cmd_bench}
+                    "modes": cmd_modes, "bench": cmd_bench}
         return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

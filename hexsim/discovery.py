@@ -32,6 +32,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from hexsim import hydraulics
+from hexsim.model import gravity, moving_mass
 from hexsim.replay import PlantModel
 from hexsim.residuals import effective_n
 
@@ -39,7 +40,6 @@ SMOOTH_S = 0.021  # [s] Savitzky–Golay window (cubic) of the derivatives and o
 MIN_T = 4.0  # a term is kept when |coefficient| >= MIN_T standard errors
 MIN_SHARE = 0.05  # ... and when it removes at least this share of the held-out equation error (mean square)
 V_COULOMB = 1e-3  # [m/s] width of the smooth sign tanh(ydot / V_COULOMB)
-GRAVITY = 9.8  # [m/s^2], the single-actuator model's (seed app. A)
 
 
 @dataclass(frozen=True)
@@ -86,10 +86,9 @@ def flow_equation(y, u, p1, p_s, fs: float, model: PlantModel) -> tuple[np.ndarr
     ydot = _smooth(y, n, 1, fs)
     dp1 = _smooth(p1, n, 1, fs)
     a1, a2 = hydraulics.flow_areas(hydraulics.spool_position(u, hyd), hyd)
-    k = hyd.orifice_constant
     dps, dpt = p_s - p1, p1 - hyd.tank_pressure
-    phi_pa = eff.edge_gain_pa * k * a1 * np.copysign(np.sqrt(np.abs(dps)), dps)
-    phi_at = -eff.edge_gain_at * k * a2 * np.copysign(np.sqrt(np.abs(dpt)), dpt)
+    phi_pa = eff.edge_gain_pa * hydraulics.edge_flow(a1, dps, hyd)
+    phi_at = -eff.edge_gain_at * hydraulics.edge_flow(a2, dpt, hyd)
     phi = phi_pa + phi_at + eff.leakage * dps
     volume = hydraulics.chamber_volume(y, hyd)
     target = volume / hyd.bulk_modulus * dp1 + hyd.area_bottom * ydot - _smooth(phi, n)
@@ -110,10 +109,10 @@ def equation_errors(log, model: PlantModel) -> dict[str, tuple[np.ndarray, np.nd
     flow = flow_equation(y, u, p1, p_s, fs, model)
     ydot = _smooth(y, n, 1, fs)
     ydd = _smooth(y, n, 2, fs)
-    mass = eff.mass_kg or log.mass_kg or 40.0
+    mass = eff.mass_kg or log.mass_kg or moving_mass()
     incl = eff.inclination_deg if eff.inclination_deg is not None else log.inclination_deg
     f_hyd = p1 * hyd.area_bottom - p_s * hyd.area_rod - hydraulics.friction_force(ydot, hyd)
-    force_target = mass * ydd - _smooth(f_hyd, n) + mass * GRAVITY * math.cos(math.radians(incl))
+    force_target = mass * ydd - _smooth(f_hyd, n) + mass * gravity() * math.cos(math.radians(incl))
     force_x = np.column_stack([ydot, np.tanh(ydot / V_COULOMB), np.ones_like(y)])
     return {"flow": flow, "force": (force_target, force_x)}
 

@@ -24,13 +24,12 @@ from scipy.optimize import least_squares
 
 from hexsim.errors import InputError
 from hexsim.measurement import MeasurementLog
+from hexsim.model import gravity, moving_mass
 from hexsim.params import HydraulicParams
 from hexsim.residuals import effective_n
 from hexsim.signals import savgol, savgol_length
 from hexsim.tables import json_text, write_atomic
 
-G = 9.8  # [m/s^2], seed app. A (the models' gravity)
-MODEL_MASS = 40.0  # [kg], seed app. A, the single-actuator MJCF's moving mass
 #: [s] Savitzky–Golay window (cubic) with a logged accelerometer: the velocity and F_L - M (ydd + g)
 #: need no second derivative, so the window only has to smooth the sensor noise while keeping the
 #: Stribeck hump (|v| < ~3 c_s, ~15 ms around a reversal on the seed's sine). hexsim's own exact 20 s
@@ -68,8 +67,8 @@ def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None
     else:
         raise InputError(f"{log.path}: friction identification needs columns 'p1_Pa' and 'ps_Pa', or 'force_N'")
     fs = log.sample_rate_hz
-    mass = log.mass_kg or MODEL_MASS
-    g_axis = G * np.cos(np.deg2rad(log.inclination_deg))
+    mass = log.mass_kg or moving_mass()
+    g_axis = gravity() * np.cos(np.deg2rad(log.inclination_deg))
     if "acc_mps2" in c:  # M (ydd + g cos θ) measured: no second derivative of the position
         _check_length(log, savgol_length(fs, ACC_WINDOW_S))
         specific = c["acc_mps2"]
@@ -94,7 +93,7 @@ def identify_friction(log: MeasurementLog) -> dict:
     """Fitted Stribeck parameters per direction with standard errors, the RMS fit error and the samples
     used. Raises InputError if a direction has fewer than 50 samples faster than 2 mm/s."""
     vel, ff, source, acc_source = friction_samples(log)
-    out = {"log": str(log.path), "force_source": source, "acceleration_source": acc_source, "mass_kg": log.mass_kg or MODEL_MASS,
+    out = {"log": str(log.path), "force_source": source, "acceleration_source": acc_source, "mass_kg": log.mass_kg or moving_mass(),
            "inclination_deg": log.inclination_deg, "assumed": log.assumed,
            "equation": "seed eq. (3.9), the simulator's friction curve (hexsim.hydraulics.friction_force)"}
     lo, hi = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])

@@ -18,9 +18,9 @@ import numpy as np
 
 from hexsim import jitcache, plant
 from hexsim.params import HydraulicParams
-from hexsim.plant import JACOBIAN_DP_FLOOR, leg_params
+from hexsim.plant import TRANSITION_DP, leg_params
 
-__all__ = ["JACOBIAN_DP_FLOOR", "spool_position", "flow_areas", "valve_flow", "valve_flow_dp1", "static_velocity",
+__all__ = ["TRANSITION_DP", "spool_position", "flow_areas", "edge_flow", "valve_flow", "valve_flow_dp1", "static_velocity",
            "chamber_volume", "pressure_rate", "step_pressure", "friction_force", "leg_force", "equilibrium_pressure",
            "eigenfrequency"]
 
@@ -50,9 +50,15 @@ def _map_orifice(x, p1, p_s, P, phi, dphi):
 
 
 @_jit
+def _map_edge(a, dp, P, q):
+    for i in range(a.shape[0]):
+        q[i] = plant.edge_flow(a[i], dp[i], P)[0]
+
+
+@_jit
 def _map_pressure_step(p1, x, p_s, y, ydot, dt, P, out):
     for i in range(x.shape[0]):
-        out[i] = plant.pressure_step(p1[i], x[i], p_s[i], y[i], ydot[i], dt, P)
+        out[i] = plant.pressure_step(p1[i], 0.0, x[i], p_s[i], y[i], ydot[i], dt, P)[0]
 
 
 @_jit
@@ -68,7 +74,7 @@ def _map_leg_force(p1, p_s, v, P, out):
 
 
 # the array maps compile in the scalar physics of hexsim.plant: drop their cache when that file changes
-jitcache.guard((_map_areas, _map_orifice, _map_pressure_step, _map_friction, _map_leg_force),
+jitcache.guard((_map_areas, _map_edge, _map_orifice, _map_pressure_step, _map_friction, _map_leg_force),
                plant.__file__)
 
 
@@ -89,7 +95,12 @@ def flow_areas(x_v, p: HydraulicParams):
     ``p.flow_area == "sharp"``: sharp-edged spool with overlap O_l, seed eq. (3.3):
     a1 = pi d (x_v - O_l) for x_v > O_l, a2 = -pi d (x_v + O_l) for x_v < -O_l, else 0.
     ``p.flow_area == "smooth"`` (default): a_i = 300 x_v^2 on the side x_v opens, seed eq. (3.11),
-    which the seed adopts because the kink of (3.3) at ±O_l excites the hydraulic eigenfrequency.
+    which the seed adopts because the kink of (3.3) at ±O_l excites the hydraulic eigenfrequency; the
+    seed matched its gain to (3.3) over the working range, and past |x_v| = 0.1 mm it would grow beyond
+    the port's full-perimeter opening pi d (|x_v| - O_l), 10.5× at full stroke. So it is blended C^1
+    onto that line between x_a = 86 µm and x_b = 119 µm (0.78–1.08 V) and follows the line beyond
+    (:attr:`~hexsim.params.HydraulicParams.smooth_blend`). ``p.flow_area == "quadratic"``: (3.11) at every
+    opening, as the seed simulated.
 
     Returns two arrays shaped like ``x_v`` (:func:`hexsim.plant.flow_areas`, elementwise).
     """
@@ -97,6 +108,17 @@ def flow_areas(x_v, p: HydraulicParams):
     a1, a2 = np.empty_like(x), np.empty_like(x)
     _map_areas(x, leg_params(p), a1, a2)
     return _shaped(a1, shape), _shaped(a2, shape)
+
+
+def edge_flow(area, dp, p: HydraulicParams):
+    """Flow [m^3/s] through one valve edge of opening ``area`` [m^2] (edge gain applied by the caller)
+    under the pressure difference ``dp`` [Pa] (upstream minus downstream): the orifice equation (seed eq.
+    3.4) with its laminar range below :data:`TRANSITION_DP` (:func:`hexsim.plant.edge_flow`,
+    elementwise). Arrays broadcast."""
+    (a, d), shape = _flat(area, dp)
+    q = np.empty_like(a)
+    _map_edge(a, d, leg_params(p), q)
+    return _shaped(q, shape)
 
 
 def _orifice(x_v, p1, p: HydraulicParams, p_s):
@@ -111,9 +133,9 @@ def _orifice(x_v, p1, p: HydraulicParams, p_s):
 def valve_flow(x_v, p1, p: HydraulicParams, p_s=None):
     """Flow phi_1 [m^3/s] into the bottom chamber through the 3-way valve (seed eq. 3.4).
 
-    phi_1 = C_d a1(x_v) sqrt(2 (P_s - P1)/rho) - C_d a2(x_v) sqrt(2 (P1 - P_t)/rho).
-    The square root is taken signed (sqrt|dp| sign dp) so a reversed pressure difference reverses the
-    flow through that edge instead of producing NaN. ``p_s`` [Pa] overrides the supply pressure
+    phi_1 = C_d a1(x_v) sqrt(2 (P_s - P1)/rho) - C_d a2(x_v) sqrt(2 (P1 - P_t)/rho), each edge by
+    :func:`edge_flow`: odd in the pressure difference (a reversed difference reverses the flow through
+    that edge) and laminar below 0.1 bar. ``p_s`` [Pa] overrides the supply pressure
     (scalar or per leg); default ``p.supply_pressure``. Arrays broadcast.
     """
     return _orifice(x_v, p1, p, p_s)[0]
@@ -122,8 +144,8 @@ def valve_flow(x_v, p1, p: HydraulicParams, p_s=None):
 def valve_flow_dp1(x_v, p1, p: HydraulicParams, p_s=None):
     """d phi_1 / d P1 [m^3/(s Pa)] of :func:`valve_flow`, always <= 0.
 
-    Used by the linearly implicit pressure update; the pressure difference is floored at
-    :data:`JACOBIAN_DP_FLOOR` so the derivative stays finite at a closed or balanced edge.
+    Used by the linearly implicit pressure update; finite at a closed or balanced edge (the laminar
+    range of :func:`edge_flow`).
     """
     return _orifice(x_v, p1, p, p_s)[1]
 
@@ -153,11 +175,12 @@ def step_pressure(p1, u_v, y, ydot, dt: float, p: HydraulicParams, p_s=None):
 
     Linearly implicit (Rosenbrock-Euler) in P1: P1' = P1 + dt f / (1 - dt df/dP1), with
     f = :func:`pressure_rate`. The valve-chamber pole E/V dphi/dP1 is far faster than dt at large
-    openings (about 30 µs at u_v = 10 V), where explicit Euler would diverge; where it is slow the
+    openings (about 0.3 ms at u_v = 10 V), where explicit Euler would diverge; where it is slow the
     update equals explicit Euler to first order. The piston velocity ``ydot`` is taken at the start of
     the step; the mechanical side then uses the new P1 (symplectic Euler for the 109 Hz oil spring).
-    Arrays broadcast, (n,) in, (n,) out (:func:`hexsim.plant.pressure_step`, elementwise; the effects'
-    version of a whole step is :func:`hexsim.plant.step_legs`).
+    Arrays broadcast, (n,) in, (n,) out (:func:`hexsim.plant.pressure_step`, elementwise, from a chamber
+    without a cavity: P1 does not fall below the cavitation pressure; the effects' version of a whole step,
+    with the cavity's volume kept from step to step, is :func:`hexsim.plant.step_legs`).
     """
     p_s = p.supply_pressure if p_s is None else p_s
     (q1, u, qs, yy, yd), shape = _flat(p1, u_v, p_s, y, ydot)

@@ -40,7 +40,8 @@ def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
 
 
 def sidecar(result: SimulationResult) -> dict:
-    """The JSON sidecar: system, sample rate, controller, parameters, description."""
+    """The JSON sidecar: system, sample rate, controller, parameters, acquisition (how each channel was
+    sampled), description."""
     cfg = result.config
     rate = 1.0 / float(np.median(np.diff(result.t)))
     return {
@@ -51,6 +52,8 @@ def sidecar(result: SimulationResult) -> dict:
                        and cfg.effects == type(cfg.effects)() and not cfg.leg_changes
                        else "hexsim with parameters other than the seed's (not stated here)"),
         "oil_temperature_C": 35.0,
+        "acquisition": {"accelerometer": "mean over each sample interval (boxcar anti-alias filter)",
+                        "other channels": "value at the sample instant"},
         "description": f"hexsim simulation: scenario {cfg.scenario.name}, compensator {cfg.compensator_name}, seed {cfg.seed}",
     }
 

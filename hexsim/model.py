@@ -6,6 +6,7 @@ second copy (STYLE.md §2).
 
 from __future__ import annotations
 
+import functools
 import importlib.resources
 import pathlib
 from dataclasses import dataclass
@@ -33,6 +34,22 @@ def load_model(name: str) -> mujoco.MjModel:
     """Compile a built-in model (``"hexapod"`` or ``"actuator"``), with island discovery off
     (:func:`no_islands`)."""
     return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
+
+
+@functools.cache
+def gravity(name: str = "actuator") -> float:
+    """|g| [m/s^2] of a built-in model (both are 9.81): the one value of gravity hexsim uses, read from
+    the MJCF (the identifier, ``hexsim friction`` and the reports included). Raises InputError for an
+    unknown model name."""
+    return float(np.linalg.norm(load_model(name).opt.gravity))
+
+
+@functools.cache
+def moving_mass() -> float:
+    """Moving mass M [kg] of the built-in single actuator (the body slide ``leg1`` carries; seed app. A:
+    40 kg), read from the MJCF."""
+    m = load_model("actuator")
+    return float(m.body_mass[m.jnt_bodyid[_id(m, mujoco.mjtObj.mjOBJ_JOINT, "leg1")]])
 
 
 def no_islands(m: mujoco.MjModel) -> mujoco.MjModel:

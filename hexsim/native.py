@@ -120,7 +120,11 @@ class Recorder(NamedTuple):
     """Rows the kernel writes every ``div`` physics steps, ``n_total`` samples in all, kept as a ring of
     len(k) rows (sample r goes to row r % len(k)): step k, sensordata, P1 (n), P_s of leg 0, leg force,
     measured position, connect violation [m], setpoint, u_v, U_c, compensator (a, b, c, s) (rows, 4, n);
-    ``status[0]``: the first step whose state is not finite, else -1."""
+    ``status[0]``: the first step whose state is not finite, else -1. The accelerometer's entries of
+    sensordata (``acc_adr``) are recorded at t_k as the mean over the sample interval before it, the steps
+    k-div … k-1 whose accelerations carried the platform from t_k - T to t_k (Δv/Δt: a boxcar anti-alias
+    filter, as an integrating DAQ; the first record, with no interval before it, its own step's):
+    ``acc_sum`` holds their running sum and count."""
 
     div: int
     n_total: int
@@ -136,6 +140,8 @@ class Recorder(NamedTuple):
     uc: np.ndarray
     comp: np.ndarray
     status: np.ndarray
+    acc_adr: np.ndarray
+    acc_sum: np.ndarray
 
 
 class ReplayOut(NamedTuple):
@@ -153,14 +159,17 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
     """Open-loop replay of k independent legs, in the order of :func:`hexsim.replay.replay` (which see):
     row j's setpoints u_sched[:, j] (k, n) [V] drive the ``sub`` steps from row j to row j+1; row j of
     ``out`` (:class:`ReplayOut`) records the position, P1 and P_s at its time and the acceleration
-    (sensordata at ``acc_adr`` (k,)) MuJoCo computes in the first of those steps. ``legs.state`` changes
-    in place. Returns -1, or the first row at which P1 is not finite."""
+    (sensordata at ``acc_adr`` (k,)) averaged over the steps of row j-1 (the boxcar of :class:`Recorder`;
+    row 0: its own first step's). ``legs.state`` changes in place. Returns -1,
+    or the first row at which P1 is not finite."""
     k, n = u_sched.shape
     m_addr, d_addr, qpos, qvel, ctrl, sens, _, qadr, dadr, aadr, _, _ = mj  # once: see run_block
     P, dt, force, groups, supply_flow = legs.params, legs.dt, legs.force, legs.groups, legs.supply_flow
     S = legs.state
     y = np.empty(k)
     yd = np.empty(k)
+    acc = np.zeros(k)
+    count = 0
     for j in range(n):
         for s in range(sub):
             for i in range(k):
@@ -177,7 +186,12 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
             _mj_step(m_addr, d_addr)
             if s == 0:
                 for i in range(k):
-                    out.acceleration[i, j] = sens[acc_adr[i]]
+                    out.acceleration[i, j] = acc[i] / count if count > 0 else sens[acc_adr[i]]
+                    acc[i] = 0.0
+                count = 0
+            for i in range(k):
+                acc[i] += sens[acc_adr[i]]
+            count += 1
         if not np.isfinite(S.p1).all():
             return j
     return -1
@@ -208,7 +222,8 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     n = p1.shape[0]
     L = hist.shape[0]
     div, kp, setpoints, noise, mode, comp, table, saturated = ctl
-    rec_div, n_total, rk, rsens, rp1, rps, rforce, ry, rviol, rref, ru, ruc, rcomp, status = rec
+    rec_div, n_total, rk, rsens, rp1, rps, rforce, ry, rviol, rref, ru, ruc, rcomp, status, acc_adr, acc_sum = rec
+    n_acc = acc_adr.shape[0]
     y = np.empty(n)
     yd = np.empty(n)
     u_c = np.zeros(n)
@@ -273,6 +288,11 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
         if record:
             for c in range(sens.shape[0]):
                 rsens[w, c] = sens[c]
+            if acc_sum[n_acc] > 0.0:  # the mean over the interval's steps (the first record: its own)
+                for c in range(n_acc):
+                    rsens[w, acc_adr[c]] = acc_sum[c] / acc_sum[n_acc]
+            for c in range(n_acc + 1):
+                acc_sum[c] = 0.0
             worst = 0.0
             for e in range(site1.shape[0]):
                 a, b = site1[e], site2[e]
@@ -284,6 +304,9 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
             for i in range(n):
                 rforce[w, i] = force[i]
             r += 1
+        for c in range(n_acc):
+            acc_sum[c] += sens[acc_adr[c]]
+        acc_sum[n_acc] += 1.0
     rec.status[0] = -1
     return r
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 
-FlowArea = Literal["smooth", "sharp"]
+FlowArea = Literal["smooth", "quadratic", "sharp"]
 
 
 def _check_positive(obj, *names: str) -> None:
@@ -60,7 +60,14 @@ class HydraulicParams:
     # spool position")
     spool_diameter: float = 1e-2  # d [m], seed app. A
     smooth_area_gain: float = 300.0  # [m^2/m^2 -> 1/m]: a = 300 x_v^2, seed eq. (3.11)
-    flow_area: FlowArea = "smooth"  # seed §3.3 uses the smooth (3.11) for all later work
+    # "smooth": seed eq. (3.11) blended C^1 onto the port's opening (3.3) above 0.78 V (smooth_blend);
+    # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "sharp": (3.3)
+    flow_area: FlowArea = "smooth"
+    # Lowest pressure the bottom chamber's oil holds [Pa, gauge]: 0.1 bar absolute, where dissolved air comes
+    # out of mineral oil and the oil cavitates (air-release pressures 0.1–0.3 bar abs.; the vapour pressure is
+    # lower still; Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), 2011). Not in the seed, whose
+    # chamber never falls that low; the pressure stays there while a cavity opens (hexsim.plant.pressure_step).
+    cavitation_pressure: float = 1.0e4 - 101325.0
     # Asymmetric Stribeck friction, seed eq. (3.9) and app. A.
     arctan_gain: float = 100.0  # k [s/m], seed app. A
     viscous_pos: float = 2200.0  # sigma+ [N s/m]
@@ -118,15 +125,41 @@ class HydraulicParams:
                 f"HydraulicParams.overlap ({self.overlap} m) must be smaller than the spool stroke x_v_max "
                 f"({self.x_v_max} m)"
             )
+        if not (math.isfinite(self.cavitation_pressure) and -101325.0 <= self.cavitation_pressure < self.tank_pressure):
+            raise InputError(
+                f"HydraulicParams.cavitation_pressure ({self.cavitation_pressure} Pa, gauge) must be between absolute "
+                f"vacuum (-101325 Pa) and the tank pressure ({self.tank_pressure} Pa)")
         if self.tank_pressure >= self.supply_pressure:
             raise InputError(
                 f"HydraulicParams.tank_pressure ({self.tank_pressure} Pa) must be below supply_pressure "
                 f"({self.supply_pressure} Pa)"
             )
-        if self.flow_area not in ("smooth", "sharp"):
-            raise InputError(f"HydraulicParams.flow_area must be 'smooth' or 'sharp', got {self.flow_area!r}")
+        if self.flow_area not in ("smooth", "quadratic", "sharp"):
+            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic' or 'sharp', got {self.flow_area!r}")
+        limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
+        if self.flow_area == "smooth" and self.overlap >= limit:
+            raise InputError(
+                f"HydraulicParams.overlap ({self.overlap} m) must be below pi d / (4 k_a) = {limit:.3g} m for the "
+                f"smooth flow area: above it k_a x_v^2 (eq. 3.11, k_a = smooth_area_gain) never meets the port's "
+                f"opening pi d (x_v - O_l) (eq. 3.3) and cannot be blended onto it")
 
     # Derived constants, computed once per parameter set (the dataclass is frozen).
+    @functools.cached_property
+    def smooth_blend(self) -> tuple[float, float]:
+        """(x_a, x_b) [m]: the smooth flow area k_a x_v^2 (seed eq. 3.11) holds for |x_v| <= x_a; from x_b
+        on the opening is the sharp-edged port's pi d (|x_v| - O_l) (eq. 3.3), the geometric limit a
+        spool of diameter d opens; in between, pi d (|x_v| - O_l) - k_a (|x_v| - x_b)^2, which meets both
+        with the same value and slope (C^1) and bends with the same |curvature| 2 k_a as (3.11).
+
+        With w = pi d and x_t = w / (2 k_a) (where (3.11) has the port's slope w): x_a is the larger root
+        of 2 k_a x^2 - 2 w x + k_a x_t^2 + w O_l = 0 and x_b = 2 x_a - x_t. Seed values: x_a = 85.7 µm
+        (0.78 V), x_b = 119 µm (1.08 V); (3.11) alone would cross the port's opening at 99.5 µm (0.90 V)
+        and exceed it 10.5× at full spool stroke."""
+        w, k = math.pi * self.spool_diameter, self.smooth_area_gain
+        x_t = w / (2.0 * k)
+        x_a = (2.0 * w + math.sqrt(max(4.0 * w * w - 8.0 * k * (k * x_t * x_t + w * self.overlap), 0.0))) / (4.0 * k)
+        return x_a, 2.0 * x_a - x_t
+
     @functools.cached_property
     def area_bottom(self) -> float:
         """A1 [m^2], piston area on the bottom side (seed app. A: pi/4 * 0.04^2)."""

@@ -29,10 +29,11 @@ import numpy as np
 from hexsim.effects import NOMINAL, Effects, LegChange
 from hexsim.params import HydraulicParams
 
-#: Pressure difference [Pa] below which the Jacobian of the orifice flow is evaluated as if it were this
-#: large. Only the linearly implicit integrator uses the Jacobian; the flow itself is exact.
-JACOBIAN_DP_FLOOR = 1.0e4
-_SQRT_FLOOR = math.sqrt(JACOBIAN_DP_FLOOR)
+#: Laminar–turbulent transition pressure Δp_tr [Pa] of the valve's orifices: below about this pressure
+#: difference the flow through an edge is laminar (∝ Δp), above it turbulent (∝ √Δp, seed eq. 3.4).
+#: 0.1 bar: the pressure at which a 50 µm spool slot reaches a Reynolds number of about 10 in 35 °C oil.
+TRANSITION_DP = 1.0e4
+_DP_TR2 = TRANSITION_DP * TRANSITION_DP
 
 _jit = numba.njit(cache=True, fastmath=False)
 # the scalar equations are inlined into the loops that call them (numba IR inlining): a call per equation
@@ -56,6 +57,8 @@ class LegParams(NamedTuple):
     u_0: float  # null offset: u_v at which the spool is centred [V]
     port_width: float  # pi d, full-perimeter port width [m] (eq. 3.3)
     smooth_gain: float  # area gain of eq. 3.11 [m^2/m^2]
+    blend_start: float  # x_a [m]: the smooth area holds up to here (HydraulicParams.smooth_blend; inf: "quadratic")
+    blend_end: float  # x_b [m]: the port's sharp-edged opening from here on
     sharp: float  # 1.0: sharp-edged area (eq. 3.3); 0.0: smooth (eq. 3.11)
     arctan_gain: float  # k of eq. 3.9 [s/m]
     arctan_scale: float  # 2/pi if the arctan is normalised to ±1, else 1
@@ -77,6 +80,7 @@ class LegParams(NamedTuple):
     k_at: float  # return-edge gain [-]
     air: float  # entrained air: volume fraction at atmospheric pressure [-]; 0: none
     air_exponent: float  # polytropic exponent of the air [-]
+    p_cav: float  # cavitation pressure [Pa, gauge]: the lowest P1 (HydraulicParams.cavitation_pressure)
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -85,10 +89,11 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
     return LegParams(
         hyd.supply_pressure, hyd.tank_pressure, hyd.orifice_constant, hyd.area_bottom, hyd.area_rod,
         hyd.bulk_modulus, hyd.pipeline_volume, hyd.u_v_max, hyd.x_v_max, hyd.overlap, hyd.null_offset,
-        math.pi * hyd.spool_diameter, hyd.smooth_area_gain, float(hyd.flow_area == "sharp"), hyd.arctan_gain,
+        math.pi * hyd.spool_diameter, hyd.smooth_area_gain,
+        *(hyd.smooth_blend if hyd.flow_area == "smooth" else (math.inf, math.inf)), float(hyd.flow_area == "sharp"), hyd.arctan_gain,
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
-        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent)
+        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure)
 
 
 #: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
@@ -112,13 +117,15 @@ def leg_table(hyd: HydraulicParams, eff: Effects, n: int, changes: tuple[LegChan
 
 class PlantState(NamedTuple):
     """Hydraulic state of n legs, arrays (n,), changed in place by :func:`step_legs`: P1 [Pa], P_s seen
-    by each leg [Pa], spool position x_v [m] and velocity v_v [m/s], setpoint after the spool play u_b [V]."""
+    by each leg [Pa], spool position x_v [m] and velocity v_v [m/s], setpoint after the spool play u_b [V],
+    volume of the cavity in the bottom chamber v_c [m^3] (0 unless P1 is at the cavitation pressure)."""
 
     p1: np.ndarray
     p_s: np.ndarray
     x_v: np.ndarray
     v_v: np.ndarray
     u_b: np.ndarray
+    v_c: np.ndarray
 
     @classmethod
     def at_rest(cls, p1, u_v, hyd: HydraulicParams, p_s=None) -> "PlantState":
@@ -126,7 +133,8 @@ class PlantState(NamedTuple):
         p1 = np.array(p1, dtype=float)
         u_v = np.broadcast_to(np.asarray(u_v, dtype=float), p1.shape).copy()
         p_s = np.full(p1.shape, hyd.supply_pressure) if p_s is None else np.broadcast_to(p_s, p1.shape).astype(float)
-        return cls(p1=p1, p_s=p_s, x_v=spool_position(u_v, leg_params(hyd)), v_v=np.zeros_like(p1), u_b=u_v)
+        return cls(p1=p1, p_s=p_s, x_v=spool_position(u_v, leg_params(hyd)), v_v=np.zeros_like(p1), u_b=u_v,
+                   v_c=np.zeros_like(p1))
 
     def copy(self) -> "PlantState":
         return PlantState(*(np.array(a, dtype=float) for a in self))
@@ -145,29 +153,44 @@ def spool_position(u_v, P):
 @_inline
 def flow_areas(x_v, P):
     """Openings (a1 P→A, a2 A→T) [m^2] at spool position x_v [m]: sharp edges with overlap (seed eq.
-    3.3) or the smooth 300 x_v^2 (eq. 3.11) on the side x_v opens; edge gains not applied."""
+    3.3), or on the side x_v opens the smooth 300 x_v^2 (eq. 3.11) up to |x_v| = x_a, blended C^1 onto
+    the sharp-edged port's pi d (|x_v| - O_l) at x_b and that line beyond, the geometric limit
+    (:attr:`hexsim.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); edge
+    gains not applied."""
     if P.sharp > 0.5:
         return P.port_width * max(x_v - P.overlap, 0.0), P.port_width * max(-x_v - P.overlap, 0.0)
-    a = P.smooth_gain * x_v * x_v
+    x = abs(x_v)
+    if x <= P.blend_start:
+        a = P.smooth_gain * x_v * x_v
+    elif x < P.blend_end:
+        a = P.port_width * (x - P.overlap) - P.smooth_gain * (x - P.blend_end) ** 2
+    else:
+        a = P.port_width * (x - P.overlap)
     a1 = a if x_v > 0.0 else 0.0
     return a1, a - a1
 
 
 @_inline
+def edge_flow(a, dp, P):
+    """(q, dq/d dp): flow [m^3/s] through one valve edge of opening a [m^2] under the pressure difference
+    dp [Pa], and its derivative: the orifice equation (seed eq. 3.4), q = C_d a sqrt(2/rho) sqrt(dp) for
+    dp >> Δp_tr, with the two-regime form of Ellman & Piché (ASME J. Dyn. Syst. Meas. Control 121(4),
+    1999), q = C_d a sqrt(2/rho) dp / (dp^2 + Δp_tr^2)^(1/4): laminar (∝ dp) below the transition
+    pressure :data:`TRANSITION_DP`, turbulent above (relative difference 3e-6 at 30 bar), smooth and odd
+    in dp, so a reversed pressure difference reverses the flow and the derivative is finite at dp = 0."""
+    r2 = dp * dp + _DP_TR2
+    r = math.sqrt(math.sqrt(r2))
+    return P.c_v * a * dp / r, P.c_v * a * (0.5 * dp * dp + _DP_TR2) / (r2 * r)
+
+
+@_inline
 def orifice(x_v, p1, p_s, P):
-    """(phi_1, d phi_1/d P1): flow into the bottom chamber [m^3/s] through both edges (seed eq. 3.4,
-    signed square roots, edge gains k_PA, k_AT) and its derivative, the pressure difference floored
-    at :data:`JACOBIAN_DP_FLOOR` in the derivative only."""
+    """(phi_1, d phi_1/d P1): flow into the bottom chamber [m^3/s] through both edges (seed eq. 3.4 per
+    edge, :func:`edge_flow`; edge gains k_PA, k_AT) and its exact derivative."""
     a1, a2 = flow_areas(x_v, P)
-    a1 *= P.k_pa
-    a2 *= P.k_at
-    dp1 = p_s - p1
-    dp2 = p1 - P.p_t
-    s1 = math.sqrt(abs(dp1))
-    s2 = math.sqrt(abs(dp2))
-    phi = P.c_v * (a1 * math.copysign(s1, dp1) - a2 * math.copysign(s2, dp2))
-    dphi = -0.5 * P.c_v * (a1 / max(s1, _SQRT_FLOOR) + a2 / max(s2, _SQRT_FLOOR))
-    return phi, dphi
+    q1, dq1 = edge_flow(a1 * P.k_pa, p_s - p1, P)
+    q2, dq2 = edge_flow(a2 * P.k_at, p1 - P.p_t, P)
+    return q1 - q2, -dq1 - dq2
 
 
 #: Atmospheric pressure [Pa]: the model's pressures are gauge (P_t = 0), the air's law is absolute.
@@ -189,16 +212,34 @@ def bulk_modulus(p1, P):
 
 
 @_inline
-def pressure_step(p1, x_v, p_s, y, ydot, dt, P):
-    """P1 [Pa] after a step dt [s] of eq. (3.7), E / (y A1 + V_pl) (phi_1 + C_l (P_s - P1) - ydot A1),
-    linearly implicit (Rosenbrock–Euler) in P1 (E = :func:`bulk_modulus` at the step's start P1); ydot
-    is the piston velocity at the start of the step."""
+def pressure_step(p1, v_c, x_v, p_s, y, ydot, dt, P):
+    """(P1 [Pa], cavity volume v_c [m^3]) after a step dt [s] of the bottom chamber; ydot is the piston
+    velocity at the start of the step.
+
+    Without a cavity (v_c = 0): eq. (3.7), dP1/dt = E / (y A1 + V_pl) (phi_1 + C_l (P_s - P1) - ydot A1),
+    linearly implicit (Rosenbrock–Euler) in P1 (E = :func:`bulk_modulus` at the step's start P1).
+    Cavitation: oil cannot be stretched below the cavitation pressure p_cav (air release, vapour;
+    :attr:`hexsim.params.HydraulicParams.cavitation_pressure`). If the step would take P1 below p_cav, P1
+    stays at p_cav and a cavity opens with the volume the oil would have had to expand by,
+    (p_cav - P1') V / E; while it is open the net inflow phi_1 + leakage - ydot A1 (at P1 = p_cav) fills
+    it; once it is full the rest of the step's inflow compresses the oil from p_cav. Flow continuity is
+    kept: every volume that leaves the chamber is either the oil's expansion or the cavity's."""
+    volume = max(y, 0.0) * P.a1 + P.v_pl
+    if v_c > 0.0:
+        phi, _ = orifice(x_v, P.p_cav, p_s, P)
+        v_c -= dt * (phi + P.c_l * (p_s - P.p_cav) - ydot * P.a1)
+        if v_c >= 0.0:
+            return P.p_cav, v_c
+        return P.p_cav - v_c * bulk_modulus(P.p_cav, P) / volume, 0.0
     phi, dphi = orifice(x_v, p1, p_s, P)
     if P.c_l != 0.0:
         phi += P.c_l * (p_s - p1)
         dphi -= P.c_l
-    stiff = bulk_modulus(p1, P) / (max(y, 0.0) * P.a1 + P.v_pl)
-    return p1 + dt * stiff * (phi - ydot * P.a1) / (1.0 - dt * stiff * dphi)
+    stiff = bulk_modulus(p1, P) / volume
+    p_new = p1 + dt * stiff * (phi - ydot * P.a1) / (1.0 - dt * stiff * dphi)
+    if p_new < P.p_cav:
+        return P.p_cav, (P.p_cav - p_new) / stiff
+    return p_new, 0.0
 
 
 @_inline
@@ -258,10 +299,10 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
     for i in range(n):
         Pi = P[i]
         _spool_step(i, u[i], dt, S, Pi)
-        p1[i] = pressure_step(p1[i], x_v[i], p_s[i], y[i], ydot[i], dt, Pi)
+        p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_v[i], p_s[i], y[i], ydot[i], dt, Pi)
         if supply.r_s > 0.0:
             dps = S.p_s[i] - S.p1[i]
-            phi_pa = Pi.c_v * (flow_areas(S.x_v[i], Pi)[0] * Pi.k_pa) * math.copysign(math.sqrt(abs(dps)), dps)
+            phi_pa = edge_flow(flow_areas(S.x_v[i], Pi)[0] * Pi.k_pa, dps, Pi)[0]
             supply_flow[groups[i]] += phi_pa + Pi.c_l * dps - ydot[i] * Pi.a2
     if supply.r_s > 0.0:
         decay = math.exp(-dt / supply.tau_s)

@@ -163,8 +163,8 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     plus ``u_v`` (the valve setpoint applied).
 
     Timing follows hexsim's own logs (:func:`hexsim.runner.simulate`): row j holds the state at its
-    time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration of the step that
-    starts at t_j. The state of row 0 is the measured one; the logged u_v drives each window open loop.
+    time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration averaged over the
+    steps from t_j-1 to t_j (the boxcar of hexsim's records; row 0: the step that starts at t_0). The state of row 0 is the measured one; the logged u_v drives each window open loop.
     The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
     compiled kernel (:mod:`hexsim.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.
     Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
@@ -220,6 +220,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
     else:  # the straightforward Python loop
+        acc, count = np.zeros(k), 0
         for j in range(n):
             u = u_log[s0 + j]
             for s_ in range(sub):
@@ -230,8 +231,11 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
                     out["u_v"][:, j] = u
                 state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, hyd, eff)
                 mujoco.mj_step(m, d)
-                if s_ == 0:
-                    out["acceleration"][:, j] = d.sensordata[acc_adr]
+                if s_ == 0:  # the mean over the previous row's steps (boxcar, as hexsim's own records)
+                    out["acceleration"][:, j] = acc / count if count else d.sensordata[acc_adr]
+                    acc[:], count = 0.0, 0
+                acc += d.sensordata[acc_adr]
+                count += 1
             if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
                 bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
                 raise PhysicsError(f"replay: non-finite state in the window starting at t = {t[s0[bad]]:.3f} s, "

@@ -36,7 +36,7 @@ from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.plant import PlantState
 from hexsim.simulation import (HydraulicCoupling, RunConfig, SimulationResult, check_timestep, divider,
-                               leg_mobility, piston_setpoints)
+                               leg_mobility, piston_setpoints, static_leg_forces)
 
 #: recorded channels of shape (samples, n_legs)
 _LEG_CHANNELS = ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")
@@ -85,9 +85,9 @@ class Simulator:
         noise = np.random.default_rng(cfg.seed).normal(0.0, cp.position_noise, size=setpoints.shape)
         mujoco.set_mjcb_control(None)
         reset_neutral(m, d)
-        mobility, acc0 = leg_mobility(m, d, idx)
+        mobility, _ = leg_mobility(m, d, idx)
         check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt)
-        p1_0 = hydraulics.equilibrium_pressure(np.linalg.solve(mobility, -acc0), hyd)
+        p1_0 = hydraulics.equilibrium_pressure(static_leg_forces(m, d, idx), hyd)
         for i, p in enumerate(p1_0):
             if not hyd.tank_pressure < p < hyd.supply_pressure:
                 raise PhysicsError(
@@ -111,6 +111,9 @@ class Simulator:
         self.rec.update(t=np.empty(n_rec), p_s=np.empty(n_rec), acc=np.empty((n_rec, 3)), viol=np.zeros(n_rec),
                         temperature=np.empty(n_rec))
         self.sensors = {"platform_acc": self.rec["acc"]}
+        acc = self.idx.sensor["platform_acc"]
+        self._acc_adr = np.arange(acc.start, acc.stop, dtype=np.int64)  # recorded as the interval's mean
+        self._acc_sum = np.zeros(len(self._acc_adr) + 1)  # python engine: running sum, count
         if cfg.scenario.system == "hexapod":
             for name, width in (("platform_gyro", 3), ("platform_angacc", 3), ("platform_pos", 3),
                                 ("platform_quat", 4)):
@@ -137,7 +140,8 @@ class Simulator:
         self.recorder = native.Recorder(
             self.rec_div, self.n_total, np.zeros(n_rec, dtype=np.int64), np.zeros((n_rec, m.nsensordata)), rec["p1"],
             rec["p_s"], rec["force"], rec["y"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
-            np.empty((n_rec if self.inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64))
+            np.empty((n_rec if self.inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64),
+            self._acc_adr, np.zeros(len(self._acc_adr) + 1))
         mujoco.mj_forward(m, d)
         if self.config.progress and not native.kernels_cached():
             print("hexsim: compiling the simulation kernels (once, about 15 s; cached on disk)", file=sys.stderr,
@@ -196,7 +200,8 @@ class Simulator:
     def _loop_python(self, k_end: int, bar) -> None:
         """Samples self.rows … k_end / rec_div with :class:`HydraulicCoupling` as MuJoCo's control
         callback: every ``rec_div``-th step k records the state at t_k (the sensors MuJoCo evaluates at the
-        start of the step, P1 before the step's update), kept in the arrays as a ring."""
+        start of the step, P1 before the step's update; the accelerometer as its mean over the steps
+        k-rec_div … k-1, as the kernel's :class:`~hexsim.native.Recorder`), kept in the arrays as a ring."""
         d, idx, coupling, rec = self.data, self.idx, self.coupling, self.rec
         leg_vel = np.array([idx.sensor[f"leg{i + 1}_vel"].start for i in range(idx.n_legs)])
         mujoco.set_mjcb_control(coupling)
@@ -216,16 +221,29 @@ class Simulator:
                     self.comp_state[key][w] = value
                 for name, out in self.sensors.items():
                     out[w] = sd[idx.sensor[name]]
+                acc = self._acc_sum  # the mean over the interval's steps (the first record: its own)
+                if acc[-1] > 0:
+                    rec["acc"][w] = acc[:-1] / acc[-1]
+                acc[:] = 0.0
+                self._add_acc()
                 eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
                 if np.any(eq):
                     rec["viol"][w] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
                 if i % 100 == 0:
                     bar.update(round(d.time - bar.n, 3))
-                if self.rec_div > 1:
-                    self._python_steps(self.rec_div - 1)
+                for _ in range(self.rec_div - 1):
+                    self._python_steps(1)
+                    self._add_acc()
                 self.rows, self.k = i + 1, (i + 1) * self.rec_div
         finally:
             mujoco.set_mjcb_control(None)
+
+    def _add_acc(self) -> None:
+        """Add the step's accelerometer reading to the running sum the records average."""
+        acc = self._acc_sum
+        for c, adr in enumerate(self._acc_adr):
+            acc[c] += self.data.sensordata[adr]
+        acc[-1] += 1.0
 
     def _python_steps(self, steps: int) -> None:
         mujoco.mj_step(self.model, self.data, steps)

