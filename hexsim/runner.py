@@ -111,8 +111,11 @@ class Simulator:
         self.rec.update(t=np.empty(n_rec), p_s=np.empty(n_rec), acc=np.empty((n_rec, 3)), viol=np.zeros(n_rec),
                         temperature=np.empty(n_rec))
         self.sensors = {"platform_acc": self.rec["acc"]}
-        acc = self.idx.sensor["platform_acc"]
-        self._acc_adr = np.arange(acc.start, acc.stop, dtype=np.int64)  # recorded as the interval's mean
+        # accelerations are recorded as the mean over the sample interval (a boxcar anti-alias filter)
+        averaged = ("platform_acc", "platform_angacc") if cfg.scenario.system == "hexapod" else ("platform_acc",)
+        self._acc_adr = np.concatenate([np.arange(self.idx.sensor[name].start, self.idx.sensor[name].stop)
+                                        for name in averaged]).astype(np.int64)
+        self._averaged = averaged
         self._acc_sum = np.zeros(len(self._acc_adr) + 1)  # python engine: running sum, count
         if cfg.scenario.system == "hexapod":
             for name, width in (("platform_gyro", 3), ("platform_angacc", 3), ("platform_pos", 3),
@@ -223,7 +226,8 @@ class Simulator:
                     out[w] = sd[idx.sensor[name]]
                 acc = self._acc_sum  # the mean over the interval's steps (the first record: its own)
                 if acc[-1] > 0:
-                    rec["acc"][w] = acc[:-1] / acc[-1]
+                    for j, name in enumerate(self._averaged):
+                        self.sensors[name][w] = acc[3 * j:3 * j + 3] / acc[-1]
                 acc[:] = 0.0
                 self._add_acc()
                 eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY

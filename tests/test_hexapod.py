@@ -75,8 +75,9 @@ def test_accelerometer_records_are_the_mean_over_each_sample_interval():
     slow = simulate(RunConfig(sc))
     assert np.array_equal(fast.t[::10], slow.t)
     n = len(slow.t) - 1
-    blocks = fast.acc[1:1 + 10 * n].reshape(n, 10, 3)  # records k-9 … k at 10 kHz: the steps k-10 … k-1
-    np.testing.assert_allclose(slow.acc[1:], blocks.mean(axis=1), rtol=0, atol=1e-12)
+    for name in ("acc", "angacc"):  # the accelerometer and the platform's angular acceleration
+        blocks = getattr(fast, name)[1:1 + 10 * n].reshape(n, 10, 3)  # records k-9 … k at 10 kHz: steps k-10 … k-1
+        np.testing.assert_allclose(getattr(slow, name)[1:], blocks.mean(axis=1), rtol=0, atol=1e-12)
     assert run_smoothness(slow).fundamental_amplitude == pytest.approx(run_smoothness(fast).fundamental_amplitude,
                                                                       rel=1e-3)
 
