@@ -49,8 +49,15 @@ class Compensator(abc.ABC):
         """U_c (n_legs,) [V] for this controller sample; u_p and y_measured are (n_legs,)."""
 
     def state(self) -> dict[str, np.ndarray]:
-        """Parameters worth logging (name -> (n_legs,) array); empty if the compensator has none."""
+        """Parameters worth logging (name -> (n_legs,) array); empty if the compensator has none. Units of
+        the built-in names in :data:`STATE_UNITS`."""
         return {}
+
+
+#: Units of the compensators' logged parameters (seed §5.3, :mod:`compensation.functions`): a the
+#: largest U_c, b the inverse of the valve range covered, c the shift (b times the null setpoint), s the
+#: slope of the desired linear flow curve s u_v.
+STATE_UNITS = {"a": "V", "a_neg": "V", "b": "1/V", "c": "-", "s": "m/(s V)"}
 
 
 class NoCompensator(Compensator):

@@ -7,6 +7,7 @@ never a half-written output file.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import pathlib
@@ -18,9 +19,12 @@ from hexsim import __version__
 from hexsim.errors import HexsimError, InputError
 from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
-from hexsim.tables import write_atomic
+from hexsim.tables import StdoutTarget, write_atomic, write_json
 from hexsim.temperature import WarmUp
 from hexsim.workers import START_METHODS
+
+#: Worker processes by default: the cores this process may run on.
+CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def _number(text: str) -> float:
@@ -51,8 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--compensator", choices=sorted(COMPENSATORS), default="none",
                      help="reversal-bump compensator per leg (default none)")
     run.add_argument("--rrd", type=pathlib.Path, help="write a rerun recording (.rrd)")
-    run.add_argument("--plot", type=pathlib.Path, help="write a PNG of acceleration, flow curve, pressures, tracking")
-    run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON")
+    run.add_argument("--plot", type=pathlib.Path, help="write a figure of acceleration, flow curve, pressures, tracking (.png, .pdf or .svg)")
+    run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON; - for stdout")
     run.add_argument("--log", type=pathlib.Path, help="write the run as a measurement log (CSV + JSON sidecar)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -66,9 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
     _scenario_options(cmp)
     cmp.add_argument("--compensators", default=",".join(COMPENSATORS[1:]),
                      help="comma-separated compensators to compare (none is always included)")
-    cmp.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison PNG (seed Fig. 5.12 layout)")
-    cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON")
+    cmp.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
+    cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison figure (seed Fig. 5.12 layout; .png, .pdf or .svg)")
+    cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON; - for stdout")
     val = sub.add_parser(
         "validate",
         help="confront the model with a measurement log: residual, missing effect, error before/after",
@@ -81,8 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     val.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
-    val.add_argument("--json", type=pathlib.Path, help="write the result as JSON")
-    val.add_argument("--jobs", type=int, default=2, help="worker processes for the fits (default 2)")
+    val.add_argument("--json", type=pathlib.Path, help="write the result as JSON; - for stdout")
+    val.add_argument("--jobs", type=int, default=CORES, help="worker processes for the fits (default: the cores available, %(default)s here)")
     val.add_argument("--without", default="", metavar="EFFECT[,EFFECT…]",
                      help="leave these library effects out of the candidates (an effect you know the machine "
                           "cannot have, or a check of what the tool says about an effect outside its list)")
@@ -96,8 +100,8 @@ def build_parser() -> argparse.ArgumentParser:
         "position, and fit the asymmetric Stribeck curve of seed eq. (2.4) with standard errors.",
     )
     fr.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
-    fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (PNG)")
-    fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON")
+    fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (.png, .pdf or .svg)")
+    fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON; - for stdout")
     sw = sub.add_parser(
         "sweep",
         help="run a grid of scenarios / controller / compensator settings in worker processes",
@@ -110,12 +114,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="compensator of every run unless the grid varies it (default none)")
     sw.add_argument("--grid", action="append", default=[], metavar="NAME=V1,V2,…",
                     help="an option to vary and its values (repeatable); NAME is a run option without the dashes")
-    sw.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    sw.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
     sw.add_argument("--start-method", choices=START_METHODS, default=None,
                     help="how workers start: fork (default where available: they inherit everything imported) "
                     "or spawn/forkserver (a fresh interpreter, ~2.5 s of imports each)")
     sw.add_argument("--csv", type=pathlib.Path, help="write the table as CSV")
-    sw.add_argument("--json", type=pathlib.Path, help="write the table as JSON")
+    sw.add_argument("--json", type=pathlib.Path, help="write the table as JSON; - for stdout")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
     mo = sub.add_parser(
         "modes",
@@ -126,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     mo.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
                     help="a payload of KG kg added to the 600 kg platform at X,Y,Z m (platform frame), as for run")
-    mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON")
+    mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON; - for stdout")
     be = sub.add_parser(
         "bench",
         help="time the simulator against bare mj_step on the same model (ratios, real-time factors)",
@@ -136,15 +140,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
     be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
-    be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON")
+    be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON; - for stdout")
     be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 worker, 2 forked and 2 spawned workers "
                     "(about 75 s per repeat)")
     return parser
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    import json
-
     from hexsim.bench import run_bench, table
 
     _check_outputs(args)
@@ -155,7 +157,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     result = run_bench(args.duration, args.repeats, sweep=args.sweep)
     print(table(result))
     if args.json:
-        write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(result, indent=2) + "\n"))
+        write_json(args.json, result)
         print(f"wrote {args.json}")
     return 0
 
@@ -210,7 +212,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_friction(args: argparse.Namespace) -> int:
-    from hexsim.friction_id import identify_friction, plot_map, to_json
+    from hexsim.friction_id import identify_friction, plot_map
     from hexsim.measurement import read_log
 
     _check_outputs(args)
@@ -226,7 +228,7 @@ def cmd_friction(args: argparse.Namespace) -> int:
             if "unidentifiable" in v:
                 print(f"    {k}: {v['unidentifiable']}")
     if args.json:
-        write_atomic(args.json, lambda tmp: tmp.write_text(to_json(result)))
+        write_json(args.json, result)
         print(f"wrote {args.json}")
     if args.plot:
         plot_map(result, args.plot)
@@ -235,8 +237,6 @@ def cmd_friction(args: argparse.Namespace) -> int:
 
 
 def cmd_modes(args: argparse.Namespace) -> int:
-    import json
-
     from hexsim.effects import Effects
     from hexsim.modes import modes_table, oil_spring_modes
 
@@ -253,7 +253,7 @@ def cmd_modes(args: argparse.Namespace) -> int:
                 "modes": [{"frequency_hz": mode.frequency_hz, "dominant": mode.dominant, "share": mode.share,
                            "shape": dict(zip(("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"),
                                              mode.shape.tolist()))} for mode in modes]}
-        write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
+        write_json(args.json, data)
         print(f"wrote {args.json}")
     return 0
 
@@ -365,15 +365,18 @@ def _run_config(args: argparse.Namespace, compensator: str):
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
-    for flag, suffix in (("rrd", ".rrd"), ("plot", ".png"), ("json", ".json"), ("log", ".csv"), ("csv", ".csv")):
+    suffixes = {"rrd": (".rrd",), "plot": (".png", ".pdf", ".svg"), "json": (".json",), "log": (".csv",),
+                "csv": (".csv",)}
+    for flag, allowed in suffixes.items():
         path = getattr(args, flag, None)
-        if path is None:
+        if path is None or isinstance(path, StdoutTarget):
             continue
-        if path.suffix.lower() != suffix:
-            raise InputError(f"--{flag} {path}: expected a {suffix} file name")
+        if path.suffix.lower() not in allowed:
+            raise InputError(f"--{flag} {path}: expected a {' or '.join(allowed)} file name")
         if not path.parent.exists():
             raise InputError(f"--{flag} {path}: folder {path.parent} does not exist")
-    if getattr(args, "log", None) is not None and args.json is not None and args.log.with_suffix(".json").resolve() == args.json.resolve():
+    if (getattr(args, "log", None) is not None and isinstance(args.json, pathlib.Path)
+            and args.log.with_suffix(".json").resolve() == args.json.resolve()):
         raise InputError(f"--json {args.json} would be overwritten by the sidecar of --log {args.log}; choose another name")
 
 
@@ -383,7 +386,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.logio import write_log
     from hexsim.metrics import run_smoothness
     from hexsim.plotting import plot_run
-    from hexsim.report import run_report, summary_table, write_json
+    from hexsim.report import run_report, summary_table
     from hexsim.rerun_log import write_rrd
     from hexsim.runner import simulate
 
@@ -411,7 +414,6 @@ def cmd_run(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from hexsim.comparison import compare, league_table
     from hexsim.plotting import plot_compare
-    from hexsim.report import write_json
 
     _check_outputs(args)
     names = tuple(n.strip() for n in args.compensators.split(",") if n.strip())
@@ -477,8 +479,6 @@ def _parse_grid(parser: argparse.ArgumentParser, items: list[str]) -> dict[str, 
 def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     import csv
     import io
-    import json
-
     from hexsim.sweeps import METRICS, expand, run_sweep
 
     _check_outputs(args)
@@ -519,7 +519,7 @@ def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         print(f"wrote {args.csv}")
     if args.json:
         data = {"grid": grid, "rows": rows}
-        write_atomic(args.json, lambda tmp: tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n"))
+        write_json(args.json, data)
         print(f"wrote {args.json}")
     return 0
 
@@ -527,12 +527,17 @@ def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    streams = contextlib.nullcontext()
+    if str(getattr(args, "json", None)) == "-":  # the JSON document on stdout, the human-readable lines on stderr
+        args.json = StdoutTarget(sys.stdout)
+        streams = contextlib.redirect_stdout(sys.stderr)
     try:
-        if args.command == "sweep":
-            return cmd_sweep(args, parser)
-        commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
-                    "modes": cmd_modes, "bench": cmd_bench}
-        return commands[args.command](args)
+        with streams:
+            if args.command == "sweep":
+                return cmd_sweep(args, parser)
+            commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
+                        "modes": cmd_modes, "bench": cmd_bench}
+            return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)
         print("hexsim: error: " + " ".join(str(exc).splitlines()), file=sys.stderr)

@@ -28,7 +28,6 @@ from hexsim.model import gravity, moving_mass
 from hexsim.params import HydraulicParams
 from hexsim.residuals import effective_n
 from hexsim.signals import savgol, savgol_length
-from hexsim.tables import json_text, write_atomic
 
 #: [s] Savitzky–Golay window (cubic) with a logged accelerometer: the velocity and F_L - M (ydd + g)
 #: need no second derivative, so the window only has to smooth the sensor noise while keeping the
@@ -127,13 +126,13 @@ def identify_friction(log: MeasurementLog) -> dict:
 
 
 def plot_map(result: dict, path: pathlib.Path) -> None:
-    import matplotlib
+    from matplotlib.figure import Figure  # no pyplot: the user's backend is never switched
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from hexsim.plotting import save_figure
 
     vel, ff = result["_samples"]
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5), layout="tight")
+    ax = fig.subplots()
     ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g cos θ (seed eq. 2.3)")
     for side, sgn in (("positive", 1), ("negative", -1)):
         x = np.array([result[side]["parameters"][p]["value"] for p in PARAMS])
@@ -143,11 +142,4 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
     ax.set_ylabel("friction force [N]")
     ax.set_title(f"friction-velocity map: {pathlib.Path(result['log']).name}")
     ax.legend(fontsize=8, markerscale=20)
-    fig.tight_layout()
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
-    plt.close(fig)
-
-
-def to_json(result: dict) -> str:
-    """The result as JSON; a standard error that could not be estimated (NaN) is written as null."""
-    return json_text(result)
+    save_figure(fig, path, dpi=100)

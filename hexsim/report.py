@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import json
-import os
 
 import numpy as np
 
 from hexsim.metrics import Smoothness, max_tracking_error
 from hexsim.simulation import SimulationResult
-from hexsim.tables import write_atomic
 
 
 def run_report(result: SimulationResult, sm: Smoothness) -> dict:
@@ -114,8 +111,3 @@ def _fault_line(f: dict) -> str:
     return (f"{f['kind']} {where}at {f['t_s']:g} s: piston {o['piston_min_m'] * 1e3:.1f}…{o['piston_max_m'] * 1e3:.1f} mm "
             f"({o['beyond_stroke_m'] * 1e3:.2f} mm past the stroke), P_s min {o['p_s_min_Pa'] / 1e5:.1f} bar, "
             f"connect violation {o['max_constraint_violation_m'] * 1e6:.2f} µm; stayed finite")
-
-
-def write_json(path: str | os.PathLike, data: dict) -> None:
-    """Write ``data`` as indented JSON, atomically."""
-    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))

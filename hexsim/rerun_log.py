@@ -1,6 +1,7 @@
 """The run as a rerun recording (``.rrd``), written headless: open it with ``rerun out.rrd``.
 
-3D (world frame, z up): base, legs and platform over time (decimated to 50 Hz). Time series: the reversal
+3D (world frame, z up): the model's own visual geoms (base, barrels, rods, platform, from the MJCF) at the
+run's poses over time (decimated to 50 Hz). Time series: the reversal
 bump (the analysed signal minus its fundamental fit) on its own axis, the signal with its fit, piston
 positions and setpoints, valve setpoints and compensation voltages, pressures, and the compensator's
 parameters for a compensated run. Every run is a recording of its own (:func:`recording_id`). A
@@ -13,6 +14,7 @@ import os
 import pathlib
 import uuid
 
+import mujoco
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -58,13 +60,88 @@ def _scalars(rec: rr.RecordingStream, path: str, times: rr.TimeColumn, values: n
     rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
 
 
+def scene_qpos(m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray) -> np.ndarray:
+    """(len(rows), nq) joint positions of the model at the recorded rows ``rows``: each leg's slide at its
+    recorded piston position y [m]; on the hexapod the platform's free joint at its recorded pose and
+    each leg's universal joint (hinges about the barrel's x, then y axis) turned so that the barrel points
+    from its base joint to the platform anchor: with d the unit leg direction in the barrel's rest frame,
+    R_x(a) R_y(b) e_z = d gives b = asin(d_x), a = atan2(-d_y, d_z)."""
+    qpos = np.tile(m.qpos0, (len(rows), 1))
+    for i in range(result.n_legs):
+        qpos[:, m.joint(f"leg{i + 1}").qposadr[0]] = result.y[rows, i]
+    if result.config.scenario.system != "hexapod":
+        return qpos
+    pose = result.pose[rows]
+    rot = rotation_matrices(pose[:, 3:])
+    free = m.joint("platform").qposadr[0]
+    qpos[:, free:free + 3] = HexapodGeometry.from_model(m).neutral_position + pose[:, :3]
+    qpos[:, free + 3:free + 7] = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]  # w, x, y, z
+    for i in range(result.n_legs):
+        anchor = m.site(f"platform_anchor{i + 1}").pos
+        barrel = m.body(f"cylinder{i + 1}")
+        rest = Rotation.from_quat(np.roll(barrel.quat, -1)).as_matrix()
+        direction = qpos[:, free:free + 3] + rot @ anchor - barrel.pos
+        d = direction @ rest  # in the barrel's rest frame
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        qpos[:, m.joint(f"leg{i + 1}_u1").qposadr[0]] = np.arctan2(-d[:, 1], d[:, 2])
+        qpos[:, m.joint(f"leg{i + 1}_u2").qposadr[0]] = np.arcsin(np.clip(d[:, 0], -1.0, 1.0))
+    return qpos
+
+
+def _log_scene(rec: rr.RecordingStream, result: SimulationResult, rows: np.ndarray, times: rr.TimeColumn) -> None:
+    """The model's visual geoms (MJCF group 2: boxes, cylinders, spheres, capsules, ellipsoids) under
+    ``/world/<body>``, each body's world pose over time from :func:`scene_qpos` and ``mj_kinematics``."""
+    m = load_model("hexapod" if result.config.scenario.system == "hexapod" else "actuator")
+    d = mujoco.MjData(m)
+    qpos = scene_qpos(m, result, rows)
+    xpos, xquat = np.empty((len(rows), m.nbody, 3)), np.empty((len(rows), m.nbody, 4))
+    for k, q in enumerate(qpos):
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        xpos[k], xquat[k] = d.xpos, d.xquat
+    for body in range(m.nbody):
+        geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_group[g] == 2]
+        if not geoms:
+            continue
+        path = f"/world/{m.body(body).name or 'world'}"
+        for g in geoms:
+            shape = _geom_shape(m, g)
+            if shape is not None:
+                rec.log(f"{path}/{m.geom(g).name or f'geom{g}'}", shape, static=True)
+        if body == 0 or m.body_weldid[body] == 0:  # welded to the world: one pose
+            rec.log(path, rr.Transform3D(translation=xpos[0, body], quaternion=np.roll(xquat[0, body], -1)), static=True)
+        else:
+            rec.send_columns(path, indexes=[times], columns=rr.Transform3D.columns(
+                translation=xpos[:, body], quaternion=np.roll(xquat[:, body], -1, axis=1)))
+
+
+def _geom_shape(m: mujoco.MjModel, g: int):
+    """A rerun archetype for geom ``g`` in its body's frame (None for a type rerun has no primitive for)."""
+    size, pos, quat = m.geom_size[g], m.geom_pos[g], np.roll(m.geom_quat[g], -1)  # rerun: x, y, z, w
+    rgba = m.mat_rgba[m.geom_matid[g]] if m.geom_matid[g] >= 0 else m.geom_rgba[g]
+    colors = [np.round(255 * rgba).astype(np.uint8)]
+    kind = m.geom_type[g]
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return rr.Boxes3D(half_sizes=[size], centers=[pos], quaternions=[quat], colors=colors, fill_mode="solid")
+    if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:  # MuJoCo and rerun: axis along local z, centred
+        return rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], centers=[pos], quaternions=[quat],
+                              colors=colors, fill_mode="solid")
+    if kind in (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
+        half = np.full(3, size[0]) if kind == mujoco.mjtGeom.mjGEOM_SPHERE else size
+        return rr.Ellipsoids3D(half_sizes=[half], centers=[pos], quaternions=[quat], colors=colors, fill_mode="solid")
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:  # rerun's capsule starts at its translation and runs along +z
+        start = pos + Rotation.from_quat(quat).apply([0.0, 0.0, -size[1]])
+        return rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]], translations=[start], quaternions=[quat],
+                             colors=colors)
+    return None
+
+
 def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
     """Write the recording of a run to ``path`` (atomically)."""
     write_atomic(path, lambda tmp: _write(tmp, result, sm))
 
 
 def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
-    sc = result.config.scenario
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
     rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -98,27 +175,7 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
     rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
 
     step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
-    view_t = rr.TimeColumn("time", duration=result.t[::step])
-    if sc.system == "hexapod":
-        geom = HexapodGeometry.from_model(load_model("hexapod"))
-        pose = result.pose[::step]
-        rot = rotation_matrices(pose[:, 3:])
-        centre = geom.neutral_position + pose[:, :3]
-        tips = centre[:, None, :] + np.einsum("nij,kj->nki", rot, geom.platform)
-        base = np.broadcast_to(geom.base, tips.shape)
-        quat = Rotation.from_matrix(rot).as_quat()  # x, y, z, w as rerun expects
-        rec.log("/world/base", rr.Points3D(geom.base, radii=0.03, colors=[90, 90, 100]), static=True)
-        rec.log("/world/platform", rr.Boxes3D(half_sizes=[[0.6, 0.6, 0.03]], centers=[[0, 0, 0.03]],
-                                              colors=[40, 90, 170]), static=True)
-        rec.send_columns("/world/platform", indexes=[view_t],
-                         columns=rr.Transform3D.columns(translation=centre, quaternion=quat))
-    else:
-        y = result.y[::step, 0]
-        base = np.broadcast_to(np.array([0.0, 0.0, 0.05]), (y.size, 1, 3))
-        tips = np.stack([np.zeros_like(y), np.zeros_like(y), 0.52 + y], axis=1)[:, None, :]
-    strips = np.stack([base, tips], axis=2).reshape(-1, 2, 3)
-    rec.send_columns("/world/legs", indexes=[view_t],
-                     columns=rr.LineStrips3D.columns(strips=strips).partition([tips.shape[1]] * tips.shape[0]))
-    rec.log("/world/legs", rr.LineStrips3D.from_fields(radii=0.015, colors=[200, 200, 210]), static=True)
+    rows = np.arange(0, len(result.t), step)
+    _log_scene(rec, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
     rec.flush()
     rec.disconnect()

@@ -112,3 +112,44 @@ def write_atomic(path: str | os.PathLike, write: Callable[[pathlib.Path], None])
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+class StdoutTarget:
+    """``-`` given as an output path on the command line: the document goes to this stream (the CLI's
+    standard output; its human-readable lines then go to standard error)."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+
+    def __str__(self) -> str:
+        return "<stdout>"
+
+    def __fspath__(self) -> str:  # a path-like for messages; never opened as a file
+        return "-"
+
+
+def software_versions() -> dict[str, str]:
+    """The versions a result depends on: hexsim, MuJoCo, numpy, scipy and Python (read from the installed
+    distributions' metadata, without importing them)."""
+    import platform
+    from importlib import metadata
+
+    versions = {"python": platform.python_version()}
+    for dist in ("hexsim", "mujoco", "numpy", "scipy"):
+        try:
+            versions[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:  # a source tree on sys.path, not installed
+            versions[dist] = "not installed"
+    return versions
+
+
+def write_json(path: str | os.PathLike | StdoutTarget, doc: dict) -> None:
+    """Write ``doc`` as strict JSON (:func:`json_text`) with the software versions added (key
+    ``software``), atomically to ``path``, or to the stream of a :class:`StdoutTarget`. Raises
+    InputError if the folder does not exist."""
+    text = json_text({**doc, "software": software_versions()})
+    if isinstance(path, StdoutTarget):
+        path.stream.write(text)
+        path.stream.flush()
+        return
+    write_atomic(path, lambda tmp: tmp.write_text(text))

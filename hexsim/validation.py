@@ -17,7 +17,7 @@ from hexsim.identify import (ALPHA, FIT_PER_ROUND, MAX_EFFECTS, MIN_EXCESS_SHARE
                              WORSE_REL, Identification, default_candidates, identify, signal_labels, within_budget)
 from hexsim.measurement import MeasurementLog, read_log
 from hexsim.residuals import analyse
-from hexsim.tables import json_text, write_atomic
+from hexsim.tables import StdoutTarget, write_atomic, write_json
 
 
 G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
@@ -411,16 +411,15 @@ def markdown(doc: dict, png_names: list[str]) -> str:
 
 
 def plot(ident: Identification, path: pathlib.Path) -> None:
-    import matplotlib
+    from matplotlib.figure import Figure  # no pyplot: the user's backend is never switched
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    from hexsim.plotting import save_figure
     from hexsim.residuals import spectrum
 
     p = ident.problem
     chans = p.channels
-    fig, ax = plt.subplots(len(chans), 3, figsize=(15, 3 * len(chans)), squeeze=False)
+    fig = Figure(figsize=(15, 3 * len(chans)), layout="tight")
+    ax = fig.subplots(len(chans), 3, squeeze=False)
     fs = p.log.sample_rate_hz
     u, vel, pos, near = p.motion_state()
     before, after = p.analysis_view(ident.nominal_residuals), p.analysis_view(ident.chosen_residuals)
@@ -444,9 +443,7 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
     ax[-1, 0].set_xlabel("time [s]")
     added = " + ".join(_label(f) for f in ident.accepted) or "nothing"
     fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {added} (blue), verdict {ident.verdict}")
-    fig.tight_layout()
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path, dpi=90)
 
 
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
@@ -460,7 +457,7 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     if not isinstance(log, MeasurementLog):
         log = read_log(log)
     report = None if report is None else pathlib.Path(report)
-    json_path = None if json_path is None else pathlib.Path(json_path)
+    json_path = None if json_path is None or isinstance(json_path, StdoutTarget) else pathlib.Path(json_path)
     candidates = tuple(n for n in default_candidates(log.system) if n not in without)
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify)
     doc = summary(ident) | {"left_out": list(without)}
@@ -468,7 +465,7 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
         report.mkdir(parents=True, exist_ok=True)
         plot(ident, report / "residuals.png")
         write_atomic(report / "report.md", lambda tmp: tmp.write_text(markdown(doc, ["residuals.png"])))
-        write_atomic(report / "validation.json", lambda tmp: tmp.write_text(json_text(doc)))
+        write_json(report / "validation.json", doc)
     if json_path is not None:
-        write_atomic(json_path, lambda tmp: tmp.write_text(json_text(doc)))
+        write_json(json_path, doc)
     return doc

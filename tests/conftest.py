@@ -9,6 +9,18 @@ from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
 from hexsim.runner import simulate
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_cmdline_main(config):
+    """Two pytest-xdist workers, one test file each, when xdist is installed and no ``-n`` was given: the
+    long compensation runs overlap with the rest on the 2-core CI machine. Without xdist (or with
+    ``-n 0``, or ``-p no:xdist``) the suite runs in one process; nothing is forced on the command line."""
+    if (hasattr(config, "workerinput") or getattr(config.option, "numprocesses", 0) is not None
+            or config.getoption("usepdb", False)):
+        return None
+    config.option.numprocesses, config.option.dist = 2, "loadfile"
+    return None
+
+
 #: The seed's Simulink model (seed Fig. 3.3) has a continuous-time P controller and no sensor noise;
 #: the seed checks run the controller at the 10 kHz physics rate to match it.
 SEED_CONTROLLER = ControllerParams(rate_hz=10_000.0, position_noise=0.0)

@@ -65,7 +65,8 @@ def test_log_follows_the_measurement_log_format(heave_outputs):
         (["run", "hover"], "unknown scenario 'hover'"),
         (["run", "file:/nonexistent/profile.csv"], "no such file"),
         (["run", "heave", "--duration", "8", "--json", "/nonexistent/dir/out.json"], "does not exist"),
-        (["run", "heave", "--duration", "8", "--plot", "out.jpg"], "expected a .png"),
+        (["run", "heave", "--duration", "8", "--plot", "out.jpg"], "expected a .png or .pdf or .svg"),
+        (["run", "heave", "--duration", "8", "--json", "c.json", "--log", "c.csv"], "overwritten by the sidecar"),
     ],
 )
 def test_bad_input_gives_one_line_and_exit_2(argv, message, capsys):
@@ -196,6 +197,9 @@ def test_each_run_is_a_recording_of_its_own_with_the_bump_on_its_own_axis(heave_
     ids = set(re.findall(r'"(hexsim-heave-[^"]+)"', first))
     assert len(ids) == 1, ids
     assert "/bump/noise" in first and "/compensator" not in first
+    # the 3D view is the MJCF's own geoms at the run's body poses (issue 16), not hard-coded shapes
+    assert "/world/platform@Transform3D" in first and "/world/rod6@Transform3D" in first
+    assert re.search(r"/world/platform/geom\d+@Boxes3D", first) and re.search(r"/world/rod1/geom\d+@Cylinders3D", first)
     from types import SimpleNamespace
 
     from hexsim.rerun_log import recording_id
@@ -217,3 +221,51 @@ def test_modes_prints_and_writes_the_oil_spring_modes(tmp_path, capsys):
     assert main(["modes"]) == 0
     nominal = [float(line.split()[1]) for line in capsys.readouterr().out.splitlines()[2:]]
     assert all(m["frequency_hz"] < f for m, f in zip(modes, nominal))
+
+
+def test_json_dash_writes_the_document_to_stdout_and_the_summary_to_stderr(capsys):
+    # issue 16: `--json -` for pipes (`hexsim modes --json - | jq`); the JSON carries the software versions
+    assert main(["modes", "--json", "-"]) == 0
+    out, err = capsys.readouterr()
+    doc = json.loads(out)
+    assert len(doc["modes"]) == 6
+    assert set(doc["software"]) >= {"hexsim", "mujoco", "numpy", "python"}
+    assert "oil-spring modes of the hexapod" in err and "wrote <stdout>" in err
+
+
+@pytest.mark.parametrize("suffix, magic", [(".svg", b"<?xml"), (".pdf", b"%PDF")])
+def test_plot_writes_the_format_its_suffix_names(heave_run, tmp_path, suffix, magic):
+    from hexsim.metrics import run_smoothness
+    from hexsim.plotting import plot_run
+
+    path = tmp_path / f"run{suffix}"
+    plot_run(path, heave_run, run_smoothness(heave_run))
+    assert path.read_bytes()[:len(magic)] == magic
+
+
+def test_importing_hexsim_never_switches_the_matplotlib_backend():
+    # issue 16: a notebook user's backend stays what they chose; the figures are drawn without pyplot
+    code = ("import matplotlib; matplotlib.use('svg'); "
+            "import hexsim.plotting, hexsim.validation, hexsim.friction_id, hexsim.cli, hexsim.rerun_log; "
+            "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_the_3d_scene_closes_every_leg_at_its_platform_anchor(heave_run):
+    # the recording's body poses: platform from the recorded pose, legs turned towards their anchors and
+    # extended by the recorded piston positions; forward kinematics must land each rod tip on its anchor
+    import mujoco
+
+    from hexsim.model import load_model
+    from hexsim.rerun_log import scene_qpos
+
+    m = load_model("hexapod")
+    d = mujoco.MjData(m)
+    rows = np.arange(0, len(heave_run.t), 250)
+    gaps = []
+    for q in scene_qpos(m, heave_run, rows):
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        gaps += [np.linalg.norm(d.site(f"rod{i}_tip").xpos - d.site(f"platform_anchor{i}").xpos) for i in range(1, 7)]
+    assert max(gaps) < 1e-6  # the connect constraints hold to ~0.01 µm in the run itself
