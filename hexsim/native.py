@@ -25,6 +25,7 @@ from compensation import CompensatorSettings
 from compensation.base import Compensator, NoCompensator, ReplayedCompensation
 from compensation.buffered import BufferedCompensator, buffered_tick
 from hexsim import jitcache, plant
+from hexsim.controller import p_output, valve_setpoint
 from hexsim.plant import step_legs
 
 #: Compensators the compiled controller runs, and its ``comp_mode`` for each (:func:`run_block`: 0 U_c = 0,
@@ -245,7 +246,7 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
             j = min(k // div, setpoints.shape[0] - 1)
             for i in range(n):
                 y_m[i] = hist[(k + 1) % L, i] + noise[j, i]
-                u_p[i] = kp * (setpoints[j, i] - y_m[i])
+                u_p[i] = p_output(kp, setpoints[j, i], y_m[i])
             if mode == 1:
                 buffered_tick(comp[0], comp[1], comp[2], u_p, y_m, u_c, stat)
             elif mode == 2:
@@ -254,9 +255,8 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
                     u_c[i] = table[row, i]
             hit = False
             for i in range(n):
-                v = u_p[i] + u_c[i]
-                u[i] = min(max(v, -P[i].u_v_max), P[i].u_v_max)
-                hit = hit or u[i] != v
+                u[i] = valve_setpoint(u_p[i], u_c[i], P[i].u_v_max)
+                hit = hit or u[i] != u_p[i] + u_c[i]
             if hit:
                 saturated[0] += 1
         record = k % rec_div == 0 and r < n_total

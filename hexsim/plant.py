@@ -260,10 +260,17 @@ def leg_force(p1, p_s, ydot, P):
 
 
 @_inline
+def backlash(u_b, u, h):
+    """The valve's play (hysteresis, seed §4.4) of half width h [V]: the spool's effective setpoint u_b [V]
+    follows the setpoint u [V] only where |u - u_b| > h; returns the new u_b."""
+    return min(max(u_b, u - h), u + h)
+
+
+@_inline
 def _spool_step(i, u, dt, S, P):
     """Spool play (backlash of half width h) and the second-order spool loop (semi-implicit Euler,
     x_v limited to ±x_v,max) of leg i, in place in the state S."""
-    u_b = min(max(S.u_b[i], u - P.play), u + P.play) if P.play > 0.0 else u
+    u_b = backlash(S.u_b[i], u, P.play) if P.play > 0.0 else u
     S.u_b[i] = u_b
     x_set = spool_position(u_b, P)
     if P.f_v > 0.0:

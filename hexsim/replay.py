@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from scipy.signal import cont2discrete
 
-from hexsim import hydraulics
+from hexsim import hydraulics, plant
 from hexsim.effects import Effects, LegChange
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measurement import MeasurementLog
@@ -139,7 +139,7 @@ def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effec
         prev = u_log[0]
         for j, u in enumerate(u_log):
             u_b[j] = prev
-            prev = min(max(prev, u - h), u + h)
+            prev = plant.backlash.py_func(prev, u, h)
     x_set = hydraulics.spool_position(u_b, hyd)
     if eff.spool_frequency <= 0:
         return u_b[rows], x_set[rows], np.zeros(len(rows))
