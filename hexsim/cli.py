@@ -38,12 +38,25 @@ def _number(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The command line: ``hexsim run|compare|validate|friction|sweep|modes|bench`` (``--help`` on each)."""
     parser = argparse.ArgumentParser(
         prog="hexsim",
         description="Six-DOF hydraulic motion platform simulator (Micro Motion System): the reversal bump and its compensation.",
     )
     parser.add_argument("--version", action="version", version=f"hexsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
+    _add_run(sub)
+    _add_compare(sub)
+    _add_validate(sub)
+    _add_friction(sub)
+    _add_sweep(sub)
+    _add_modes(sub)
+    _add_bench(sub)
+    return parser
+
+
+def _add_run(sub) -> None:
+    """The ``run`` command's options."""
     run = sub.add_parser(
         "run",
         help="simulate a scenario headless and report its smoothness",
@@ -60,6 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--log", type=pathlib.Path, help="write the run as a measurement log (CSV + JSON sidecar)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
 
+
+def _add_compare(sub) -> None:
+    """The ``compare`` command's options."""
     cmp = sub.add_parser(
         "compare",
         help="run every compensator on one scenario and print a league table",
@@ -73,6 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison figure (seed Fig. 5.12 layout; .png, .pdf or .svg)")
     cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON; - for stdout")
+
+
+def _add_validate(sub) -> None:
+    """The ``validate`` command's options."""
     val = sub.add_parser(
         "validate",
         help="confront the model with a measurement log: residual, missing effect, error before/after",
@@ -93,6 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
     val.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per step otherwise)")
 
+
+def _add_friction(sub) -> None:
+    """The ``friction`` command's options."""
     fr = sub.add_parser(
         "friction",
         help="identify the Stribeck friction curve from a log (seed §2.3.3, eq. 2.3-2.4)",
@@ -102,6 +125,10 @@ def build_parser() -> argparse.ArgumentParser:
     fr.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (.png, .pdf or .svg)")
     fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON; - for stdout")
+
+
+def _add_sweep(sub) -> None:
+    """The ``sweep`` command's options."""
     sw = sub.add_parser(
         "sweep",
         help="run a grid of scenarios / controller / compensator settings in worker processes",
@@ -121,6 +148,11 @@ def build_parser() -> argparse.ArgumentParser:
     sw.add_argument("--csv", type=pathlib.Path, help="write the table as CSV")
     sw.add_argument("--json", type=pathlib.Path, help="write the table as JSON; - for stdout")
     sw.add_argument("--quiet", action="store_true", help="no progress bar")
+    sw.set_defaults(command_parser=sw)  # the grid reads its options' types and choices
+
+
+def _add_modes(sub) -> None:
+    """The ``modes`` command's options."""
     mo = sub.add_parser(
         "modes",
         help="oil-spring modes of the hexapod (linearised, Hz, with the dominant degree of freedom)",
@@ -131,6 +163,10 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
                     help="a payload of KG kg added to the 600 kg platform at X,Y,Z m (platform frame), as for run")
     mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON; - for stdout")
+
+
+def _add_bench(sub) -> None:
+    """The ``bench`` command's options."""
     be = sub.add_parser(
         "bench",
         help="time the simulator against bare mj_step on the same model (ratios, real-time factors)",
@@ -143,7 +179,6 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON; - for stdout")
     be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 worker, 2 forked and 2 spawned workers "
                     "(about 75 s per repeat)")
-    return parser
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -476,7 +511,7 @@ def _parse_grid(parser: argparse.ArgumentParser, items: list[str]) -> dict[str, 
     return grid
 
 
-def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+def cmd_sweep(args: argparse.Namespace) -> int:
     import csv
     import io
     from hexsim.sweeps import METRICS, expand, run_sweep
@@ -484,8 +519,7 @@ def cmd_sweep(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     _check_outputs(args)
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
-    sweep_parser = parser._subparsers._group_actions[0].choices["sweep"]
-    grid = _parse_grid(sweep_parser, args.grid)
+    grid = _parse_grid(args.command_parser, args.grid)
     if not grid:
         raise InputError("sweep needs at least one --grid NAME=V1,V2,…")
 
@@ -533,10 +567,8 @@ def main(argv: list[str] | None = None) -> int:
         streams = contextlib.redirect_stdout(sys.stderr)
     try:
         with streams:
-            if args.command == "sweep":
-                return cmd_sweep(args, parser)
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
-                        "modes": cmd_modes, "bench": cmd_bench}
+                        "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

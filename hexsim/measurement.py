@@ -109,7 +109,33 @@ def read_log(path) -> MeasurementLog:
     mm), or a log without the columns a replay needs (valve setpoint and position)."""
     path = pathlib.Path(path)
     side = read_sidecar(path)
-    side_name = path.with_suffix(".json")
+    settings = _sidecar_settings(side, path.with_suffix(".json"))
+    cols = read_numeric_csv(path)
+    _check_sampling(path, cols["time_s"], settings["sample_rate_hz"])
+    for name, values in cols.items():
+        _check_range(path, name, values, settings["stroke_m"])
+    log = MeasurementLog(path=path, columns=cols, sidecar=side, **settings)
+    for kind in ("valve_cmd_V", "pos_m"):
+        for i in range(log.n_legs):
+            name = log.leg_column(kind, i)
+            if name not in cols:
+                raise InputError(f"{path}: missing column {name!r}, needed to replay the log (header: "
+                                 f"{', '.join(cols)})")
+    for kind in ("ref_m", "p1_Pa"):
+        if log.leg_array(kind) is None:
+            log.missing.append(kind if log.n_legs == 1 else f"leg*_{kind}")
+    if "ps_Pa" not in cols:
+        log.missing.append("ps_Pa")
+    acc = "acc_mps2" if log.n_legs == 1 else "platform_acc_z_mps2"
+    if acc not in cols:
+        log.missing.append(acc)
+    return log
+
+
+def _sidecar_settings(side: dict, side_name: pathlib.Path) -> dict:
+    """The MeasurementLog fields the sidecar sets (system, rates, K_p, temperature, stroke, mass,
+    inclination) and ``assumed``: the defaults taken for keys it leaves out. Raises InputError naming
+    the key for a missing required key or a bad value."""
     for key in ("system", "sample_rate_hz"):
         if key not in side:
             raise InputError(f"{side_name}: missing key {key!r} (required by the log format)")
@@ -123,38 +149,35 @@ def read_log(path) -> MeasurementLog:
         raise InputError(f"{side_name}: key 'controller' must be an object, got {ctrl!r}")
     if ctrl.get("type", "P") != "P":
         raise InputError(f"{side_name}: controller type {ctrl.get('type')!r} is not supported (only 'P')")
-    if "kp_V_per_m" in ctrl:
-        kp = _number(ctrl, "kp_V_per_m", f"{side_name} controller")
-    else:
-        kp = ControllerParams.kp
-        assumed.append(f"controller K_p = {kp:g} V/m (hexsim default)")
-    if "rate_hz" in ctrl:
-        ctrl_rate = _number(ctrl, "rate_hz", f"{side_name} controller")
-    else:
-        ctrl_rate = ControllerParams.rate_hz
-        assumed.append(f"controller rate = {ctrl_rate:g} Hz (seed §2.2.4)")
-    if "oil_temperature_C" in side:
-        temp = _number(side, "oil_temperature_C", str(side_name), positive=False)
-    else:
-        temp = 35.0
-        assumed.append("oil temperature 35 °C (seed app. A)")
-    stroke = _number(side, "stroke_m", str(side_name)) if "stroke_m" in side else DEFAULT_STROKE
-    if "stroke_m" not in side and system == "single-actuator":
-        assumed.append(f"stroke {DEFAULT_STROKE:g} m (the seed's actuator)")
-    mass = _number(side, "mass_kg", str(side_name)) if "mass_kg" in side else None
-    if mass is None and system == "single-actuator":
-        assumed.append("moving mass from the model (40 kg, seed app. A)")
-    if "inclination_deg" in side:
-        incl = _number(side, "inclination_deg", str(side_name), positive=False)
-        if not 0.0 <= incl <= 90.0:
-            raise InputError(f"{side_name}: key 'inclination_deg' must be within 0…90, got {incl:g}")
-    else:
-        incl = 0.0
-        if system == "single-actuator":
-            assumed.append("actuator vertical (inclination 0°, as the seed's model)")
 
-    cols = read_numeric_csv(path)
-    time = cols["time_s"]
+    def value(table, key, where, default, note, positive=True):
+        if key in table:
+            return _number(table, key, where, positive=positive)
+        if note:
+            assumed.append(note)
+        return default
+
+    single = system == "single-actuator"
+    kp = value(ctrl, "kp_V_per_m", f"{side_name} controller", ControllerParams.kp,
+               f"controller K_p = {ControllerParams.kp:g} V/m (hexsim default)")
+    ctrl_rate = value(ctrl, "rate_hz", f"{side_name} controller", ControllerParams.rate_hz,
+                      f"controller rate = {ControllerParams.rate_hz:g} Hz (seed §2.2.4)")
+    temp = value(side, "oil_temperature_C", str(side_name), 35.0, "oil temperature 35 °C (seed app. A)", positive=False)
+    stroke = value(side, "stroke_m", str(side_name), DEFAULT_STROKE,
+                   single and f"stroke {DEFAULT_STROKE:g} m (the seed's actuator)")
+    mass = value(side, "mass_kg", str(side_name), None, single and "moving mass from the model (40 kg, seed app. A)")
+    incl = value(side, "inclination_deg", str(side_name), 0.0,
+                 single and "actuator vertical (inclination 0°, as the seed's model)", positive=False)
+    if not 0.0 <= incl <= 90.0:
+        raise InputError(f"{side_name}: key 'inclination_deg' must be within 0…90, got {incl:g}")
+    return {"system": system, "sample_rate_hz": rate, "kp": kp,
+            "controller_rate_hz": ctrl_rate, "mass_kg": mass, "inclination_deg": incl, "oil_temperature_c": temp,
+            "stroke_m": stroke, "assumed": assumed}
+
+
+def _check_sampling(path: pathlib.Path, time: np.ndarray, rate: float) -> None:
+    """Raise InputError if ``time_s`` does not match the sidecar's rate or is sampled non-uniformly
+    (a step more than 1 % off the period), naming the row."""
     period = 1.0 / rate
     steps = np.diff(time)
     median = float(np.median(steps))
@@ -168,27 +191,6 @@ def read_log(path) -> MeasurementLog:
         raise InputError(
             f"{path}: column 'time_s', row {r + 3}: sample period {steps[r] * 1e3:.4g} ms deviates more than 1 % "
             f"from {period * 1e3:.4g} ms (non-uniform sampling)")
-    for name, values in cols.items():
-        _check_range(path, name, values, stroke)
-    log = MeasurementLog(path=path, system=system, sample_rate_hz=rate, columns=cols, kp=kp,
-                         controller_rate_hz=ctrl_rate, mass_kg=mass, inclination_deg=incl,
-                         oil_temperature_c=temp, sidecar=side, stroke_m=stroke, assumed=assumed)
-    for kind in ("valve_cmd_V", "pos_m"):
-        for i in range(log.n_legs):
-            name = log.leg_column(kind, i)
-            if name not in cols:
-                raise InputError(f"{path}: missing column {name!r}, needed to replay the log (header: "
-                                 f"{', '.join(cols)})")
-    wanted = ["ref_m", "p1_Pa"]
-    for kind in wanted:
-        if log.leg_array(kind) is None:
-            log.missing.append(kind if log.n_legs == 1 else f"leg*_{kind}")
-    if "ps_Pa" not in cols:
-        log.missing.append("ps_Pa")
-    acc = "acc_mps2" if log.n_legs == 1 else "platform_acc_z_mps2"
-    if acc not in cols:
-        log.missing.append(acc)
-    return log
 
 
 def _check_range(path: pathlib.Path, name: str, values: np.ndarray, stroke: float) -> None:

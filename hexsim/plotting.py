@@ -29,88 +29,99 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: float) -> None:
 
 
 def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
-    """Write the six-panel PNG for a run to ``path`` (atomically)."""
+    """Write the run's figure to ``path`` (atomically; .png, .pdf or .svg): the analysed acceleration
+    against its fundamental and its noise with the reversal peaks, the flow curve (seed Fig. 3.10),
+    pressures, tracking errors, the spectrum and, for a compensated run, the compensator's parameters
+    and compensation curve. Every time panel spans the whole run."""
     sc = result.config.scenario
     compensated = result.config.compensator_name != "none"
     rows = 4 if compensated else 3
     fig = Figure(figsize=(13, 3.7 * rows), layout="constrained")
     ax = fig.subplots(rows, 2)
     fig.suptitle(f"hexsim {sc.name}: {sc.system}, {sc.frequency:g} Hz, compensator {result.config.compensator_name}")
+    time_axes = [*_acceleration_panels(ax[0, 0], ax[0, 1], sm), _pressure_panel(ax[1, 1], result),
+                 _tracking_panel(ax[2, 0], result)]
+    _flow_curve_panel(ax[1, 0], result, compensated)
+    _spectrum_panel(ax[2, 1], sm)
+    if compensated:
+        time_axes.append(_compensator_panels(ax[3, 0], ax[3, 1], result))
+    for a in time_axes:
+        a.set_xlim(0.0, result.t[-1])
+    save_figure(fig, path, dpi=90)
 
-    a = ax[0, 0]
+
+def _acceleration_panels(a, b, sm: Smoothness) -> tuple:
+    """The analysed signal with its offset + fundamental fit (a) and the noise with the reversal peaks (b);
+    the start before the analysis window (fade-in, one settling period) shaded."""
     a.plot(sm.t, sm.fit + sm.noise, lw=0.8, label="measured")
     a.plot(sm.t, sm.fit, lw=1.2, ls="--", label=f"offset + fundamental ({sm.fundamental_amplitude:.3g} {sm.unit})")
-    for tr in sm.reversal_times:
-        a.axvline(tr, color="0.7", lw=0.6)
     a.set(title=sm.signal, xlabel="time [s]", ylabel=f"[{sm.unit}]")
-    a.legend(loc="upper right", fontsize=8)
-    time_axes = [a]
-
-    a = ax[0, 1]
-    a.plot(sm.t, sm.noise, lw=0.8, color="C3")
-    a.plot(sm.reversal_peak_times, np.interp(sm.reversal_peak_times, sm.t, sm.noise), "kv", ms=5,
+    b.plot(sm.t, sm.noise, lw=0.8, color="C3")
+    b.plot(sm.reversal_peak_times, np.interp(sm.reversal_peak_times, sm.t, sm.noise), "kv", ms=5,
            label="reversal peaks")
-    for tr in sm.reversal_times:
-        a.axvline(tr, color="0.7", lw=0.6)
-    a.set(title=f"acceleration noise: ratio {sm.noise_ratio:.3f}, mean reversal peak "
+    b.set(title=f"acceleration noise: ratio {sm.noise_ratio:.3f}, mean reversal peak "
                 f"{sm.mean_reversal_peak:.3g} {sm.unit}", xlabel="time [s]", ylabel=f"[{sm.unit}]")
-    a.title.set_fontsize("medium")  # the whole title inside the panel (a long one ran past the figure edge)
-    a.legend(loc="upper right", fontsize=8)
-    time_axes.append(a)
-    for a in time_axes:  # before the analysis window: the fade-in and one settling period
-        a.axvspan(0.0, sm.t[0], color="0.92", lw=0)
-        a.text(0.5 * sm.t[0], 0.03, "not analysed", transform=a.get_xaxis_transform(), ha="center", fontsize=7,
-               color="0.4")
+    b.title.set_fontsize("medium")  # the whole title inside the panel (a long one ran past the figure edge)
+    for axis in (a, b):
+        for tr in sm.reversal_times:
+            axis.axvline(tr, color="0.7", lw=0.6)
+        axis.legend(loc="upper right", fontsize=8)
+        axis.axvspan(0.0, sm.t[0], color="0.92", lw=0)
+        axis.text(0.5 * sm.t[0], 0.03, "not analysed", transform=axis.get_xaxis_transform(), ha="center",
+                  fontsize=7, color="0.4")
+    return a, b
 
-    a = ax[1, 0]
+
+def _flow_curve_panel(a, result: SimulationResult, compensated: bool) -> None:
+    """Piston velocity against the valve setpoint u_v per leg (seed Fig. 3.10); compensated: leg 1 also
+    against the P output u_p = u_v - U_c, the curve the P loop sees."""
     for i in range(result.n_legs):
         a.plot(result.u_v[:, i], result.ydot[:, i], lw=0.6, label=f"leg{i + 1}")
-    if compensated:  # what the P loop sees: its own output u_v - U_c against the velocity
-        a.plot(result.u_v[:, 0] - result.u_c[:, 0], result.ydot[:, 0], "k", lw=0.6,
-               label="leg1 vs P output u_p")
+    if compensated:
+        a.plot(result.u_v[:, 0] - result.u_c[:, 0], result.ydot[:, 0], "k", lw=0.6, label="leg1 vs P output u_p")
     a.set(title="flow curve (seed Fig. 3.10)", xlabel="valve setpoint u_v [V]", ylabel="piston velocity [m/s]")
     a.axhline(0, color="0.6", lw=0.5)
     a.axvline(0, color="0.6", lw=0.5)
     a.legend(fontsize=7, ncol=2)
 
-    a = ax[1, 1]
+
+def _pressure_panel(a, result: SimulationResult):
     for i in range(result.n_legs):
         a.plot(result.t, result.p1[:, i] / 1e5, lw=0.7, label=f"P1 leg{i + 1}")
     a.plot(result.t, result.p_s / 1e5, "k--", lw=1, label="P_s")
     a.set(title="pressures", xlabel="time [s]", ylabel="[bar]")
     a.legend(fontsize=7, ncol=2)
-    time_axes.append(a)
+    return a
 
-    a = ax[2, 0]
+
+def _tracking_panel(a, result: SimulationResult):
     for i in range(result.n_legs):
         a.plot(result.t, (result.y_ref[:, i] - result.y[:, i]) * 1e3, lw=0.7, label=f"leg{i + 1}")
     a.set(title="tracking error r − y", xlabel="time [s]", ylabel="[mm]")
     a.legend(fontsize=7, ncol=2)
-    time_axes.append(a)
+    return a
 
-    a = ax[2, 1]
+
+def _spectrum_panel(a, sm: Smoothness) -> None:
     floor = SPECTRUM_RANGE * sm.spectrum.max()  # a floor 100 dB below the largest line: no plot of round-off
     a.semilogy(sm.spectrum_hz, np.maximum(sm.spectrum, floor), lw=0.7)
     a.set(title="spectrum of the analysed signal", xlabel="frequency [Hz]", ylabel=f"amplitude [{sm.unit}]",
           xlim=(0, min(250.0, sm.spectrum_hz[-1])), ylim=(floor, 2 * sm.spectrum.max()))
 
-    if compensated:
-        a = ax[3, 0]
-        for key, values in result.compensator_state.items():
-            a.plot(result.t, values[:, 0], lw=1, label=f"{key} [{STATE_UNITS.get(key, '?')}]")
-        a.set(title=f"{result.config.compensator_name}: parameters, leg1", xlabel="time [s]",
-              ylabel="value (unit in the legend)")
-        if a.lines:
-            a.legend(fontsize=8)
-        time_axes.append(a)
-        a = ax[3, 1]
-        for i in range(result.n_legs):
-            a.plot(result.u_v[:, i] - result.u_c[:, i], result.u_c[:, i], ".", ms=1, label=f"leg{i + 1}")
-        a.set(title="compensation curve U_c(u_p)", xlabel="P output u_p = u_v − U_c [V]", ylabel="U_c [V]")
-    for a in time_axes:  # every time panel on the run's time axis
-        a.set_xlim(0.0, result.t[-1])
 
-    save_figure(fig, path, dpi=90)
+def _compensator_panels(a, b, result: SimulationResult):
+    """Leg 1's compensator parameters over time, each with its unit (a), and the compensation curve
+    U_c against the P output u_p for every leg (b). Returns the time panel."""
+    for key, values in result.compensator_state.items():
+        a.plot(result.t, values[:, 0], lw=1, label=f"{key} [{STATE_UNITS.get(key, '?')}]")
+    a.set(title=f"{result.config.compensator_name}: parameters, leg1", xlabel="time [s]",
+          ylabel="value (unit in the legend)")
+    if a.lines:
+        a.legend(fontsize=8)
+    for i in range(result.n_legs):
+        b.plot(result.u_v[:, i] - result.u_c[:, i], result.u_c[:, i], ".", ms=1, label=f"leg{i + 1}")
+    b.set(title="compensation curve U_c(u_p)", xlabel="P output u_p = u_v − U_c [V]", ylabel="U_c [V]")
+    return a
 
 
 def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:

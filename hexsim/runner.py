@@ -35,7 +35,7 @@ from hexsim.faults import FaultInjector
 from hexsim.kinematics import HexapodGeometry
 from hexsim.model import PlantIndex, apply_load, check_warnings, load_model, reset_neutral
 from hexsim.plant import PlantState
-from hexsim.simulation import (HydraulicCoupling, RunConfig, SimulationResult, check_timestep, divider,
+from hexsim.simulation import (ControlSchedule, HydraulicCoupling, RunConfig, SimulationResult, check_timestep, divider,
                                leg_mobility, piston_setpoints, static_leg_forces)
 
 #: recorded channels of shape (samples, n_legs)
@@ -98,8 +98,8 @@ class Simulator:
         self.compensator = _make_compensator(cfg, idx.n_legs, plant)
         controller = PController(cp, hyd.u_v_max, self.compensator)
         injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
-        self.coupling = HydraulicCoupling(idx, hyd, controller, setpoints, noise, p1_0, self.ctrl_div, cfg.warm_up,
-                                          plant, cfg.effects, injector, cfg.leg_changes)
+        self.coupling = HydraulicCoupling(idx, cfg, controller, ControlSchedule(setpoints, noise, self.ctrl_div), p1_0,
+                                          plant, injector)
 
     def _setup_recording(self) -> None:
         cfg, n = self.config, self.idx.n_legs

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import mujoco
 import numpy as np
@@ -135,6 +135,15 @@ class SimulationResult:
         return self.config.scenario.duration / self.wall_time_s
 
 
+class ControlSchedule(NamedTuple):
+    """What the P controller reads at its samples: setpoints and sensor noise, each (n_ticks, n_legs) [m],
+    and ``ctrl_div``, the physics steps per controller sample."""
+
+    setpoints: np.ndarray
+    noise: np.ndarray
+    ctrl_div: int
+
+
 class HydraulicCoupling:
     """The MuJoCo control callback: valve, chamber and friction of every leg, once per physics step.
 
@@ -148,10 +157,12 @@ class HydraulicCoupling:
     it cannot cross MuJoCo's C loop.
     """
 
-    def __init__(self, idx: PlantIndex, hyd: HydraulicParams, controller: PController, setpoints: np.ndarray,
-                 noise: np.ndarray, p1_initial: np.ndarray, ctrl_div: int, warm_up: WarmUp | None = None,
-                 plant: PlantTruth | None = None, effects: Effects | None = None,
-                 faults: FaultInjector | None = None, leg_changes: tuple[LegChange, ...] = ()) -> None:
+    def __init__(self, idx: PlantIndex, config: RunConfig, controller: PController, schedule: ControlSchedule,
+                 p1_initial: np.ndarray, plant: PlantTruth | None = None, faults: FaultInjector | None = None) -> None:
+        """``config`` gives the plant (hydraulics, effects, leg changes, warm-up); ``schedule`` the
+        controller's setpoints and sensor noise; ``p1_initial`` (n_legs,) [Pa] the start pressures;
+        ``plant`` the truth an oracle compensator reads (updated as the oil warms)."""
+        hyd, warm_up = config.hydraulics, config.warm_up
         self.idx = idx
         self.hyd = hyd
         self.base_hyd = hyd
@@ -159,13 +170,11 @@ class HydraulicCoupling:
         self.plant = plant
         self.temperature = float(warm_up.temperature(0.0)) if warm_up else 35.0
         self.controller = controller
-        self.setpoints = setpoints
-        self.noise = noise
-        self.ctrl_div = ctrl_div
+        self.setpoints, self.noise, self.ctrl_div = schedule
         self.dt = idx.dt
-        self.effects = effects or Effects()
+        self.effects = config.effects
         self.faults = faults
-        self.leg_changes = tuple(leg_changes)
+        self.leg_changes = tuple(config.leg_changes)
         self.groups = np.zeros(idx.n_legs, dtype=np.intp)  # one supply manifold for all legs
         n = idx.n_legs
         self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd)
@@ -174,7 +183,7 @@ class HydraulicCoupling:
         self.y_measured = self._y_history[0].copy()
         self.u_v = np.zeros(n)
         self.u_c = np.zeros(n)
-        self.r = setpoints[0].copy()
+        self.r = self.setpoints[0].copy()
         self.force = np.zeros(n)
         self._last_step = -1
         self.supply_level: float | None = None
