@@ -109,3 +109,31 @@ def test_keeping_the_last_seconds_records_the_tail_of_the_full_run(compensator, 
     assert len(tail.t) == 700 and tail.t[0] == pytest.approx(1.3)
     for name in ("t", "y", "ydot", "y_ref", "u_v", "u_c", "p1", "p_s", "force", "acc", "constraint_violation"):
         assert np.array_equal(getattr(tail, name), getattr(full, name)[-700:]), name
+
+
+def test_the_mujoco_adapter_the_kernels_rely_on():
+    # hexsim/native.py calls mj_step of the library the bindings loaded (found by a glob in the mujoco
+    # package) on the raw mjModel*/mjData* of the private MjModel._address / MjData._address. This checks
+    # both on the installed MuJoCo: ten steps through that route equal ten mujoco.mj_step calls exactly.
+    import ctypes
+
+    import mujoco
+
+    from hexsim import native
+    from hexsim.model import load_model
+
+    hint = (f"MuJoCo {mujoco.__version__} changed what hexsim/native.py relies on to step MuJoCo from compiled "
+            "code; update the adapter there (see README, Speed)")
+    m = load_model("hexapod")
+    runs = [mujoco.MjData(m), mujoco.MjData(m)]
+    assert all(hasattr(x, "_address") for x in (m, *runs)), hint
+    assert native._lib_path and native._lib_path[0].parent == native.pathlib.Path(mujoco.__file__).parent, hint
+    lib = ctypes.CDLL(str(native._lib_path[0]))
+    for d in runs:
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        d.ctrl[:] = 1250.0
+    for _ in range(10):
+        lib.mj_step(ctypes.c_void_p(m._address), ctypes.c_void_p(runs[0]._address))
+        mujoco.mj_step(m, runs[1])
+    assert runs[0].time == runs[1].time > 0, hint
+    assert np.array_equal(runs[0].qpos, runs[1].qpos) and np.array_equal(runs[0].qvel, runs[1].qvel), hint
