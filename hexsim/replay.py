@@ -173,7 +173,6 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     if log.system != "single-actuator":
         raise InputError(f"{log.path}: window replay needs a single-actuator log (this is {log.system})")
     hyd, eff = model.hydraulics, model.effects
-    c = log.columns
     fs = log.sample_rate_hz
     sub = int(round(1.0 / (fs * dt)))
     if abs(sub * dt * fs - 1.0) > 1e-9:
@@ -183,10 +182,41 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     m.opt.timestep = dt
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
-    t = log.time
+    state, y0 = _window_start(log, model, windows, m, d, idx)
+    u_log = log.columns["valve_cmd_V"]
+    out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
+    acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
+    mujoco.set_mjcb_control(None)
+    if native:
+        from hexsim import native as kernel
+
+        u_sched = windows.take(u_log)
+        out["u_v"] = u_sched
+        legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
+        bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
+                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
+        if bad >= 0:
+            raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
+    else:
+        _python_replay(log, model, windows, m, d, idx, state, acc_adr, sub, dt, out)
+    check_warnings(m, d)
+    tau = eff.sensor_delay
+    if tau > 0:
+        # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau
+        t, tw = log.time, np.arange(n) / fs
+        out["position"] = np.array([np.interp(tw - tau, tw, row, left=y0w) for row, y0w in
+                                    zip(out["position"], np.interp(t[windows.starts], t, log.columns["pos_m"]))])
+    return out
+
+
+def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d, idx) -> tuple[PlantState, np.ndarray]:
+    """Set the batch model ``m``/``d`` to the measured state at each window's start (position and velocity
+    the delayed sensor shows tau_y later) and return the legs' state there (P1 measured or from the
+    statics, P_s measured with a supply model, the spool history) and the start positions y0 (k,) [m]."""
+    hyd, eff, c, t = model.hydraulics, model.effects, log.columns, log.time
+    s0, k = windows.starts, len(windows.starts)
     pos, u_log = c["pos_m"], c["valve_cmd_V"]
     vel = measured_velocity(log, pos)
-    s0 = windows.starts
     tau = eff.sensor_delay
     y0 = np.interp(t[s0] + tau, t, pos)  # the true position the delayed sensor shows tau later
     d.qpos[idx.qpos_adr] = y0
@@ -204,46 +234,31 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
         p1_0 = c["p1_Pa"][s0]
     else:
         p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
-    u_b, x_v, v_v = spool_history(u_log, fs, hyd, eff, s0)
-    state = PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)._replace(u_b=u_b, x_v=x_v, v_v=v_v)
-    out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
-    acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
-    mujoco.set_mjcb_control(None)
-    if native:
-        from hexsim import native as kernel
+    u_b, x_v, v_v = spool_history(u_log, log.sample_rate_hz, hyd, eff, s0)
+    return PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)._replace(u_b=u_b, x_v=x_v, v_v=v_v), y0
 
-        u_sched = windows.take(u_log)
-        out["u_v"] = u_sched
-        legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
-        bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
-                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
-        if bad >= 0:
-            raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
-    else:  # the straightforward Python loop
-        acc, count = np.zeros(k), 0
-        for j in range(n):
-            u = u_log[s0 + j]
-            for s_ in range(sub):
-                y = d.qpos[idx.qpos_adr].copy()
-                ydot = d.qvel[idx.dof_adr].copy()
-                if s_ == 0:
-                    out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
-                    out["u_v"][:, j] = u
-                state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, hyd, eff)
-                mujoco.mj_step(m, d)
-                if s_ == 0:  # the mean over the previous row's steps (boxcar, as hexsim's own records)
-                    out["acceleration"][:, j] = acc / count if count else d.sensordata[acc_adr]
-                    acc[:], count = 0.0, 0
-                acc += d.sensordata[acc_adr]
-                count += 1
-            if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
-                bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
-                raise PhysicsError(f"replay: non-finite state in the window starting at t = {t[s0[bad]]:.3f} s, "
-                                   f"{j / fs:.3f} s into it")
-    check_warnings(m, d)
-    if tau > 0:
-        # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau
-        tw = np.arange(n) / fs
-        out["position"] = np.array([np.interp(tw - tau, tw, row, left=y0w) for row, y0w in
-                                    zip(out["position"], np.interp(t[s0], t, pos))])
-    return out
+
+def _python_replay(log, model, windows, m, d, idx, state, acc_adr, sub, dt, out) -> None:
+    """The straightforward Python loop of :func:`replay` over the same compiled leg step, filling ``out``
+    in place. Raises PhysicsError naming the window and the time for a non-finite state."""
+    u_log, s0, n = log.columns["valve_cmd_V"], windows.starts, windows.length
+    acc, count = np.zeros(len(s0)), 0
+    for j in range(n):
+        u = u_log[s0 + j]
+        for s_ in range(sub):
+            y = d.qpos[idx.qpos_adr].copy()
+            ydot = d.qvel[idx.dof_adr].copy()
+            if s_ == 0:
+                out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
+                out["u_v"][:, j] = u
+            state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, model.hydraulics, model.effects)
+            mujoco.mj_step(m, d)
+            if s_ == 0:  # the mean over the previous row's steps (boxcar, as hexsim's own records)
+                out["acceleration"][:, j] = acc / count if count else d.sensordata[acc_adr]
+                acc[:], count = 0.0, 0
+            acc += d.sensordata[acc_adr]
+            count += 1
+        if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
+            bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
+            raise PhysicsError(f"replay: non-finite state in the window starting at t = {log.time[s0[bad]]:.3f} s, "
+                               f"{j / log.sample_rate_hz:.3f} s into it")
