@@ -87,6 +87,9 @@ def _add_compare(sub) -> None:
     cmp.add_argument("--compensators", default=",".join(COMPENSATORS[1:]),
                      help="comma-separated compensators to compare (none is always included)")
     cmp.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
+    cmp.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                    help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
+                    "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison figure (seed Fig. 5.12 layout; .png, .pdf or .svg)")
     cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON; - for stdout")
 
@@ -107,6 +110,9 @@ def _add_validate(sub) -> None:
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
     val.add_argument("--json", type=pathlib.Path, help="write the result as JSON; - for stdout")
     val.add_argument("--jobs", type=int, default=CORES, help="worker processes for the fits (default: the cores available, %(default)s here)")
+    val.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                    help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
+                    "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
     val.add_argument("--without", default="", metavar="EFFECT[,EFFECT…]",
                      help="leave these library effects out of the candidates (an effect you know the machine "
                           "cannot have, or a check of what the tool says about an effect outside its list)")
@@ -142,6 +148,9 @@ def _add_sweep(sub) -> None:
     sw.add_argument("--grid", action="append", default=[], metavar="NAME=V1,V2,…",
                     help="an option to vary and its values (repeatable); NAME is a run option without the dashes")
     sw.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
+    sw.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                    help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
+                    "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
     sw.add_argument("--start-method", choices=START_METHODS, default=None,
                     help="how workers start: fork (default where available: they inherit everything imported) "
                     "or spawn/forkserver (a fresh interpreter, ~2.5 s of imports each)")
@@ -558,6 +567,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _workers(args: argparse.Namespace):
+    """The Dask client of ``--scheduler`` for the command's duration (hexsim.workers.dask_client), or nothing."""
+    if getattr(args, "scheduler", None) is None:
+        return contextlib.nullcontext()
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    from hexsim.workers import dask_client
+
+    return dask_client(args.scheduler, args.jobs)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -566,7 +586,7 @@ def main(argv: list[str] | None = None) -> int:
         args.json = StdoutTarget(sys.stdout)
         streams = contextlib.redirect_stdout(sys.stderr)
     try:
-        with streams:
+        with streams, _workers(args):
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                         "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench}
             return commands[args.command](args)

@@ -17,7 +17,7 @@ from compensation import COMPENSATORS
 from hexsim.metrics import Smoothness, run_smoothness
 from hexsim.simulation import RunConfig
 from hexsim.runner import simulate
-from hexsim.workers import worker_pool
+from hexsim.workers import in_workers, worker_pool
 
 #: Order of the league table: the baseline first, the yardstick last.
 ORDER = ("none", "iterative-1", "iterative-2", "buffered", "directional", "oracle")
@@ -126,7 +126,7 @@ def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2) -> l
     if unknown:
         raise ValueError(f"unknown compensator {unknown[0]!r}; choose from {', '.join(COMPENSATORS)}")
     configs = [dataclasses.replace(base, compensator=n, progress=False) for n in names]
-    if jobs <= 1:
+    if not in_workers(jobs):
         entries = [evaluate(c) for c in configs]
     else:
         with worker_pool(jobs) as pool:

@@ -53,7 +53,7 @@ from hexsim.params import HydraulicParams
 from hexsim.replay import CHANNELS, PlantModel, Windows, measured_velocity, replay, supply_from_log
 from hexsim.residuals import effective_n, noise_of
 from hexsim.signals import near_reversals
-from hexsim.workers import worker_pool
+from hexsim.workers import in_workers, worker_pool
 
 #: Valve-replay window [s]: long enough to see a flow offset integrate, short enough not to drift away.
 WINDOW_S = 0.3
@@ -614,7 +614,7 @@ def _parallel(jobs: int, fn, worker, log, calls: list[tuple], on_done=None) -> l
     ``worker(log, *args)`` (which rebuilds the problem from the log) when jobs > 1. ``on_done(result)``
     is called as each finishes (progress)."""
     on_done = on_done or (lambda result: None)
-    if jobs > 1 and len(calls) > 1:
+    if in_workers(jobs) and len(calls) > 1:
         with worker_pool(min(jobs, len(calls))) as pool:
             futures = {pool.submit(worker, log, *args): i for i, args in enumerate(calls)}
             results = [None] * len(calls)

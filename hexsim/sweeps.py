@@ -24,7 +24,7 @@ from hexsim.metrics import max_tracking_error, run_smoothness
 from hexsim.runner import simulate
 from hexsim.scenario import make_scenario
 from hexsim.simulation import RunConfig
-from hexsim.workers import worker_pool
+from hexsim.workers import in_workers, worker_pool
 
 #: Metric columns of a sweep row, after the grid's own columns. Wall times are printed, not tabled, so
 #: the same sweep writes the same bytes.
@@ -79,13 +79,13 @@ def evaluate_point(config: RunConfig) -> dict:
 
 def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
               start_method: str | None = None) -> tuple[list[dict], float]:
-    """Run every point with ``jobs`` worker processes (1: in this process) started by ``start_method``
-    (see :func:`hexsim.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
+    """Run every point with ``jobs`` worker processes (1: in this process) started by ``start_method``,
+    or on the active Dask client's workers (see :func:`hexsim.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
     grid order) and the wall time [s] of the whole sweep, start-up included. Raises InputError for a
     start method the platform does not have."""
     start = time.perf_counter()
     results: list[dict | None] = [None] * len(points)
-    if jobs <= 1:
+    if not in_workers(jobs):
         bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
         for p in points:
             results[p.index] = evaluate_point(p.config)

@@ -1,5 +1,5 @@
-"""``hexsim sweep``: a grid in worker processes (forked by default, or spawned) gives the same numbers as
-serial runs, in grid order."""
+"""``hexsim sweep``: a grid in worker processes (forked by default, spawned, or on a Dask LocalCluster)
+gives the same numbers as serial runs, in grid order."""
 
 import csv
 import json
@@ -28,7 +28,15 @@ def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):
         for key, value in serial.items():
             assert jrow[key] == value, key  # bit-identical, whichever worker ran it
     first = json_path.read_bytes()
-    for options in (["--jobs", "1"], ["--jobs", "2", "--start-method", "spawn"]):
+    for options in (["--jobs", "1"], ["--jobs", "2", "--start-method", "spawn"],
+                    ["--jobs", "2", "--scheduler", "local"]):  # Dask: a LocalCluster of two worker processes
         assert main(["sweep", "actuator", "--duration", "2.5", "--frequency", "2", "--grid", "seed=1,2",
                      "--grid", "kp=100,200", *options, "--json", str(json_path), "--quiet"]) == 0
-        assert json_path.read_bytes() == first, options  # serial, forked and spawned workers agree
+        assert json_path.read_bytes() == first, options  # serial, forked, spawned and Dask workers agree
+
+
+def test_an_unreachable_dask_scheduler_is_one_clear_error(capsys):
+    code = main(["sweep", "actuator", "--duration", "2.5", "--frequency", "2", "--grid", "seed=1,2",
+                 "--scheduler", "tcp://127.0.0.1:9", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.startswith("hexsim: error: --scheduler tcp://127.0.0.1:9") and len(err.splitlines()) == 1
