@@ -672,26 +672,13 @@ def _round_keys(problem, candidates, accepted: list[FitResult], legs: list[int])
     return keys
 
 
-def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
-             progress: bool = False, notify=None) -> Identification:
-    """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
-    select effects forward (see the module doc).
-
-    ``candidates``: default every effect that applies to the log's system (on a hexapod also on one leg
-    alone for the legs that stand out). ``jobs`` worker processes fit candidates in parallel (1: in this
-    process). ``progress``: a progress bar (terminals); ``notify``: called with one line of text per
-    step (logs, pipes). Raises InputError for a log the replay cannot use.
-    """
-    notify = notify or (lambda text: None)
-    problem = make_problem(log)
-    notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
-    if candidates is None:
-        candidates = default_candidates(log.system)
-    nominal_sim = problem.simulate(problem.nominal)
-    budget = measure_budget(problem, nominal_sim)
-    nominal = score(problem, nominal_sim, budget)
-    notify("noise budget measured; held-out RMS / budget: " + ", ".join(
-        f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
+def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budget, jobs: int, progress: bool,
+            notify) -> tuple[list[list[FitResult]], list[list[dict]], list[FitResult], Scored, object, object]:
+    """Forward selection (the module doc): rounds of screening and fitting the candidates on top of the
+    effects accepted so far, each judged on held-out data, until the log is within budget, nothing passes
+    or :data:`MAX_EFFECTS` are in. Returns (rounds, screening tables, accepted, final scored, final model,
+    budget: the accepted model's own tolerance where it decided the verdict)."""
+    log = problem.log
     rounds: list[list[FitResult]] = []
     screening: list[list[dict]] = []
     accepted: list[FitResult] = []
@@ -736,6 +723,31 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
                 budget = judged
                 break
         bar.close()
+    return rounds, screening, accepted, current, model, budget
+
+
+def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
+             progress: bool = False, notify=None) -> Identification:
+    """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
+    select effects forward (see the module doc).
+
+    ``candidates``: default every effect that applies to the log's system (on a hexapod also on one leg
+    alone for the legs that stand out). ``jobs`` worker processes fit candidates in parallel (1: in this
+    process). ``progress``: a progress bar (terminals); ``notify``: called with one line of text per
+    step (logs, pipes). Raises InputError for a log the replay cannot use.
+    """
+    notify = notify or (lambda text: None)
+    problem = make_problem(log)
+    notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
+    if candidates is None:
+        candidates = default_candidates(log.system)
+    nominal_sim = problem.simulate(problem.nominal)
+    budget = measure_budget(problem, nominal_sim)
+    nominal = score(problem, nominal_sim, budget)
+    notify("noise budget measured; held-out RMS / budget: " + ", ".join(
+        f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
+    rounds, screening, accepted, current, model, budget = _select(problem, candidates, nominal, budget, jobs,
+                                                                  progress, notify)
     if not rounds:
         verdict = "none"
     elif not accepted:
