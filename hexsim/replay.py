@@ -198,7 +198,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
     else:
-        _python_replay(log, model, windows, m, d, idx, state, acc_adr, sub, dt, out)
+        _python_replay(log, model, windows, (m, d, idx), state, out)
     check_warnings(m, d)
     tau = eff.sensor_delay
     if tau > 0:
@@ -238,9 +238,14 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
     return PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)._replace(u_b=u_b, x_v=x_v, v_v=v_v), y0
 
 
-def _python_replay(log, model, windows, m, d, idx, state, acc_adr, sub, dt, out) -> None:
-    """The straightforward Python loop of :func:`replay` over the same compiled leg step, filling ``out``
-    in place. Raises PhysicsError naming the window and the time for a non-finite state."""
+def _python_replay(log, model, windows, sim, state, out) -> None:
+    """The straightforward Python loop of :func:`replay` over the same compiled leg step on ``sim`` = (the
+    batch model, its data, its PlantIndex), filling ``out`` in place. Raises PhysicsError naming the
+    window and the time for a non-finite state."""
+    m, d, idx = sim
+    dt = m.opt.timestep
+    sub = int(round(1.0 / (log.sample_rate_hz * dt)))
+    acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(len(windows.starts))])
     u_log, s0, n = log.columns["valve_cmd_V"], windows.starts, windows.length
     acc, count = np.zeros(len(s0)), 0
     for j in range(n):
