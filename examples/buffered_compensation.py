@@ -2,7 +2,8 @@
 Fig. 5.12/5.13, appendix C).
 
 Source: "Compensation of the reversal bump", Rexroth-Hydraudyne / TU Eindhoven, 2005. The actuator
-follows r = 0.05 sin(pi t) + L_s/2 with the oil warming by 15 °C over the run and 2 µm position noise.
+follows r = 0.05 sin(pi t) + L_s/2 with the oil warming by 15 °C over the run and 2 µm position noise;
+the same pair at a constant 35 °C is run too, and the output says what the warming changes.
 The ideal compensation is the exact static inverse of the flow curve (seed eq. 5.1 with the true
 parameters at the end of the run); the script plots the learned function (2) against it, the parameter
 evolution, and the acceleration without and with compensation.
@@ -55,9 +56,24 @@ def main() -> None:
     print(f"learned a = {a:.3f} V, b = {b:.3f} 1/V, c = {c:.4f}; s = {s:.4f} (m/s)/V")
     print(f"ideal compensation max {ideal.max():.3f} V at {u[np.argmax(ideal)]:.2f} V; "
           f"learned max {learned.max():.3f} V at {u[np.argmax(learned)]:.2f} V")
-    for name, r in runs.items():
-        sm = run_smoothness(r, t_start=0.75 * sc.duration)
-        print(f"{name:8s}: noise ratio {sm.noise_ratio:.3f}, mean reversal peak {sm.mean_reversal_peak:.3f} m/s^2 (last quarter)")
+    # the same pair with the oil held at 35 °C: what the warming does to the comparison
+    constant = {name: simulate(RunConfig(sc, compensator=name)) for name in ("none", "buffered")}
+    figures = {}
+    for label, group in (("oil warming 15 K", runs), ("oil at 35 °C", constant)):
+        for name, r in group.items():
+            sm = run_smoothness(r, t_start=0.75 * sc.duration)
+            figures[label, name] = sm
+            print(f"{label:16s} {name:8s}: noise ratio {sm.noise_ratio:.3f}, mean reversal peak "
+                  f"{sm.mean_reversal_peak:.3f} m/s^2 (last quarter)")
+    warm_cut, cold_cut = (1.0 - figures[lb, "buffered"].mean_reversal_peak / figures[lb, "none"].mean_reversal_peak
+                          for lb in ("oil warming 15 K", "oil at 35 °C"))
+    def change(cut):
+        return f"lowers by {100 * cut:.0f} %" if cut >= 0 else f"raises by {-100 * cut:.0f} %"
+
+    print(f"The compensator lowers the noise ratio in both cases; the mean reversal peak (the largest deviation "
+          f"near each reversal) it {change(cold_cut)} with the oil at 35 °C and {change(warm_cut)} while the oil "
+          "warms: the noise ratio averages over the whole window, the reversal peaks show what the warming plant "
+          "does at the reversals, which the learned curve does not follow (seed §5.5).")
 
     fig, ax = plt.subplots(2, 2, figsize=(12, 8), constrained_layout=True)
     ax[0, 0].plot(u, ideal, "k--", label="ideal: exact inverse of eq. (5.1), warm oil")
