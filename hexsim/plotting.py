@@ -125,9 +125,11 @@ def _compensator_panels(a, b, result: SimulationResult):
 
 
 def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:
-    """The comparison PNG in the seed's Fig. 5.12 layout, one column per compensator (leg 1): flow curve
-    with the desired line s u_v, parameter evolution, compensation curve U_c(u_v), u_v - ẏ/s over time,
-    and the acceleration at the end of the run against the uncompensated one. Written atomically."""
+    """The comparison figure in the seed's Fig. 5.12 layout, one column per compensator (leg 1): flow curve
+    against the P output u_p with the desired line s u_p, parameter evolution (each with its unit; a
+    compensator that adapts nothing says so), compensation curve U_c(u_p), u_p - ẏ/s over time, the
+    reversal peaks and the acceleration at the end of the run against the uncompensated one. Written
+    atomically (.png, .pdf or .svg)."""
     base = entries[0]
     cols = [e for e in entries if e.compensator != "none"] or entries
     fig = Figure(figsize=(4.2 * len(cols), 20), layout="constrained")
@@ -138,24 +140,28 @@ def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:
         s = tr["s"]
         a = ax[0, j]
         u_p = tr["u_v"] - tr["u_c"]  # the P controller's output, before compensation (seed Fig. 5.3)
-        a.plot(u_p, tr["ydot"], lw=0.4, label="ẏ vs P output u_v")
+        a.plot(u_p, tr["ydot"], lw=0.4, label="ẏ vs P output u_p")
         u = np.linspace(u_p.min(), u_p.max(), 50)
-        a.plot(u, s * u, "k--", lw=1, label=f"desired s u_v (s = {s:.3f})")
-        a.set(title=f"{e.compensator}: flow curve", xlabel="u_v [V]", ylabel="ẏ [m/s]")
+        a.plot(u, s * u, "k--", lw=1, label=f"desired s u_p (s = {s:.3f} m/(s V))")
+        a.set(title=f"{e.compensator}: flow curve", xlabel="P output u_p [V]", ylabel="ẏ [m/s]")
         a.legend(fontsize=7)
         a = ax[1, j]
         for key in ("a", "b", "c"):
             if f"param_{key}" in tr:
-                a.plot(tr["t"], tr[f"param_{key}"], lw=1, label=key)
-        a.set(title="parameter evolution", xlabel="time [s]")
+                a.plot(tr["t"], tr[f"param_{key}"], lw=1, label=f"{key} [{STATE_UNITS[key]}]")
+        a.set(title="parameter evolution", xlabel="time [s]", ylabel="value (unit in the legend)")
         if a.lines:
             a.legend(fontsize=7)
+        else:  # the oracle adapts nothing: no empty axes
+            a.text(0.5, 0.5, f"{e.compensator}: no adapted parameters\n(the exact inverse of the true flow curve)",
+                   ha="center", va="center", transform=a.transAxes, fontsize=9, color="0.3")
+            a.set_axis_off()
         a = ax[2, j]
         a.plot(u_p, tr["u_c"], ".", ms=1)
-        a.set(title="compensation curve", xlabel="u_v [V]", ylabel="U_c [V]")
+        a.set(title="compensation curve U_c(u_p)", xlabel="P output u_p [V]", ylabel="U_c [V]")
         a = ax[3, j]
         a.plot(tr["t"], u_p - tr["ydot"] / s, lw=0.5)
-        a.set(title="u_v − ẏ/s", xlabel="time [s]", ylabel="[V]")
+        a.set(title="u_p − ẏ/s (seed's UC)", xlabel="time [s]", ylabel="[V]")
         a = ax[4, j]
         a.plot(tr["peak_t"], tr["peaks"], "o-", ms=3, lw=0.8, label=e.compensator)
         a.plot(base.traces["peak_t"], base.traces["peaks"], "o-", ms=2, lw=0.6, color="0.6", label="none")
@@ -169,4 +175,4 @@ def plot_compare(path: str | os.PathLike, entries: list, scenario) -> None:
         a.plot(tr["acc_t"][keep], tr["acc"][keep], lw=0.8, label=e.compensator)
         a.set(title="acceleration, last two periods", xlabel="time [s]", ylabel=f"[{e.unit}]")
         a.legend(fontsize=7)
-    save_figure(fig, path, dpi=60)
+    save_figure(fig, path, dpi=75)
