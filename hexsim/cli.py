@@ -55,6 +55,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _worker_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """--jobs (default: the cores available) and --scheduler (Dask) for a command that runs workers."""
+    parser.add_argument("--jobs", type=int, default=CORES, help=f"{what} (default: the cores available, %(default)s here)")
+    parser.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                        help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
+                        "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
+
+
 def _add_run(sub) -> None:
     """The ``run`` command's options."""
     run = sub.add_parser(
@@ -86,10 +94,7 @@ def _add_compare(sub) -> None:
     _scenario_options(cmp)
     cmp.add_argument("--compensators", default=",".join(COMPENSATORS[1:]),
                      help="comma-separated compensators to compare (none is always included)")
-    cmp.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
-    cmp.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                    help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
-                    "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
+    _worker_options(cmp, "worker processes")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison figure (seed Fig. 5.12 layout; .png, .pdf or .svg)")
     cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON; - for stdout")
 
@@ -109,10 +114,7 @@ def _add_validate(sub) -> None:
     val.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
     val.add_argument("--report", type=pathlib.Path, help="write report.md, residuals.png and validation.json here")
     val.add_argument("--json", type=pathlib.Path, help="write the result as JSON; - for stdout")
-    val.add_argument("--jobs", type=int, default=CORES, help="worker processes for the fits (default: the cores available, %(default)s here)")
-    val.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                    help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
-                    "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
+    _worker_options(val, "worker processes for the fits")
     val.add_argument("--without", default="", metavar="EFFECT[,EFFECT…]",
                      help="leave these library effects out of the candidates (an effect you know the machine "
                           "cannot have, or a check of what the tool says about an effect outside its list)")
@@ -147,10 +149,7 @@ def _add_sweep(sub) -> None:
                     help="compensator of every run unless the grid varies it (default none)")
     sw.add_argument("--grid", action="append", default=[], metavar="NAME=V1,V2,…",
                     help="an option to vary and its values (repeatable); NAME is a run option without the dashes")
-    sw.add_argument("--jobs", type=int, default=CORES, help="worker processes (default: the cores available, %(default)s here)")
-    sw.add_argument("--scheduler", metavar="ADDRESS", default=None,
-                    help="run the workers on Dask: 'local' (a LocalCluster of --jobs processes) or a scheduler's "
-                    "address, e.g. tcp://head-node:8786 (needs pip install \"hexsim[cluster]\")")
+    _worker_options(sw, "worker processes")
     sw.add_argument("--start-method", choices=START_METHODS, default=None,
                     help="how workers start: fork (default where available: they inherit everything imported) "
                     "or spawn/forkserver (a fresh interpreter, ~2.5 s of imports each)")

@@ -121,11 +121,8 @@ class StdoutTarget:
     def __init__(self, stream) -> None:
         self.stream = stream
 
-    def __str__(self) -> str:
+    def __str__(self) -> str:  # for messages ("wrote <stdout>"); not a path: nothing opens it as a file
         return "<stdout>"
-
-    def __fspath__(self) -> str:  # a path-like for messages; never opened as a file
-        return "-"
 
 
 def software_versions() -> dict[str, str]:
