@@ -21,7 +21,7 @@ from hexsim.params import ControllerParams, HydraulicParams
 from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
 from hexsim.tables import StdoutTarget, write_atomic, write_json
 from hexsim.temperature import WarmUp
-from hexsim.workers import START_METHODS
+from hexsim.workers import START_METHODS, worker_count
 
 #: Worker processes by default: the cores this process may run on.
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
@@ -467,7 +467,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     base = _run_config(args, "none")
     print(f"comparing {', '.join(dict.fromkeys(('none', *names)))} on {base.scenario.name} "
-          f"({base.scenario.duration:g} s) with {args.jobs} worker(s)…", flush=True)
+          f"({base.scenario.duration:g} s) with {worker_count(args.jobs)} worker(s)…", flush=True)
     entries = compare(base, names, jobs=args.jobs)
     print(league_table(entries))
     written = []
@@ -540,7 +540,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     points = expand(grid, make_config)
     print(f"sweeping {len(points)} runs ({' × '.join(f'{len(v)} {k}' for k, v in grid.items())}) with "
-          f"{args.jobs} worker(s)…", flush=True)
+          f"{worker_count(args.jobs)} worker(s)…", flush=True)
     rows, wall = run_sweep(points, jobs=args.jobs, progress=not args.quiet and sys.stderr.isatty(),
                            start_method=args.start_method)
     columns = ["point", *grid, *METRICS]
@@ -551,7 +551,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print("  ".join(f"{row[c]:>12.5g}" if isinstance(row[c], float) else f"{str(row[c]):>12.12s}" for c in shown))
     sim_s = sum(p.config.scenario.duration for p in points)
     print(f"{len(points)} runs, {sim_s:g} simulated s in {wall:.1f} s wall: {len(points) / wall * 60:.1f} runs/min, "
-          f"{sim_s / wall:.1f}× real time over {args.jobs} worker(s)")
+          f"{sim_s / wall:.1f}× real time over {worker_count(args.jobs)} worker(s)")
     if args.csv:
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")

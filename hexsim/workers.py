@@ -80,6 +80,12 @@ def in_workers(jobs: int) -> bool:
     return jobs > 1 or _active_dask_client() is not None
 
 
+def worker_count(jobs: int) -> int:
+    """How many workers the calls for ``jobs`` get: the active Dask client's workers, else ``jobs``."""
+    client = _active_dask_client()
+    return jobs if client is None else len(client.scheduler_info()["workers"])
+
+
 def _active_dask_client():
     """The default ``distributed.Client`` of this process, or None (Dask not imported or no client)."""
     distributed = sys.modules.get("distributed")
