@@ -115,7 +115,9 @@ class Simulator:
         averaged = ("platform_acc", "platform_angacc") if cfg.scenario.system == "hexapod" else ("platform_acc",)
         self._acc_adr = np.concatenate([np.arange(self.idx.sensor[name].start, self.idx.sensor[name].stop)
                                         for name in averaged]).astype(np.int64)
-        self._averaged = averaged
+        widths = [self.idx.sensor[name].stop - self.idx.sensor[name].start for name in averaged]
+        ends = np.cumsum(widths)  # each sensor's entries in _acc_adr / _acc_sum
+        self._averaged = [(name, slice(int(e - w), int(e))) for name, w, e in zip(averaged, widths, ends)]
         self._acc_sum = np.zeros(len(self._acc_adr) + 1)  # python engine: running sum, count
         if cfg.scenario.system == "hexapod":
             for name, width in (("platform_gyro", 3), ("platform_angacc", 3), ("platform_pos", 3),
@@ -226,8 +228,8 @@ class Simulator:
                     out[w] = sd[idx.sensor[name]]
                 acc = self._acc_sum  # the mean over the interval's steps (the first record: its own)
                 if acc[-1] > 0:
-                    for j, name in enumerate(self._averaged):
-                        self.sensors[name][w] = acc[3 * j:3 * j + 3] / acc[-1]
+                    for name, entries in self._averaged:
+                        self.sensors[name][w] = acc[entries] / acc[-1]
                 acc[:] = 0.0
                 self._add_acc()
                 eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
