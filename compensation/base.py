@@ -18,7 +18,7 @@ class PlantTruth:
     """What only the oracle may read: the plant's true hydraulic parameters (updated by the simulator as
     the oil warms), each leg's static bottom-chamber pressure P1 [Pa], shape (n_legs,), and the plant's
     static flow curve ``flow_curve(u_v, p1, params)`` -> piston velocity [m/s] (seed eq. 5.1; the
-    simulator passes :func:`hexsim.hydraulics.static_velocity`, so this package imports nothing of it)."""
+    simulator passes :func:`hexsim.plant.hydraulics.static_velocity`, so this package imports nothing of it)."""
 
     params: object
     p1_static: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -71,7 +71,7 @@ class NoCompensator(Compensator):
 
 class ReplayedCompensation(Compensator):
     """U_c read from a table (n_ticks, n_legs) [V], one row per controller sample: the compensation a
-    logged machine applied, fed forward in a closed-loop replay of its log (hexsim.hexapod_replay). It
+    logged machine applied, fed forward in a closed-loop replay of its log (hexsim.measured.hexapod_replay). It
     sees nothing; past the table's end it holds the last row."""
 
     name = "replayed"

@@ -36,7 +36,7 @@ way up and on the way down, which one curve cannot match (seed ch. 6 recommends 
 
 Written once, compiled: :func:`buffered_tick` is the compensator's sample; the classes hold its state
 as named records (:class:`BufferedParams`, :class:`~compensation.base.ObserverState`,
-:class:`Buffers`) and call it from Python; the compiled runner (:mod:`hexsim.native`) calls the same
+:class:`Buffers`) and call it from Python; the compiled runner (:mod:`hexsim.simulation.native`) calls the same
 function on the same records inside its loop.
 """
 
@@ -48,7 +48,13 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from compensation.base import Compensator, FlowCurveObserver, ObserverFilter, ObserverState, observer_tick
+from compensation.base import (
+    Compensator,
+    FlowCurveObserver,
+    ObserverFilter,
+    ObserverState,
+    observer_tick,
+)
 from compensation.functions import function2
 
 

@@ -18,9 +18,9 @@ The Python face, everything a notebook needs (imported on first use, so ``import
 * judging: :func:`smoothness` (of a result), :func:`compare`, :func:`sweep`;
 * measured data: :func:`read_log`, :func:`validate`.
 
-The chain, one module per stage: :mod:`hexsim.scenario` → :mod:`hexsim.kinematics` →
-:mod:`hexsim.controller` → :mod:`compensation` → :mod:`hexsim.plant` (valve, chamber, friction,
-effects) → :mod:`hexsim.runner` (MuJoCo) → :mod:`hexsim.metrics` → outputs.
+The chain, one module per stage: :mod:`hexsim.control.scenario` → :mod:`hexsim.control.kinematics` →
+:mod:`hexsim.control.controller` → :mod:`compensation` → :mod:`hexsim.plant.legs` (valve, chamber, friction,
+effects) → :mod:`hexsim.simulation.runner` (MuJoCo) → :mod:`hexsim.simulation.metrics` → outputs.
 """
 
 from __future__ import annotations
@@ -31,23 +31,23 @@ __version__ = "0.1.0"
 
 #: public name -> (module, attribute)
 _FACE = {
-    "simulate": ("hexsim.runner", "simulate"),
-    "Simulator": ("hexsim.runner", "Simulator"),
-    "RunConfig": ("hexsim.simulation", "RunConfig"),
-    "SimulationResult": ("hexsim.simulation", "SimulationResult"),
-    "Scenario": ("hexsim.scenario", "Scenario"),
-    "HydraulicParams": ("hexsim.params", "HydraulicParams"),
-    "ControllerParams": ("hexsim.params", "ControllerParams"),
-    "Effects": ("hexsim.effects", "Effects"),
-    "LegChange": ("hexsim.effects", "LegChange"),
-    "WarmUp": ("hexsim.temperature", "WarmUp"),
+    "simulate": ("hexsim.simulation.runner", "simulate"),
+    "Simulator": ("hexsim.simulation.runner", "Simulator"),
+    "RunConfig": ("hexsim.simulation.config", "RunConfig"),
+    "SimulationResult": ("hexsim.simulation.config", "SimulationResult"),
+    "Scenario": ("hexsim.control.scenario", "Scenario"),
+    "HydraulicParams": ("hexsim.plant.params", "HydraulicParams"),
+    "ControllerParams": ("hexsim.plant.params", "ControllerParams"),
+    "Effects": ("hexsim.plant.effects", "Effects"),
+    "LegChange": ("hexsim.plant.effects", "LegChange"),
+    "WarmUp": ("hexsim.plant.temperature", "WarmUp"),
     "Compensator": ("compensation.base", "Compensator"),
     "CompensatorSettings": ("compensation.base", "CompensatorSettings"),
-    "smoothness": ("hexsim.metrics", "run_smoothness"),
-    "compare": ("hexsim.comparison", "compare"),
-    "sweep": ("hexsim.sweeps", "sweep"),
-    "read_log": ("hexsim.measurement", "read_log"),
-    "validate": ("hexsim.validation", "validate"),
+    "smoothness": ("hexsim.simulation.metrics", "run_smoothness"),
+    "compare": ("hexsim.simulation.comparison", "compare"),
+    "sweep": ("hexsim.simulation.sweeps", "sweep"),
+    "read_log": ("hexsim.measured.measurement", "read_log"),
+    "validate": ("hexsim.measured.validation", "validate"),
 }
 
 __all__ = ["__version__", *_FACE]

@@ -4,7 +4,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 
 * ``bare_mj_step``: the hexapod model, no control callback, ``mj_step`` at dt = 1e-4 s (legs held by
   their static forces) — the baseline (a);
-* ``hexapod_full``: :func:`hexsim.runner.simulate` on heave with the buffered compensator: six legs'
+* ``hexapod_full``: :func:`hexsim.simulation.runner.simulate` on heave with the buffered compensator: six legs'
   hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
   :func:`compensation.buffered.buffered_tick`), all inside the kernel, sensors recorded at 1 kHz — (b);
 * ``hexapod_python``: the same with the Python control callback and the Python compensator, for the
@@ -16,7 +16,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator — (d);
 * ``actuator_bare_fast``: bare ``mj_step`` of the single-actuator model at dt = 1e-3 s, no callback: the
   floor under ``actuator_fast``;
-* ``replay_kernel``: the compiled valve replay (:mod:`hexsim.native`) of one single-actuator window.
+* ``replay_kernel``: the compiled valve replay (:mod:`hexsim.simulation.native`) of one single-actuator window.
 
 The repeats go round the cases (case 1, 2, …, then again), so a machine that slows down or speeds up
 during the benchmark biases no case against another.
@@ -34,13 +34,13 @@ import time
 import mujoco
 import numpy as np
 
-from hexsim.model import PlantIndex, load_model, reset_neutral
+from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 
 
 def _bare(duration: float, system: str = "hexapod", timestep: float | None = None) -> float:
     """Wall time [s] of ``duration`` simulated seconds of bare ``mj_step``, the legs held by their static
     forces."""
-    from hexsim.simulation import static_leg_forces
+    from hexsim.simulation.config import static_leg_forces
 
     m = load_model(system)
     if timestep is not None:
@@ -58,9 +58,9 @@ def _bare(duration: float, system: str = "hexapod", timestep: float | None = Non
 
 
 def _full(system: str, compensator: str, duration: float, engine: str = "native", timestep: float | None = None) -> float:
-    from hexsim.scenario import make_scenario
-    from hexsim.simulation import RunConfig
-    from hexsim.runner import simulate
+    from hexsim.control.scenario import make_scenario
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.runner import simulate
 
     scenario = make_scenario("heave" if system == "hexapod" else "actuator", duration=duration, frequency=2.0)
     return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep)).wall_time_s
@@ -72,9 +72,9 @@ SWEEP_RUNS = 8
 def _sweep(jobs: int, start_method: str | None = None) -> float:
     """Wall time [s] of a sweep of :data:`SWEEP_RUNS` runs (heave, 20 s at 1 Hz, buffered, one seed each)
     with ``jobs`` workers started by ``start_method`` (None: the default), start-up included."""
-    from hexsim.scenario import make_scenario
-    from hexsim.simulation import RunConfig
-    from hexsim.sweeps import expand, run_sweep
+    from hexsim.control.scenario import make_scenario
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.sweeps import expand, run_sweep
 
     scenario = make_scenario("heave", duration=20.0, frequency=1.0)
     points = expand({"seed": list(range(SWEEP_RUNS))},
@@ -87,10 +87,10 @@ def _replay(duration: float) -> float:
     import pathlib
     import tempfile
 
-    from hexsim.effects import Effects
-    from hexsim.measurement import read_log
-    from hexsim.params import HydraulicParams
-    from hexsim.replay import PlantModel, Windows, replay
+    from hexsim.measured.measurement import read_log
+    from hexsim.measured.replay import PlantModel, Windows, replay
+    from hexsim.plant.effects import Effects
+    from hexsim.plant.params import HydraulicParams
 
     fs = 1000.0
     t = np.arange(int(duration * fs) + 1) / fs
@@ -140,7 +140,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
                                                / out["cases"]["actuator_bare_fast"]["wall_per_sim_s"])
     if sweep:
-        from hexsim.workers import default_start_method
+        from hexsim.simulation.workers import default_start_method
 
         rounds = [(_sweep(1), _sweep(2), _sweep(2, "spawn")) for _ in range(repeats)]  # round the cases too
         one, two, spawned = (statistics.median(r[i] for r in rounds) for i in range(3))

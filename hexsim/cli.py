@@ -16,12 +16,17 @@ import sys
 from compensation import NAMES as COMPENSATORS
 from compensation import CompensatorSettings, SettingsError
 from hexsim import __version__
+from hexsim.control.scenario import (
+    DEFAULT_AMPLITUDE,
+    DEFAULT_FREQUENCY,
+    SCENARIOS,
+    make_scenario,
+)
 from hexsim.errors import HexsimError, InputError
-from hexsim.params import ControllerParams, HydraulicParams
-from hexsim.scenario import DEFAULT_AMPLITUDE, DEFAULT_FREQUENCY, SCENARIOS, make_scenario
+from hexsim.plant.params import ControllerParams, HydraulicParams
+from hexsim.plant.temperature import WarmUp
+from hexsim.simulation.workers import START_METHODS, worker_count
 from hexsim.tables import StdoutTarget, write_atomic, write_json
-from hexsim.temperature import WarmUp
-from hexsim.workers import START_METHODS, worker_count
 
 #: Worker processes by default: the cores this process may run on.
 CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
@@ -211,13 +216,13 @@ def _progress_line(text: str) -> None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    from hexsim.measurement import read_log
-    from hexsim.validation import effect_label, plus_minus, validate
+    from hexsim.measured.measurement import read_log
+    from hexsim.measured.validation import effect_label, plus_minus, validate
 
     _check_outputs(args)
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
-    from hexsim.effects import CANDIDATE_NAMES
+    from hexsim.plant.effects import CANDIDATE_NAMES
 
     without = tuple(name.strip() for name in args.without.split(",") if name.strip())
     for name in without:
@@ -255,8 +260,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_friction(args: argparse.Namespace) -> int:
-    from hexsim.friction_id import identify_friction, plot_map
-    from hexsim.measurement import read_log
+    from hexsim.measured.friction_id import identify_friction, plot_map
+    from hexsim.measured.measurement import read_log
 
     _check_outputs(args)
     result = identify_friction(read_log(args.log))
@@ -280,8 +285,8 @@ def cmd_friction(args: argparse.Namespace) -> int:
 
 
 def cmd_modes(args: argparse.Namespace) -> int:
-    from hexsim.effects import Effects
-    from hexsim.modes import modes_table, oil_spring_modes
+    from hexsim.plant.effects import Effects
+    from hexsim.simulation.modes import modes_table, oil_spring_modes
 
     _check_outputs(args)
     effects, payload = Effects(), "600 kg platform"
@@ -326,7 +331,7 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the position-sensor noise (default 0)")
     p.add_argument("--params", type=pathlib.Path, metavar="FILE.json",
                    help="parameter file: sections hydraulics / controller / effects overriding the seed's values "
-                        "(see hexsim/paramfile.py); the options below override the file")
+                        "(see hexsim/plant/paramfile.py); the options below override the file")
     p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default {ControllerParams.kp:g})")
     p.add_argument("--flow-area", choices=("smooth", "quadratic", "sharp"),
                    help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) blended onto the port's "
@@ -337,7 +342,7 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fault", action="append", default=[], metavar="KIND:key=value,…",
                    help="inject a fault (repeatable): valve_stuck:leg=N,t=S,value=V | supply_loss:t=S[,ramp=S] | "
                         "sensor_frozen:leg=N,t=S | sensor_dropout:leg=N,t=S | end_stop:leg=N,t=S[,value=M] "
-                        "(see hexsim/faults.py)")
+                        "(see hexsim/plant/faults.py)")
     p.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
                    help="hexapod: a payload of KG kg added to the 600 kg platform, its centre of gravity at X,Y,Z m "
                         "in the platform frame (default its centre; Z default 0); negative KG: a lighter platform")
@@ -351,7 +356,7 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                         "period and the 1 ms record period; see README 'Speed' for the accuracy of larger steps)")
     p.add_argument("--warm-up", type=_number, metavar="DELTA_C",
                    help="warm the oil by DELTA_C °C over the run (seed §5.5 uses 15): density, viscous friction "
-                        "and valve null change (see hexsim/temperature.py)")
+                        "and valve null change (see hexsim/plant/temperature.py)")
     d = CompensatorSettings()
     g = p.add_argument_group("compensator settings (defaults from the seed where it gives one)")
     g.add_argument("--buffer-time", type=_number, default=d.buffer_time,
@@ -371,9 +376,9 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
 
 
 def _run_config(args: argparse.Namespace, compensator: str):
-    from hexsim.effects import Effects
-    from hexsim.faults import Fault
-    from hexsim.paramfile import read_params
+    from hexsim.plant.effects import Effects
+    from hexsim.plant.faults import Fault
+    from hexsim.plant.paramfile import read_params
 
     if args.params is not None:
         given = read_params(args.params)
@@ -399,7 +404,9 @@ def _run_config(args: argparse.Namespace, compensator: str):
         raise InputError(str(exc)) from None
     warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
     faults = tuple(Fault.parse(text) for text in args.fault)
-    from hexsim.simulation import RunConfig  # MuJoCo and the kernels: only once the options are checked
+    from hexsim.simulation.config import (
+        RunConfig,  # MuJoCo and the kernels: only once the options are checked
+    )
 
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
@@ -426,12 +433,12 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     _check_outputs(args)
     config = _run_config(args, args.compensator)  # every option checked before the heavy imports
-    from hexsim.logio import write_log
-    from hexsim.metrics import run_smoothness
-    from hexsim.plotting import plot_run
-    from hexsim.report import run_report, summary_table
-    from hexsim.rerun_log import write_rrd
-    from hexsim.runner import simulate
+    from hexsim.outputs.logio import write_log
+    from hexsim.outputs.plotting import plot_run
+    from hexsim.outputs.report import run_report, summary_table
+    from hexsim.outputs.rerun_log import write_rrd
+    from hexsim.simulation.metrics import run_smoothness
+    from hexsim.simulation.runner import simulate
 
     result = simulate(config)
     sm = run_smoothness(result)
@@ -455,8 +462,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from hexsim.comparison import compare, league_table
-    from hexsim.plotting import plot_compare
+    from hexsim.outputs.plotting import plot_compare
+    from hexsim.simulation.comparison import compare, league_table
 
     _check_outputs(args)
     names = tuple(n.strip() for n in args.compensators.split(",") if n.strip())
@@ -522,7 +529,8 @@ def _parse_grid(parser: argparse.ArgumentParser, items: list[str]) -> dict[str, 
 def cmd_sweep(args: argparse.Namespace) -> int:
     import csv
     import io
-    from hexsim.sweeps import METRICS, expand, run_sweep
+
+    from hexsim.simulation.sweeps import METRICS, expand, run_sweep
 
     _check_outputs(args)
     if args.jobs < 1:
@@ -567,12 +575,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _workers(args: argparse.Namespace):
-    """The Dask client of ``--scheduler`` for the command's duration (hexsim.workers.dask_client), or nothing."""
+    """The Dask client of ``--scheduler`` for the command's duration (hexsim.simulation.workers.dask_client), or nothing."""
     if getattr(args, "scheduler", None) is None:
         return contextlib.nullcontext()
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
-    from hexsim.workers import dask_client
+    from hexsim.simulation.workers import dask_client
 
     return dask_client(args.scheduler, args.jobs)
 

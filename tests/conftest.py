@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from hexsim.params import ControllerParams, HydraulicParams
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
+from hexsim.control.scenario import make_scenario
+from hexsim.plant.params import ControllerParams, HydraulicParams
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.runner import simulate
+
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_cmdline_main(config):

@@ -86,7 +86,7 @@ def test_a_user_compensator_class_runs_in_the_loop():
 
 
 def test_sweep_varies_parameters_by_name_and_refuses_unknown_ones():
-    from hexsim.sweeps import vary
+    from hexsim.simulation.sweeps import vary
 
     base = hexsim.RunConfig(hexsim.Scenario.sine("heave", frequency=2.0, duration=1.5))
     c = vary(base, {"kp": 250.0, "bulk_modulus": 1.2e9, "frequency": 4.0, "seed": 3, "buffer_time": 1.0})

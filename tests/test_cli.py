@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 import os
 import pathlib
-import shutil
 import re
+import shutil
 import subprocess
 import sys
 
@@ -141,7 +141,7 @@ def test_compare_refuses_an_unknown_compensator(capsys):
 def test_scenario_file_saved_with_a_byte_order_mark_is_read(tmp_path):
     from helpers import write_heave_pitch_profile
 
-    from hexsim.scenario import make_scenario
+    from hexsim.control.scenario import make_scenario
 
     path = write_heave_pitch_profile(tmp_path / "excel.csv", 6.0, 0.03)
     path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
@@ -202,9 +202,9 @@ def test_each_run_is_a_recording_of_its_own_with_the_bump_on_its_own_axis(heave_
     assert re.search(r"/world/platform/geom\d+@Boxes3D", first) and re.search(r"/world/rod1/geom\d+@Cylinders3D", first)
     from types import SimpleNamespace
 
-    from hexsim.rerun_log import recording_id
-    from hexsim.scenario import make_scenario
-    from hexsim.simulation import RunConfig
+    from hexsim.control.scenario import make_scenario
+    from hexsim.outputs.rerun_log import recording_id
+    from hexsim.simulation.config import RunConfig
 
     run = SimpleNamespace(config=RunConfig(make_scenario("heave")))
     assert recording_id(run) != recording_id(run)
@@ -235,8 +235,8 @@ def test_json_dash_writes_the_document_to_stdout_and_the_summary_to_stderr(capsy
 
 @pytest.mark.parametrize("suffix, magic", [(".svg", b"<?xml"), (".pdf", b"%PDF")])
 def test_plot_writes_the_format_its_suffix_names(heave_run, tmp_path, suffix, magic):
-    from hexsim.metrics import run_smoothness
-    from hexsim.plotting import plot_run
+    from hexsim.outputs.plotting import plot_run
+    from hexsim.simulation.metrics import run_smoothness
 
     path = tmp_path / f"run{suffix}"
     plot_run(path, heave_run, run_smoothness(heave_run))
@@ -246,7 +246,7 @@ def test_plot_writes_the_format_its_suffix_names(heave_run, tmp_path, suffix, ma
 def test_importing_hexsim_never_switches_the_matplotlib_backend():
     # issue 16: a notebook user's backend stays what they chose; the figures are drawn without pyplot
     code = ("import matplotlib; matplotlib.use('svg'); "
-            "import hexsim.plotting, hexsim.validation, hexsim.friction_id, hexsim.cli, hexsim.rerun_log; "
+            "import hexsim.outputs.plotting, hexsim.measured.validation, hexsim.measured.friction_id, hexsim.cli, hexsim.outputs.rerun_log; "
             "assert matplotlib.get_backend() == 'svg', matplotlib.get_backend()")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
@@ -257,8 +257,8 @@ def test_the_3d_scene_closes_every_leg_at_its_platform_anchor(heave_run):
     # extended by the recorded piston positions; forward kinematics must land each rod tip on its anchor
     import mujoco
 
-    from hexsim.model import load_model
-    from hexsim.rerun_log import scene_qpos
+    from hexsim.outputs.rerun_log import scene_qpos
+    from hexsim.plant.model import load_model
 
     m = load_model("hexapod")
     d = mujoco.MjData(m)

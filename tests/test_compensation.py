@@ -1,6 +1,6 @@
 """The seed's chapter-5 findings and the compensation targets, reproduced in simulation.
 
-Runs go through hexsim.comparison (two worker processes), which measures on the last quarter of each run.
+Runs go through hexsim.simulation.comparison (two worker processes), which measures on the last quarter of each run.
 Margins: the seed's figures are qualitative, so the tests check directions and ratios with room for the
 run-to-run spread seen between seeds (about ±15 % on the final reversal peaks).
 """
@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import write_heave_pitch_profile
 
 from compensation import CompensatorSettings
-from hexsim.comparison import compare
-from hexsim.params import HydraulicParams
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.temperature import WarmUp
-from helpers import write_heave_pitch_profile
+from hexsim.control.scenario import make_scenario
+from hexsim.plant.params import HydraulicParams
+from hexsim.plant.temperature import WarmUp
+from hexsim.simulation.comparison import compare
+from hexsim.simulation.config import RunConfig
 
 
 def _by_name(entries):

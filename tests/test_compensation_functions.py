@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from compensation import CompensatorSettings, FlowCurveObserver, SettingsError, make_compensator
+from compensation import (
+    CompensatorSettings,
+    FlowCurveObserver,
+    SettingsError,
+    make_compensator,
+)
 from compensation.buffered import Buffers, update_parameters
 from compensation.functions import function1, function2, signed_sqrt
 

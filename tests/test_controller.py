@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from compensation import Compensator
-from hexsim.controller import PController
-from hexsim.params import ControllerParams
+from hexsim.control.controller import PController
+from hexsim.plant.params import ControllerParams
 
 
 class ConstantCompensator(Compensator):

@@ -5,10 +5,10 @@ reference (issue 5: noise_ratio, peak_noise_g and the reversal peaks within 2 %,
 import numpy as np
 import pytest
 
-from hexsim.metrics import run_smoothness
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
+from hexsim.control.scenario import make_scenario
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.metrics import run_smoothness
+from hexsim.simulation.runner import simulate
 
 
 @pytest.fixture(scope="module")

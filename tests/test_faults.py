@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from hexsim.cli import main
-from hexsim.faults import Fault
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
+from hexsim.control.scenario import make_scenario
+from hexsim.plant.faults import Fault
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.runner import simulate
 
 T0 = 0.8
 

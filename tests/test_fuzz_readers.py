@@ -25,10 +25,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from hexsim.cli import build_parser, main
+from hexsim.control.scenario import make_scenario
 from hexsim.errors import InputError
-from hexsim.measurement import read_log
-from hexsim.paramfile import read_params
-from hexsim.scenario import make_scenario
+from hexsim.measured.measurement import read_log
+from hexsim.plant.paramfile import read_params
 
 EXAMPLES = int(os.environ.get("HEXSIM_FUZZ_EXAMPLES", "40"))
 FUZZ = settings(max_examples=EXAMPLES, derandomize=not os.environ.get("HEXSIM_FUZZ_RANDOM"), deadline=None,

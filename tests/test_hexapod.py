@@ -7,14 +7,14 @@ import math
 
 import numpy as np
 import pytest
-
-from hexsim.errors import InputError
-from hexsim.metrics import STANDARD_GRAVITY, run_smoothness
-from hexsim.scenario import Scenario, make_scenario
-from hexsim.signals import fit_fundamental
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
 from helpers import write_heave_pitch_profile
+
+from hexsim.control.scenario import Scenario, make_scenario
+from hexsim.errors import InputError
+from hexsim.signals import fit_fundamental
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.metrics import STANDARD_GRAVITY, run_smoothness
+from hexsim.simulation.runner import simulate
 
 
 def test_platform_at_rest_stays_at_rest():
@@ -33,7 +33,7 @@ def test_platform_at_rest_stays_at_rest():
 def test_start_from_rigid_statics_is_quiet(heave_run):
     # Issue 14: the legs start at the rigid statics, J^T f = m g with the legs' weight (40.55 bar each), and
     # the platform does not jolt at t = 0: |a - g| over the first 0.5 s below the heave run's noise floor.
-    from hexsim.params import HydraulicParams
+    from hexsim.plant.params import HydraulicParams
 
     hold = simulate(RunConfig(Scenario("hold", "hexapod", 1.0, 2, 0.5, 2.0, 0.0)))
     p = HydraulicParams()
@@ -47,11 +47,11 @@ def test_start_from_rigid_statics_is_quiet(heave_run):
 def test_payload_shifts_the_static_leg_forces_as_the_jacobian_predicts():
     # A 150 kg payload at (0.25, -0.1, 0.3) m: the change of the legs' static forces solves J^T df = w, the
     # payload's weight as a wrench at the platform frame's origin (J = dy/dpose by finite differences of the IK)
-    from hexsim.effects import Effects
-    from hexsim.kinematics import HexapodGeometry
-    from hexsim.model import load_model
-    from hexsim.params import HydraulicParams
-    from hexsim.runner import Simulator
+    from hexsim.control.kinematics import HexapodGeometry
+    from hexsim.plant.effects import Effects
+    from hexsim.plant.model import load_model
+    from hexsim.plant.params import HydraulicParams
+    from hexsim.simulation.runner import Simulator
 
     hold = Scenario("hold", "hexapod", 1.0, 2, 0.5, 2.0, 0.0)
     mass, at = 150.0, np.array([0.25, -0.1, 0.3])
@@ -156,43 +156,44 @@ def test_scenario_options_are_checked():
 
 
 def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
-    from hexsim import simulation
     from hexsim.errors import PhysicsError
+    from hexsim.simulation import config
 
-    real = simulation.advance_legs
+    real = config.advance_legs
 
     def poisoned(*args, **kwargs):
         state, force = real(*args, **kwargs)
         state.p1[2] = np.nan  # leg3's chamber pressure goes bad
         return state, force
 
-    monkeypatch.setattr(simulation, "advance_legs", poisoned)
+    monkeypatch.setattr(config, "advance_legs", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg3 at t = 0\.\d+ s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02), engine="python"))
 
 
 def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypatch):
-    from hexsim import simulation
     from hexsim.errors import PhysicsError
+    from hexsim.simulation import config
 
-    real = simulation.leg_table
+    real = config.leg_table
 
     def poisoned(*args):
         table = real(*args)
         table["bulk_modulus"] = np.nan  # every P1 goes bad in the first step
         return table
 
-    monkeypatch.setattr(simulation, "leg_table", poisoned)
+    monkeypatch.setattr(config, "leg_table", poisoned)
     with pytest.raises(PhysicsError, match=r"non-finite P1 of leg1 at t = 0\.0000 s"):
         simulate(RunConfig(Scenario("short", "hexapod", 0.1, 2, 2.0, 0.5, 0.02)))
 
 
 def test_island_discovery_off_changes_nothing(monkeypatch):
-    """hexsim switches MuJoCo's island discovery off (hexsim.model.no_islands) for speed; the hexapod is
+    """hexsim switches MuJoCo's island discovery off (hexsim.plant.model.no_islands) for speed; the hexapod is
     one island, so the run must be bit-identical to one with discovery on."""
     import mujoco
 
-    from hexsim import model, runner
+    from hexsim.plant import model
+    from hexsim.simulation import runner
 
     config = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), compensator="buffered", seed=2)
     off = simulate(config)
@@ -206,7 +207,7 @@ def test_island_discovery_off_changes_nothing(monkeypatch):
 def test_one_leg_may_differ_from_the_others():
     """LegChange: the same change on every leg is the global effect, bit for bit; on one leg it moves that
     leg most; both engines agree; shared or unknown fields and legs the model lacks are refused."""
-    from hexsim.effects import Effects, LegChange
+    from hexsim.plant.effects import Effects, LegChange
 
     sc = make_scenario("heave", duration=1.5, frequency=2.0)
     every = simulate(RunConfig(sc, effects=Effects(leakage=3e-12), seed=1))
@@ -228,7 +229,7 @@ def test_one_leg_may_differ_from_the_others():
 
 def test_oil_spring_modes_of_the_600_kg_platform():
     # Issue 14: hand-computed 27.8/27.8/31.8/42.2/42.2/55.2 Hz (platform, E A1^2 / V1 per leg at mid-stroke)
-    from hexsim.modes import oil_spring_modes
+    from hexsim.simulation.modes import oil_spring_modes
 
     modes = oil_spring_modes()
     np.testing.assert_allclose([mode.frequency_hz for mode in modes], [27.8, 27.8, 31.8, 42.2, 42.2, 55.2], rtol=0.02)

@@ -12,11 +12,11 @@ import pytest
 
 from compensation import CompensatorSettings
 from hexsim.cli import main
-from hexsim.effects import Effects, LegChange
-from hexsim.logio import write_log
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
+from hexsim.control.scenario import make_scenario
+from hexsim.outputs.logio import write_log
+from hexsim.plant.effects import Effects, LegChange
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.runner import simulate
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)
 
@@ -133,9 +133,9 @@ def _hexapod_log(folder, name: str, leg3_null_offset: float) -> str:
 def test_discovery_points_at_the_one_leg_with_a_flow_effect(tmp_path):
     """Each leg's flow equation on its own signals: a null offset on leg 3 shows as a constant outflow
     of leg 3 and nowhere else; the nominal log gives no term on any leg."""
-    from hexsim.discovery import discover
-    from hexsim.hexapod_replay import HexapodProblem
-    from hexsim.measurement import read_log
+    from hexsim.measured.discovery import discover
+    from hexsim.measured.hexapod_replay import HexapodProblem
+    from hexsim.measured.measurement import read_log
 
     found = {}
     for name, u0 in (("nominal", 0.0), ("leg3_offset", 0.15)):
@@ -153,10 +153,10 @@ def test_payload_from_the_legs_p1_offsets_by_statics():
     the change of the legs' P1 gives the payload back, and six unrelated offsets are not taken for one."""
     import mujoco
 
-    from hexsim.hexapod_replay import payload_from_statics
-    from hexsim.model import PlantIndex, load_model, reset_neutral
-    from hexsim.params import HydraulicParams
-    from hexsim.simulation import static_leg_forces
+    from hexsim.measured.hexapod_replay import payload_from_statics
+    from hexsim.plant.model import PlantIndex, load_model, reset_neutral
+    from hexsim.plant.params import HydraulicParams
+    from hexsim.simulation.config import static_leg_forces
 
     def leg_forces(extra_kg, at):
         m = load_model("hexapod")

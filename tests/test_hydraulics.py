@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from hexsim import hydraulics
 from hexsim.errors import InputError
-from hexsim.metrics import run_smoothness
-from hexsim.model import load_model
-from hexsim.params import HydraulicParams
+from hexsim.plant import hydraulics
+from hexsim.plant.model import load_model
+from hexsim.plant.params import HydraulicParams
+from hexsim.simulation.metrics import run_smoothness
 
 P = HydraulicParams()
 # Appendix A, typed in from the seed (not from HydraulicParams): the analytic references. g = 9.81, the
@@ -27,8 +27,8 @@ def test_initial_pressure_is_the_seeds_formula(actuator_smooth):
 
 
 def test_one_gravity_in_both_models_and_the_identifiers():
-    from hexsim import discovery, friction_id
-    from hexsim.model import gravity, load_model
+    from hexsim.measured import discovery, friction_id
+    from hexsim.plant.model import gravity, load_model
 
     for name in ("actuator", "hexapod"):
         assert np.linalg.norm(load_model(name).opt.gravity) == pytest.approx(G, abs=1e-12)
@@ -179,8 +179,8 @@ def test_cavitation_floor_keeps_the_oil_volume():
     # A closed valve (x_v = 0: no opening) and the piston pulled out 10 mm and pushed back: the oil cannot
     # stretch below the cavitation pressure, a cavity opens instead, and it closes again on the way back,
     # so the chamber returns to its start pressure (continuity: the same oil in the same volume).
-    from hexsim.effects import Effects
-    from hexsim.plant import PlantState, step_plant
+    from hexsim.plant.effects import Effects
+    from hexsim.plant.legs import PlantState, step_plant
 
     state, y, dt = PlantState.at_rest([4.0e6], [0.0], P), 0.1, 1e-4
     lowest = []

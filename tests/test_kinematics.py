@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
+from hexsim.control.kinematics import HexapodGeometry
 from hexsim.errors import WorkspaceError
-from hexsim.kinematics import HexapodGeometry
-from hexsim.model import PlantIndex, load_model
+from hexsim.plant.model import PlantIndex, load_model
 
 
 @pytest.fixture(scope="module")

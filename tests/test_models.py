@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from hexsim.model import MODELS, check_warnings, model_path, reset_neutral
+from hexsim.plant.model import MODELS, check_warnings, model_path, reset_neutral
 
 MODELS_DIR = pathlib.Path(__file__).resolve().parents[1] / "models"
 

@@ -5,9 +5,9 @@ import csv
 import json
 
 from hexsim.cli import main
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.sweeps import evaluate_point
+from hexsim.control.scenario import make_scenario
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.sweeps import evaluate_point
 
 
 def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):
@@ -21,7 +21,7 @@ def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):
     assert data["grid"] == {"seed": [1, 2], "kp": [100.0, 200.0]}
     scenario = make_scenario("actuator", duration=2.5, frequency=2.0)
     for row, jrow in zip(rows, data["rows"]):
-        from hexsim.params import ControllerParams
+        from hexsim.plant.params import ControllerParams
 
         serial = evaluate_point(RunConfig(scenario, controller=ControllerParams(kp=float(row["kp"])),
                                           seed=int(row["seed"])))

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from hexsim.cli import main
-from hexsim.effects import EFFECT_NAMES, Effects
-from hexsim.logio import write_log
-from hexsim.params import HydraulicParams
-from hexsim.scenario import make_scenario
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
+from hexsim.control.scenario import make_scenario
+from hexsim.outputs.logio import write_log
+from hexsim.plant.effects import EFFECT_NAMES, Effects
+from hexsim.plant.params import HydraulicParams
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.runner import simulate
 
 DURATION = 6.0  # [s] per log (the shortest actuator scenario): 13 replay windows of 0.45 s
 
@@ -107,8 +107,8 @@ def test_report_folder(logs, tmp_path, capsys):
 
 
 def test_friction_from_pressures_and_from_force(logs, tmp_path):
-    from hexsim.friction_id import identify_friction
-    from hexsim.measurement import read_log
+    from hexsim.measured.friction_id import identify_friction
+    from hexsim.measured.measurement import read_log
 
     nominal = identify_friction(read_log(logs["none"]))
     rough = identify_friction(read_log(logs["friction"]))

@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 from scipy.signal import butter, filtfilt
 
-from hexsim.candidates import CANDIDATES, plausibility, plausible_bounds
-from hexsim.effects import EFFECT_NAMES, Effects
-from hexsim.identify import identify
-from hexsim.logio import write_log
-from hexsim.measurement import read_log
-from hexsim.params import HydraulicParams
-from hexsim.scenario import Scenario
-from hexsim.simulation import RunConfig
-from hexsim.runner import simulate
+from hexsim.control.scenario import Scenario
+from hexsim.measured.candidates import CANDIDATES, plausibility, plausible_bounds
+from hexsim.measured.identify import identify
+from hexsim.measured.measurement import read_log
+from hexsim.outputs.logio import write_log
+from hexsim.plant.effects import EFFECT_NAMES, Effects
+from hexsim.plant.params import HydraulicParams
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.runner import simulate
 from hexsim.tables import read_numeric_csv
 
 DURATION = 6.0
@@ -96,7 +96,7 @@ def logs(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def answers(logs):
-    from hexsim.validation import summary
+    from hexsim.measured.validation import summary
 
     return {name: summary(identify(read_log(path), jobs=2)) for name, path in logs.items()}
 
@@ -175,7 +175,7 @@ def test_nothing_finer_than_the_log_resolves_is_a_finding(logs):
 def test_sensors_are_checked_against_each_other(logs):
     """The accelerometer against the position's second derivative, before any model: a consistent log
     says nothing; a 10 % sensitivity error and a flipped sign are each named in one sentence."""
-    from hexsim.validation import sensor_consistency
+    from hexsim.measured.validation import sensor_consistency
 
     log = read_log(logs["null_random"])
     assert sensor_consistency(log) == []

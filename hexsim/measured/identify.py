@@ -1,0 +1,776 @@
+"""Which effects a measurement log shows that the nominal model lacks, decided as a system-identification
+engineer would sign it.
+
+1. **Noise budget.** Every channel c is judged against b_c = sqrt(sigma_c^2 + tau_c^2): sigma_c the sensor
+   noise (the smaller of two robust estimates: the log's own second difference and the nominal replay
+   residual's, 1.4826 MAD / sqrt(6)), tau_c the replay's own numerical error, estimated by Richardson from
+   the replay at the step h = 1e-4 s and at 2h (first-order scheme: error(h) ≈ y(2h) - y(h)).
+2. **Calibration.** Every model, the nominal included, fits sensor calibration as nuisance parameters
+   (:func:`calibrate`): an offset per channel and a scale for the position transducer and the
+   accelerometer. They are reported as calibration, never as an effect.
+3. **Fit.** A candidate (:mod:`hexsim.measured.candidates`) is fitted by ``scipy.optimize.least_squares`` inside
+   its plausible range on the *fit* windows (even), residuals divided by b_c.
+4. **Accept** (:func:`judge`) only if, on the *held-out* windows (odd):
+   the log cost ratio per window (the candidate charged with the cost the numerical tolerance alone
+   accounts for) is positive in a one-sided t-test over the held-out windows at level :data:`ALPHA` /
+   (candidates tried in the round) (Bonferroni: the family of one round); it removes at least
+   :data:`MIN_EXCESS_SHARE` of the held-out cost beyond the budget (material, not only significant); no
+   signal's (each leg's on a hexapod) held-out RMS gets worse by more than its budget and
+   :data:`WORSE_REL`; and every parameter lies inside its plausible range, off its bounds and above what
+   the log resolves.
+5. **Forward selection**: after an accepted effect, every other candidate is fitted on top of it and
+   judged the same way; the accepted effects are then refitted jointly; at most :data:`MAX_EFFECTS`.
+6. **Discovery** (:mod:`hexsim.measured.discovery`): for ``partial`` and ``unexplained``, a sparse correction of
+   the model's own flow and force equations, added to the model where it maps onto a parameter, replayed
+   and reported with its held-out error.
+7. **Verdict**: ``none`` (the nominal model is within :data:`WITHIN` budgets on every channel: nothing is
+   fitted), ``explained`` (accepted effects bring every channel within it), ``partial`` (some effect
+   accepted, structure left), ``unexplained`` (the nominal is off and no candidate passes).
+
+Single-actuator logs use the windowed valve replay (:class:`Problem`), hexapod logs the closed-loop
+replay (:class:`hexsim.measured.hexapod_replay.HexapodProblem`); both give channel arrays whose first axis is the
+window (segment) and second the sample.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import as_completed
+from dataclasses import dataclass, field
+from functools import partial
+
+import numpy as np
+from scipy import stats
+from scipy.optimize import least_squares
+from tqdm import tqdm
+
+from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.candidates import (
+    CANDIDATES,
+    LEG_LEVEL,
+    applier,
+    candidate_key,
+    parse_key,
+    plausibility,
+    plausible_bounds,
+)
+from hexsim.measured.discovery import discover
+from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.replay import (
+    CHANNELS,
+    PlantModel,
+    Windows,
+    measured_velocity,
+    replay,
+    supply_from_log,
+)
+from hexsim.measured.residuals import effective_n, noise_of
+from hexsim.plant.effects import EFFECT_NAMES, Effects
+from hexsim.plant.params import HydraulicParams
+from hexsim.signals import near_reversals
+from hexsim.simulation.workers import in_workers, worker_pool
+
+#: Valve-replay window [s]: long enough to see a flow offset integrate, short enough not to drift away.
+WINDOW_S = 0.3
+#: Start of each window left out of the cost [s]: the initial state taken from the measurements
+#: (velocity from a filtered derivative, P1 with its sensor noise) is not exact, and the 100 Hz oil
+#: spring rings the difference out over some 10–40 ms.
+SETTLE_S = 0.05
+#: Replay step [s] (the simulator's) and the factor of the coarse replay for the numerical tolerance.
+REPLAY_DT = 1e-4
+RICHARDSON = 2
+#: Level of the one-sided held-out test, shared by the candidates of one round (Bonferroni).
+ALPHA = 0.05
+#: A channel is explained when its held-out mean square is within this many budgets squared
+#: (RMS within sqrt(2) b_c: noise, numerical tolerance and the sampling scatter of both).
+WITHIN = 2.0
+#: A candidate makes a channel worse when its held-out RMS grows by more than the channel's budget and
+#: by more than this fraction.
+WORSE_REL = 0.10
+MAX_EFFECTS = 3
+#: A candidate must remove at least this share of the held-out cost its base model leaves beyond the
+#: budget (WITHIN budgets^2 per sample): significance alone lets a wrong effect that soaks up a few
+#: percent of a large residual pass (null offset 1.73 V on a leaking leg: 4 %, p = 6e-12).
+MIN_EXCESS_SHARE = 0.25
+#: Channels whose sensors get a calibration scale (the others an offset only).
+SCALED = ("position", "acceleration")
+#: Largest calibration scale error fitted per channel, |scale - 1|: accelerometers' sensitivity tolerance is
+#: a few percent (±5 % uncalibrated); position transducers are linear to far better than 1 %, and a looser
+#: position scale trades with the valve's flow gain (the increments of a window scale with both).
+SCALE_LIMIT = {"position": 0.01, "acceleration": 0.05}
+#: A scale is fitted only to a signal whose replayed motion is at least this many times the log's noise
+#: estimate (standard deviations; that estimate includes the accelerometer's real high-frequency content,
+#: 0.26 m/s^2 on a single-actuator log whose motion is 1.4 m/s^2): a hexapod's accelerometer axes across
+#: a heave motion replay at ~0.05 of it, and their scale clamped at the limit by chance.
+SCALE_MIN_SNR = 3.0
+
+
+def available_channels(log: MeasurementLog) -> list[str]:
+    return [ch for ch, (col, _, _) in CHANNELS.items() if col in log.columns]
+
+
+def channel_scales(log: MeasurementLog) -> dict[str, float]:
+    """Scale of each channel for the NRMSE: the standard deviation of the measured signal, floored (so a
+    constant supply pressure is judged against 0.1 bar, not against its sensor noise)."""
+    return {ch: max(float(np.std(log.columns[CHANNELS[ch][0]])), CHANNELS[ch][2]) for ch in available_channels(log)}
+
+
+def _signals(a: np.ndarray) -> np.ndarray:
+    """(k, n) -> (k, n, 1); (k, n, s) unchanged."""
+    return a[..., None] if a.ndim == 2 else a
+
+
+class Problem:
+    """A single-actuator log cut into valve-replay windows (:func:`hexsim.measured.replay.replay`); channel arrays
+    (windows, samples), the first :data:`SETTLE_S` of each window not scored."""
+
+    windowed = True  # each window starts from the measured state (position residual 0 at its start)
+
+    def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
+        self.log = log
+        length = int(round(window_s * log.sample_rate_hz))
+        self.windows = Windows.tile(len(log.time), length)
+        self.fit_rows = np.arange(0, len(self.windows.starts), 2)
+        self.test_rows = np.arange(1, len(self.windows.starts), 2)
+        if len(self.test_rows) < 2:
+            raise InputError(f"{log.path}: the log is shorter than four replay windows of {window_s} s")
+        self.settle = int(round(SETTLE_S * log.sample_rate_hz))
+        self.channels = available_channels(log)
+        self.scales = channel_scales(log)
+        self.measured = {ch: self.windows.take(log.columns[CHANNELS[ch][0]]) for ch in self.channels}
+        self.log_noise = {ch: noise_of(log.columns[CHANNELS[ch][0]], ch) for ch in self.channels}
+        self.nominal = PlantModel(supply_from_log(log, HydraulicParams()), Effects())
+
+    def simulate(self, model: PlantModel, dt: float = REPLAY_DT) -> dict[str, np.ndarray]:
+        """Replayed channels, name -> (windows, samples), physical units."""
+        out = replay(self.log, model, self.windows, dt=dt)
+        return {ch: out[ch] for ch in self.channels}
+
+    replay_mode = ("valve replay: the logged u_v drives the model open loop in windows, each started from "
+                   "the measured state")
+    scored = "windows after their settling time"
+
+    @property
+    def units(self) -> dict[str, str]:
+        return {ch: CHANNELS[ch][1] for ch in self.channels}
+
+    @property
+    def window_doc(self) -> dict:
+        fs = self.log.sample_rate_hz
+        return {"count": int(len(self.windows.starts)), "length_s": self.windows.length / fs,
+                "settle_s": self.settle / fs, "fit": "even windows", "held_out": "odd windows"}
+
+    def analysis_view(self, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Residuals (k, n) per channel as the residual analysis takes them: windows without the settling."""
+        return {ch: r[:, self.settle:] for ch, r in res.items()}
+
+    def motion_state(self):
+        """(u_v, velocity, position, near a reversal), each (k, n) like :meth:`analysis_view`."""
+        log = self.log
+        pos = log.columns["pos_m"]
+        vel = measured_velocity(log, pos)
+        near = near_reversals(log.time, vel)
+        take = lambda x: self.windows.take(x)[:, self.settle:]  # noqa: E731
+        return take(log.columns["valve_cmd_V"]), take(vel), take(pos), take(near)
+
+    def sample_times(self) -> np.ndarray:
+        """Log times [s] of the samples of :meth:`analysis_view` (k, n)."""
+        fs = self.log.sample_rate_hz
+        return self.log.time[self.windows.starts][:, None] + np.arange(self.settle, self.windows.length)[None, :] / fs
+
+
+@dataclass(frozen=True)
+class Budget:
+    """Per channel [SI]: sensor noise sigma_c, numerical tolerance tau_c, budget b_c = sqrt(sigma^2 + tau^2)."""
+
+    noise: dict[str, float]
+    tolerance: dict[str, float]
+
+    @property
+    def total(self) -> dict[str, float]:
+        return {ch: math.hypot(self.noise[ch], self.tolerance[ch]) for ch in self.noise}
+
+    def as_dict(self, units: dict[str, str]) -> dict:
+        return {ch: {"noise": self.noise[ch], "tolerance": self.tolerance[ch], "budget": self.total[ch],
+                     "unit": units[ch]} for ch in self.noise}
+
+
+def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
+    """The noise budget of :data:`problem` (see the module doc, step 1); ``nominal_sim`` is the nominal
+    model's replay at :data:`REPLAY_DT`."""
+    coarse = problem.simulate(problem.nominal, dt=RICHARDSON * REPLAY_DT)
+    s = problem.settle
+    noise, tol = {}, {}
+    for ch in problem.channels:
+        res = (nominal_sim[ch] - problem.measured[ch])[:, s:]
+        noise[ch] = min(problem.log_noise[ch], noise_of(res, ch))
+        tol[ch] = float(np.sqrt(np.mean((nominal_sim[ch] - coarse[ch])[:, s:] ** 2)))
+    return Budget(noise, tol)
+
+
+def with_model_tolerance(problem, model: PlantModel, budget: Budget) -> Budget:
+    """``budget`` with each channel's numerical tolerance the larger of its own and ``model``'s (the same
+    Richardson estimate on that model's replay): a model with effects (a heavier platform, a sagging
+    supply) has its own discretisation error, which the nominal's does not measure."""
+    fine = problem.simulate(model)
+    coarse = problem.simulate(model, dt=RICHARDSON * REPLAY_DT)
+    s = problem.settle
+    tol = {ch: max(budget.tolerance[ch], float(np.sqrt(np.mean((fine[ch] - coarse[ch])[:, s:] ** 2))))
+           for ch in problem.channels}
+    return Budget(budget.noise, tol)
+
+
+def _lstsq1(x: np.ndarray, y: np.ndarray) -> float:
+    den = float(x @ x)
+    return float(x @ y) / den if den > 0 else 0.0
+
+
+def _bounded(beta: float, channel: str) -> float:
+    return float(np.clip(beta, -SCALE_LIMIT[channel], SCALE_LIMIT[channel]))
+
+
+def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
+    """Residuals with the sensor calibration fitted on ``rows`` (least squares, scored samples):
+    measured ≈ offset + scale · simulated, the scale for :data:`SCALED` channels only. For windowed
+    replays the position starts each window at the measured value, so only its scale is fitted, on the
+    increments from the window start. Scales are limited to 1 ± :data:`SCALE_LIMIT` and fitted only to
+    signals that move (:data:`SCALE_MIN_SNR`). Returns (calibrated residual = offset + scale sim - measured per
+    channel, calibration: channel -> {"offset": [...], "scale": [...]} per signal)."""
+    out, cal = {}, {}
+    s0 = problem.settle
+    for ch in problem.channels:
+        sim_c, meas = _signals(sim[ch]), _signals(problem.measured[ch])
+        res = sim_c - meas
+        offsets, scales = [], []
+        for j in range(sim_c.shape[2]):
+            x = sim_c[:, :, j]
+            r = res[rows, s0:, j].ravel()
+            if ch == "position" and problem.windowed:  # increments from the window start: scale only
+                inc = x - x[:, :1]
+                beta = _bounded(_lstsq1(inc[rows, s0:].ravel(), -r), ch)
+                res[:, :, j] += beta * inc
+                offsets.append(0.0)
+                scales.append(1.0 + beta)
+                continue
+            if ch in SCALED and np.std(x[rows, s0:]) >= SCALE_MIN_SNR * problem.log_noise[ch]:
+                a = np.stack([np.ones(r.size), x[rows, s0:].ravel()], axis=1)
+                offset, beta = np.linalg.lstsq(a, -r, rcond=None)[0]
+                if abs(beta) > SCALE_LIMIT[ch]:  # clamp the scale, refit the offset
+                    beta = _bounded(beta, ch)
+                    offset = -float(np.mean(r + beta * x[rows, s0:].ravel()))
+            else:
+                offset, beta = -float(np.mean(r)), 0.0
+            res[:, :, j] += offset + beta * x
+            offsets.append(float(offset))
+            scales.append(1.0 + float(beta))
+        out[ch] = res[..., 0] if sim[ch].ndim == 2 else res
+        cal[ch] = {"offset": offsets, "scale": scales}
+    return out, cal
+
+
+@dataclass
+class Scored:
+    """A model's calibrated residuals as the decision sees them."""
+
+    residuals: dict[str, np.ndarray]  # calibrated, physical units, like problem.measured
+    calibration: dict
+    window_cost: np.ndarray  # (windows,) sum of (residual / b_c)^2 over the scored samples
+    held_out_rms: dict[str, float]  # channel -> RMS on the held-out windows [SI]
+    held_out_rms_signals: dict[str, list[float]]  # channel -> RMS per signal (hexapod: per leg / axis) [SI]
+
+
+def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
+    res, cal = calibrate(problem, sim, problem.fit_rows)
+    b = budget.total
+    s0 = problem.settle
+    k = len(problem.fit_rows) + len(problem.test_rows)
+    cost = np.zeros(k)
+    held, signals = {}, {}
+    for ch in problem.channels:
+        r = res[ch][:, s0:]
+        cost += np.sum((r / b[ch]) ** 2, axis=tuple(range(1, r.ndim)))
+        held[ch] = float(np.sqrt(np.mean(r[problem.test_rows] ** 2)))
+        signals[ch] = [float(v) for v in np.sqrt(np.mean(_signals(r[problem.test_rows]) ** 2, axis=(0, 1)))]
+    return Scored(res, cal, cost, held, signals)
+
+
+def residual_vector(problem, sim: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
+    """Calibrated residuals of ``rows`` (scored samples) divided by the budget, as one vector."""
+    return _as_vector(problem, calibrate(problem, sim, rows)[0], budget, rows)
+
+
+def _as_vector(problem, res: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
+    b = budget.total
+    return np.concatenate([(res[ch][rows, problem.settle:] / b[ch]).ravel() for ch in problem.channels])
+
+
+def window_samples(problem, channel: str) -> int:
+    """Scored samples of one window of ``channel``, all its signals together."""
+    return problem.measured[channel][0, problem.settle:].size
+
+
+def tolerance_cost(problem, budget: Budget) -> float:
+    """Cost per window that the numerical tolerance alone accounts for: sum over channels of
+    (scored samples x signals) tau_c^2 / b_c^2."""
+    b = budget.total
+    return sum(window_samples(problem, ch) * (budget.tolerance[ch] / b[ch]) ** 2 for ch in problem.channels)
+
+
+@dataclass
+class FitResult:
+    """One candidate fitted on top of a base model, and the judgement of it."""
+
+    name: str
+    on_top_of: tuple[str, ...]
+    parameters: dict[str, dict[str, float]]  # name -> {value, std_error, unit}
+    x: np.ndarray
+    model: PlantModel
+    scored: Scored
+    nfev: int
+    held_out_gain: float = float("nan")  # 1 - held-out cost / the base model's held-out cost
+    p_value: float = float("nan")
+    accepted: bool = False
+    reasons: list[str] = field(default_factory=list)  # why not accepted
+    leg: int | None = None  # the leg it acts on alone (hexapod), None: all legs / the single actuator
+
+    @property
+    def key(self) -> str:
+        return candidate_key(self.name, self.leg)
+
+    def as_dict(self) -> dict:
+        return {"effect": self.name, "leg": self.leg, "on_top_of": list(self.on_top_of), "parameters": self.parameters,
+                "held_out_gain": self.held_out_gain, "p_value": self.p_value, "accepted": self.accepted,
+                "rejected_because": self.reasons, "held_out_rms": self.scored.held_out_rms,
+                "calibration": self.scored.calibration, "function_evaluations": self.nfev}
+
+
+def fit_candidate(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...] = (),
+                  starts=None) -> FitResult:
+    """Fit one candidate (a :func:`hexsim.measured.candidates.candidate_key`: all legs, or one leg) on top of
+    ``base`` (its parameters held) on the fit windows of ``problem``; score it on all of them. The search
+    starts from the best of ``starts`` (default the candidate's own). See :func:`_least_squares`."""
+    cand, leg = parse_key(key)
+    lower, upper = plausible_bounds(cand, problem.log)
+    given = cand.starts(problem.log) if starts is None else starts
+    starts = [np.clip(np.array(x, dtype=float), lower, upper) for x in given]
+    apply = applier(cand, leg)
+    x, se, scored, nfev = _least_squares(problem, lambda x: apply(base, x), lower, upper, starts, budget)
+    params = {p: {"value": float(v), "std_error": float(e), "unit": u}
+              for p, v, e, u in zip(cand.parameters, x, se, cand.units)}
+    return FitResult(name=cand.name, on_top_of=on_top_of, parameters=params, x=x, model=apply(base, x),
+                     scored=scored, nfev=nfev, leg=leg)
+
+
+def refit_jointly(problem, fits: list[FitResult], budget: Budget) -> list[FitResult]:
+    """All accepted effects refitted together from their values (forward selection refits the whole model
+    after each step, so an effect fitted first does not keep what the next one explains). Returns one
+    FitResult per effect, each holding the joint model and scores."""
+    parsed = [parse_key(f.key) for f in fits]
+    bounds = [plausible_bounds(c, problem.log) for c, _ in parsed]
+    lower = np.concatenate([b[0] for b in bounds])
+    upper = np.concatenate([b[1] for b in bounds])
+    sizes = np.cumsum([0] + [len(c.parameters) for c, _ in parsed])
+    appliers = [applier(c, leg) for c, leg in parsed]
+
+    def apply(x):
+        model = problem.nominal
+        for i, a in enumerate(appliers):
+            model = a(model, x[sizes[i]:sizes[i + 1]])
+        return model
+
+    x0 = np.clip(np.concatenate([f.x for f in fits]), lower, upper)
+    x, se, scored, nfev = _least_squares(problem, apply, lower, upper, [x0], budget)
+    model = apply(x)
+    out = []
+    for i, (f, (c, leg)) in enumerate(zip(fits, parsed)):
+        sl = slice(sizes[i], sizes[i + 1])
+        params = {p: {"value": float(v), "std_error": float(e), "unit": u}
+                  for p, v, e, u in zip(c.parameters, x[sl], se[sl], c.units)}
+        out.append(FitResult(name=f.name, on_top_of=f.on_top_of, parameters=params, x=x[sl], model=model,
+                             scored=scored, nfev=nfev, held_out_gain=f.held_out_gain, p_value=f.p_value,
+                             accepted=f.accepted, reasons=f.reasons, leg=leg))
+    return out
+
+
+def _least_squares(problem, make_model, lower, upper, starts, budget: Budget):
+    """least_squares (trf) inside the bounds on the fit windows, from the best of ``starts``. Standard
+    errors from the Jacobian at the optimum, s^2 (J^T J)^-1 with s^2 per independent residual (N_eff,
+    Bartlett: residuals of a dynamic model are not white); none for a parameter at a bound. A model that
+    cannot run at some parameter value scores as a bad fit there. Returns (x, standard errors, Scored,
+    function evaluations)."""
+    cache: dict[bytes, dict[str, np.ndarray] | None] = {}
+
+    def sim_at(x):
+        key = np.asarray(x).tobytes()
+        if key not in cache:
+            try:
+                cache[key] = problem.simulate(make_model(x))
+            except (PhysicsError, FloatingPointError, ValueError):
+                cache[key] = None
+        return cache[key]
+
+    def resid(x):
+        sim = sim_at(x)
+        if sim is None:
+            n = sum(problem.measured[ch][problem.fit_rows, problem.settle:].size for ch in problem.channels)
+            return np.full(n, 1e3)
+        return residual_vector(problem, sim, budget, problem.fit_rows)
+
+    x0 = min(starts, key=lambda x: float(np.sum(resid(x) ** 2)))
+    sol = least_squares(resid, x0, bounds=(lower, upper), method="trf", diff_step=1e-2, x_scale="jac",
+                        max_nfev=12 * len(x0) + 8, xtol=1e-4, ftol=1e-6)
+    x = sol.x if sim_at(sol.x) is not None else x0
+    scored = score(problem, sim_at(x), budget)
+    fit_vec = _as_vector(problem, scored.residuals, budget, problem.fit_rows)  # calibrated on the fit rows
+    n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
+    s2 = float(fit_vec @ fit_vec) / max(n_eff - len(x0), 1.0)  # per independent residual
+    free = (x > lower) & (x < upper)
+    se = np.full(len(x0), np.nan)
+    if np.any(free):
+        jf = sol.jac[:, free]
+        se[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf) * s2), 0, None))
+    return x, se, scored, int(sol.nfev)
+
+
+def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> None:
+    """Accept or reject ``fit`` against the model it extends (module doc, step 4); sets its
+    held_out_gain, p_value, accepted and reasons."""
+    test = problem.test_rows
+    before, after = base.window_cost[test], fit.scored.window_cost[test]
+    fit.held_out_gain = float(1.0 - after.sum() / before.sum()) if before.sum() > 0 else 0.0
+    # per held-out window: log of the cost ratio, the candidate's cost charged with what the numerical
+    # tolerance alone could explain (so a fit of the tolerance is no improvement)
+    gain = np.log(before) - np.log(after + tolerance_cost(problem, budget))
+    if np.ptp(gain) == 0:
+        fit.p_value = 0.0 if gain[0] > 0 else 1.0
+    else:
+        fit.p_value = float(stats.ttest_1samp(gain, 0.0, alternative="greater").pvalue)
+    level = ALPHA / max(tried, 1)
+    reasons = []
+    if not fit.p_value < level:
+        reasons.append(f"held-out improvement beyond the numerical tolerance not significant "
+                       f"(p = {fit.p_value:.2g} >= {level:.2g})")
+    # material: it must remove a real share of what the base model leaves beyond the budget, or a
+    # significant but small improvement (a wrong effect soaking up a little of a large residual) passes
+    floor = WITHIN * sum(window_samples(problem, ch) for ch in problem.channels) * len(test)
+    excess = float(before.sum()) - floor
+    removed = float(before.sum() - after.sum())
+    if excess > 0 and removed < MIN_EXCESS_SHARE * excess:
+        reasons.append(f"removes only {max(removed, 0.0) / excess:.0%} of the held-out error beyond the budget "
+                       f"(at least {MIN_EXCESS_SHARE:.0%} needed): not the explanation")
+    b = budget.total
+    for ch in problem.channels:  # every signal: a candidate on all legs must not spoil the healthy ones
+        labels = signal_labels(problem, ch)
+        for j, (was, now) in enumerate(zip(base.held_out_rms_signals[ch], fit.scored.held_out_rms_signals[ch])):
+            if now > max((1.0 + WORSE_REL) * was, was + b[ch]):
+                where = f"{ch} of {labels[j]}" if len(labels) > 1 else ch
+                reasons.append(f"{where} worse: held-out RMS {was:.3g} -> {now:.3g} {CHANNELS[ch][1]}")
+    reasons += plausibility(CANDIDATES[fit.name], problem.log, fit.x)
+    fit.reasons = reasons
+    fit.accepted = not reasons
+
+
+def signal_labels(problem, channel: str) -> list[str]:
+    """Names of the signals of a channel: ``leg1``…``leg6`` or the accelerometer axes on a hexapod."""
+    n = _signals(problem.measured[channel]).shape[2]
+    if n == 1:
+        return [channel]
+    return [f"axis {a}" for a in "xyz"] if channel == "acceleration" else [f"leg{i + 1}" for i in range(n)]
+
+
+def within_budget(scored: Scored, budget: Budget) -> dict[str, float]:
+    """Held-out mean square per channel in budgets squared (<= :data:`WITHIN`: explained)."""
+    b = budget.total
+    return {ch: (rms / b[ch]) ** 2 for ch, rms in scored.held_out_rms.items()}
+
+
+#: Candidates that apply to a hexapod log: the load (mass, inclination) is a single-axis fact, the
+#: payload the hexapod's.
+HEXAPOD_CANDIDATES = (*(n for n in EFFECT_NAMES if n != "load"), "payload")
+
+
+def default_candidates(system: str) -> tuple[str, ...]:
+    """The candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``)."""
+    return HEXAPOD_CANDIDATES if system == "hexapod" else EFFECT_NAMES
+
+
+def make_problem(log: MeasurementLog):
+    """The identification problem of a log: windowed valve replay for a single actuator
+    (:class:`Problem`), closed-loop replay in segments for a hexapod
+    (:class:`hexsim.measured.hexapod_replay.HexapodProblem`)."""
+    if log.system == "hexapod":
+        from hexsim.measured.hexapod_replay import HexapodProblem
+
+        return HexapodProblem(log)
+    return Problem(log)
+
+
+#: Hexapod: candidates are searched on the first this many segments of the log (a closed-loop replay of
+#: 0.5 s + 4 s instead of the whole log), then scored and judged on the whole log.
+SEARCH_SEGMENTS = 16
+#: Hexapod: candidates fitted per round. All are screened first by the cost of their best start on the
+#: search segments (one replay per start); the best this many are fitted, the others are reported as
+#: screened out.
+FIT_PER_ROUND = 4
+#: Hexapod: a leg "stands out" when its held-out RMS (position or P1) is above sqrt(WITHIN) budgets and
+#: this many times the legs' median; leg-level candidates are then tried on that leg alone.
+LEG_STANDOUT = 3.0
+MAX_LEGS = 2
+
+
+def search_problem(problem):
+    """The problem candidates are searched on: a hexapod log's first :data:`SEARCH_SEGMENTS` segments
+    (the problem itself if it is not longer), a single-actuator log's own windows."""
+    if getattr(problem, "segments", 0) > SEARCH_SEGMENTS:
+        return problem.prefix(SEARCH_SEGMENTS)
+    return problem
+
+
+def _fit_one(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...],
+             starts=None) -> FitResult:
+    """Fit on the search problem, score on the whole log."""
+    search = search_problem(problem)
+    fit = fit_candidate(search, key, base, budget, on_top_of, starts)
+    if search is not problem:
+        fit.scored = score(problem, problem.simulate(fit.model), budget)
+    return fit
+
+
+def _fit_in_worker(log: MeasurementLog, key: str, base: PlantModel, budget: Budget,
+                   on_top_of: tuple[str, ...], starts=None) -> FitResult:
+    return _fit_one(make_problem(log), key, base, budget, on_top_of, starts)
+
+
+def start_cost(problem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
+    """(best start, its cost on the fit windows of the search problem) of a candidate: one replay per
+    start. A start the model cannot run scores infinite."""
+    search = search_problem(problem)
+    cand, leg = parse_key(key)
+    lower, upper = plausible_bounds(cand, search.log)
+    apply = applier(cand, leg)
+    best = (None, math.inf)
+    for x in cand.starts(search.log):
+        x = tuple(float(v) for v in np.clip(np.array(x, dtype=float), lower, upper))
+        try:
+            cost = float(np.sum(residual_vector(search, search.simulate(apply(base, np.array(x))), budget,
+                                                search.fit_rows) ** 2))
+        except (PhysicsError, FloatingPointError, ValueError):
+            cost = math.inf
+        if cost < best[1] or best[0] is None:
+            best = (x, cost)
+    return best
+
+
+def _start_cost_in_worker(log, key, base, budget):
+    return start_cost(make_problem(log), key, base, budget)
+
+
+def standout_legs(problem, scored: Scored, budget: Budget) -> list[int]:
+    """Hexapod legs (1-6) whose held-out position or P1 error stands out of the others' (see
+    :data:`LEG_STANDOUT`), worst first, at most :data:`MAX_LEGS`; [] for a single actuator."""
+    if problem.log.system != "hexapod":
+        return []
+    b = budget.total
+    ratio = np.max([np.asarray(scored.held_out_rms_signals[ch]) / b[ch] for ch in ("position", "p1")
+                    if ch in scored.held_out_rms_signals], axis=0)
+    median = float(np.median(ratio))
+    legs = [int(j) + 1 for j in np.argsort(-ratio)
+            if ratio[j] > math.sqrt(WITHIN) and ratio[j] > LEG_STANDOUT * median]
+    return legs[:MAX_LEGS]
+
+
+@dataclass
+class Identification:
+    """Outcome of :func:`identify`."""
+
+    problem: object
+    budget: Budget
+    nominal: Scored
+    rounds: list[list[FitResult]]  # the candidates of each forward-selection round
+    accepted: list[FitResult]
+    final: Scored  # the nominal plus the accepted effects
+    verdict: str  # none | explained | partial | unexplained
+    discovery: dict | None = None  # hexsim.measured.discovery.discover, for partial and unexplained verdicts
+    # hexapod: per round, every candidate screened: key, the cost of its best start on the search
+    # segments relative to the model it extends, and whether it was fitted
+    screening: list[list[dict]] = field(default_factory=list)
+
+    @property
+    def added_effect(self) -> str:
+        return self.accepted[0].name if self.accepted else "none"
+
+    @property
+    def candidates(self) -> list[FitResult]:
+        return [f for r in self.rounds for f in r]
+
+    @property
+    def nominal_residuals(self) -> dict[str, np.ndarray]:
+        return self.nominal.residuals
+
+    @property
+    def chosen_residuals(self) -> dict[str, np.ndarray]:
+        return self.final.residuals
+
+    def nrmse(self, scored: Scored) -> dict[str, float]:
+        p = self.problem
+        return {ch: float(np.sqrt(np.mean(r[:, p.settle:] ** 2)) / p.scales[ch]) for ch, r in scored.residuals.items()}
+
+    @property
+    def error_before(self) -> dict[str, float]:
+        return self.nrmse(self.nominal)
+
+    @property
+    def error_after(self) -> dict[str, float]:
+        return self.nrmse(self.final)
+
+
+def _parallel(jobs: int, fn, worker, log, calls: list[tuple], on_done=None) -> list:
+    """``fn(*args)`` for each args of ``calls``, results in the order of ``calls``; in worker processes as
+    ``worker(log, *args)`` (which rebuilds the problem from the log) when jobs > 1. ``on_done(result)``
+    is called as each finishes (progress)."""
+    on_done = on_done or (lambda result: None)
+    if in_workers(jobs) and len(calls) > 1:
+        with worker_pool(min(jobs, len(calls))) as pool:
+            futures = {pool.submit(worker, log, *args): i for i, args in enumerate(calls)}
+            results = [None] * len(calls)
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                on_done(results[futures[fut]])
+            return results
+    results = []
+    for args in calls:
+        results.append(fn(*args))
+        on_done(results[-1])
+    return results
+
+
+def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, base_cost: float, jobs: int,
+            notify) -> tuple[list[str], dict[str, tuple], list[dict]]:
+    """Hexapod: the cost of each candidate's best start on the search segments (:func:`start_cost`); the
+    :data:`FIT_PER_ROUND` lowest go on to be fitted from that start. Returns (keys to fit, their start,
+    the screening table)."""
+    if log.system != "hexapod" or len(keys) <= FIT_PER_ROUND:
+        return keys, {}, []
+    notify(f"screening {len(keys)} candidates by their best start on the first {SEARCH_SEGMENTS} segments")
+    costs = _parallel(jobs, partial(start_cost, problem), _start_cost_in_worker, log,
+                      [(k, base, budget) for k in keys])
+    ranked = sorted(range(len(keys)), key=lambda i: costs[i][1])
+    chosen = [keys[i] for i in ranked[:FIT_PER_ROUND]]
+    table = [{"candidate": keys[i], "start": list(costs[i][0]), "start_cost_ratio": costs[i][1] / base_cost
+              if base_cost > 0 else float("nan"), "fitted": keys[i] in chosen} for i in ranked]
+    return chosen, {keys[i]: (costs[i][0],) for i in ranked[:FIT_PER_ROUND]}, table
+
+
+def _fit_round(problem, log, keys, base: PlantModel, budget: Budget, on_top_of, jobs, bar, notify,
+               starts: dict[str, tuple] | None = None) -> list[FitResult]:
+    starts = starts or {}
+    count = [0]
+
+    def done(fit: FitResult) -> None:
+        count[0] += 1
+        bar.set_postfix_str(fit.key)
+        bar.update()
+        notify(f"fitted {fit.key}{' on top of ' + '+'.join(on_top_of) if on_top_of else ''} "
+               f"({count[0]}/{len(keys)})")
+
+    return _parallel(jobs, partial(_fit_one, problem), _fit_in_worker, log,
+                     [(k, base, budget, on_top_of, starts.get(k)) for k in keys], done)
+
+
+def _round_keys(problem, candidates, accepted: list[FitResult], legs: list[int]) -> list[str]:
+    """The candidates of a round: every name not yet accepted on all legs, and on a hexapod the
+    leg-level ones on each leg that stands out (:func:`standout_legs`)."""
+    taken = {a.key for a in accepted}
+    keys = [n for n in candidates if n not in taken]
+    keys += [candidate_key(n, leg) for leg in legs for n in candidates
+             if n in LEG_LEVEL and candidate_key(n, leg) not in taken]
+    return keys
+
+
+def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budget, jobs: int, progress: bool,
+            notify) -> tuple[list[list[FitResult]], list[list[dict]], list[FitResult], Scored, object, object]:
+    """Forward selection (the module doc): rounds of screening and fitting the candidates on top of the
+    effects accepted so far, each judged on held-out data, until the log is within budget, nothing passes
+    or :data:`MAX_EFFECTS` are in. Returns (rounds, screening tables, accepted, final scored, final model,
+    budget: the accepted model's own tolerance where it decided the verdict)."""
+    log = problem.log
+    rounds: list[list[FitResult]] = []
+    screening: list[list[dict]] = []
+    accepted: list[FitResult] = []
+    current, model = nominal, problem.nominal
+    search = search_problem(problem)
+    if max(within_budget(nominal, budget).values()) > WITHIN:
+        legs = standout_legs(problem, nominal, budget)
+        if legs:
+            notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in legs))
+            problem.focus_leg = legs[0]  # the report's residual analysis looks at it
+        bar = tqdm(desc="fitting effects", unit="fit", disable=not progress, leave=False)
+        while len(accepted) < MAX_EFFECTS:
+            keys = _round_keys(problem, candidates, accepted, legs)
+            if not keys:
+                break
+            on_top = tuple(a.key for a in accepted)
+            base_cost = float(np.sum(residual_vector(search, search.simulate(model), budget, search.fit_rows) ** 2)) \
+                if log.system == "hexapod" and len(keys) > FIT_PER_ROUND else 0.0
+            keys, starts, table = _screen(problem, log, keys, model, budget, base_cost, jobs, notify)
+            screening.append(table)
+            notify(f"round {len(rounds) + 1}: fitting {len(keys)} candidates")
+            fits = _fit_round(problem, log, keys, model, budget, on_top, jobs, bar, notify, starts)
+            for f in fits:
+                judge(problem, current, f, budget, len(keys))
+            rounds.append(fits)
+            passed = [f for f in fits if f.accepted]
+            if not passed:
+                break
+            best = max(passed, key=lambda f: f.held_out_gain)
+            accepted.append(best)
+            if len(accepted) > 1:
+                accepted = refit_jointly(search, accepted, budget)
+                if search is not problem:
+                    joint = score(problem, problem.simulate(accepted[-1].model), budget)
+                    for a in accepted:
+                        a.scored = joint
+            current, model = accepted[-1].scored, accepted[-1].model
+            if max(within_budget(current, budget).values()) <= WITHIN:
+                break
+            judged = with_model_tolerance(problem, model, budget)  # the accepted model's own tolerance
+            if max(within_budget(current, judged).values()) <= WITHIN:
+                budget = judged
+                break
+        bar.close()
+    return rounds, screening, accepted, current, model, budget
+
+
+def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
+             progress: bool = False, notify=None) -> Identification:
+    """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
+    select effects forward (see the module doc).
+
+    ``candidates``: default every effect that applies to the log's system (on a hexapod also on one leg
+    alone for the legs that stand out). ``jobs`` worker processes fit candidates in parallel (1: in this
+    process). ``progress``: a progress bar (terminals); ``notify``: called with one line of text per
+    step (logs, pipes). Raises InputError for a log the replay cannot use.
+    """
+    notify = notify or (lambda text: None)
+    problem = make_problem(log)
+    notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
+    if candidates is None:
+        candidates = default_candidates(log.system)
+    nominal_sim = problem.simulate(problem.nominal)
+    budget = measure_budget(problem, nominal_sim)
+    nominal = score(problem, nominal_sim, budget)
+    notify("noise budget measured; held-out RMS / budget: " + ", ".join(
+        f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
+    rounds, screening, accepted, current, model, budget = _select(problem, candidates, nominal, budget, jobs,
+                                                                  progress, notify)
+    if not rounds:
+        verdict = "none"
+    elif not accepted:
+        verdict = "unexplained"
+    else:
+        verdict = "explained" if max(within_budget(current, budget).values()) <= WITHIN else "partial"
+    if verdict in ("partial", "unexplained"):
+        notify("discovery: sparse correction of the model's equations")
+    found = discover(problem, model, current, budget, score) if verdict in ("partial", "unexplained") else None
+    return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,
+                          final=current, verdict=verdict, discovery=found, screening=screening)

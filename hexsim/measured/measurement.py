@@ -1,0 +1,213 @@
+"""Reading and validating measurement logs (``docs/measurement-log.md``): CSV + JSON sidecar.
+
+A log that breaks the format's rules is refused with one :class:`~hexsim.errors.InputError` naming the
+file, the column and the row (or the sidecar key) and the value. Missing optional columns are allowed:
+:attr:`MeasurementLog.missing` lists what the analysis cannot check, :attr:`MeasurementLog.assumed` the
+defaults taken for absent sidecar keys.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hexsim.errors import InputError
+from hexsim.plant.params import ControllerParams
+from hexsim.tables import read_numeric_csv
+
+SYSTEMS = ("single-actuator", "hexapod")
+#: Physical range of each column kind (lower, upper) in SI units, and the hint when a value is outside.
+_RANGES = {
+    "_m": (-0.01, 0.01, "a piston position in metres within the stroke (a value in mm?)"),  # + stroke_m
+    "_Pa": (-1e5, 4.0e7, "a pressure in Pa between 0 and 400 bar"),
+    "_V": (-10.5, 10.5, "a valve setpoint in V within ±10 V"),
+    "_mps2": (-300.0, 300.0, "an acceleration in m/s^2 (below 30 g)"),
+    "_radps": (-20.0, 20.0, "an angular rate in rad/s"),
+    "_N": (-1e6, 1e6, "a force in N"),
+}
+#: A pressure column whose largest value is below this [Pa] is taken to be in bar (or MPa), not Pa.
+_PRESSURE_UNIT_FLOOR = 1.0e4
+DEFAULT_STROKE = 0.2  # [m], the seed's actuator (app. A); a log's sidecar may declare its own stroke_m
+_JITTER = 0.01  # allowed deviation of a sample period from the nominal, fraction of the period (the format)
+
+
+@dataclass(frozen=True)
+class MeasurementLog:
+    """A validated log. ``columns``: name -> (N,) array in SI units (all columns of the CSV, unknown ones
+    kept); ``time`` (N,) [s]; ``n_legs`` 1 (single actuator) or 6 (hexapod)."""
+
+    path: pathlib.Path
+    system: str
+    sample_rate_hz: float
+    columns: dict[str, np.ndarray]
+    kp: float  # K_p [V/m] of the logged controller
+    controller_rate_hz: float
+    mass_kg: float | None  # declared moving mass (single actuator); None: the model's
+    inclination_deg: float  # declared inclination from vertical (single actuator)
+    oil_temperature_c: float
+    sidecar: dict
+    stroke_m: float = DEFAULT_STROKE  # travel of the axis [m] (sidecar stroke_m)
+    assumed: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.columns["time_s"]
+
+    @property
+    def n_legs(self) -> int:
+        return 1 if self.system == "single-actuator" else 6
+
+    def leg_column(self, kind: str, leg: int = 0) -> str:
+        """Column name of ``kind`` (``ref_m``, ``valve_cmd_V``, ``pos_m``, ``p1_Pa``) for leg index ``leg``."""
+        return kind if self.system == "single-actuator" else f"leg{leg + 1}_{kind}"
+
+    def leg_array(self, kind: str) -> np.ndarray | None:
+        """(N, n_legs) array of ``kind`` or None if the log lacks it (for any leg)."""
+        names = [self.leg_column(kind, i) for i in range(self.n_legs)]
+        if not all(n in self.columns for n in names):
+            return None
+        return np.column_stack([self.columns[n] for n in names])
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1] - self.time[0])
+
+
+def _number(side: dict, key: str, where: str, *, positive: bool = True) -> float:
+    value = side[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or (
+            positive and value <= 0):
+        raise InputError(f"{where}: key {key!r} must be a {'positive ' if positive else ''}number, got {value!r}")
+    return float(value)
+
+
+def read_sidecar(csv_path: pathlib.Path) -> dict:
+    """The JSON sidecar of ``csv_path`` (same stem, .json) as a dict. Raises InputError if it is missing,
+    not valid JSON or not an object."""
+    path = csv_path.with_suffix(".json")
+    if not path.is_file():
+        raise InputError(f"{csv_path}: sidecar {path.name} is missing (the log format needs CSV + JSON of the same stem)")
+    try:
+        side = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(side, dict):
+        raise InputError(f"{path}: the sidecar must be a JSON object, got {type(side).__name__}")
+    return side
+
+
+def read_log(path) -> MeasurementLog:
+    """Read and validate ``path`` (CSV) and its sidecar. Raises InputError naming file, column/key, row and
+    value for: a missing or malformed sidecar or key, an unknown system, a sample rate that does not
+    match ``time_s``, non-uniform sampling (jitter > 1 % of the period), non-numeric or non-finite values,
+    time not increasing, a value outside its column's physical range (a pressure in bar, a position in
+    mm), or a log without the columns a replay needs (valve setpoint and position)."""
+    path = pathlib.Path(path)
+    side = read_sidecar(path)
+    settings = _sidecar_settings(side, path.with_suffix(".json"))
+    cols = read_numeric_csv(path)
+    _check_sampling(path, cols["time_s"], settings["sample_rate_hz"])
+    for name, values in cols.items():
+        _check_range(path, name, values, settings["stroke_m"])
+    log = MeasurementLog(path=path, columns=cols, sidecar=side, **settings)
+    for kind in ("valve_cmd_V", "pos_m"):
+        for i in range(log.n_legs):
+            name = log.leg_column(kind, i)
+            if name not in cols:
+                raise InputError(f"{path}: missing column {name!r}, needed to replay the log (header: "
+                                 f"{', '.join(cols)})")
+    for kind in ("ref_m", "p1_Pa"):
+        if log.leg_array(kind) is None:
+            log.missing.append(kind if log.n_legs == 1 else f"leg*_{kind}")
+    if "ps_Pa" not in cols:
+        log.missing.append("ps_Pa")
+    acc = "acc_mps2" if log.n_legs == 1 else "platform_acc_z_mps2"
+    if acc not in cols:
+        log.missing.append(acc)
+    return log
+
+
+def _sidecar_settings(side: dict, side_name: pathlib.Path) -> dict:
+    """The MeasurementLog fields the sidecar sets (system, rates, K_p, temperature, stroke, mass,
+    inclination) and ``assumed``: the defaults taken for keys it leaves out. Raises InputError naming
+    the key for a missing required key or a bad value."""
+    for key in ("system", "sample_rate_hz"):
+        if key not in side:
+            raise InputError(f"{side_name}: missing key {key!r} (required by the log format)")
+    system = side["system"]
+    if system not in SYSTEMS:
+        raise InputError(f"{side_name}: key 'system' is {system!r}; expected one of {', '.join(SYSTEMS)}")
+    rate = _number(side, "sample_rate_hz", str(side_name))
+    assumed: list[str] = []
+    ctrl = side.get("controller", {})
+    if not isinstance(ctrl, dict):
+        raise InputError(f"{side_name}: key 'controller' must be an object, got {ctrl!r}")
+    if ctrl.get("type", "P") != "P":
+        raise InputError(f"{side_name}: controller type {ctrl.get('type')!r} is not supported (only 'P')")
+
+    def value(table, key, where, default, note, positive=True):
+        if key in table:
+            return _number(table, key, where, positive=positive)
+        if note:
+            assumed.append(note)
+        return default
+
+    single = system == "single-actuator"
+    kp = value(ctrl, "kp_V_per_m", f"{side_name} controller", ControllerParams.kp,
+               f"controller K_p = {ControllerParams.kp:g} V/m (hexsim default)")
+    ctrl_rate = value(ctrl, "rate_hz", f"{side_name} controller", ControllerParams.rate_hz,
+                      f"controller rate = {ControllerParams.rate_hz:g} Hz (seed §2.2.4)")
+    temp = value(side, "oil_temperature_C", str(side_name), 35.0, "oil temperature 35 °C (seed app. A)", positive=False)
+    stroke = value(side, "stroke_m", str(side_name), DEFAULT_STROKE,
+                   single and f"stroke {DEFAULT_STROKE:g} m (the seed's actuator)")
+    mass = value(side, "mass_kg", str(side_name), None, single and "moving mass from the model (40 kg, seed app. A)")
+    incl = value(side, "inclination_deg", str(side_name), 0.0,
+                 single and "actuator vertical (inclination 0°, as the seed's model)", positive=False)
+    if not 0.0 <= incl <= 90.0:
+        raise InputError(f"{side_name}: key 'inclination_deg' must be within 0…90, got {incl:g}")
+    return {"system": system, "sample_rate_hz": rate, "kp": kp,
+            "controller_rate_hz": ctrl_rate, "mass_kg": mass, "inclination_deg": incl, "oil_temperature_c": temp,
+            "stroke_m": stroke, "assumed": assumed}
+
+
+def _check_sampling(path: pathlib.Path, time: np.ndarray, rate: float) -> None:
+    """Raise InputError if ``time_s`` does not match the sidecar's rate or is sampled non-uniformly
+    (a step more than 1 % off the period), naming the row."""
+    period = 1.0 / rate
+    steps = np.diff(time)
+    median = float(np.median(steps))
+    if abs(median - period) > _JITTER * period:
+        raise InputError(
+            f"{path}: column 'time_s': median sample period {median * 1e3:.4g} ms does not match the sidecar's "
+            f"sample_rate_hz {rate:g} ({period * 1e3:.4g} ms)")
+    bad = np.abs(steps - period) > _JITTER * period
+    if np.any(bad):
+        r = int(np.argmax(bad))
+        raise InputError(
+            f"{path}: column 'time_s', row {r + 3}: sample period {steps[r] * 1e3:.4g} ms deviates more than 1 % "
+            f"from {period * 1e3:.4g} ms (non-uniform sampling)")
+
+
+def _check_range(path: pathlib.Path, name: str, values: np.ndarray, stroke: float) -> None:
+    for suffix, (lo, hi, what) in _RANGES.items():
+        if suffix == "_m":
+            hi = hi + stroke
+            what = f"a piston position in metres within the 0…{stroke:g} m stroke (a value in mm?)"
+        if not name.endswith(suffix) or name == "time_s":
+            continue
+        if suffix == "_m" and not name.endswith(("pos_m", "ref_m")):
+            return  # dof_ref_{x,y,z}_m: platform offsets, not pistons
+        if suffix == "_Pa" and values.max() < _PRESSURE_UNIT_FLOOR and values.max() > 0:
+            r = int(np.argmax(values)) + 2
+            raise InputError(f"{path}: column {name!r}, row {r}: largest value {values.max():g} is far below any "
+                             f"working pressure in Pa (in bar or MPa? the format wants Pa)")
+        bad = (values < lo) | (values > hi)
+        if np.any(bad):
+            r = int(np.argmax(bad))
+            raise InputError(f"{path}: column {name!r}, row {r + 2}: value {values[r]:g} is not {what}")
+        return

@@ -1,0 +1,269 @@
+"""Replaying a measurement log through the model: the same hydraulics and MuJoCo mechanics as
+:func:`hexsim.simulation.runner.simulate`, with the log in place of the scenario.
+
+**Valve replay** of a single-actuator log (identification and the per-channel errors): the logged valve
+setpoints u_v drive the model open loop over windows short enough that the integrating position does
+not drift far (:data:`hexsim.measured.identify.WINDOW_S`). Each window starts from the measured state at its first
+sample (position, velocity from a Savitzky–Golay derivative of the position, P1, P_s). The controller
+is out of the loop, so what it would have compensated (a flow offset, a lag) stays in the residual
+where it can be seen. Hexapod logs are replayed closed loop instead (:mod:`hexsim.measured.hexapod_replay`).
+
+All windows run at once as independent copies of the single actuator in one MuJoCo model (one slide
+joint and one accelerometer per window), built from the shipped ``single_actuator.xml``.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from scipy.signal import cont2discrete
+
+from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.measurement import MeasurementLog
+from hexsim.plant import hydraulics, legs
+from hexsim.plant.effects import Effects, LegChange
+from hexsim.plant.legs import PlantState, leg_table, step_plant
+from hexsim.plant.model import PlantIndex, apply_load, check_warnings, model_path
+from hexsim.plant.params import HydraulicParams
+from hexsim.signals import savgol
+
+#: Channels compared, in report order: name -> (log column of the single actuator, unit, floor of the scale).
+CHANNELS = {
+    "position": ("pos_m", "m", 1e-4),
+    "p1": ("p1_Pa", "Pa", 1e4),
+    "p_s": ("ps_Pa", "Pa", 1e4),
+    "acceleration": ("acc_mps2", "m/s^2", 0.05),
+}
+
+
+@functools.lru_cache(maxsize=8)
+def _batch_xml(n: int) -> str:
+    tree = ET.parse(model_path("actuator"))
+    root = tree.getroot()
+    world = root.find("worldbody")
+    body = world.find("body[@name='load']")
+    world.remove(body)
+    actuators, sensors = root.find("actuator"), root.find("sensor")
+    for el in list(actuators) + list(sensors):
+        (actuators if el in list(actuators) else sensors).remove(el)
+    for i in range(n):
+        b = copy.deepcopy(body)
+        b.set("name", f"load{i + 1}")
+        b.set("pos", f"{0.3 * i:g} 0 0.62")
+        b.find("joint").set("name", f"leg{i + 1}")
+        b.find("site").set("name", f"leg{i + 1}_site")
+        world.append(b)
+        ET.SubElement(actuators, "motor", name=f"leg{i + 1}_force", joint=f"leg{i + 1}")
+        ET.SubElement(sensors, "accelerometer", name=f"leg{i + 1}_acc", site=f"leg{i + 1}_site")
+        ET.SubElement(sensors, "jointpos", name=f"leg{i + 1}_pos", joint=f"leg{i + 1}")
+    key = root.find("keyframe/key")
+    key.set("qpos", " ".join([key.get("qpos")] * n))
+    return ET.tostring(root, encoding="unicode")
+
+
+def batch_model(n: int, effects: Effects) -> mujoco.MjModel:
+    """n independent copies of the single actuator (slides ``leg1``…``legN``, sensors ``legI_acc``,
+    ``legI_pos``), with the load of ``effects`` (mass, inclination) applied to every copy."""
+    m = mujoco.MjModel.from_xml_string(_batch_xml(n))
+    if effects.mass_kg is not None or effects.inclination_deg is not None:
+        one = mujoco.MjModel.from_xml_path(str(model_path("actuator")))
+        apply_load(one, effects)
+        m.opt.gravity[:] = one.opt.gravity
+        if effects.mass_kg is not None:
+            m.body_mass[1:] = effects.mass_kg
+    return m
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Replay windows: first sample index of each (k,) and their common length in samples."""
+
+    starts: np.ndarray
+    length: int
+
+    @classmethod
+    def tile(cls, n_samples: int, length: int, skip: int = 0) -> "Windows":
+        starts = np.arange(skip, n_samples - length + 1, length)
+        if len(starts) == 0:
+            raise InputError(f"the log has {n_samples} samples, fewer than one replay window of {length}")
+        return cls(starts=starts, length=length)
+
+    def take(self, x: np.ndarray) -> np.ndarray:
+        """(k, length) samples of a (N,) signal."""
+        return x[self.starts[:, None] + np.arange(self.length)[None, :]]
+
+
+@dataclass(frozen=True)
+class PlantModel:
+    """The model being confronted with the log: hydraulics, effects and the declared load, and the legs
+    whose parameters differ from the others' (hexapod; :class:`hexsim.plant.effects.LegChange`)."""
+
+    hydraulics: HydraulicParams
+    effects: Effects
+    leg_changes: tuple[LegChange, ...] = ()
+
+    def replace(self, **changes) -> "PlantModel":
+        """A copy with ``changes`` (hydraulics, effects, leg_changes) applied; leg changes are kept."""
+        return dataclasses.replace(self, **changes)
+
+
+def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:
+    """Piston velocity [m/s] from the measured position (N,) by a Savitzky–Golay derivative (cubic,
+    21 samples at 1 kHz: noise of a few µm gives < 1 mm/s)."""
+    return savgol(pos, log.sample_rate_hz, 0.021, deriv=1)
+
+
+def supply_from_log(log: MeasurementLog, hyd: HydraulicParams) -> HydraulicParams:
+    """``hyd`` with the supply pressure P_s0 set to the median of the log's ``ps_Pa`` (an operating
+    condition the log states, not a fitted effect); unchanged if the log has no supply pressure."""
+    if "ps_Pa" not in log.columns:
+        return hyd
+    return hyd.replace(supply_pressure=float(np.median(log.columns["ps_Pa"])))
+
+
+def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effects, rows: np.ndarray):
+    """Spool-side state (u_b, x_v, v_v), each (k,), at the sample ``rows`` after the logged valve
+    setpoints u_log (N,) [V] from the start of the log: the backlash recursion
+    u_b[j] = clip(u_b[j-1], u[j] - h, u[j] + h), then the second-order spool loop as an exact ZOH
+    discretisation (scipy.signal.cont2discrete) of x_v'' = w^2 (x_set - x_v) - 2 zeta w x_v' (spool
+    travel limits ignored here). With an ideal spool x_v = x_set, v_v = 0."""
+    u_b = u_log.copy()
+    if eff.spool_play > 0:  # the backlash state at row j, after the setpoints of rows 0 … j-1
+        h = eff.spool_play
+        prev = u_log[0]
+        for j, u in enumerate(u_log):
+            u_b[j] = prev
+            prev = legs.backlash.py_func(prev, u, h)
+    x_set = hydraulics.spool_position(u_b, hyd)
+    if eff.spool_frequency <= 0:
+        return u_b[rows], x_set[rows], np.zeros(len(rows))
+    w, z = 2 * np.pi * eff.spool_frequency, eff.spool_damping
+    a = np.array([[0.0, 1.0], [-w * w, -2 * z * w]])
+    ad, bd, *_ = cont2discrete((a, np.array([[0.0], [w * w]]), np.eye(2), np.zeros((2, 1))), 1.0 / fs, "zoh")
+    # the setpoint of row j is held over the period from row j to row j+1 (see replay)
+    x = np.zeros(2)
+    x[0] = x_set[0]
+    states = np.empty((len(u_log), 2))
+    for j in range(len(u_log)):
+        if j:
+            x = ad @ x + bd[:, 0] * x_set[j - 1]
+        states[j] = x
+    return u_b[rows], states[rows, 0], states[rows, 1]
+
+
+def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: float = 1e-4,
+           native: bool = True) -> dict[str, np.ndarray]:
+    """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
+    plus ``u_v`` (the valve setpoint applied).
+
+    Timing follows hexsim's own logs (:func:`hexsim.simulation.runner.simulate`): row j holds the state at its
+    time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration averaged over the
+    steps from t_j-1 to t_j (the boxcar of hexsim's records; row 0: the step that starts at t_0). The state of row 0 is the measured one; the logged u_v drives each window open loop.
+    The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
+    compiled kernel (:mod:`hexsim.simulation.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.
+    Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
+    non-finite state.
+    """
+    if log.system != "single-actuator":
+        raise InputError(f"{log.path}: window replay needs a single-actuator log (this is {log.system})")
+    hyd, eff = model.hydraulics, model.effects
+    fs = log.sample_rate_hz
+    sub = int(round(1.0 / (fs * dt)))
+    if abs(sub * dt * fs - 1.0) > 1e-9:
+        raise InputError(f"{log.path}: sample rate {fs:g} Hz must divide the physics rate {1 / dt:g} Hz")
+    k, n = len(windows.starts), windows.length
+    m = batch_model(k, eff)
+    m.opt.timestep = dt
+    d = mujoco.MjData(m)
+    idx = PlantIndex.from_model(m)
+    state, y0 = _window_start(log, model, windows, m, d, idx)
+    u_log = log.columns["valve_cmd_V"]
+    out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
+    acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
+    mujoco.set_mjcb_control(None)
+    if native:
+        from hexsim.simulation import native as kernel
+
+        u_sched = windows.take(u_log)
+        out["u_v"] = u_sched
+        legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
+        bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
+                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
+        if bad >= 0:
+            raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
+    else:
+        _python_replay(log, model, windows, (m, d, idx), state, out)
+    check_warnings(m, d)
+    tau = eff.sensor_delay
+    if tau > 0:
+        # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau
+        t, tw = log.time, np.arange(n) / fs
+        out["position"] = np.array([np.interp(tw - tau, tw, row, left=y0w) for row, y0w in
+                                    zip(out["position"], np.interp(t[windows.starts], t, log.columns["pos_m"]))])
+    return out
+
+
+def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d, idx) -> tuple[PlantState, np.ndarray]:
+    """Set the batch model ``m``/``d`` to the measured state at each window's start (position and velocity
+    the delayed sensor shows tau_y later) and return the legs' state there (P1 measured or from the
+    statics, P_s measured with a supply model, the spool history) and the start positions y0 (k,) [m]."""
+    hyd, eff, c, t = model.hydraulics, model.effects, log.columns, log.time
+    s0, k = windows.starts, len(windows.starts)
+    pos, u_log = c["pos_m"], c["valve_cmd_V"]
+    vel = measured_velocity(log, pos)
+    tau = eff.sensor_delay
+    y0 = np.interp(t[s0] + tau, t, pos)  # the true position the delayed sensor shows tau later
+    d.qpos[idx.qpos_adr] = y0
+    d.qvel[idx.dof_adr] = np.interp(t[s0] + tau, t, vel)
+    mujoco.mj_forward(m, d)
+    g_axis = -float(m.opt.gravity[2])
+    mass = float(m.body_mass[1])
+    # P_s: with a supply model, the measured level at the window start (mean of 10 samples against the
+    # transducer noise); else constant at the supply pressure (the caller sets it, see supply_from_log)
+    if "ps_Pa" in c and eff.supply_resistance > 0:
+        p_s0 = Windows(s0, 10).take(c["ps_Pa"]).mean(axis=1)
+    else:
+        p_s0 = np.full(k, hyd.supply_pressure)
+    if "p1_Pa" in c:
+        p1_0 = c["p1_Pa"][s0]
+    else:
+        p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
+    u_b, x_v, v_v = spool_history(u_log, log.sample_rate_hz, hyd, eff, s0)
+    return PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)._replace(u_b=u_b, x_v=x_v, v_v=v_v), y0
+
+
+def _python_replay(log, model, windows, sim, state, out) -> None:
+    """The straightforward Python loop of :func:`replay` over the same compiled leg step on ``sim`` = (the
+    batch model, its data, its PlantIndex), filling ``out`` in place. Raises PhysicsError naming the
+    window and the time for a non-finite state."""
+    m, d, idx = sim
+    dt = m.opt.timestep
+    sub = int(round(1.0 / (log.sample_rate_hz * dt)))
+    acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(len(windows.starts))])
+    u_log, s0, n = log.columns["valve_cmd_V"], windows.starts, windows.length
+    acc, count = np.zeros(len(s0)), 0
+    for j in range(n):
+        u = u_log[s0 + j]
+        for s_ in range(sub):
+            y = d.qpos[idx.qpos_adr].copy()
+            ydot = d.qvel[idx.dof_adr].copy()
+            if s_ == 0:
+                out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
+                out["u_v"][:, j] = u
+            state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, model.hydraulics, model.effects)
+            mujoco.mj_step(m, d)
+            if s_ == 0:  # the mean over the previous row's steps (boxcar, as hexsim's own records)
+                out["acceleration"][:, j] = acc / count if count else d.sensordata[acc_adr]
+                acc[:], count = 0.0, 0
+            acc += d.sensordata[acc_adr]
+            count += 1
+        if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
+            bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
+            raise PhysicsError(f"replay: non-finite state in the window starting at t = {log.time[s0[bad]]:.3f} s, "
+                               f"{j / log.sample_rate_hz:.3f} s into it")

@@ -1,0 +1,485 @@
+"""``hexsim validate``: confront the model with a measurement log and report (Markdown, PNG, JSON).
+
+Chain: :func:`hexsim.measured.measurement.read_log` → :func:`hexsim.measured.identify.identify` (valve replay, candidate
+fits, choice) → :mod:`hexsim.measured.residuals` before and after → report. The identifier reads nothing but the
+log and its sidecar.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+
+import numpy as np
+
+from hexsim.measured.candidates import CANDIDATES
+from hexsim.measured.identify import (
+    ALPHA,
+    FIT_PER_ROUND,
+    MAX_EFFECTS,
+    MIN_EXCESS_SHARE,
+    SCALED,
+    SEARCH_SEGMENTS,
+    WITHIN,
+    WORSE_REL,
+    Identification,
+    default_candidates,
+    identify,
+    signal_labels,
+    within_budget,
+)
+from hexsim.measured.measurement import MeasurementLog, read_log
+from hexsim.measured.residuals import analyse
+from hexsim.tables import StdoutTarget, write_atomic, write_json
+
+G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
+
+
+#: A payload read from the legs' P1 offsets is reported when it is at least this heavy [kg] and the offsets
+#: leave at most :data:`PAYLOAD_INCONSISTENCY` of the wrench unexplained.
+PAYLOAD_MIN_KG = 5.0
+PAYLOAD_INCONSISTENCY = 0.1
+
+
+def hexapod_payload(ident: Identification) -> dict | None:
+    """:func:`hexsim.measured.hexapod_replay.payload_from_statics` on the P1 calibration offsets of the final model
+    (the nominal plus the accepted effects: a supply sag the nominal lacks also shifts every leg's P1) of
+    a hexapod log, or None (single actuator, no P1, or offsets that are not one consistent load)."""
+    if ident.problem.log.system != "hexapod" or "p1" not in ident.final.calibration:
+        return None
+    from hexsim.measured.hexapod_replay import payload_from_statics
+
+    found = payload_from_statics(np.array(ident.final.calibration["p1"]["offset"]))
+    if abs(found["mass_kg"]) >= PAYLOAD_MIN_KG and found["inconsistency"] <= PAYLOAD_INCONSISTENCY:
+        return found
+    return None
+
+
+def conclusions(ident: Identification, before: dict) -> list[str]:
+    """What the residual says, in sentences an engineer reads first: which channels are off and by how
+    much, sensor calibration that looks like a convention problem or a transducer error, leg-level signs
+    on a hexapod, where the residual lives (direction of motion), the verdict and what discovery found.
+    ``before``: the residual analysis of the nominal model (:func:`hexsim.measured.residuals.analyse`)."""
+    ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, ident.budget).items()}
+    off = [ch for ch, r in ratio.items() if r * r > WITHIN]
+    return (_channel_sentences(ratio, off) + _calibration_sentences(ident) + sensor_consistency(ident.problem.log)
+            + _leg_sentences(ident) + _direction_sentences(before, off) + _verdict_sentences(ident))
+
+
+#: Band [Hz] in which the accelerometer is compared with the position's second derivative: above the
+#: drift of a double integration, below the oil-spring ringing and the derivative filter's roll-off.
+CONSISTENCY_BAND_HZ = (0.2, 20.0)
+
+
+def sensor_consistency(log: MeasurementLog) -> list[str]:
+    """Sensors checked against each other before any model: the single actuator's accelerometer against
+    the second derivative of its position (Savitzky–Golay, 51 ms; both band-passed to
+    :data:`CONSISTENCY_BAND_HZ`, zero-phase Butterworth), by the least-squares slope s and the correlation
+    r. A sentence if they disagree: |s - 1| > 5 % with |r| > 0.9 (a scale error of one sensor, or a sign /
+    axis problem for s < 0), or |r| < 0.5 with the position moving (a channel that does not belong to this
+    axis). Nothing for a hexapod log (its accelerometer is the platform's) or without both columns."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from hexsim.signals import savgol, savgol_length
+
+    c, fs = log.columns, log.sample_rate_hz
+    if log.system != "single-actuator" or "acc_mps2" not in c or "pos_m" not in c or fs <= 4 * CONSISTENCY_BAND_HZ[1]:
+        return []
+    if len(log.time) < 10 * savgol_length(fs, 0.051):
+        return []
+    sos = butter(2, CONSISTENCY_BAND_HZ, btype="bandpass", fs=fs, output="sos")
+    from_position = sosfiltfilt(sos, savgol(c["pos_m"], fs, 0.051, deriv=2))
+    measured = sosfiltfilt(sos, c["acc_mps2"])
+    trim = slice(int(fs), len(measured) - int(fs)) if len(measured) > 4 * fs else slice(None)
+    x, y = from_position[trim], measured[trim]
+    if float(x @ x) <= 0 or np.std(x) < 0.05:  # the motion is too slow to compare (< 0.05 m/s^2 rms)
+        return []
+    slope, r = float(x @ y / (x @ x)), float(np.corrcoef(x, y)[0, 1])
+    band = f"{CONSISTENCY_BAND_HZ[0]:g}–{CONSISTENCY_BAND_HZ[1]:g} Hz"
+    if abs(r) > 0.9 and abs(slope - 1.0) > 0.05:
+        what = ("a sign or axis problem of one of them" if slope < 0 else
+                "a scale error of one of the two sensors (accelerometer sensitivity or position transducer gain)")
+        return [f"Sensors against each other: the accelerometer reads {slope:.3f} times the second derivative of "
+                f"the position ({band}, correlation {r:.3f}): {what}."]
+    if abs(r) < 0.5:
+        return [f"Sensors against each other: the accelerometer hardly follows the second derivative of the "
+                f"position ({band}, correlation {r:.2f}): a channel of another axis, or a sensor that is not "
+                f"working."]
+    return []
+
+
+def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
+    clean = [ch for ch in ratio if ch not in off]
+    if not off:
+        return ["The nominal model reproduces every channel to within its noise and numerical tolerance "
+                "(held-out RMS / budget: " + ", ".join(f"{ch} {r:.2g}" for ch, r in ratio.items()) + ")."]
+    out = ["Off beyond noise and tolerance: " + ", ".join(f"{ch} ({ratio[ch]:.3g} budgets)" for ch in off)
+           + (f"; at noise: {', '.join(clean)}." if clean else ".")]
+    if off == ["position"] and {"p1", "acceleration"} <= set(clean):
+        out.append("Only the position disagrees while P1 and the acceleration are clean: look at the position "
+                   "sensor (scale, delay) or the valve's flow gain before friction or load.")
+    return out
+
+
+def _calibration_sentences(ident: Identification) -> list[str]:
+    out = []
+    final = ident.final.calibration  # the calibration of the model the verdict stands on
+    for a in final.get("acceleration", {}).get("offset", []):
+        if abs(abs(a) - G_STANDARD) < 0.15 * G_STANDARD:
+            out.append(f"The accelerometer reads {a:+.2f} m/s^2 off the model: a constant offset of about "
+                       f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
+                       "format specific force, or the reverse), not physics; it is calibrated out.")
+            break
+    settled = ident.verdict in ("none", "explained")
+    for ch in SCALED:
+        cal = final.get(ch)
+        if not cal or not any(abs(sc - 1.0) > 0.005 for sc in cal["scale"]):
+            continue
+        worst = max(cal["scale"], key=lambda sc: abs(sc - 1.0))
+        if not settled:
+            out.append(f"The {ch} sensor's scale fits {worst:.4f}: with the model still off, the scale takes up part "
+                       "of the model error and says little about the sensor.")
+        elif ch == "position":
+            out.append(f"The position sensor's scale fits {worst:.4f}: a transducer scale error of this size, or a "
+                       "flow gain off by as much (the two trade in the position increments); calibrated out, not "
+                       "taken for an effect.")
+        else:
+            out.append(f"The accelerometer's scale fits {worst:.4f}: a sensitivity error, calibrated out and not "
+                       "taken for an effect.")
+    return out
+
+
+def _leg_sentences(ident: Identification) -> list[str]:
+    """Hexapod: one leg's position offset standing out, a payload in the legs' P1 offsets, one leg's
+    residual standing out."""
+    out, p = [], ident.problem
+    offsets = ident.final.calibration.get("position", {}).get("offset", [])
+    if len(offsets) >= 3 and not p.windowed:
+        mags = np.abs(offsets)
+        j = int(np.argmax(mags))
+        rest = float(np.median(np.delete(mags, j)))
+        if mags[j] > 1e-4 and mags[j] > 5.0 * rest:
+            kp = p.log.kp
+            out.append(f"The position of leg{j + 1} reads {offsets[j] * 1e3:+.3f} mm off the closed-loop replay "
+                       f"(the other legs {rest * 1e3:.3f} mm): a sensor offset of that leg, or a valve null offset "
+                       f"of about {-offsets[j] * kp:+.3f} V on it (K_p = {kp:g} V/m holds the piston that far off); "
+                       "in closed loop the two look alike, and the calibration takes it.")
+    payload = hexapod_payload(ident)
+    if payload is not None:
+        out.append(f"The six legs' P1 offsets are one load, not six sensor offsets: a payload change of "
+                   f"{payload['mass_kg']:+.1f} kg at ({payload['x_m']:+.3f}, {payload['y_m']:+.3f}) m on the platform "
+                   f"(statics at the neutral pose; {payload['inconsistency']:.1%} of the wrench no payload makes). "
+                   "Calibrated out in the replay, reported here as physics.")
+    for ch in ("position", "p1"):
+        rms = ident.nominal.held_out_rms_signals.get(ch, [])
+        if len(rms) < 3:
+            continue
+        j = int(np.argmax(rms))
+        others = float(np.median([v for i, v in enumerate(rms) if i != j]))
+        if rms[j] > 5.0 * max(others, ident.budget.total[ch]):
+            label = signal_labels(p, ch)[j]
+            out.append(f"The {ch} residual of {label} is {rms[j] / max(others, 1e-300):.0f}x the median of the other "
+                       f"legs: a leg-level effect on {label} (leakage, null offset, sensor of that leg), not one "
+                       "on all legs.")
+    return out
+
+
+def _direction_sentences(before: dict, off: list[str]) -> list[str]:
+    out = []
+    for ch in off:
+        cond = before.get(ch, {}).get("conditioned", {})
+        up, down = cond.get("velocity > 0", {}).get("rms"), cond.get("velocity < 0", {}).get("rms")
+        if up and down and max(up, down) > 3.0 * min(up, down):
+            side = "retracting (v < 0, the return edge A→T)" if down > up else "extending (v > 0, the supply edge P→A)"
+            out.append(f"The {ch} residual is {max(up, down) / min(up, down):.1f}x larger while {side}: a "
+                       "direction-dependent effect (edge asymmetry, friction of one direction).")
+    return out
+
+
+def _label(fit) -> str:
+    """``leakage`` or ``leakage on leg3``."""
+    return fit.name if fit.leg is None else f"{fit.name} on leg{fit.leg}"
+
+
+#: Another candidate that passed leaves at most this much more held-out cost than the accepted one: the
+#: log hardly tells them apart, and the report says so.
+CLOSE_CALL = 1.1
+
+
+def _close_call_sentences(ident: Identification) -> list[str]:
+    """One sentence per round in which a candidate that also passed explains the held-out data about as
+    well as the accepted one (left-over cost within :data:`CLOSE_CALL`)."""
+    chosen = {f.key for f in ident.accepted}
+    out = []
+    for fits in ident.rounds:
+        passed = [f for f in fits if f.accepted]
+        best = [f for f in passed if f.key in chosen]
+        if not best:
+            continue
+        left = 1.0 - best[0].held_out_gain
+        close = [f for f in passed if f.key not in chosen and 1.0 - f.held_out_gain <= CLOSE_CALL * left]
+        if close:
+            others = ", ".join(f"{_label(f)} ({f.held_out_gain:.3f})" for f in close)
+            out.append(f"{others} explain{'s' if len(close) == 1 else ''} the held-out data almost as well as "
+                       f"{_label(best[0])} (held-out gain {best[0].held_out_gain:.3f}): the log hardly tells them "
+                       f"apart; {_label(best[0])} is reported as the better one.")
+    return out
+
+
+def _verdict_sentences(ident: Identification) -> list[str]:
+    out = []
+    if ident.verdict == "explained":
+        out.append("Accepted: " + " + ".join(_label(f) for f in ident.accepted) + "; with it every channel is within "
+                   "its budget.")
+    elif ident.verdict == "partial":
+        left = [ch for ch, v in within_budget(ident.final, ident.budget).items() if v > WITHIN]
+        out.append("Accepted: " + " + ".join(_label(f) for f in ident.accepted) + f"; structure is left in "
+                   f"{', '.join(left)} that no library effect explains.")
+    elif ident.verdict == "unexplained":
+        out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
+    out += _close_call_sentences(ident)
+    found = ident.discovery or {}
+    for term in found.get("terms", []):
+        out.append(f"Discovered in the {term['equation']} equation: {term['meaning']} "
+                   f"(coefficient {term['coefficient']:.4g} ± {term['std_error']:.2g} {term['unit']}).")
+    if found.get("added_to_model"):
+        out.append(f"With the discovered term(s) added to the model the held-out error drops by "
+                   f"{found['held_out_cost_recovered']:.1%} (cost in budgets).")
+    elif found.get("why"):
+        out.append(f"Discovery: {found['why']}.")
+    return out
+
+
+def summary(ident: Identification) -> dict:
+    """The JSON document: verdict, added_effects, calibration, budget, error_before/after (NRMSE per
+    channel), candidates with their judgement, residual analysis before/after, conclusions, what the log
+    lacked and which defaults were assumed."""
+    p = ident.problem
+    u, vel, pos, near = p.motion_state()
+    cut = p.analysis_view
+    before = analyse(cut(ident.nominal_residuals), u, vel, pos, near, p.log.sample_rate_hz)
+    after = analyse(cut(ident.chosen_residuals), u, vel, pos, near, p.log.sample_rate_hz)
+    s0 = p.settle
+    first = ident.accepted[0] if ident.accepted else None
+    return {
+        "log": str(p.log.path),
+        "system": p.log.system,
+        "verdict": ident.verdict,
+        "added_effect": ident.added_effect,
+        "added_effects": [{"name": f.name, "leg": f.leg, "parameters": f.parameters} for f in ident.accepted],
+        "parameters": first.parameters if first else {},
+        "calibration": {"nominal": ident.nominal.calibration, "final": ident.final.calibration},
+        "budget": ident.budget.as_dict(p.units),
+        "held_out_rms_in_budgets": {ch: math.sqrt(v) for ch, v in within_budget(ident.final, ident.budget).items()},
+        "held_out_rms_per_signal": {ch: {label: {"before": ident.nominal.held_out_rms_signals[ch][j],
+                                                 "after": ident.final.held_out_rms_signals[ch][j]}
+                                         for j, label in enumerate(signal_labels(p, ch))} for ch in p.channels},
+        "error_before": ident.error_before,
+        "error_after": ident.error_after,
+        "error_definition": "NRMSE: RMS of (replayed, sensor-calibrated - measured) / the measured signal's "
+                            "standard deviation (floored: 0.1 mm, 0.1 bar, 0.05 m/s^2), over all " + p.scored,
+        "replay": p.replay_mode,
+        "rms_before": {ch: float(np.sqrt(np.mean(r[:, s0:] ** 2))) for ch, r in ident.nominal_residuals.items()},
+        "rms_after": {ch: float(np.sqrt(np.mean(r[:, s0:] ** 2))) for ch, r in ident.chosen_residuals.items()},
+        "units": p.units,
+        "candidates": [c.as_dict() | {"physics": CANDIDATES[c.name].physics,
+                                      "plausible_range_source": CANDIDATES[c.name].source} for c in ident.candidates],
+        "screening": ident.screening,
+        "selection": (f"forward selection (at most {MAX_EFFECTS}): a candidate is accepted if its held-out "
+                      f"improvement beyond the numerical tolerance passes a one-sided t-test over the held-out "
+                      f"windows at {ALPHA:g} / (candidates in the round), it removes at least "
+                      f"{MIN_EXCESS_SHARE:.0%} of the held-out cost beyond the budget, no signal's (each leg's) held-out RMS "
+                      f"rises by more than its budget and {WORSE_REL:.0%}, and its parameters lie inside their plausible ranges, "
+                      f"off the bounds and above the log's resolution; a channel is explained within "
+                      f"sqrt({WITHIN:g}) budgets. Hexapod: leg-level candidates also on each leg whose residual "
+                      f"stands out, every candidate screened by its best start on the first {SEARCH_SEGMENTS} "
+                      f"segments, the best {FIT_PER_ROUND} fitted there and judged on the whole log (the "
+                      f"Bonferroni count is the candidates fitted)"),
+        "conclusions": conclusions(ident, before),
+        "payload_from_statics": hexapod_payload(ident),
+        "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
+                                                            if not k.startswith("_")},
+        "residuals_leg": getattr(p, "focus_leg", None),  # hexapod: the leg the residual analysis looks at
+        "residuals_before": before,
+        "residuals_after": after,
+        "windows": p.window_doc,
+        "not_checked": p.log.missing,
+        "assumed": p.log.assumed,
+    }
+
+
+def plus_minus(v: dict) -> str:
+    """'value ± s.e. unit', or 'value unit (no s.e.: at a bound)' when the s.e. could not be estimated."""
+    se = v.get("std_error")
+    if se is None or not math.isfinite(se):
+        return f"{v['value']:.4g} {v['unit']} (no s.e.: at a bound)"
+    return f"{v['value']:.4g} ± {se:.2g} {v['unit']}"
+
+
+def _md(text: str) -> str:
+    """Text for a Markdown table cell: pipes escaped."""
+    return str(text).replace("|", "\\|")
+
+
+def _fmt(value: float, unit: str) -> str:
+    """A value in the unit a person reads: Pa as bar, m as mm or µm."""
+    if unit == "Pa":
+        return f"{value / 1e5:.4g} bar"
+    if unit == "m":
+        return f"{value * 1e3:.4g} mm" if abs(value) >= 1e-3 else f"{value * 1e6:.3g} µm"
+    return f"{value:.4g} {unit}"
+
+
+def _discovery_markdown(doc: dict) -> list[str]:
+    """The report's discovery section (none when discovery did not run)."""
+    lines: list[str] = []
+    disc = doc.get("discovery")
+    if disc and disc.get("done"):
+        lines += ["", "## Discovery (sparse correction of the flow and force equations)", "", disc["method"] + ".", ""]
+        if disc["terms"]:
+            lines += ["| equation | term | coefficient ± s.e. | meaning | added to the model |", "|---|---|---|---|---|"]
+            for t in disc["terms"]:
+                key = f"{t['equation']}:{t['term']}"
+                key = f"leg{t['leg']}:{key}" if t.get("leg") else key
+                lines.append(f"| {t['equation']} | {_md(t['term'])} | {t['coefficient']:.4g} ± {t['std_error']:.2g} "
+                             f"{_md(t['unit'])} | {_md(t['meaning'])} | {'yes' if key in disc['added_to_model'] else 'no'} |")
+            if disc.get("added_to_model"):
+                lines += ["", "| channel | held-out RMS before | after |", "|---|---|---|"]
+                for ch, v in disc["held_out_rms_before"].items():
+                    u = doc["units"][ch]
+                    lines.append(f"| {ch} | {_fmt(v, u)} | {_fmt(disc['held_out_rms_after'][ch], u)} |")
+        else:
+            lines.append(disc.get("why", "No term found."))
+    return lines
+
+
+def effect_label(entry: dict) -> str:
+    """Name of an added effect or candidate of the JSON, with its leg: ``leakage@leg3``."""
+    name = entry.get("name", entry.get("effect"))
+    return name if entry.get("leg") is None else f"{name}@leg{entry['leg']}"
+
+
+def markdown(doc: dict, png_names: list[str]) -> str:
+    effects = " + ".join(f"`{effect_label(e)}`" for e in doc["added_effects"]) or "none"
+    lines = [f"# Validation of `{doc['log']}`", "", f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
+    lines += [f"- {c}" for c in doc["conclusions"]] + [""]
+    for e in doc["added_effects"]:
+        lines.append(f"`{effect_label(e)}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))
+    lines += ["", f"Replay: {doc['replay']}", "", "## Error per channel", "",
+              "| channel | NRMSE before | NRMSE after | budget (noise, tolerance) |", "|---|---|---|---|"]
+    for ch, before in doc["error_before"].items():
+        b, u = doc["budget"][ch], doc["units"][ch]
+        lines.append(f"| {ch} | {before:.4g} | {doc['error_after'][ch]:.4g} | {_fmt(b['budget'], u)} "
+                     f"({_fmt(b['noise'], u)}, {_fmt(b['tolerance'], u)}) |")
+    multi = {ch: v for ch, v in doc["held_out_rms_per_signal"].items() if len(v) > 1}
+    if multi:
+        lines += ["", "## Held-out RMS per leg / axis", "", "| channel | signal | before | after |", "|---|---|---|---|"]
+        for ch, per in multi.items():
+            for label, v in per.items():
+                u = doc["units"][ch]
+                lines.append(f"| {ch} | {label} | {_fmt(v['before'], u)} | {_fmt(v['after'], u)} |")
+    lines += ["", "## Sensor calibration (nuisance, fitted with every model)", "", "| channel | offset | scale |",
+              "|---|---|---|"]
+    for ch, cal in doc["calibration"]["final"].items():
+        u = doc["units"][ch]
+        lines.append(f"| {ch} | {', '.join(_fmt(o, u) for o in cal['offset'])} | "
+                     f"{', '.join(f'{s_:.4f}' for s_ in cal['scale'])} |")
+    if doc["candidates"]:
+        lines += ["", "## Candidates", "", "| effect | on top of | parameters ± s.e. | held-out gain | p | accepted / why not |",
+                  "|---|---|---|---|---|---|"]
+        for c in doc["candidates"]:
+            ps = ", ".join(f"{k} = {plus_minus(v)}" for k, v in c["parameters"].items())
+            why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
+            lines.append(f"| {effect_label(c)} | {', '.join(c['on_top_of']) or 'nominal'} | {_md(ps)} | "
+                         f"{c['held_out_gain']:+.3f} | {c['p_value']:.2g} | {_md(why)} |")
+    else:
+        lines += ["", "No candidate was fitted: the nominal model leaves nothing beyond noise and tolerance."]
+    for i, table in enumerate(doc.get("screening") or []):
+        if table:
+            out = [f"{t['candidate']} ({t['start_cost_ratio']:.3g})" for t in table if not t["fitted"]]
+            lines += ["", f"Screened out in round {i + 1} (cost of the best start on the search segments relative "
+                      f"to the model it extends; only the best were fitted): " + _md(", ".join(out)) + "."]
+    lines += _discovery_markdown(doc)
+    where = f" (position and P1 of leg{doc['residuals_leg']})" if doc.get("residuals_leg") else ""
+    lines += ["", f"## Residual before → after{where}", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
+              "spectrum peak [Hz] |", "|---|---|---|---|"]
+    for ch in doc["residuals_before"]:
+        b, a = doc["residuals_before"][ch], doc["residuals_after"][ch]
+        lines.append(f"| {ch} | {b['ljung_box']['p_value']:.2g} → {a['ljung_box']['p_value']:.2g} | "
+                     f"{b['cross_correlation_u_v']['max_abs']:.3f} → {a['cross_correlation_u_v']['max_abs']:.3f} "
+                     f"({b['cross_correlation_u_v']['bound_95']:.3f}) | {b['spectrum_peak_hz']:.1f} → "
+                     f"{a['spectrum_peak_hz']:.1f} |")
+    lines += ["", "## Where the residual lives (before; RMS per class of the motion state)", ""]
+    chans = list(doc["residuals_before"])
+    lines += ["| class | " + " | ".join(chans) + " |", "|---" * (len(chans) + 1) + "|"]
+    classes = doc["residuals_before"][chans[0]]["conditioned"]
+    for cls in classes:
+        row = [f"{doc['residuals_before'][ch]['conditioned'].get(cls, {}).get('rms', float('nan')):.3g}" for ch in chans]
+        lines.append(f"| {_md(cls)} | " + " | ".join(row) + " |")
+    lines += ["", f"Not checked (columns missing): {', '.join(doc['not_checked']) or 'nothing'}.",
+              f"Assumed: {'; '.join(doc['assumed']) or 'nothing'}.", ""]
+    lines += [f"![{n}]({n})" for n in png_names]
+    return "\n".join(lines) + "\n"
+
+
+def plot(ident: Identification, path: pathlib.Path) -> None:
+    from matplotlib.figure import (
+        Figure,  # no pyplot: the user's backend is never switched
+    )
+
+    from hexsim.measured.residuals import spectrum
+    from hexsim.outputs.plotting import save_figure
+
+    p = ident.problem
+    chans = p.channels
+    fig = Figure(figsize=(15, 3 * len(chans)), layout="tight")
+    ax = fig.subplots(len(chans), 3, squeeze=False)
+    fs = p.log.sample_rate_hz
+    u, vel, pos, near = p.motion_state()
+    before, after = p.analysis_view(ident.nominal_residuals), p.analysis_view(ident.chosen_residuals)
+    tw = p.sample_times()
+    for i, ch in enumerate(chans):
+        b, a = before[ch], after[ch]
+        ax[i, 0].plot(tw.ravel(), b.ravel(), ",", color="C3", label="before")
+        ax[i, 0].plot(tw.ravel(), a.ravel(), ",", color="C0", label="after")
+        leg = f" leg{p.focus_leg}" if getattr(p, "focus_leg", None) and ch in ("position", "p1") else ""
+        ax[i, 0].set_ylabel(f"{ch}{leg} residual [{p.units[ch]}]")
+        ax[i, 0].legend(loc="upper right", markerscale=20)
+        ax[i, 1].plot(vel.ravel(), b.ravel(), ",", color="C3")
+        ax[i, 1].plot(vel.ravel(), a.ravel(), ",", color="C0")
+        ax[i, 1].set_xlabel("measured velocity [m/s]")
+        f, pb = spectrum(b, fs)
+        _, pa = spectrum(a, fs)
+        ax[i, 2].semilogy(f, pb, color="C3")
+        ax[i, 2].semilogy(f, pa, color="C0")
+        ax[i, 2].set_xlabel("frequency [Hz]")
+        ax[i, 2].set_ylabel("PSD")
+    ax[-1, 0].set_xlabel("time [s]")
+    added = " + ".join(_label(f) for f in ident.accepted) or "nothing"
+    fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {added} (blue), verdict {ident.verdict}")
+    save_figure(fig, path, dpi=90)
+
+
+def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
+             without: tuple[str, ...] = ()) -> dict:
+    """Identify (see :func:`hexsim.measured.identify.identify`) on ``log`` (a :class:`MeasurementLog` or the path of
+    a log, ``docs/measurement-log.md``), then write the report folder ``report`` (report.md +
+    residuals.png + validation.json) and/or the JSON file ``json_path``. Returns the JSON document
+    (verdict, added effects, calibration, noise budget, errors before/after). ``without``: library
+    effects left out of the candidates (listed in the JSON as ``left_out``). Raises InputError for a
+    log that cannot be read or replayed or a report folder that cannot be created."""
+    if not isinstance(log, MeasurementLog):
+        log = read_log(log)
+    report = None if report is None else pathlib.Path(report)
+    json_path = None if json_path is None or isinstance(json_path, StdoutTarget) else pathlib.Path(json_path)
+    candidates = tuple(n for n in default_candidates(log.system) if n not in without)
+    ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify)
+    doc = summary(ident) | {"left_out": list(without)}
+    if report is not None:
+        report.mkdir(parents=True, exist_ok=True)
+        plot(ident, report / "residuals.png")
+        write_atomic(report / "report.md", lambda tmp: tmp.write_text(markdown(doc, ["residuals.png"])))
+        write_json(report / "validation.json", doc)
+    if json_path is not None:
+        write_json(json_path, doc)
+    return doc

@@ -1,0 +1,96 @@
+"""Writing a run in the measurement-log format (``docs/measurement-log.md``): CSV + JSON sidecar.
+
+Simulated runs are written in the same format hexsim reads measured data in, so both can be compared
+with the same tools.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+
+import numpy as np
+
+from hexsim.simulation.config import SimulationResult
+from hexsim.tables import write_atomic
+
+
+def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
+    """Columns (name -> (N,) array) of the measurement log for this run, SI units, names per the format."""
+    cols: dict[str, np.ndarray] = {"time_s": result.t}
+    if result.config.scenario.system == "actuator":
+        cols.update(ref_m=result.y_ref[:, 0], valve_cmd_V=result.u_v[:, 0], pos_m=result.y[:, 0],
+                    p1_Pa=result.p1[:, 0], ps_Pa=result.p_s, acc_mps2=result.acc[:, 2])
+        return cols
+    for i in range(result.n_legs):
+        n = i + 1
+        cols[f"leg{n}_ref_m"] = result.y_ref[:, i]
+        cols[f"leg{n}_valve_cmd_V"] = result.u_v[:, i]
+        cols[f"leg{n}_pos_m"] = result.y[:, i]
+        cols[f"leg{n}_p1_Pa"] = result.p1[:, i]
+    cols["ps_Pa"] = result.p_s
+    for k, name in enumerate(("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")):
+        cols[f"dof_ref_{name}"] = result.pose_ref[:, k]
+    for k, axis in enumerate("xyz"):
+        cols[f"platform_acc_{axis}_mps2"] = result.acc[:, k]
+    for k, axis in enumerate("xyz"):
+        cols[f"platform_gyro_{axis}_radps"] = result.gyro[:, k]
+    return cols
+
+
+def sidecar(result: SimulationResult) -> dict:
+    """The JSON sidecar: system, sample rate, controller, parameters, acquisition (how each channel was
+    sampled), description."""
+    cfg = result.config
+    rate = 1.0 / float(np.median(np.diff(result.t)))
+    return {
+        "system": "single-actuator" if cfg.scenario.system == "actuator" else "hexapod",
+        "sample_rate_hz": round(rate, 6),
+        "controller": {"type": "P", "kp_V_per_m": cfg.controller.kp, "rate_hz": cfg.controller.rate_hz},
+        "parameters": ("seed appendix A (nominal)" if cfg.hydraulics == type(cfg.hydraulics)()
+                       and cfg.effects == type(cfg.effects)() and not cfg.leg_changes
+                       else "hexsim with parameters other than the seed's (not stated here)"),
+        "oil_temperature_C": 35.0,
+        "acquisition": {"accelerometer": "mean over each sample interval (boxcar anti-alias filter)",
+                        "other channels": "value at the sample instant"},
+        "description": f"hexsim simulation: scenario {cfg.scenario.name}, compensator {cfg.compensator_name}, seed {cfg.seed}",
+    }
+
+
+#: Sensor noise (rms, SI units) that :func:`add_sensor_noise` puts on simulated logs so they look like
+#: measurements: position transducer 2 µm (resolution, "a few µm"), pressure transducers 0.02 bar
+#: (0.1 % of a 250 bar range, hexsim's assumption), accelerometer 0.02 m/s^2.
+SENSOR_NOISE = {"pos_m": 2e-6, "p1_Pa": 2e3, "ps_Pa": 2e3, "_mps2": 0.02}
+
+
+def add_sensor_noise(cols: dict[str, np.ndarray], rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """A copy of the log columns with white Gaussian noise of :data:`SENSOR_NOISE` on every measured column
+    (leg and platform columns of the hexapod too); setpoints, valve commands and time are left exact."""
+    out = {}
+    for name, values in cols.items():
+        level = next((v for k, v in SENSOR_NOISE.items() if name.endswith(k)), None)
+        out[name] = values + rng.normal(0.0, level, values.shape) if level else values
+    return out
+
+
+def write_log(path: str | os.PathLike, result: SimulationResult,
+              noise: np.random.Generator | None = None) -> tuple[pathlib.Path, pathlib.Path]:
+    """Write ``path`` (CSV) and its sidecar (same stem, .json), each atomically. Returns both paths.
+
+    ``noise``: a generator to add :data:`SENSOR_NOISE` (:func:`add_sensor_noise`); default exact values.
+    """
+    path = pathlib.Path(path)
+    cols = log_columns(result)
+    if noise is not None:
+        cols = add_sensor_noise(cols, noise)
+    table = np.column_stack(list(cols.values()))
+    header = ",".join(cols)
+
+    def write_csv(tmp: pathlib.Path) -> None:
+        np.savetxt(tmp, table, delimiter=",", header=header, comments="", fmt="%.9g")
+
+    side = path.with_suffix(".json")
+    write_atomic(path, write_csv)
+    write_atomic(side, lambda tmp: tmp.write_text(json.dumps(sidecar(result), indent=2) + "\n"))
+    return path, side

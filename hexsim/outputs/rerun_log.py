@@ -1,0 +1,181 @@
+"""The run as a rerun recording (``.rrd``), written headless: open it with ``rerun out.rrd``.
+
+3D (world frame, z up): the model's own visual geoms (base, barrels, rods, platform, from the MJCF) at the
+run's poses over time (decimated to 50 Hz). Time series: the reversal
+bump (the analysed signal minus its fundamental fit) on its own axis, the signal with its fit, piston
+positions and setpoints, valve setpoints and compensation voltages, pressures, and the compensator's
+parameters for a compensated run. Every run is a recording of its own (:func:`recording_id`). A
+default blueprint opens on the 3D view beside the time series.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import uuid
+
+import mujoco
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+from scipy.spatial.transform import Rotation
+
+from hexsim.control.kinematics import HexapodGeometry, rotation_matrices
+from hexsim.plant.model import load_model
+from hexsim.simulation.config import SimulationResult
+from hexsim.simulation.metrics import Smoothness
+from hexsim.tables import write_atomic
+
+VIEW_RATE_HZ = 50.0  # [Hz] rate of the 3D scene in the recording
+
+
+def _blueprint(compensated: bool, analysis: str) -> rrb.Blueprint:
+    """Time series beside the 3D view: the reversal bump (signal minus its fundamental fit) on its own
+    axis, then the signal with its fit, positions, valve, pressures and, for a compensated run only,
+    the compensator's parameters."""
+    panels = [
+        rrb.TimeSeriesView(origin="/bump", name=f"reversal bump: {analysis} minus its fundamental"),
+        rrb.TimeSeriesView(origin="/acceleration", name=f"{analysis} and its fundamental fit"),
+        rrb.TimeSeriesView(origin="/legs", name="piston position and setpoint [m]"),
+        rrb.TimeSeriesView(origin="/valve", name="valve setpoint u_v, compensation U_c [V]"),
+        rrb.TimeSeriesView(origin="/pressure", name="pressures P1, P_s [bar]"),
+    ]
+    if compensated:
+        panels.append(rrb.TimeSeriesView(origin="/compensator", name="compensator parameters a, b, c, s"))
+    return rrb.Blueprint(
+        rrb.Horizontal(rrb.Spatial3DView(origin="/world", name="hexapod"), rrb.Vertical(*panels),
+                       column_shares=[2, 3]),
+        collapse_panels=True,
+    )
+
+
+def recording_id(result: SimulationResult) -> str:
+    """A recording id of its own for every run (scenario, compensator, seed and a random suffix), so two
+    recordings opened together (``rerun a.rrd b.rrd``) stay two; the application id is ``hexsim``."""
+    cfg = result.config
+    return f"hexsim-{cfg.scenario.name}-{cfg.compensator_name}-seed{cfg.seed}-{uuid.uuid4().hex[:8]}"
+
+
+def _scalars(rec: rr.RecordingStream, path: str, times: rr.TimeColumn, values: np.ndarray) -> None:
+    rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
+
+
+def scene_qpos(m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray) -> np.ndarray:
+    """(len(rows), nq) joint positions of the model at the recorded rows ``rows``: each leg's slide at its
+    recorded piston position y [m]; on the hexapod the platform's free joint at its recorded pose and
+    each leg's universal joint (hinges about the barrel's x, then y axis) turned so that the barrel points
+    from its base joint to the platform anchor: with d the unit leg direction in the barrel's rest frame,
+    R_x(a) R_y(b) e_z = d gives b = asin(d_x), a = atan2(-d_y, d_z)."""
+    qpos = np.tile(m.qpos0, (len(rows), 1))
+    for i in range(result.n_legs):
+        qpos[:, m.joint(f"leg{i + 1}").qposadr[0]] = result.y[rows, i]
+    if result.config.scenario.system != "hexapod":
+        return qpos
+    pose = result.pose[rows]
+    rot = rotation_matrices(pose[:, 3:])
+    free = m.joint("platform").qposadr[0]
+    qpos[:, free:free + 3] = HexapodGeometry.from_model(m).neutral_position + pose[:, :3]
+    qpos[:, free + 3:free + 7] = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]  # w, x, y, z
+    for i in range(result.n_legs):
+        anchor = m.site(f"platform_anchor{i + 1}").pos
+        barrel = m.body(f"cylinder{i + 1}")
+        rest = Rotation.from_quat(np.roll(barrel.quat, -1)).as_matrix()
+        direction = qpos[:, free:free + 3] + rot @ anchor - barrel.pos
+        d = direction @ rest  # in the barrel's rest frame
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        qpos[:, m.joint(f"leg{i + 1}_u1").qposadr[0]] = np.arctan2(-d[:, 1], d[:, 2])
+        qpos[:, m.joint(f"leg{i + 1}_u2").qposadr[0]] = np.arcsin(np.clip(d[:, 0], -1.0, 1.0))
+    return qpos
+
+
+def _log_scene(rec: rr.RecordingStream, result: SimulationResult, rows: np.ndarray, times: rr.TimeColumn) -> None:
+    """The model's visual geoms (MJCF group 2: boxes, cylinders, spheres, capsules, ellipsoids) under
+    ``/world/<body>``, each body's world pose over time from :func:`scene_qpos` and ``mj_kinematics``."""
+    m = load_model("hexapod" if result.config.scenario.system == "hexapod" else "actuator")
+    d = mujoco.MjData(m)
+    qpos = scene_qpos(m, result, rows)
+    xpos, xquat = np.empty((len(rows), m.nbody, 3)), np.empty((len(rows), m.nbody, 4))
+    for k, q in enumerate(qpos):
+        d.qpos[:] = q
+        mujoco.mj_kinematics(m, d)
+        xpos[k], xquat[k] = d.xpos, d.xquat
+    for body in range(m.nbody):
+        geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_group[g] == 2]
+        if not geoms:
+            continue
+        path = f"/world/{m.body(body).name or 'world'}"
+        for g in geoms:
+            shape = _geom_shape(m, g)
+            if shape is not None:
+                rec.log(f"{path}/{m.geom(g).name or f'geom{g}'}", shape, static=True)
+        if body == 0 or m.body_weldid[body] == 0:  # welded to the world: one pose
+            rec.log(path, rr.Transform3D(translation=xpos[0, body], quaternion=np.roll(xquat[0, body], -1)), static=True)
+        else:
+            rec.send_columns(path, indexes=[times], columns=rr.Transform3D.columns(
+                translation=xpos[:, body], quaternion=np.roll(xquat[:, body], -1, axis=1)))
+
+
+def _geom_shape(m: mujoco.MjModel, g: int):
+    """A rerun archetype for geom ``g`` in its body's frame (None for a type rerun has no primitive for)."""
+    size, pos, quat = m.geom_size[g], m.geom_pos[g], np.roll(m.geom_quat[g], -1)  # rerun: x, y, z, w
+    rgba = m.mat_rgba[m.geom_matid[g]] if m.geom_matid[g] >= 0 else m.geom_rgba[g]
+    colors = [np.round(255 * rgba).astype(np.uint8)]
+    kind = m.geom_type[g]
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return rr.Boxes3D(half_sizes=[size], centers=[pos], quaternions=[quat], colors=colors, fill_mode="solid")
+    if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:  # MuJoCo and rerun: axis along local z, centred
+        return rr.Cylinders3D(lengths=[2 * size[1]], radii=[size[0]], centers=[pos], quaternions=[quat],
+                              colors=colors, fill_mode="solid")
+    if kind in (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID):
+        half = np.full(3, size[0]) if kind == mujoco.mjtGeom.mjGEOM_SPHERE else size
+        return rr.Ellipsoids3D(half_sizes=[half], centers=[pos], quaternions=[quat], colors=colors, fill_mode="solid")
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:  # rerun's capsule starts at its translation and runs along +z
+        start = pos + Rotation.from_quat(quat).apply([0.0, 0.0, -size[1]])
+        return rr.Capsules3D(lengths=[2 * size[1]], radii=[size[0]], translations=[start], quaternions=[quat],
+                             colors=colors)
+    return None
+
+
+def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
+    """Write the recording of a run to ``path`` (atomically)."""
+    write_atomic(path, lambda tmp: _write(tmp, result, sm))
+
+
+def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
+    rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
+    rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal))
+    rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    times = rr.TimeColumn("time", duration=result.t)
+    n = result.n_legs
+    for i in range(n):
+        leg = f"leg{i + 1}"
+        _scalars(rec, f"/legs/{leg}/position", times, result.y[:, i])
+        _scalars(rec, f"/legs/{leg}/setpoint", times, result.y_ref[:, i])
+        _scalars(rec, f"/valve/{leg}/u_v", times, result.u_v[:, i])
+        _scalars(rec, f"/valve/{leg}/U_c", times, result.u_c[:, i])
+        _scalars(rec, f"/pressure/{leg}/p1", times, result.p1[:, i] / 1e5)
+    _scalars(rec, "/pressure/p_s", times, result.p_s / 1e5)
+    for key, values in result.compensator_state.items():
+        for i in range(n):
+            _scalars(rec, f"/compensator/leg{i + 1}/{key}", times, values[:, i])
+    fit_times = rr.TimeColumn("time", duration=sm.t)
+    _scalars(rec, "/acceleration/signal", fit_times, sm.fit + sm.noise)
+    _scalars(rec, "/acceleration/fundamental", fit_times, sm.fit)
+    _scalars(rec, "/bump/noise", fit_times, sm.noise)
+    rec.log("/acceleration/signal", rr.SeriesLines(names=f"{sm.signal} [{sm.unit}]", colors=[[40, 90, 170]]),
+            static=True)
+    rec.log("/acceleration/fundamental", rr.SeriesLines(names="fundamental fit", colors=[[230, 150, 30]]),
+            static=True)
+    rec.log("/bump/noise", rr.SeriesLines(names=f"signal - fit [{sm.unit}]", colors=[[200, 40, 40]]), static=True)
+    for i in range(n):
+        for path, label in ((f"/legs/leg{i + 1}/position", "y"), (f"/legs/leg{i + 1}/setpoint", "r"),
+                            (f"/valve/leg{i + 1}/u_v", "u_v"), (f"/valve/leg{i + 1}/U_c", "U_c"),
+                            (f"/pressure/leg{i + 1}/p1", "P1")):
+            rec.log(path, rr.SeriesLines(names=f"leg{i + 1} {label}"), static=True)
+    rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
+
+    step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
+    rows = np.arange(0, len(result.t), step)
+    _log_scene(rec, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
+    rec.flush()
+    rec.disconnect()

@@ -1,0 +1,200 @@
+"""Loading the shipped MJCF models and resolving named elements once (STYLE.md §5).
+
+Python reads rigid-body facts (masses, stroke, timestep, gravity) from ``MjModel`` and never keeps a
+second copy (STYLE.md §2).
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.resources
+import pathlib
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from hexsim.errors import InputError, PhysicsError
+
+#: Built-in models: name -> MJCF file inside the ``hexsim.models`` package (sources in ``models/``).
+MODELS = {
+    "hexapod": "scene.xml",
+    "actuator": "single_actuator.xml",
+}
+
+
+def model_path(name: str) -> pathlib.Path:
+    """Path of a built-in model's MJCF file. Raises InputError for an unknown name."""
+    if name not in MODELS:
+        raise InputError(f"unknown model {name!r}; built-in models: {', '.join(MODELS)}")
+    return pathlib.Path(str(importlib.resources.files("hexsim.models") / MODELS[name]))
+
+
+def load_model(name: str) -> mujoco.MjModel:
+    """Compile a built-in model (``"hexapod"`` or ``"actuator"``), with island discovery off
+    (:func:`no_islands`)."""
+    return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
+
+
+@functools.cache
+def gravity(name: str = "actuator") -> float:
+    """|g| [m/s^2] of a built-in model (both are 9.81): the one value of gravity hexsim uses, read from
+    the MJCF (the identifier, ``hexsim friction`` and the reports included). Raises InputError for an
+    unknown model name."""
+    return float(np.linalg.norm(load_model(name).opt.gravity))
+
+
+@functools.cache
+def moving_mass() -> float:
+    """Moving mass M [kg] of the built-in single actuator (the body slide ``leg1`` carries; seed app. A:
+    40 kg), read from the MJCF."""
+    m = load_model("actuator")
+    return float(m.body_mass[m.jnt_bodyid[_id(m, mujoco.mjtObj.mjOBJ_JOINT, "leg1")]])
+
+
+def no_islands(m: mujoco.MjModel) -> mujoco.MjModel:
+    """``m`` with MuJoCo's constraint-island discovery switched off (``mjDSBL_ISLAND``, where this MuJoCo
+    has it), in place. The hexapod is one island (every leg is tied to the platform) and the single
+    actuators are one body each, so discovering islands at every step is work without effect: the
+    results are bit-identical (tests/test_hexapod.py) and a hexapod step is about 10 % cheaper."""
+    flag = getattr(mujoco.mjtDisableBit, "mjDSBL_ISLAND", None)
+    if flag is not None:
+        m.opt.disableflags |= int(flag)
+    return m
+
+
+def _id(m: mujoco.MjModel, objtype, name: str) -> int:
+    i = mujoco.mj_name2id(m, objtype, name)
+    if i < 0:
+        raise InputError(f"model {m.names[:40]!r}… has no {objtype.name.removeprefix('mjOBJ_').lower()} {name!r}")
+    return i
+
+
+@dataclass(frozen=True)
+class PlantIndex:
+    """Addresses of the named elements hexsim drives and reads, resolved once with ``mj_name2id``.
+
+    Legs are the slide joints ``leg1`` … ``legN`` (piston position y [m]) with motors ``leg{i}_force``;
+    the platform sensors sit at site ``platform_centre``. Arrays have shape (n_legs,).
+    """
+
+    n_legs: int
+    qpos_adr: np.ndarray  # (n,) qpos address of each slide joint
+    dof_adr: np.ndarray  # (n,) qvel address of each slide joint
+    actuator_id: np.ndarray  # (n,) index into data.ctrl
+    stroke: np.ndarray  # (n, 2) joint range [m]: 0 … L_s
+    neutral_y: np.ndarray  # (n,) piston positions in the `neutral` keyframe [m]
+    sensor: dict[str, slice]  # sensor name -> slice of data.sensordata
+    dt: float  # physics timestep [s]
+
+    @classmethod
+    def from_model(cls, m: mujoco.MjModel) -> "PlantIndex":
+        legs = []
+        while mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{len(legs) + 1}") >= 0:
+            legs.append(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{len(legs) + 1}"))
+        if not legs:
+            raise InputError("model has no slide joint named leg1")
+        joints = np.array(legs)
+        acts = np.array([_id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"leg{i + 1}_force") for i in range(len(legs))])
+        sensors = {}
+        for s in range(m.nsensor):
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
+            adr, dim = m.sensor_adr[s], m.sensor_dim[s]
+            sensors[name] = slice(int(adr), int(adr + dim))
+        key = _id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral")
+        qpos_adr = m.jnt_qposadr[joints].astype(int)
+        return cls(
+            n_legs=len(legs),
+            qpos_adr=qpos_adr,
+            dof_adr=m.jnt_dofadr[joints].astype(int),
+            actuator_id=acts.astype(int),
+            stroke=m.jnt_range[joints].copy(),
+            neutral_y=m.key_qpos[key][qpos_adr].copy(),
+            sensor=sensors,
+            dt=float(m.opt.timestep),
+        )
+
+
+def reset_neutral(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """Reset ``d`` to the ``neutral`` keyframe and run ``mj_forward``."""
+    mujoco.mj_resetDataKeyframe(m, d, _id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral"))
+    mujoco.mj_forward(m, d)
+
+
+def check_warnings(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """Raise PhysicsError if MuJoCo raised any warning (like dm_control's ``check_invalid_state``).
+
+    The message names the warning, the time and, for bad controls, the actuator (e.g. ``leg3_force``).
+    """
+    counts = d.warning.number
+    if np.any(counts > 0):
+        kinds = []
+        for i in np.flatnonzero(counts):
+            kind = mujoco.mjtWarning(i)
+            what = kind.name
+            if kind == mujoco.mjtWarning.mjWARN_BADCTRL:
+                what += f" ({mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, int(d.warning.lastinfo[i]))})"
+            kinds.append(what)
+        raise PhysicsError(f"MuJoCo warning {', '.join(kinds)} at t = {d.time:.4f} s")
+
+
+def apply_load(m: mujoco.MjModel, effects) -> None:
+    """Change the rigid bodies in place for the load of ``effects`` (:class:`hexsim.plant.effects.Effects`).
+
+    Single actuator: ``effects.mass_kg`` [kg] replaces the mass of the body that slide ``leg1`` carries;
+    ``effects.inclination_deg`` [deg] tilts gravity so the actuator axis is that far from vertical: only
+    g cos(angle) acts along the axis (the seed's model is vertical, eq. 3.8; the seed notes gravity is
+    not along the hexapod's legs, ch. 4). Hexapod: ``effects.payload_kg`` [kg] at
+    ``effects.payload_at_m`` (platform frame [m]) is added to the body ``platform`` as a point mass
+    (:func:`add_point_mass`). Raises InputError for a load the model cannot take (mass or inclination on
+    the hexapod, a payload on the single actuator or one that leaves the platform without mass).
+    """
+    idx = PlantIndex.from_model(m)
+    if effects.payload_kg != 0.0:
+        if idx.n_legs == 1:
+            raise InputError("a payload applies to the hexapod's platform; the single actuator takes mass_kg")
+        add_point_mass(m, _id(m, mujoco.mjtObj.mjOBJ_BODY, "platform"), effects.payload_kg, effects.payload_at_m)
+    if effects.mass_kg is None and effects.inclination_deg is None:
+        return
+    if idx.n_legs != 1:
+        raise InputError("mass_kg and inclination_deg apply to the single-actuator model only")
+    if effects.mass_kg is not None:
+        m.body_mass[m.jnt_bodyid[_id(m, mujoco.mjtObj.mjOBJ_JOINT, "leg1")]] = effects.mass_kg
+    if effects.inclination_deg is not None:
+        g = float(np.linalg.norm(m.opt.gravity))
+        angle = np.deg2rad(effects.inclination_deg)
+        m.opt.gravity[:] = (g * np.sin(angle), 0.0, -g * np.cos(angle))
+
+
+def add_point_mass(m: mujoco.MjModel, body: int, mass: float, at) -> None:
+    """Add a point mass ``mass`` [kg] (negative: take mass away) at ``at`` (3,) [m, body frame] to body
+    ``body`` of a compiled model, in place: new mass, centre of mass (``body_ipos``) and inertia about it
+    (parallel-axis theorem on the full tensor, then principal axes into ``body_inertia`` /
+    ``body_iquat``). Raises InputError if the body would be left with no mass or an inertia that is not
+    positive definite."""
+    m0, c0 = float(m.body_mass[body]), np.array(m.body_ipos[body], dtype=float)
+    p = np.asarray(at, dtype=float)
+    total = m0 + mass
+    if total <= 0.0:
+        raise InputError(f"a payload of {mass:g} kg leaves the {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body)} "
+                         f"with {total:g} kg")
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, m.body_iquat[body])
+    rot = rot.reshape(3, 3)
+    inertia0 = rot @ np.diag(m.body_inertia[body]) @ rot.T  # about c0, body frame
+    c = (m0 * c0 + mass * p) / total
+
+    def shift(mass_i, r):  # inertia of a point mass mass_i at offset r
+        return mass_i * (np.dot(r, r) * np.eye(3) - np.outer(r, r))
+
+    inertia = inertia0 + shift(m0, c0 - c) + shift(mass, p - c)
+    values, vectors = np.linalg.eigh(inertia)
+    if values.min() <= 0.0:
+        raise InputError(f"a payload of {mass:g} kg at {tuple(p)} m leaves an inertia that is not positive definite")
+    if np.linalg.det(vectors) < 0:
+        vectors[:, 0] = -vectors[:, 0]
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, vectors.reshape(-1))
+    m.body_mass[body], m.body_ipos[body] = total, c
+    m.body_inertia[body], m.body_iquat[body] = values, quat
+    mujoco.mj_setConst(m, mujoco.MjData(m))  # subtree masses and the other constants derived from the bodies

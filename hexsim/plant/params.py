@@ -1,0 +1,213 @@
+"""Hydraulic and controller parameters: frozen dataclasses with symbol, unit, default and source.
+
+Rigid-body facts (masses, stroke, gravity, timestep) live in the MJCF and are read from ``MjModel``
+(STYLE.md §2); only the hydraulics and the controller are described here. Every default is the seed's
+appendix A ("Compensation of the reversal bump", Rexroth-Hydraudyne / TU Eindhoven, 2005) unless the
+comment says otherwise. Each dataclass validates itself on construction and raises
+:class:`~hexsim.errors.InputError` naming the parameter and the value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from hexsim.errors import InputError
+
+FlowArea = Literal["smooth", "quadratic", "sharp"]
+
+
+def _check_positive(obj, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise InputError(f"{type(obj).__name__}.{name} must be a finite positive number, got {value!r}")
+
+
+def _check_nonnegative(obj, *names: str) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise InputError(f"{type(obj).__name__}.{name} must be a finite number >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class HydraulicParams:
+    """One valve-controlled asymmetric cylinder of the Micro Motion System (seed ch. 3, app. A).
+
+    The 3/3 proportional valve feeds the bottom chamber (area A1); the rod side (area A2) sees the supply
+    pressure P_s directly (seed Fig. 3.1).
+    """
+
+    supply_pressure: float = 7.0e6  # P_s [Pa], seed app. A (70 bar, seed §2.2.2)
+    tank_pressure: float = 0.0  # P_t [Pa], seed app. A
+    discharge_coefficient: float = math.pi / (math.pi + 2)  # C_d [-] = 0.61, seed app. A
+    density: float = 860.0  # rho [kg/m^3], Shell Tellus T46 at 35 °C, seed app. A
+    bore_diameter: float = 0.04  # D [m]: A1 = pi/4 D^2, seed app. A
+    rod_diameter: float = 0.03  # d_r [m]: A2 = pi/4 (D^2 - d_r^2), seed app. A
+    bulk_modulus: float = 1.5e9  # E [Pa], seed app. A
+    pipeline_volume: float = 5e-7  # V_pl [m^3], seed app. A (l = 65 mm, seed eq. 3.1)
+    u_v_max: float = 10.0  # u_v,max [V], seed app. A
+    x_v_max: float = 1.1e-3  # x_v,max [m], seed app. A
+    overlap: float = 5e-6  # O_l [m], overlap at mid-position, seed app. A
+    null_offset: float = 0.0  # u_0 [V], valve setpoint that centres the spool; 0 in the seed, drifts with
+    # temperature (seed §5.3: "a larger or smaller input voltage is required to reach a specific valve
+    # spool position")
+    spool_diameter: float = 1e-2  # d [m], seed app. A
+    smooth_area_gain: float = 300.0  # [m^2/m^2 -> 1/m]: a = 300 x_v^2, seed eq. (3.11)
+    # "smooth": seed eq. (3.11) blended C^1 onto the port's opening (3.3) above 0.78 V (smooth_blend);
+    # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "sharp": (3.3)
+    flow_area: FlowArea = "smooth"
+    # Lowest pressure the bottom chamber's oil holds [Pa, gauge]: 0.1 bar absolute, where dissolved air comes
+    # out of mineral oil and the oil cavitates (air-release pressures 0.1–0.3 bar abs.; the vapour pressure is
+    # lower still; Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), 2011). Not in the seed, whose
+    # chamber never falls that low; the pressure stays there while a cavity opens (hexsim.plant.legs.pressure_step).
+    cavitation_pressure: float = 1.0e4 - 101325.0
+    # Asymmetric Stribeck friction, seed eq. (3.9) and app. A.
+    arctan_gain: float = 100.0  # k [s/m], seed app. A
+    viscous_pos: float = 2200.0  # sigma+ [N s/m]
+    viscous_neg: float = 1800.0  # sigma- [N s/m]
+    coulomb_pos: float = 65.0  # F_c0+ [N]
+    coulomb_neg: float = 60.0  # F_c0- [N]
+    static_pos: float = 30.0  # F_s0+ [N]
+    static_neg: float = 30.0  # F_s0- [N]
+    stribeck_velocity_pos: float = 0.005  # c_s+ [m/s]
+    stribeck_velocity_neg: float = 0.005  # c_s- [m/s]
+    # Seed eq. (3.9) multiplies by arctan(k ydot), which tends to ±pi/2, not ±1: with the published
+    # formula the Coulomb + static level at speed is pi/2 times F_c0 + F_s0 (e.g. 102 N, not 65 N, for
+    # F_c0+). False (default) implements (3.9) as published; True uses (2/pi) arctan, a smoothed sign()
+    # that reproduces (2.4) and the friction-velocity map the parameters were identified from.
+    arctan_normalised: bool = False
+
+    def __post_init__(self) -> None:
+        _check_positive(
+            self,
+            "supply_pressure",
+            "discharge_coefficient",
+            "density",
+            "bore_diameter",
+            "bulk_modulus",
+            "pipeline_volume",
+            "u_v_max",
+            "x_v_max",
+            "spool_diameter",
+            "smooth_area_gain",
+            "arctan_gain",
+            "stribeck_velocity_pos",
+            "stribeck_velocity_neg",
+        )
+        _check_nonnegative(
+            self,
+            "tank_pressure",
+            "rod_diameter",
+            "overlap",
+            "viscous_pos",
+            "viscous_neg",
+            "coulomb_pos",
+            "coulomb_neg",
+            "static_pos",
+            "static_neg",
+        )
+        if self.rod_diameter >= self.bore_diameter:
+            raise InputError(
+                f"HydraulicParams.rod_diameter ({self.rod_diameter} m) must be smaller than bore_diameter "
+                f"({self.bore_diameter} m)"
+            )
+        if not (math.isfinite(self.null_offset) and abs(self.null_offset) < self.u_v_max):
+            raise InputError(f"HydraulicParams.null_offset must be inside ±u_v_max, got {self.null_offset!r}")
+        if self.overlap >= self.x_v_max:
+            raise InputError(
+                f"HydraulicParams.overlap ({self.overlap} m) must be smaller than the spool stroke x_v_max "
+                f"({self.x_v_max} m)"
+            )
+        if not (math.isfinite(self.cavitation_pressure) and -101325.0 <= self.cavitation_pressure < self.tank_pressure):
+            raise InputError(
+                f"HydraulicParams.cavitation_pressure ({self.cavitation_pressure} Pa, gauge) must be between absolute "
+                f"vacuum (-101325 Pa) and the tank pressure ({self.tank_pressure} Pa)")
+        if self.tank_pressure >= self.supply_pressure:
+            raise InputError(
+                f"HydraulicParams.tank_pressure ({self.tank_pressure} Pa) must be below supply_pressure "
+                f"({self.supply_pressure} Pa)"
+            )
+        if self.flow_area not in ("smooth", "quadratic", "sharp"):
+            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic' or 'sharp', got {self.flow_area!r}")
+        limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
+        if self.flow_area == "smooth" and self.overlap >= limit:
+            raise InputError(
+                f"HydraulicParams.overlap ({self.overlap} m) must be below pi d / (4 k_a) = {limit:.3g} m for the "
+                f"smooth flow area: above it k_a x_v^2 (eq. 3.11, k_a = smooth_area_gain) never meets the port's "
+                f"opening pi d (x_v - O_l) (eq. 3.3) and cannot be blended onto it")
+
+    # Derived constants, computed once per parameter set (the dataclass is frozen).
+    @functools.cached_property
+    def smooth_blend(self) -> tuple[float, float]:
+        """(x_a, x_b) [m]: the smooth flow area k_a x_v^2 (seed eq. 3.11) holds for |x_v| <= x_a; from x_b
+        on the opening is the sharp-edged port's pi d (|x_v| - O_l) (eq. 3.3), the geometric limit a
+        spool of diameter d opens; in between, pi d (|x_v| - O_l) - k_a (|x_v| - x_b)^2, which meets both
+        with the same value and slope (C^1) and bends with the same |curvature| 2 k_a as (3.11).
+
+        With w = pi d and x_t = w / (2 k_a) (where (3.11) has the port's slope w): x_a is the larger root
+        of 2 k_a x^2 - 2 w x + k_a x_t^2 + w O_l = 0 and x_b = 2 x_a - x_t. Seed values: x_a = 85.7 µm
+        (0.78 V), x_b = 119 µm (1.08 V); (3.11) alone would cross the port's opening at 99.5 µm (0.90 V)
+        and exceed it 10.5× at full spool stroke."""
+        w, k = math.pi * self.spool_diameter, self.smooth_area_gain
+        x_t = w / (2.0 * k)
+        x_a = (2.0 * w + math.sqrt(max(4.0 * w * w - 8.0 * k * (k * x_t * x_t + w * self.overlap), 0.0))) / (4.0 * k)
+        return x_a, 2.0 * x_a - x_t
+
+    @functools.cached_property
+    def area_bottom(self) -> float:
+        """A1 [m^2], piston area on the bottom side (seed app. A: pi/4 * 0.04^2)."""
+        return math.pi / 4 * self.bore_diameter**2
+
+    @functools.cached_property
+    def area_rod(self) -> float:
+        """A2 [m^2], annulus area on the rod side (seed app. A: pi/4 * (0.04^2 - 0.03^2))."""
+        return math.pi / 4 * (self.bore_diameter**2 - self.rod_diameter**2)
+
+    @functools.cached_property
+    def orifice_constant(self) -> float:
+        """C_d sqrt(2 / rho) [m^1.5 / kg^0.5] of the orifice equation (seed eq. 3.4)."""
+        return self.discharge_coefficient * math.sqrt(2.0 / self.density)
+
+    @functools.cached_property
+    def stribeck_table(self) -> np.ndarray:
+        """(2, 4) rows [sigma, F_c0, F_s0, c_s] for ydot < 0 (row 0) and ydot >= 0 (row 1), seed eq. (3.9)."""
+        return np.array([
+            [self.viscous_neg, self.coulomb_neg, self.static_neg, self.stribeck_velocity_neg],
+            [self.viscous_pos, self.coulomb_pos, self.static_pos, self.stribeck_velocity_pos],
+        ])
+
+    def replace(self, **changes) -> "HydraulicParams":
+        """A copy with ``changes`` applied (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Per-leg proportional position controller of the motion computer (seed §2.2.4, Fig. 2.6).
+
+    u_v = K_p (r - y_measured) + U_c, saturated at ±u_v,max, computed at 500 Hz and held (zero-order
+    hold) between samples.
+    """
+
+    kp: float = 200.0  # K_p [V/m]. The seed tuned K_p by hand (§3.3) and gives no value; 200 V/m
+    # puts the loop's velocity bandwidth near 10 Hz at the operating point (1 V for 0.16 m/s with the
+    # smooth flow area) with 5 mm tracking error at the seed's 0.157 m/s peak speed, and is the value
+    # of the measurement-log format's example sidecar.
+    rate_hz: float = 500.0  # [Hz], sampling frequency of the motion computer, seed §2.2.4
+    position_noise: float = 2e-6  # [m] rms white noise on the measured piston position ("a few µm":
+    # a position transducer's resolution; the seed adds measurement noise in §5.5)
+
+    def __post_init__(self) -> None:
+        _check_positive(self, "kp", "rate_hz")
+        _check_nonnegative(self, "position_noise")
+
+    def replace(self, **changes) -> "ControllerParams":
+        """A copy with ``changes`` applied (validated again)."""
+        return dataclasses.replace(self, **changes)

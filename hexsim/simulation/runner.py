@@ -1,0 +1,415 @@
+"""The one runner: scenario → IK → P control → compensator → faults → leg plant → ``mj_step`` → recorder.
+
+:class:`Simulator` sets a run up from a :class:`~hexsim.simulation.config.RunConfig`, advances it in steps
+(:meth:`Simulator.step`) or to the end (:meth:`Simulator.run`) and hands back what it recorded so far
+(:meth:`Simulator.result`); :func:`simulate` is the one-call form every command uses (``run``,
+``compare``, ``sweep``, the hexapod log replay, the identifier). Two loops drive the same stages:
+
+* ``engine="native"`` (default): :func:`hexsim.simulation.native.run_block` steps legs and MuJoCo in compiled code;
+  the P controller and the built-in buffered/directional compensators run inside it, any other
+  compensator (a user's own, the iterative ones, the oracle), faults and warming oil are sampled in
+  Python at every controller tick between kernel calls;
+* ``engine="python"``: :class:`~hexsim.simulation.config.HydraulicCoupling` as MuJoCo's control callback
+  (``mujoco.set_mjcb_control``), the straightforward loop over the same compiled leg step that the
+  tests hold the compiled loop against. The callback is process-global; it is installed only while a
+  step runs and always removed.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+from tqdm import tqdm
+
+from compensation import PlantTruth, SettingsError, make_compensator
+from compensation.base import Compensator, ReplayedCompensation
+from hexsim.control.controller import PController
+from hexsim.control.kinematics import HexapodGeometry
+from hexsim.errors import InputError, PhysicsError
+from hexsim.plant import hydraulics
+from hexsim.plant.faults import FaultInjector
+from hexsim.plant.legs import PlantState
+from hexsim.plant.model import (
+    PlantIndex,
+    apply_load,
+    check_warnings,
+    load_model,
+    reset_neutral,
+)
+from hexsim.simulation import native
+from hexsim.simulation.config import (
+    ControlSchedule,
+    HydraulicCoupling,
+    RunConfig,
+    SimulationResult,
+    check_timestep,
+    divider,
+    leg_mobility,
+    piston_setpoints,
+    static_leg_forces,
+)
+
+#: recorded channels of shape (samples, n_legs)
+_LEG_CHANNELS = ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")
+
+
+class Simulator:
+    """One run that can be stepped: ``Simulator(config).step(0.5)``, then :meth:`result` at any time.
+
+    Attributes a user may read between steps: :attr:`model` / :attr:`data` (MuJoCo), :attr:`time` [s],
+    :attr:`state` (:class:`~hexsim.plant.legs.PlantState` of the legs), :attr:`compensator`. Raises
+    WorkspaceError for an unreachable setpoint, InputError for inconsistent settings (compensator
+    settings included) and PhysicsError for a start pressure outside tank…supply.
+    """
+
+    def __init__(self, config: RunConfig) -> None:
+        self.config = config
+        self._setup_model()
+        self._setup_control()
+        self._setup_recording()
+        self.k = 0  # physics steps done
+        self.rows = 0  # samples recorded
+        self.wall_time_s = 0.0  # stepping only (compilation excluded)
+        if config.engine == "native":
+            self._setup_kernel()
+
+    # ------------------------------------------------------------------ set-up
+    def _setup_model(self) -> None:
+        cfg = self.config
+        m = load_model(cfg.scenario.system)
+        apply_load(m, cfg.effects)
+        if cfg.timestep is not None:
+            m.opt.timestep = cfg.timestep
+        self.model, self.data = m, mujoco.MjData(m)
+        self.idx = PlantIndex.from_model(m)
+        self.dt = self.idx.dt
+        self.ctrl_div = divider(cfg.controller.rate_hz, self.dt, "controller rate")
+        self.record_rate = cfg.record_rate_hz or 1000.0
+        self.rec_div = divider(self.record_rate, self.dt, "record rate")
+        self.total = int(round(cfg.scenario.duration / self.dt)) // self.rec_div * self.rec_div
+
+    def _setup_control(self) -> None:
+        cfg, m, d, idx = self.config, self.model, self.data, self.idx
+        sc, hyd, cp = cfg.scenario, cfg.hydraulics, cfg.controller
+        n_ticks = int(math.ceil(sc.duration * cp.rate_hz)) + 1
+        setpoints, _ = piston_setpoints(m, idx, sc, np.arange(n_ticks) / cp.rate_hz)
+        noise = np.random.default_rng(cfg.seed).normal(0.0, cp.position_noise, size=setpoints.shape)
+        mujoco.set_mjcb_control(None)
+        reset_neutral(m, d)
+        mobility, _ = leg_mobility(m, d, idx)
+        check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt)
+        p1_0 = hydraulics.equilibrium_pressure(static_leg_forces(m, d, idx), hyd)
+        for i, p in enumerate(p1_0):
+            if not hyd.tank_pressure < p < hyd.supply_pressure:
+                raise PhysicsError(
+                    f"leg{i + 1} needs P1 = {p / 1e5:.1f} bar to hold the neutral pose, outside tank…supply "
+                    f"({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)")
+        self.p1_initial = p1_0
+        plant = PlantTruth(params=hyd, p1_static=p1_0.copy(), flow_curve=hydraulics.static_velocity)
+        self.compensator = _make_compensator(cfg, idx.n_legs, plant)
+        controller = PController(cp, hyd.u_v_max, self.compensator)
+        injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
+        self.coupling = HydraulicCoupling(idx, cfg, controller, ControlSchedule(setpoints, noise, self.ctrl_div), p1_0,
+                                          plant, injector)
+
+    def _setup_recording(self) -> None:
+        cfg, n = self.config, self.idx.n_legs
+        n_total = self.total // self.rec_div
+        keep = cfg.keep_last_s
+        n_rec = n_total if keep is None else min(n_total, max(1, int(round(keep * self.record_rate))))
+        self.n_total = n_total
+        self.rec = {k: np.empty((n_rec, n)) for k in _LEG_CHANNELS}
+        self.rec.update(t=np.empty(n_rec), p_s=np.empty(n_rec), acc=np.empty((n_rec, 3)), viol=np.zeros(n_rec),
+                        temperature=np.empty(n_rec))
+        self.sensors = {"platform_acc": self.rec["acc"]}
+        # accelerations are recorded as the mean over the sample interval (a boxcar anti-alias filter)
+        averaged = ("platform_acc", "platform_angacc") if cfg.scenario.system == "hexapod" else ("platform_acc",)
+        self._acc_adr = np.concatenate([np.arange(self.idx.sensor[name].start, self.idx.sensor[name].stop)
+                                        for name in averaged]).astype(np.int64)
+        widths = [self.idx.sensor[name].stop - self.idx.sensor[name].start for name in averaged]
+        ends = np.cumsum(widths)  # each sensor's entries in _acc_adr / _acc_sum
+        self._averaged = [(name, slice(int(e - w), int(e))) for name, w, e in zip(averaged, widths, ends)]
+        self._acc_sum = np.zeros(len(self._acc_adr) + 1)  # python engine: running sum, count
+        if cfg.scenario.system == "hexapod":
+            for name, width in (("platform_gyro", 3), ("platform_angacc", 3), ("platform_pos", 3),
+                                ("platform_quat", 4)):
+                self.sensors[name] = self.rec[name] = np.empty((n_rec, width))
+        self.comp_state = {k: np.empty((n_rec, n)) for k in self.compensator.state()}
+
+    def _setup_kernel(self) -> None:
+        m, d, idx, coupling, n = self.model, self.data, self.idx, self.coupling, self.idx.n_legs
+        eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
+        if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
+            raise InputError("the native engine needs connect constraints between sites")
+        self.mj = native.mj_view(m, d, idx, m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64))
+        self._hyd = coupling.hyd  # the parameters the kernel has
+        self.legs = native.Legs(coupling.leg_table(), self.dt, coupling.state.copy(),
+                                coupling.groups, np.zeros(n), coupling._y_history, np.zeros(n))
+        # without faults or warming oil, the P controller and the compensator run inside the kernel as well
+        mode = native.comp_mode(self.compensator)
+        self.inner = mode is not None and not coupling.faults and coupling.warm_up is None
+        comp = self.compensator
+        self.ctl = native.Control(self.ctrl_div if self.inner else 0, coupling.controller.params.kp,
+                                  coupling.setpoints, coupling.noise, mode or 0, native.kernel_state(comp, n),
+                                  comp.table if mode == 2 else np.zeros((1, n)), np.zeros(1, dtype=np.int64))
+        n_rec, rec = len(self.rec["t"]), self.rec
+        self.recorder = native.Recorder(
+            self.rec_div, self.n_total, np.zeros(n_rec, dtype=np.int64), np.zeros((n_rec, m.nsensordata)), rec["p1"],
+            rec["p_s"], rec["force"], rec["y"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
+            np.empty((n_rec if self.inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64),
+            self._acc_adr, np.zeros(len(self._acc_adr) + 1))
+        mujoco.mj_forward(m, d)
+        if self.config.progress and not native.kernels_cached():
+            print("hexsim: compiling the simulation kernels (once, about 15 s; cached on disk)", file=sys.stderr,
+                  flush=True)
+        native.run_block(self.mj, self.legs, self.ctl, self.recorder, np.zeros(n), 0, 0, 0)  # compile / load
+
+    # ------------------------------------------------------------------ stepping
+    @property
+    def time(self) -> float:
+        """Simulated time reached [s]."""
+        return self.k * self.dt
+
+    @property
+    def done(self) -> bool:
+        return self.k >= self.total
+
+    @property
+    def state(self) -> PlantState:
+        """The legs' hydraulic state now (arrays (n_legs,), live: do not change them)."""
+        return self.legs.state if self.config.engine == "native" else self.coupling.state
+
+    def step(self, seconds: float | None = None) -> "Simulator":
+        """Advance by ``seconds`` [s] (rounded up to whole controller and record periods; None: to the
+        end of the scenario). Returns self. Raises PhysicsError naming the time and the leg for a
+        non-finite state or a MuJoCo warning."""
+        unit = math.lcm(self.ctrl_div, self.rec_div)
+        if seconds is None:
+            k_end = self.total
+        else:
+            if not (math.isfinite(seconds) and seconds >= 0):
+                raise InputError(f"step: seconds must be a finite number >= 0, got {seconds!r}")
+            k_end = min(self.total, self.k + math.ceil(round(seconds / self.dt, 6) / unit) * unit)
+        if k_end <= self.k:
+            return self
+        bar = tqdm(total=round(self.config.scenario.duration, 3), initial=round(self.time, 3), unit="sim s",
+                   disable=not self.config.progress, leave=False,
+                   bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} sim s [{elapsed}<{remaining}]")
+        start = time.perf_counter()
+        try:
+            if self.config.engine == "python":
+                self._loop_python(k_end, bar)
+            elif self.inner:
+                self._run_inner(k_end, bar)
+            else:
+                self._run_ticks(k_end, bar)
+        finally:
+            self.wall_time_s += time.perf_counter() - start
+            bar.close()
+        _check_finite(self.state.p1, self.data, self.idx, self.data.time)  # the platform too
+        return self
+
+    def run(self) -> SimulationResult:
+        """Step to the end of the scenario and return the result."""
+        return self.step().result()
+
+    def _loop_python(self, k_end: int, bar) -> None:
+        """Samples self.rows … k_end / rec_div with :class:`HydraulicCoupling` as MuJoCo's control
+        callback: every ``rec_div``-th step k records the state at t_k (the sensors MuJoCo evaluates at the
+        start of the step, P1 before the step's update; the accelerometer as its mean over the steps
+        k-rec_div … k-1, as the kernel's :class:`~hexsim.simulation.native.Recorder`), kept in the arrays as a ring."""
+        d, idx, coupling, rec = self.data, self.idx, self.coupling, self.rec
+        leg_vel = np.array([idx.sensor[f"leg{i + 1}_vel"].start for i in range(idx.n_legs)])
+        mujoco.set_mjcb_control(coupling)
+        try:
+            for i in range(self.rows, k_end // self.rec_div):
+                w = i % len(rec["t"])
+                p1_before, p_s_before = coupling.state.p1.copy(), coupling.state.p_s[0]
+                self._python_steps(1)  # step k = i * rec_div: the sensors see t_k
+                sd = d.sensordata
+                rec["t"][w] = i * self.rec_div * self.dt
+                rec["y"][w] = coupling.y_measured  # the position sensor, y(t_k - tau_y)
+                rec["ydot"][w] = sd[leg_vel]
+                rec["y_ref"][w], rec["u_v"][w], rec["u_c"][w] = coupling.r, coupling.u_v, coupling.u_c
+                rec["p1"][w], rec["p_s"][w], rec["force"][w] = p1_before, p_s_before, coupling.force
+                rec["temperature"][w] = coupling.temperature
+                for key, value in self.compensator.state().items():
+                    self.comp_state[key][w] = value
+                for name, out in self.sensors.items():
+                    out[w] = sd[idx.sensor[name]]
+                acc = self._acc_sum  # the mean over the interval's steps (the first record: its own)
+                if acc[-1] > 0:
+                    for name, entries in self._averaged:
+                        self.sensors[name][w] = acc[entries] / acc[-1]
+                acc[:] = 0.0
+                self._add_acc()
+                eq = d.efc_type[: d.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+                if np.any(eq):
+                    rec["viol"][w] = np.linalg.norm(d.efc_pos[: d.nefc][eq].reshape(-1, 3), axis=1).max()
+                if i % 100 == 0:
+                    bar.update(round(d.time - bar.n, 3))
+                for _ in range(self.rec_div - 1):
+                    self._python_steps(1)
+                    self._add_acc()
+                self.rows, self.k = i + 1, (i + 1) * self.rec_div
+        finally:
+            mujoco.set_mjcb_control(None)
+
+    def _add_acc(self) -> None:
+        """Add the step's accelerometer reading to the running sum the records average."""
+        acc = self._acc_sum
+        for c, adr in enumerate(self._acc_adr):
+            acc[c] += self.data.sensordata[adr]
+        acc[-1] += 1.0
+
+    def _python_steps(self, steps: int) -> None:
+        mujoco.mj_step(self.model, self.data, steps)
+        if self.coupling.error is not None:
+            raise self.coupling.error
+        _check_finite(self.coupling.state.p1, self.data, self.idx, self.data.time)
+        check_warnings(self.model, self.data)
+
+    def _run_inner(self, k_end: int, bar) -> None:
+        """Steps self.k … k_end with the controller in the kernel, in chunks of about 0.5 s (progress,
+        checks)."""
+        ctl, dt = self.ctl, self.dt
+        warnings = self.data.warning.number  # a view of MuJoCo's warning counters
+        u_v = np.zeros(self.idx.n_legs)
+        chunk = max(1, int(round(0.5 / (ctl.div * dt)))) * ctl.div
+        k0 = self.k
+        while self.k < k_end:
+            steps = min(chunk, k_end - self.k)
+            self.rows = native.run_block(self.mj, self.legs, ctl, self.recorder, u_v, self.k, steps, self.rows)
+            _check_block(self.model, self.data, self.idx, self.recorder.status, self.legs.state.p1, warnings)
+            self.k += steps
+            bar.update(round(self.time - bar.n, 3))
+        self.coupling.controller.saturated_samples += int(ctl.saturated[0])
+        ctl.saturated[0] = 0
+        if ctl.mode == 2:
+            self.compensator.advance(-(-self.k // ctl.div) - -(-k0 // ctl.div))
+
+    def _run_ticks(self, k_end: int, bar) -> None:
+        """Steps self.k … k_end with the controller sampled in Python (:meth:`HydraulicCoupling.tick`:
+        warming oil, faults, any compensator) and the kernel run from one controller tick to the next."""
+        coupling, legs, recorder, idx = self.coupling, self.legs, self.recorder, self.idx
+        warnings = self.data.warning.number
+        hist = legs.history
+        L, n_rec = len(hist), len(recorder.k)
+        while self.k < k_end:
+            k = self.k
+            hist[k % L] = self.data.qpos[idx.qpos_adr]
+            hyd = coupling.tick(k, hist[(k + 1) % L].copy())
+            if hyd is not self._hyd:  # the oil warmed: new parameters
+                self._hyd = coupling.hyd = hyd
+                legs = self.legs = legs._replace(params=coupling.leg_table())
+            if coupling.supply_level is not None:
+                legs.state.p_s[:] = coupling.supply_level
+            steps = min(self.ctrl_div, k_end - k)
+            r_next = native.run_block(self.mj, legs, self.ctl, recorder, coupling.u_v, k, steps, self.rows)
+            _check_block(self.model, self.data, idx, recorder.status, legs.state.p1, warnings)
+            rows = np.arange(self.rows, r_next) % n_rec
+            recorder.ref[rows], recorder.u[rows], recorder.uc[rows] = coupling.r, coupling.u_v, coupling.u_c
+            self.rec["temperature"][rows] = coupling.temperature
+            for key, value in self.compensator.state().items():
+                self.comp_state[key][rows] = value
+            self.rows, self.k = r_next, k + steps
+            if self.k % (50 * self.ctrl_div) == 0:
+                bar.update(round(self.time - bar.n, 3))
+
+    # ------------------------------------------------------------------ results
+    def result(self) -> SimulationResult:
+        """What was recorded so far, in time order (copies; the run can go on). With ``keep_last_s`` the
+        last that many seconds."""
+        cfg, idx = self.config, self.idx
+        if cfg.engine == "native":
+            self._unpack_kernel_rows()
+        n_rec = len(self.rec["t"])
+        shift = self.rows % n_rec if self.rows > n_rec else 0
+        keep = min(self.rows, n_rec)
+
+        def ordered(a):
+            return np.roll(a, -shift, axis=0)[:keep] if shift else a[:keep].copy()
+
+        rec = {k: ordered(v) for k, v in self.rec.items()}
+        comp_state = {k: ordered(v) for k, v in self.comp_state.items()}
+        t = rec["t"]
+        pose = pose_ref = None
+        if cfg.scenario.system == "hexapod":
+            geom = HexapodGeometry.from_model(self.model)
+            rpy = Rotation.from_quat(rec["platform_quat"][:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
+            pose = np.concatenate([rec["platform_pos"] - geom.neutral_position, rpy], axis=1)
+            pose_ref = cfg.scenario.poses(t) if cfg.scenario.legs is None else None
+        return SimulationResult(
+            config=cfg, t=t, **{k: rec[k] for k in _LEG_CHANNELS}, p_s=rec["p_s"], acc=rec["acc"],
+            gyro=rec.get("platform_gyro"), angacc=rec.get("platform_angacc"), pose=pose, pose_ref=pose_ref,
+            constraint_violation=rec["viol"], oil_temperature=rec["temperature"], compensator_state=comp_state,
+            p1_initial=self.p1_initial, saturated_samples=self.coupling.controller.saturated_samples,
+            wall_time_s=self.wall_time_s, gravity=float(-self.model.opt.gravity[2]), stroke=idx.stroke.copy(),
+            timestep=self.dt)
+
+    def _unpack_kernel_rows(self) -> None:
+        """Fill the channels the kernel keeps in its own rows: time, leg velocities, sensors, and (with the
+        controller inside) the oil temperature and the compensator's (a, b, c, s)."""
+        rec, recorder, s = self.rec, self.recorder, self.idx.sensor
+        rec["t"][:] = recorder.k * self.dt
+        rec["ydot"][:] = recorder.sens[:, [s[f"leg{i + 1}_vel"].start for i in range(self.idx.n_legs)]]
+        for name, out in self.sensors.items():
+            out[:] = recorder.sens[:, s[name]]
+        if self.inner:
+            rec["temperature"][:] = self.coupling.temperature
+            if self.ctl.mode == 1:
+                for c, key in enumerate(("a", "b", "c", "s")):  # as BufferedCompensator.state()
+                    self.comp_state[key][:] = recorder.comp[:, c]
+
+
+def simulate(config: RunConfig) -> SimulationResult:
+    """Run one scenario headless and record it: ``Simulator(config).run()``.
+
+    Raises WorkspaceError for an unreachable setpoint, InputError for inconsistent settings and
+    PhysicsError for a MuJoCo warning or a non-finite state (naming the time and the leg).
+    """
+    return Simulator(config).run()
+
+
+def _make_compensator(cfg: RunConfig, n_legs: int, plant: PlantTruth) -> Compensator:
+    """The run's compensator: a replayed U_c table, a built-in by name, or the user's class (called as
+    ``cls(n_legs, rate_hz, u_v_max, settings)``). Raises InputError for a bad name or setting."""
+    cp, hyd = cfg.controller, cfg.hydraulics
+    try:
+        if cfg.feedforward is not None:
+            return ReplayedCompensation(np.ascontiguousarray(cfg.feedforward, dtype=float), cp.rate_hz, hyd.u_v_max)
+        if isinstance(cfg.compensator, str):
+            return make_compensator(cfg.compensator, n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
+                                    settings=cfg.compensator_settings, plant=plant)
+        return cfg.compensator(n_legs, cp.rate_hz, hyd.u_v_max, cfg.compensator_settings)
+    except SettingsError as exc:
+        raise InputError(str(exc)) from None
+
+
+def _check_block(m, d, idx: PlantIndex, status: np.ndarray, p1: np.ndarray, warnings: np.ndarray) -> None:
+    """After a kernel call: raise PhysicsError for the non-finite state the kernel stopped at (naming
+    the leg and the time of the step, :func:`_check_finite`) or for a MuJoCo warning."""
+    if status[0] >= 0:
+        t = status[0] * idx.dt
+        _check_finite(p1, d, idx, t)
+        raise PhysicsError(f"non-finite state at t = {t:.4f} s")  # the kernel saw it; the arrays hold it
+    if warnings.any():
+        check_warnings(m, d)
+
+
+def _check_finite(p1: np.ndarray, d: mujoco.MjData, idx: PlantIndex, t: float) -> None:
+    """PhysicsError naming the first leg whose P1 (n_legs,) [Pa] or piston position/velocity is not
+    finite, or the platform, at time ``t`` [s]; nothing if all is finite."""
+    bad_p1 = ~np.isfinite(p1)
+    bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
+    if np.any(bad_p1 | bad_q):
+        leg = int(np.flatnonzero(bad_p1 | bad_q)[0]) + 1
+        what = "P1" if bad_p1[leg - 1] else "piston position/velocity"
+        raise PhysicsError(f"non-finite {what} of leg{leg} at t = {t:.4f} s")
+    if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+        raise PhysicsError(f"non-finite platform state at t = {t:.4f} s")

@@ -1,0 +1,149 @@
+"""``hexsim sweep``: a grid of runs (scenario, controller and compensator settings) in worker processes.
+
+Each grid point is one :class:`~hexsim.simulation.config.RunConfig`; the points run in ``jobs`` worker
+processes (:func:`hexsim.simulation.workers.worker_pool`: forked where the platform can, each with its own MuJoCo
+model). Rows come back in grid order whatever order the workers finish in, and every run is seeded by
+its configuration alone, so a sweep gives the same numbers with any number of workers and any start
+method (tests/test_sweep.py checks it against serial runs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import time
+from concurrent.futures import as_completed
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from hexsim.control.scenario import make_scenario
+from hexsim.errors import InputError
+from hexsim.simulation.comparison import final_window_start
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.metrics import max_tracking_error, run_smoothness
+from hexsim.simulation.runner import simulate
+from hexsim.simulation.workers import in_workers, worker_pool
+
+#: Metric columns of a sweep row, after the grid's own columns. Wall times are printed, not tabled, so
+#: the same sweep writes the same bytes.
+METRICS = ("noise_ratio", "peak_noise_g", "peak_noise", "mean_reversal_peak", "max_reversal_peak",
+           "final_noise_ratio", "final_mean_reversal_peak", "max_tracking_error_mm", "max_constraint_violation_mm",
+           "valve_saturated_samples")
+
+
+@dataclass(frozen=True)
+class Point:
+    """One grid point: its settings (name -> value, in grid order) and the run they define."""
+
+    index: int
+    settings: dict
+    config: RunConfig
+
+
+def expand(grid: dict[str, list], make_config) -> list[Point]:
+    """The Cartesian product of ``grid`` (name -> values), first name slowest; ``make_config(settings)``
+    builds the run of one point (raising :class:`~hexsim.errors.HexsimError` for a bad one, before
+    anything runs)."""
+    names = list(grid)
+    points = []
+    for i, values in enumerate(itertools.product(*(grid[n] for n in names))):
+        settings = dict(zip(names, values))
+        points.append(Point(i, settings, make_config(settings)))
+    return points
+
+
+def evaluate_point(config: RunConfig) -> dict:
+    """Run one configuration and reduce it to the :data:`METRICS` (runs in a worker process).
+
+    Whole run: smoothness of the platform (or load) acceleration from the second period on; final: the
+    last quarter of the run (at least two periods), where adaptive compensators have settled."""
+    result = simulate(config)
+    sc = config.scenario
+    whole = run_smoothness(result)
+    final = run_smoothness(result, t_start=final_window_start(sc.duration, sc.frequency))
+    return {
+        "noise_ratio": whole.noise_ratio,
+        "peak_noise_g": whole.peak_noise_g,
+        "peak_noise": whole.peak_noise,
+        "mean_reversal_peak": whole.mean_reversal_peak,
+        "max_reversal_peak": float(np.max(whole.reversal_peaks)) if whole.reversal_peaks.size else float("nan"),
+        "final_noise_ratio": final.noise_ratio,
+        "final_mean_reversal_peak": final.mean_reversal_peak,
+        "max_tracking_error_mm": 1e3 * max_tracking_error(result),
+        "max_constraint_violation_mm": 1e3 * float(np.max(result.constraint_violation)),
+        "valve_saturated_samples": result.saturated_samples,
+    }
+
+
+def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
+              start_method: str | None = None) -> tuple[list[dict], float]:
+    """Run every point with ``jobs`` worker processes (1: in this process) started by ``start_method``,
+    or on the active Dask client's workers (see :func:`hexsim.simulation.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
+    grid order) and the wall time [s] of the whole sweep, start-up included. Raises InputError for a
+    start method the platform does not have."""
+    start = time.perf_counter()
+    results: list[dict | None] = [None] * len(points)
+    if not in_workers(jobs):
+        bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
+        for p in points:
+            results[p.index] = evaluate_point(p.config)
+            bar.update()
+    else:
+        with worker_pool(jobs, start_method) as pool:
+            futures = {pool.submit(evaluate_point, p.config): p.index for p in points}
+            bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
+            for fut in as_completed(futures):
+                results[futures[fut]] = fut.result()
+                bar.update()
+    bar.close()
+    rows = [{"point": p.index, **p.settings, **{k: _finite_or_none(v) for k, v in results[p.index].items()}}
+            for p in points]
+    return rows, time.perf_counter() - start
+
+
+def _finite_or_none(value):
+    """NaN (a metric that does not exist, e.g. no reversal in the window) as None: empty in CSV, null in JSON."""
+    return None if isinstance(value, float) and not np.isfinite(value) else value
+
+
+#: What a Python sweep grid may vary, by where the name lives.
+_SCENARIO_KEYS = ("duration", "amplitude", "frequency")
+
+
+def vary(base: RunConfig, settings: dict) -> RunConfig:
+    """``base`` with ``settings`` applied: a scenario name or keyword (``scenario``, ``duration``,
+    ``amplitude``, ``frequency``: the scenario is rebuilt by :func:`hexsim.control.scenario.make_scenario`), a
+    :class:`RunConfig` field (``compensator``, ``seed``, ``engine``, ``timestep``, ``effects``, …), a
+    field of :class:`~hexsim.plant.params.HydraulicParams`, :class:`~hexsim.plant.params.ControllerParams` or
+    :class:`~compensation.CompensatorSettings`. Raises InputError naming an unknown setting."""
+    sc_keys = {k: v for k, v in settings.items() if k in _SCENARIO_KEYS or k == "scenario"}
+    changes: dict = {}
+    if sc_keys:
+        name = sc_keys.pop("scenario", base.scenario.name)
+        kept = {} if "scenario" in settings else {"duration": base.scenario.duration,
+                                                    "amplitude": base.scenario.amplitude,
+                                                    "frequency": base.scenario.frequency}
+        changes["scenario"] = make_scenario(name, **{**kept, **sc_keys})
+    groups = {"hydraulics": base.hydraulics, "controller": base.controller,
+              "compensator_settings": base.compensator_settings}
+    fields = {f.name for f in dataclasses.fields(RunConfig)}
+    for key, value in settings.items():
+        if key in _SCENARIO_KEYS or key == "scenario":
+            continue
+        owner = next((g for g, obj in groups.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
+        if owner is not None:
+            groups[owner] = dataclasses.replace(groups[owner], **{key: value})
+            changes[owner] = groups[owner]
+        elif key in fields:
+            changes[key] = value
+        else:
+            raise InputError(f"sweep: {key!r} is not a scenario keyword, a RunConfig field or a parameter")
+    return dataclasses.replace(base, **changes)
+
+
+def sweep(base: RunConfig, grid: dict[str, list], *, jobs: int = 2, progress: bool = False) -> list[dict]:
+    """Every combination of ``grid`` (name -> values, see :func:`vary` for the names), run in ``jobs``
+    worker processes; one row per point: its settings and the :data:`METRICS`, in grid order."""
+    return run_sweep(expand(grid, lambda settings: vary(base, settings)), jobs=jobs, progress=progress)[0]

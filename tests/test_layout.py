@@ -1,0 +1,66 @@
+"""The package layout the README's "Layout" section describes: each sub-package of hexsim imports only
+the shared modules and the packages before it on the data path, and compensation imports nothing of
+hexsim. Read from the source (every import statement, also those inside functions), not from a run."""
+
+from __future__ import annotations
+
+import ast
+import pathlib
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+#: hexsim's packages in data-path order; a module may import its own package and those before it.
+ORDER = ["shared", "plant", "control", "simulation", "outputs", "measured", "commands"]
+SHARED = {"errors", "tables", "signals", "jitcache"}
+COMMANDS = {"cli", "bench", "__init__", "__main__"}
+
+
+def _layer(parts: list[str]) -> str:
+    """Layer of the hexsim module ``hexsim.<parts>``."""
+    head = parts[0] if parts else "__init__"
+    if head in SHARED:
+        return "shared"
+    if head in COMMANDS:
+        return "commands"
+    assert head in ORDER, f"hexsim.{head} is in no layer of the README's layout"
+    return head
+
+
+def _hexsim_imports(path: pathlib.Path) -> list[tuple[int, list[str]]]:
+    """(line, module path below hexsim) of each import of a hexsim module in ``path``."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names if node.module == "hexsim"]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[0] == "hexsim" and (len(parts) > 1 or node.__class__ is ast.Import):
+                found.append((node.lineno, parts[1:]))
+    return found
+
+
+def test_each_package_imports_only_those_before_it_on_the_data_path():
+    wrong = []
+    for path in sorted((ROOT / "hexsim").rglob("*.py")):
+        rel = path.relative_to(ROOT / "hexsim").with_suffix("").parts
+        own = ORDER.index(_layer(list(rel)))
+        for line, target in _hexsim_imports(path):
+            if target and target[0] == "__version__":
+                continue
+            if ORDER.index(_layer(target)) > own:
+                wrong.append(f"hexsim/{'/'.join(rel)}.py:{line} imports hexsim.{'.'.join(target)}")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_flat_modules_left_outside_the_layout():
+    flat = {p.stem for p in (ROOT / "hexsim").glob("*.py")}
+    assert flat <= SHARED | COMMANDS, sorted(flat - SHARED - COMMANDS)
+
+
+def test_compensation_imports_nothing_of_hexsim():
+    for path in sorted((ROOT / "compensation").rglob("*.py")):
+        assert not _hexsim_imports(path), f"{path.name} imports hexsim"
