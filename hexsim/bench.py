@@ -4,6 +4,9 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 
 * ``bare_mj_step``: the hexapod model, no control callback, ``mj_step`` at dt = 1e-4 s (legs held by
   their static forces) — the baseline (a);
+* ``bare_mj_step_platform``: the same on the platform-only model (:mod:`hexsim.plant.platform`);
+* ``hexapod_platform`` / ``hexapod_platform_uncompensated``: heave on the platform-only model with the
+  buffered compensator / without;
 * ``hexapod_full``: :func:`hexsim.simulation.runner.simulate` on heave with the buffered compensator: six legs'
   hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
   :func:`compensation.buffered.buffered_tick`), all inside the kernel, sensors recorded at 1 kHz — (b);
@@ -37,33 +40,34 @@ import numpy as np
 from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 
 
-def _bare(duration: float, system: str = "hexapod", timestep: float | None = None) -> float:
+def _bare(duration: float, system: str = "hexapod", timestep: float | None = None, model: str = "full") -> float:
     """Wall time [s] of ``duration`` simulated seconds of bare ``mj_step``, the legs held by their static
-    forces."""
-    from hexsim.simulation.config import static_leg_forces
+    forces (on the platform-only model: the wrench of those forces, set once)."""
+    from hexsim.simulation.config import apply_leg_forces, static_leg_forces
 
-    m = load_model(system)
+    m = load_model(system, model)
     if timestep is not None:
         m.opt.timestep = timestep
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
     mujoco.set_mjcb_control(None)
     reset_neutral(m, d)
-    forces = static_leg_forces(m, d, idx)
-    d.ctrl[idx.actuator_id] = forces
+    apply_leg_forces(d, idx, static_leg_forces(m, d, idx))
     steps = int(round(duration / m.opt.timestep))
     start = time.perf_counter()
     mujoco.mj_step(m, d, steps)
     return time.perf_counter() - start
 
 
-def _full(system: str, compensator: str, duration: float, engine: str = "native", timestep: float | None = None) -> float:
+def _full(system: str, compensator: str, duration: float, engine: str = "native", timestep: float | None = None,
+          model: str = "full") -> float:
     from hexsim.control.scenario import make_scenario
     from hexsim.simulation.config import RunConfig
     from hexsim.simulation.runner import simulate
 
     scenario = make_scenario("heave" if system == "hexapod" else "actuator", duration=duration, frequency=2.0)
-    return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep)).wall_time_s
+    return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep,
+                              model=model)).wall_time_s
 
 
 SWEEP_RUNS = 8
@@ -114,6 +118,9 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     ``mj_step``. ``duration`` [s] of simulated time per repeat (>= 1.5 s for the scenarios)."""
     cases = {
         "bare_mj_step": lambda: _bare(duration),
+        "bare_mj_step_platform": lambda: _bare(duration, model="platform"),
+        "hexapod_platform": lambda: _full("hexapod", "buffered", duration, model="platform"),
+        "hexapod_platform_uncompensated": lambda: _full("hexapod", "none", duration, model="platform"),
         "hexapod_full": lambda: _full("hexapod", "buffered", duration),
         "hexapod_python": lambda: _full("hexapod", "buffered", duration, engine="python"),
         "hexapod_uncompensated": lambda: _full("hexapod", "none", duration),
@@ -135,6 +142,8 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
                               "realtime_factor": 1.0 / per_s}
     bare = out["cases"]["bare_mj_step"]["wall_per_sim_s"]
     out["ratio_hexapod_full_to_bare"] = out["cases"]["hexapod_full"]["wall_per_sim_s"] / bare
+    out["ratio_platform_bare_to_bare"] = out["cases"]["bare_mj_step_platform"]["wall_per_sim_s"] / bare
+    out["ratio_hexapod_platform_to_bare"] = out["cases"]["hexapod_platform"]["wall_per_sim_s"] / bare
     out["ratio_hexapod_fast_to_bare"] = out["cases"]["hexapod_fast"]["wall_per_sim_s"] / bare
     out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
     out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
@@ -157,6 +166,9 @@ def table(result: dict) -> str:
         lines.append(f"{name:22s} {c['us_per_sim_s']:13.0f} {c['realtime_factor']:12.2f} "
                      f"{c['wall_per_sim_s'] / bare:8.2f}")
     lines.append(f"hexapod_full / bare_mj_step = {result['ratio_hexapod_full_to_bare']:.2f}")
+    lines.append(f"bare_mj_step_platform / bare_mj_step = {result['ratio_platform_bare_to_bare']:.2f}  "
+                 "(a step of the platform-only model over a step of the full model)")
+    lines.append(f"hexapod_platform / bare_mj_step = {result['ratio_hexapod_platform_to_bare']:.2f}")
     lines.append(f"hexapod_fast / bare_mj_step = {result['ratio_hexapod_fast_to_bare']:.2f}  "
                  f"(fast scheme: {result['fast_scheme']})")
     lines.append(f"actuator_fast / actuator_bare_fast = {result['ratio_actuator_fast_to_bare_fast']:.2f}  "

@@ -351,6 +351,10 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                         "metrics and outputs cover that window)")
     p.add_argument("--engine", choices=("native", "python"), default="native",
                    help="the loop compiled (default) or as a Python MuJoCo control callback (same compiled leg step; runs any Python compensator at Python speed)")
+    p.add_argument("--model", choices=("platform", "full"), default="platform",
+                   help="the hexapod's formulation: 'platform' (default), the platform as the only body with the "
+                        "legs as geometry, lumped masses and end stops (about 4x faster), or 'full', the multi-body "
+                        "MJCF with leg bodies and closing constraints, the reference (see README 'Speed')")
     p.add_argument("--timestep", type=_number, default=1e-4,
                    help="physics step [s] (default 1e-4, the seed's 10 kHz; must divide the 2 ms controller "
                         "period and the 1 ms record period; see README 'Speed' for the accuracy of larger steps)")
@@ -410,7 +414,7 @@ def _run_config(args: argparse.Namespace, compensator: str):
 
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
-                     engine=args.engine, keep_last_s=args.keep_last,
+                     engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 
 
@@ -492,7 +496,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 #: Options a sweep grid may vary (argparse dest names).
-GRID_OPTIONS = ("scenario", "duration", "amplitude", "frequency", "seed", "kp", "flow_area", "sensor_noise", "engine",
+GRID_OPTIONS = ("scenario", "duration", "amplitude", "frequency", "seed", "kp", "flow_area", "sensor_noise", "engine", "model",
                 "timestep", "warm_up", "compensator", "buffer_time", "velocity_band", "q_threshold", "iterative_gain",
                 "held_maximum", "fade_time", "velocity_cutoff")
 

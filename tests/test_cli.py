@@ -152,7 +152,8 @@ def test_bench_prints_ratios_against_bare_mj_step(tmp_path, capsys):
     out = tmp_path / "bench.json"
     assert main(["bench", "--duration", "1.5", "--repeats", "1", "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
-    assert set(doc["cases"]) == {"bare_mj_step", "hexapod_full", "hexapod_python", "hexapod_uncompensated",
+    assert set(doc["cases"]) == {"bare_mj_step", "bare_mj_step_platform", "hexapod_platform",
+                                 "hexapod_platform_uncompensated", "hexapod_full", "hexapod_python", "hexapod_uncompensated",
                                  "hexapod_fast", "actuator_full", "actuator_fast", "actuator_bare_fast",
                                  "replay_kernel"}
     cases = doc["cases"]

@@ -189,19 +189,27 @@ def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypa
 
 def test_island_discovery_off_changes_nothing(monkeypatch):
     """hexsim switches MuJoCo's island discovery off (hexsim.plant.model.no_islands) for speed; the hexapod is
-    one island, so the run must be bit-identical to one with discovery on."""
+    one island (either formulation), so the run must be bit-identical to one with discovery on."""
     import mujoco
 
     from hexsim.plant import model
     from hexsim.simulation import runner
 
-    config = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), compensator="buffered", seed=2)
-    off = simulate(config)
-    assert mujoco.mjtDisableBit.mjDSBL_ISLAND & runner.load_model("hexapod").opt.disableflags
-    monkeypatch.setattr(runner, "load_model", lambda name: mujoco.MjModel.from_xml_path(str(model.model_path(name))))
-    on = simulate(config)
-    for name in ("y", "p1", "u_c", "acc", "pose"):
-        np.testing.assert_array_equal(getattr(off, name), getattr(on, name), err_msg=name)
+    def discovering(name, formulation="full"):
+        m = model.load_model(name, formulation)
+        m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
+        return m
+
+    for formulation in model.FORMULATIONS:
+        config = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), compensator="buffered", seed=2,
+                           model=formulation)
+        monkeypatch.undo()
+        off = simulate(config)
+        assert mujoco.mjtDisableBit.mjDSBL_ISLAND & runner.load_model("hexapod", formulation).opt.disableflags
+        monkeypatch.setattr(runner, "load_model", discovering)
+        on = simulate(config)
+        for name in ("y", "p1", "u_c", "acc", "pose"):
+            np.testing.assert_array_equal(getattr(off, name), getattr(on, name), err_msg=f"{formulation} {name}")
 
 
 def test_one_leg_may_differ_from_the_others():

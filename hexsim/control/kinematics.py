@@ -47,6 +47,9 @@ class HexapodGeometry:
         d = mujoco.MjData(m)
         reset_neutral(m, d)
         plat = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "platform")
+        if idx.platform_only:  # the platform-only model carries its legs' geometry (hexsim.plant.platform)
+            return cls(base=idx.legs.base.copy(), platform=idx.legs.anchor.copy(), neutral_position=d.xpos[plat].copy(),
+                       l_min=idx.legs.l_min.copy(), stroke=idx.stroke)
         base = np.array([d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"cylinder{i + 1}")] for i in range(6)])
         sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"platform_anchor{i + 1}") for i in range(6)]
         anchors_local = m.site_pos[sites].copy()

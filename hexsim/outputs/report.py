@@ -24,6 +24,7 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "kp_V_per_m": cfg.controller.kp,
         "controller_rate_hz": cfg.controller.rate_hz,
         "engine": cfg.engine,
+        "model": cfg.model if sc.system == "hexapod" else "full",
         "timestep_s": result.timestep,
         "signal": sm.signal,
         "unit": sm.unit,
@@ -84,7 +85,8 @@ def summary_table(report: dict) -> str:
     g = f" ({report['peak_noise_g']:.4f} g)" if report["peak_noise_g"] is not None else ""
     peaks = report["reversal_peaks"]
     rows = [
-        ("scenario", f"{report['scenario']} ({report['system']}, {report['duration_s']:g} s, "
+        ("scenario", f"{report['scenario']} ({report['system']}"
+                     f"{', ' + report['model'] + ' model' if report['system'] == 'hexapod' else ''}, {report['duration_s']:g} s, "
                      f"{report['frequency_hz']:g} Hz, compensator {report['compensator']})"),
         ("signal", report["signal"]),
         ("fundamental", f"{report['fundamental']:.4f} {unit}"),
@@ -93,7 +95,8 @@ def summary_table(report: dict) -> str:
         ("reversal_peaks", f"{len(peaks)} reversals, mean {report['mean_reversal_peak']:.4f} {unit}, "
                            f"max {max(peaks, default=float('nan')):.4f} {unit}; noise floor {report['noise_floor']:.4f} {unit}"),
         ("max_tracking_error", f"{report['max_tracking_error_m'] * 1e3:.2f} mm"),
-        ("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (connects)"),
+        *((("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (connects)"),)
+          if report["system"] == "hexapod" and report["model"] == "full" else ()),
         ("valve_saturated", f"{report['valve_saturated_samples']} controller samples"),
         *(("fault", _fault_line(f)) for f in report["faults"]),
         ("realtime_factor", f"{report['realtime_factor']:.2f}x ({report['wall_time_s']:.1f} s wall)"),
@@ -109,4 +112,5 @@ def _fault_line(f: dict) -> str:
         return f"{f['kind']} {where}at {f['t_s']:g} s: {o}"
     return (f"{f['kind']} {where}at {f['t_s']:g} s: piston {o['piston_min_m'] * 1e3:.1f}…{o['piston_max_m'] * 1e3:.1f} mm "
             f"({o['beyond_stroke_m'] * 1e3:.2f} mm past the stroke), P_s min {o['p_s_min_Pa'] / 1e5:.1f} bar, "
-            f"connect violation {o['max_constraint_violation_m'] * 1e6:.2f} µm; stayed finite")
+            + (f"connect violation {o['max_constraint_violation_m'] * 1e6:.2f} µm; " if o["max_constraint_violation_m"] > 0
+               else "") + "stayed finite")

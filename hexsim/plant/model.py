@@ -15,6 +15,13 @@ import mujoco
 import numpy as np
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.plant.platform import (
+    LegGeometry,
+    is_platform_model,
+    joint_legs,
+    leg_geometry,
+    read_legs,
+)
 
 #: Built-in models: name -> MJCF file inside the ``hexsim.models`` package (sources in ``models/``).
 MODELS = {
@@ -30,9 +37,21 @@ def model_path(name: str) -> pathlib.Path:
     return pathlib.Path(str(importlib.resources.files("hexsim.models") / MODELS[name]))
 
 
-def load_model(name: str) -> mujoco.MjModel:
+#: formulations of the hexapod: the full multi-body MJCF, or the platform-only model built from it
+FORMULATIONS = ("full", "platform")
+
+
+def load_model(name: str, formulation: str = "full") -> mujoco.MjModel:
     """Compile a built-in model (``"hexapod"`` or ``"actuator"``), with island discovery off
-    (:func:`no_islands`)."""
+    (:func:`no_islands`). ``formulation="platform"`` builds the hexapod's platform-only model from the
+    full MJCF with ``MjSpec`` (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one
+    formulation. Raises InputError for an unknown name or formulation."""
+    if formulation not in FORMULATIONS:
+        raise InputError(f"unknown model formulation {formulation!r}; choose from {', '.join(FORMULATIONS)}")
+    if formulation == "platform" and name == "hexapod":
+        from hexsim.plant.platform import platform_spec
+
+        return no_islands(platform_spec(mujoco.MjSpec.from_file(str(model_path(name)))).compile())
     return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
 
 
@@ -86,9 +105,24 @@ class PlantIndex:
     neutral_y: np.ndarray  # (n,) piston positions in the `neutral` keyframe [m]
     sensor: dict[str, slice]  # sensor name -> slice of data.sensordata
     dt: float  # physics timestep [s]
+    legs: LegGeometry  # kind 0: slide joints (the fields above); kind 1: a platform-only model
+
+    @property
+    def platform_only(self) -> bool:
+        return self.legs.kind == 1
+
+    def positions(self, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+        """Piston positions y (n,) [m] and velocities ẏ (n,) [m/s] in the state of ``d``."""
+        if self.legs.kind == 0:
+            return d.qpos[self.qpos_adr].copy(), d.qvel[self.dof_adr].copy()
+        y, yd = np.empty(self.n_legs), np.empty(self.n_legs)
+        read_legs(self.legs, d.qpos, d.qvel, y, yd)
+        return y, yd
 
     @classmethod
     def from_model(cls, m: mujoco.MjModel) -> "PlantIndex":
+        if is_platform_model(m):
+            return cls._platform(m)
         legs = []
         while mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{len(legs) + 1}") >= 0:
             legs.append(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{len(legs) + 1}"))
@@ -96,11 +130,6 @@ class PlantIndex:
             raise InputError("model has no slide joint named leg1")
         joints = np.array(legs)
         acts = np.array([_id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"leg{i + 1}_force") for i in range(len(legs))])
-        sensors = {}
-        for s in range(m.nsensor):
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
-            adr, dim = m.sensor_adr[s], m.sensor_dim[s]
-            sensors[name] = slice(int(adr), int(adr + dim))
         key = _id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral")
         qpos_adr = m.jnt_qposadr[joints].astype(int)
         return cls(
@@ -110,9 +139,30 @@ class PlantIndex:
             actuator_id=acts.astype(int),
             stroke=m.jnt_range[joints].copy(),
             neutral_y=m.key_qpos[key][qpos_adr].copy(),
-            sensor=sensors,
+            sensor=_sensors(m),
             dt=float(m.opt.timestep),
+            legs=joint_legs(len(legs)),
         )
+
+    @classmethod
+    def _platform(cls, m: mujoco.MjModel) -> "PlantIndex":
+        legs = leg_geometry(m)
+        n = len(legs.l_min)
+        key = _id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral")
+        y, yd = np.empty(n), np.empty(n)
+        read_legs(legs, m.key_qpos[key], np.zeros(m.nv), y, yd)
+        none = np.zeros(0, dtype=int)
+        return cls(n_legs=n, qpos_adr=none, dof_adr=none, actuator_id=none, stroke=np.tile(legs.stroke, (n, 1)),
+                   neutral_y=y, sensor=_sensors(m), dt=float(m.opt.timestep), legs=legs)
+
+
+def _sensors(m: mujoco.MjModel) -> dict[str, slice]:
+    """Sensor name -> its slice of ``data.sensordata``."""
+    sensors = {}
+    for s in range(m.nsensor):
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
+        sensors[name] = slice(int(m.sensor_adr[s]), int(m.sensor_adr[s] + m.sensor_dim[s]))
+    return sensors
 
 
 def reset_neutral(m: mujoco.MjModel, d: mujoco.MjData) -> None:

@@ -23,8 +23,9 @@ from hexsim.plant import hydraulics
 from hexsim.plant.effects import Effects, LegChange
 from hexsim.plant.faults import Fault, FaultInjector
 from hexsim.plant.legs import PlantState, advance_legs, leg_table
-from hexsim.plant.model import PlantIndex
+from hexsim.plant.model import FORMULATIONS, PlantIndex
 from hexsim.plant.params import ControllerParams, HydraulicParams
+from hexsim.plant.platform import leg_jacobian, leg_wrench
 from hexsim.plant.temperature import WarmUp
 from hexsim.signals import zero_order_hold
 
@@ -60,8 +61,14 @@ class RunConfig:
     feedforward: np.ndarray | None = field(default=None, repr=False, compare=False)
     # legs whose parameters differ from the others' (a leaking seal, a worn edge on one leg); default none
     leg_changes: tuple[LegChange, ...] = ()
+    # the hexapod's formulation (hexsim.plant.model.FORMULATIONS): "platform" (default), the platform-only
+    # model built from the MJCF (hexsim.plant.platform), ~4x faster; "full", the multi-body MJCF with leg
+    # bodies and closing constraints, the reference it is tested against (tests/test_platform.py)
+    model: str = "platform"
 
     def __post_init__(self) -> None:
+        if self.model not in FORMULATIONS:
+            raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {self.model!r}")
         if not (isinstance(self.compensator, str) or callable(self.compensator)):
             raise InputError(f"compensator must be a name or a Compensator class, got {self.compensator!r}")
         if self.engine not in ENGINES:
@@ -184,6 +191,7 @@ class HydraulicCoupling:
         self.u_c = np.zeros(n)
         self.r = self.setpoints[0].copy()
         self.force = np.zeros(n)
+        self.ydot = np.zeros(n)  # the pistons' velocities at the last step [m/s]
         self._last_step = -1
         self.supply_level: float | None = None
         self.error: BaseException | None = None
@@ -193,8 +201,8 @@ class HydraulicCoupling:
             k = int(round(d.time / self.dt))
             if k != self._last_step:
                 self._last_step = k
-                y = d.qpos[self.idx.qpos_adr]
-                ydot = d.qvel[self.idx.dof_adr]
+                y, ydot = self.idx.positions(d)
+                self.ydot = ydot
                 hist = self._y_history
                 hist[k % len(hist)] = y
                 self.y_measured = hist[(k + 1) % len(hist)]  # y(t_k - tau_y); itself without delay
@@ -204,10 +212,11 @@ class HydraulicCoupling:
                         self.state.p_s[:] = self.supply_level
                 self.state, self.force = advance_legs(self.state, self.u_v, y, ydot, self.dt, self.leg_table(),
                                                       self.groups)
-            d.ctrl[self.idx.actuator_id] = self.force
+            apply_leg_forces(d, self.idx, self.force)
         except Exception as exc:  # noqa: BLE001 - re-raised by simulate() after the step
             self.error = exc
             d.ctrl[self.idx.actuator_id] = 0.0
+            d.xfrc_applied[:] = 0.0
 
 
     def leg_table(self) -> np.ndarray:
@@ -243,21 +252,40 @@ class HydraulicCoupling:
         return hyd
 
 
+def apply_leg_forces(d: mujoco.MjData, idx: PlantIndex, force: np.ndarray) -> None:
+    """Put the leg forces ``force`` (n_legs,) [N] on the model: the motors' ``ctrl`` (slide-joint legs) or
+    the platform's ``xfrc_applied`` with end stops and the legs' weight (a platform-only model,
+    :func:`hexsim.plant.platform.leg_wrench`)."""
+    if not idx.platform_only:
+        d.ctrl[idx.actuator_id] = force
+        return
+    y, yd = idx.positions(d)
+    leg_wrench(idx.legs, d.qpos, y, yd, np.asarray(force, dtype=float), d.xfrc_applied)
+
+
 def leg_mobility(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> tuple[np.ndarray, np.ndarray]:
     """(A, a0) at the current configuration at rest: the slide accelerations (n_legs,) [m/s^2] are
     a0 + A f for leg forces f (n_legs,) [N]; A (n_legs, n_legs) [1/kg] is the inverse of the legs'
     effective inertia, constraints included (equality constraints only, so the map is affine: one
-    ``mj_forward`` with zero force and one per unit force). Call with no control callback installed."""
-    d.ctrl[:] = 0.0
+    ``mj_forward`` with zero force and one per unit force; on a platform-only model A = J M⁻¹ Jᵀ with J
+    the legs' Jacobian). Call with no control callback installed."""
+    n = idx.n_legs
+    apply_leg_forces(d, idx, np.zeros(n))
     mujoco.mj_forward(m, d)
+    if idx.platform_only:
+        jac = leg_jacobian(idx.legs, d.qpos, m.nv)
+        inv_m_jt = np.empty((n, m.nv))
+        mujoco.mj_solveM(m, d, inv_m_jt, jac)
+        return jac @ inv_m_jt.T, jac @ d.qacc
     acc0 = d.qacc[idx.dof_adr].copy()
-    sens = np.empty((idx.n_legs, idx.n_legs))
-    for j, a in enumerate(idx.actuator_id):
-        d.ctrl[:] = 0.0
-        d.ctrl[a] = 1.0
+    sens = np.empty((n, n))
+    for j in range(n):
+        unit = np.zeros(n)
+        unit[j] = 1.0
+        apply_leg_forces(d, idx, unit)
         mujoco.mj_forward(m, d)
         sens[:, j] = d.qacc[idx.dof_adr] - acc0
-    d.ctrl[:] = 0.0
+    apply_leg_forces(d, idx, np.zeros(n))
     mujoco.mj_forward(m, d)
     return sens, acc0
 
@@ -276,8 +304,10 @@ def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> n
 
     d.qvel[:] = 0.0
     d.ctrl[:] = 0.0
-    mujoco.mj_forward(m, d)
     n = idx.n_legs
+    if idx.platform_only:
+        return _platform_static_forces(m, d, idx)
+    mujoco.mj_forward(m, d)
     moment = np.empty((m.nv, n))
     for j, a in enumerate(idx.actuator_id):
         d.ctrl[:] = 0.0
@@ -300,6 +330,26 @@ def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> n
     if np.linalg.norm(a @ sol - rhs) > 1e-9 * max(1.0, np.linalg.norm(rhs)):
         raise PhysicsError("the legs and constraints cannot hold the platform at rest in this configuration")
     return sol[:n]
+
+
+def _platform_static_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> np.ndarray:
+    """Leg forces f (n_legs,) [N] that hold a platform-only model at rest: Jᵀ f = ``qfrc_bias`` -
+    ``qfrc_passive`` - Q_w, Q_w the generalised force of the legs' weight correction (the wrench at
+    zero leg force). Raises PhysicsError for a singular configuration."""
+    from hexsim.errors import PhysicsError
+
+    d.xfrc_applied[:] = 0.0
+    apply_leg_forces(d, idx, np.zeros(idx.n_legs))
+    mujoco.mj_forward(m, d)
+    weight = np.zeros(m.nv)
+    body = idx.legs.body
+    mujoco.mj_applyFT(m, d, d.xfrc_applied[body, :3].copy(), d.xfrc_applied[body, 3:].copy(),
+                      d.xipos[body].copy(), body, weight)
+    jac = leg_jacobian(idx.legs, d.qpos, m.nv)
+    try:
+        return np.linalg.solve(jac.T, d.qfrc_bias - d.qfrc_passive - weight)
+    except np.linalg.LinAlgError:
+        raise PhysicsError("the legs cannot hold the platform at rest in this configuration") from None
 
 
 #: Largest ω·dt hexsim allows for the stiffest oil-spring mode of a run: the explicit (semi-implicit

@@ -26,8 +26,9 @@ from compensation.base import Compensator, NoCompensator, ReplayedCompensation
 from compensation.buffered import BufferedCompensator, buffered_tick
 from hexsim import jitcache
 from hexsim.control.controller import p_output, valve_setpoint
-from hexsim.plant import legs
+from hexsim.plant import legs, platform
 from hexsim.plant.legs import step_legs
+from hexsim.plant.platform import LegGeometry, leg_wrench, read_legs
 
 #: Compensators the compiled controller runs, and its ``comp_mode`` for each (:func:`run_block`: 0 U_c = 0,
 #: 1 :func:`compensation.buffered.buffered_tick`, 2 a table row per sample); any other compensator (a
@@ -62,7 +63,8 @@ class MjView(NamedTuple):
     """What the runners touch of MuJoCo: the raw ``mjModel*``/``mjData*`` (for ``mj_step``), the
     bindings' numpy views of ``qpos``, ``qvel``, ``ctrl``, ``sensordata``, ``site_xpos`` (the same
     memory), and per leg the addresses of its slide joint (qpos, dof) and actuator; site1/site2 the
-    anchor sites of the connect constraints (empty: none)."""
+    anchor sites of the connect constraints (empty: none); ``xfrc_applied`` and the legs' geometry
+    (:class:`hexsim.plant.platform.LegGeometry`: kind 0 slide joints, kind 1 a platform-only model)."""
 
     model: int
     data: int
@@ -76,6 +78,8 @@ class MjView(NamedTuple):
     actuator_id: np.ndarray
     site1: np.ndarray
     site2: np.ndarray
+    xfrc: np.ndarray
+    geo: LegGeometry
 
 
 def mj_view(m: mujoco.MjModel, d: mujoco.MjData, idx, site1=None, site2=None) -> MjView:
@@ -84,7 +88,7 @@ def mj_view(m: mujoco.MjModel, d: mujoco.MjData, idx, site1=None, site2=None) ->
     none = np.zeros(0, dtype=np.int64)
     return MjView(m._address, d._address, d.qpos, d.qvel, d.ctrl, d.sensordata, d.site_xpos,
                   *(np.asarray(a, dtype=np.int64) for a in (idx.qpos_adr, idx.dof_adr, idx.actuator_id)),
-                  none if site1 is None else site1, none if site2 is None else site2)
+                  none if site1 is None else site1, none if site2 is None else site2, d.xfrc_applied, idx.legs)
 
 
 class Legs(NamedTuple):
@@ -121,7 +125,7 @@ class Control(NamedTuple):
 class Recorder(NamedTuple):
     """Rows the kernel writes every ``div`` physics steps, ``n_total`` samples in all, kept as a ring of
     len(k) rows (sample r goes to row r % len(k)): step k, sensordata, P1 (n), P_s of leg 0, leg force,
-    measured position, connect violation [m], setpoint, u_v, U_c, compensator (a, b, c, s) (rows, 4, n);
+    measured position, piston velocity, connect violation [m], setpoint, u_v, U_c, compensator (a, b, c, s) (rows, 4, n);
     ``status[0]``: the first step whose state is not finite, else -1. The accelerometer's entries of
     sensordata (``acc_adr``) are recorded at t_k as the mean over the sample interval before it, the steps
     k-div … k-1 whose accelerations carried the platform from t_k - T to t_k (Δv/Δt: a boxcar anti-alias
@@ -136,6 +140,7 @@ class Recorder(NamedTuple):
     p_s: np.ndarray
     force: np.ndarray
     y: np.ndarray
+    ydot: np.ndarray
     viol: np.ndarray
     ref: np.ndarray
     u: np.ndarray
@@ -165,7 +170,7 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
     row 0: its own first step's). ``legs.state`` changes in place. Returns -1,
     or the first row at which P1 is not finite."""
     k, n = u_sched.shape
-    m_addr, d_addr, qpos, qvel, ctrl, sens, _, qadr, dadr, aadr, _, _ = mj  # once: see run_block
+    m_addr, d_addr, qpos, qvel, ctrl, sens, _, qadr, dadr, aadr, _, _, _, _ = mj  # once: see run_block
     P, dt, force, groups, supply_flow = legs.params, legs.dt, legs.force, legs.groups, legs.supply_flow
     S = legs.state
     y = np.empty(k)
@@ -219,12 +224,12 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     S = legs.state
     P, dt, force, groups, supply_flow, hist = legs.params, legs.dt, legs.force, legs.groups, legs.supply_flow, \
         legs.history
-    m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2 = mj
+    m_addr, d_addr, qpos, qvel, ctrl, sens, site_xpos, qadr, dadr, aadr, site1, site2, xfrc, geo = mj
     p1 = S.p1
     n = p1.shape[0]
     L = hist.shape[0]
     div, kp, setpoints, noise, mode, comp, table, saturated = ctl
-    rec_div, n_total, rk, rsens, rp1, rps, rforce, ry, rviol, rref, ru, ruc, rcomp, status, acc_adr, acc_sum = rec
+    rec_div, n_total, rk, rsens, rp1, rps, rforce, ry, ryd, rviol, rref, ru, ruc, rcomp, status, acc_adr, acc_sum = rec
     n_acc = acc_adr.shape[0]
     y = np.empty(n)
     yd = np.empty(n)
@@ -237,9 +242,7 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     rows = rec.k.shape[0]
     for s in range(nsteps):
         k = k0 + s
-        for i in range(n):
-            y[i] = qpos[qadr[i]]
-            yd[i] = qvel[dadr[i]]
+        _read_legs(geo, qpos, qvel, qadr, dadr, y, yd)
         if s > 0 or div > 0:
             for i in range(n):
                 hist[k % L, i] = y[i]
@@ -268,6 +271,7 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
             for i in range(n):
                 rp1[w, i] = p1[i]
                 ry[w, i] = hist[(k + 1) % L, i]
+                ryd[w, i] = yd[i]
                 if div > 0:
                     rref[w, i] = setpoints[j, i]
                     ru[w, i] = u[i]
@@ -276,14 +280,9 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
                         for c in range(4):
                             rcomp[w, c, i] = stat[c, i]
         step_legs(P, dt, u, y, yd, S, force, groups, supply_flow)
-        for i in range(n):
-            ctrl[aadr[i]] = force[i]
+        _apply_forces(geo, qpos, ctrl, aadr, xfrc, y, yd, force)
         _mj_step(m_addr, d_addr)
-        finite = True
-        for i in range(n):
-            if not (math.isfinite(p1[i]) and math.isfinite(qpos[qadr[i]]) and math.isfinite(qvel[dadr[i]])):
-                finite = False
-        if not finite:
+        if not _finite(geo, p1, qpos, qvel, qadr, dadr):
             rec.status[0] = k
             return r
         if record:
@@ -312,6 +311,46 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     return r
 
 
+@numba.njit(cache=True, inline="always")
+def _read_legs(geo, qpos, qvel, qadr, dadr, y, yd):
+    """Piston positions and velocities (n,) into y, yd: the slide joints' qpos/qvel, or the platform-only
+    model's legs from the platform's pose (:func:`hexsim.plant.platform.read_legs`)."""
+    if geo.kind == 0:
+        for i in range(y.shape[0]):
+            y[i] = qpos[qadr[i]]
+            yd[i] = qvel[dadr[i]]
+    else:
+        read_legs(geo, qpos, qvel, y, yd)
+
+
+@numba.njit(cache=True, inline="always")
+def _apply_forces(geo, qpos, ctrl, aadr, xfrc, y, yd, force):
+    """The leg forces (n,) [N] onto the model: the motors' ctrl, or the platform's xfrc_applied
+    (:func:`hexsim.plant.platform.leg_wrench`)."""
+    if geo.kind == 0:
+        for i in range(force.shape[0]):
+            ctrl[aadr[i]] = force[i]
+    else:
+        leg_wrench(geo, qpos, y, yd, force, xfrc)
+
+
+@numba.njit(cache=True, inline="always")
+def _finite(geo, p1, qpos, qvel, qadr, dadr):
+    """Whether P1 and the legs' (or the platform's) coordinates are finite after a step."""
+    ok = True
+    for i in range(p1.shape[0]):
+        ok = ok and math.isfinite(p1[i])
+    if geo.kind == 0:
+        for i in range(p1.shape[0]):
+            ok = ok and math.isfinite(qpos[qadr[i]]) and math.isfinite(qvel[dadr[i]])
+    else:
+        for c in range(7):
+            ok = ok and math.isfinite(qpos[geo.qadr + c])
+        for c in range(6):
+            ok = ok and math.isfinite(qvel[geo.dadr + c])
+    return ok
+
+
 def kernels_cached() -> bool:
     """Whether numba's on-disk cache holds the compiled runner (False: the next run compiles it, ~15 s).
     Reads numba's private cache layout; if that changes, answers True (no message rather than a wrong one)."""
@@ -322,5 +361,5 @@ def kernels_cached() -> bool:
 
 
 # the runners compile in the leg step and the compensator from other files: drop their cache when those change
-jitcache.guard((run_block, valve_replay), legs.__file__, compensation.buffered.__file__,
+jitcache.guard((run_block, valve_replay), legs.__file__, platform.__file__, compensation.buffered.__file__,
               compensation.base.__file__, compensation.functions.__file__)

@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -41,6 +42,7 @@ from hexsim.plant.model import (
     load_model,
     reset_neutral,
 )
+from hexsim.plant.platform import with_end_stops
 from hexsim.simulation import native
 from hexsim.simulation.config import (
     ControlSchedule,
@@ -81,7 +83,7 @@ class Simulator:
     # ------------------------------------------------------------------ set-up
     def _setup_model(self) -> None:
         cfg = self.config
-        m = load_model(cfg.scenario.system)
+        m = load_model(cfg.scenario.system, cfg.model)
         apply_load(m, cfg.effects)
         if cfg.timestep is not None:
             m.opt.timestep = cfg.timestep
@@ -102,6 +104,8 @@ class Simulator:
         mujoco.set_mjcb_control(None)
         reset_neutral(m, d)
         mobility, _ = leg_mobility(m, d, idx)
+        if idx.platform_only:  # end stops as stiff as the full model's limits on the legs' effective mass
+            self.idx = idx = dataclasses.replace(idx, legs=with_end_stops(m, idx.legs, 1.0 / np.diag(mobility)))
         check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt)
         p1_0 = hydraulics.equilibrium_pressure(static_leg_forces(m, d, idx), hyd)
         for i, p in enumerate(p1_0):
@@ -160,7 +164,7 @@ class Simulator:
         n_rec, rec = len(self.rec["t"]), self.rec
         self.recorder = native.Recorder(
             self.rec_div, self.n_total, np.zeros(n_rec, dtype=np.int64), np.zeros((n_rec, m.nsensordata)), rec["p1"],
-            rec["p_s"], rec["force"], rec["y"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
+            rec["p_s"], rec["force"], rec["y"], rec["ydot"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
             np.empty((n_rec if self.inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64),
             self._acc_adr, np.zeros(len(self._acc_adr) + 1))
         mujoco.mj_forward(m, d)
@@ -224,7 +228,6 @@ class Simulator:
         start of the step, P1 before the step's update; the accelerometer as its mean over the steps
         k-rec_div … k-1, as the kernel's :class:`~hexsim.simulation.native.Recorder`), kept in the arrays as a ring."""
         d, idx, coupling, rec = self.data, self.idx, self.coupling, self.rec
-        leg_vel = np.array([idx.sensor[f"leg{i + 1}_vel"].start for i in range(idx.n_legs)])
         mujoco.set_mjcb_control(coupling)
         try:
             for i in range(self.rows, k_end // self.rec_div):
@@ -234,7 +237,7 @@ class Simulator:
                 sd = d.sensordata
                 rec["t"][w] = i * self.rec_div * self.dt
                 rec["y"][w] = coupling.y_measured  # the position sensor, y(t_k - tau_y)
-                rec["ydot"][w] = sd[leg_vel]
+                rec["ydot"][w] = coupling.ydot
                 rec["y_ref"][w], rec["u_v"][w], rec["u_c"][w] = coupling.r, coupling.u_v, coupling.u_c
                 rec["p1"][w], rec["p_s"][w], rec["force"][w] = p1_before, p_s_before, coupling.force
                 rec["temperature"][w] = coupling.temperature
@@ -302,7 +305,7 @@ class Simulator:
         L, n_rec = len(hist), len(recorder.k)
         while self.k < k_end:
             k = self.k
-            hist[k % L] = self.data.qpos[idx.qpos_adr]
+            hist[k % L] = idx.positions(self.data)[0]
             hyd = coupling.tick(k, hist[(k + 1) % L].copy())
             if hyd is not self._hyd:  # the oil warmed: new parameters
                 self._hyd = coupling.hyd = hyd
@@ -353,11 +356,10 @@ class Simulator:
             timestep=self.dt)
 
     def _unpack_kernel_rows(self) -> None:
-        """Fill the channels the kernel keeps in its own rows: time, leg velocities, sensors, and (with the
+        """Fill the channels the kernel keeps in its own rows: time, sensors, and (with the
         controller inside) the oil temperature and the compensator's (a, b, c, s)."""
         rec, recorder, s = self.rec, self.recorder, self.idx.sensor
         rec["t"][:] = recorder.k * self.dt
-        rec["ydot"][:] = recorder.sens[:, [s[f"leg{i + 1}_vel"].start for i in range(self.idx.n_legs)]]
         for name, out in self.sensors.items():
             out[:] = recorder.sens[:, s[name]]
         if self.inner:
@@ -406,7 +408,9 @@ def _check_finite(p1: np.ndarray, d: mujoco.MjData, idx: PlantIndex, t: float) -
     """PhysicsError naming the first leg whose P1 (n_legs,) [Pa] or piston position/velocity is not
     finite, or the platform, at time ``t`` [s]; nothing if all is finite."""
     bad_p1 = ~np.isfinite(p1)
-    bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
+    bad_q = np.zeros(idx.n_legs, dtype=bool)
+    if not idx.platform_only:
+        bad_q = ~np.isfinite(d.qpos[idx.qpos_adr]) | ~np.isfinite(d.qvel[idx.dof_adr])
     if np.any(bad_p1 | bad_q):
         leg = int(np.flatnonzero(bad_p1 | bad_q)[0]) + 1
         what = "P1" if bad_p1[leg - 1] else "piston position/velocity"
