@@ -4,5 +4,6 @@ Seed chapter 3: the proportional valve with overlap (:mod:`.hydraulics`, eq. 3.1
 pressure with bulk modulus (3.5–3.8), Stribeck friction (3.9), written once in the compiled leg step
 (:mod:`.legs`); the seed's parameters (:mod:`.params`, appendix A) and parameter files (:mod:`.paramfile`);
 effects beyond the seed (:mod:`.effects`), faults (:mod:`.faults`), oil temperature (:mod:`.temperature`);
-the MJCF models and the facts Python reads from them (:mod:`.model`).
+the MJCF models and the facts Python reads from them (:mod:`.model`), and the platform-only model built
+from the MJCF, the default for hexapod runs (:mod:`.platform`).
 """

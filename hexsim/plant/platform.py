@@ -134,7 +134,7 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     and end stops as the numerics :data:`NUMERICS`; the ``neutral`` keyframe keeps the platform's pose.
     Only what the simulation needs stays: no geoms (contacts are off; hexsim draws the full model from
     the recorded poses), lights or sites but the sensors' ``platform_centre``; each costs time every
-    step. Raises InputError if ``full`` lacks a leg element."""
+    step. Raises InputError if ``full`` lacks a leg element or its legs differ in mass, stroke or end stops."""
     compiled = full.compile()
     d = mujoco.MjData(compiled)
     mujoco.mj_resetDataKeyframe(compiled, d, mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_KEY, "neutral"))
@@ -152,6 +152,10 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     base = d.xpos[barrel].copy()
     y0 = d.qpos[compiled.jnt_qposadr[slide]]
     l_min = np.linalg.norm(d.site_xpos[anchor_ids] - base, axis=1) - y0
+    legs_alike = [(compiled.body_mass[b], compiled.body_ipos[b, 2], compiled.body_mass[r], compiled.body_ipos[r, 2],
+                   *compiled.jnt_range[j], *compiled.jnt_solref[j]) for b, r, j in zip(barrel, rod, slide)]
+    if any(not np.allclose(leg, legs_alike[0], rtol=1e-12) for leg in legs_alike):
+        raise InputError("the platform-only model takes legs alike (masses, centres of mass, stroke, end stops)")
     m_r = float(compiled.body_mass[rod[0]])
     # first moment about the base pivot along the leg: barrel m_c r_c + rod m_r (r_r,ref + y - ref)
     s0 = float(compiled.body_mass[barrel[0]] * compiled.body_ipos[barrel[0], 2]
@@ -210,10 +214,9 @@ def _lump(platform: mujoco.MjsBody, anchors: np.ndarray, mass: float) -> None:
 
 # ------------------------------------------------------------------------------ compiled kinematics
 @numba.njit(cache=True, inline="always")
-def _pose(g, qpos):
+def _pose(qpos, a):
     """The platform's position (x, y, z) and rotation matrix entries (row-major, 9) from its free joint's
-    qpos (quaternion normalised), as 12 scalars: no arrays, so the per-step kernels allocate nothing."""
-    a = g.qadr
+    qpos at address ``a`` (quaternion normalised), as 12 scalars: the per-step kernels allocate nothing."""
     w, x, y, z = qpos[a + 3], qpos[a + 4], qpos[a + 5], qpos[a + 6]
     s = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w * s, x * s, y * s, z * s
@@ -224,32 +227,28 @@ def _pose(g, qpos):
 
 
 @numba.njit(cache=True, inline="always")
-def _anchor(g, i, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22):
-    """World position of leg i's platform anchor and its unit vector from the base anchor, and the
-    length: (ax, ay, az, ux, uy, uz, L)."""
-    a0, a1, a2 = g.anchor[i, 0], g.anchor[i, 1], g.anchor[i, 2]
-    ax = px + r00 * a0 + r01 * a1 + r02 * a2
-    ay = py + r10 * a0 + r11 * a1 + r12 * a2
-    az = pz + r20 * a0 + r21 * a1 + r22 * a2
-    dx, dy, dz = ax - g.base[i, 0], ay - g.base[i, 1], az - g.base[i, 2]
-    length = math.sqrt(dx * dx + dy * dy + dz * dz)
-    return ax, ay, az, dx / length, dy / length, dz / length, length
-
-
-@numba.njit(cache=True, inline="always")
 def read_legs(g, qpos, qvel, y, yd):
     """Piston positions y (n,) [m] and velocities ẏ (n,) [m/s] of a platform-only model (``g`` its
-    :class:`LegGeometry`) from the platform's qpos/qvel, written in place (module docstring)."""
-    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(g, qpos)
-    b = g.dadr
-    vx, vy, vz, wx, wy, wz = qvel[b], qvel[b + 1], qvel[b + 2], qvel[b + 3], qvel[b + 4], qvel[b + 5]
-    work = g.work
-    for i in range(g.l_min.shape[0]):
-        ax, ay, az, ux, uy, uz, length = _anchor(g, i, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22)
+    :class:`LegGeometry`) from the platform's qpos/qvel, written in place (module docstring); each
+    anchor's world position and leg unit vector into ``g.work``."""
+    _read_legs(g.anchor, g.base, g.l_min, g.work, g.qadr, g.dadr, qpos, qvel, y, yd)
+
+
+@numba.njit(cache=True)
+def _read_legs(anchor, base, l_min, work, qa, da, qpos, qvel, y, yd):
+    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(qpos, qa)
+    vx, vy, vz, wx, wy, wz = qvel[da], qvel[da + 1], qvel[da + 2], qvel[da + 3], qvel[da + 4], qvel[da + 5]
+    for i in range(l_min.shape[0]):
+        a0, a1, a2 = anchor[i, 0], anchor[i, 1], anchor[i, 2]
+        ax = px + r00 * a0 + r01 * a1 + r02 * a2
+        ay = py + r10 * a0 + r11 * a1 + r12 * a2
+        az = pz + r20 * a0 + r21 * a1 + r22 * a2
+        dx, dy, dz = ax - base[i, 0], ay - base[i, 1], az - base[i, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        ux, uy, uz = dx / length, dy / length, dz / length
         work[i, 0], work[i, 1], work[i, 2], work[i, 3], work[i, 4], work[i, 5] = ax, ay, az, ux, uy, uz
-        a0, a1, a2 = g.anchor[i, 0], g.anchor[i, 1], g.anchor[i, 2]
         c0, c1, c2 = wy * a2 - wz * a1, wz * a0 - wx * a2, wx * a1 - wy * a0  # ω × a (body frame)
-        y[i] = length - g.l_min[i]
+        y[i] = length - l_min[i]
         yd[i] = (ux * (vx + r00 * c0 + r01 * c1 + r02 * c2) + uy * (vy + r10 * c0 + r11 * c1 + r12 * c2)
                  + uz * (vz + r20 * c0 + r21 * c1 + r22 * c2))
 
@@ -260,23 +259,28 @@ def leg_wrench(g, qpos, y, yd, force, xfrc):
     of mass, world frame) for the leg forces ``force`` (n,) [N] along the legs at their anchors, the
     end stops and the legs' weight correction (module docstring); y, ẏ (n,) and the anchors (``g.work``)
     from :func:`read_legs` at the same ``qpos``."""
-    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(g, qpos)
-    cx = px + r00 * g.com[0] + r01 * g.com[1] + r02 * g.com[2]
-    cy = py + r10 * g.com[0] + r11 * g.com[1] + r12 * g.com[2]
-    cz = pz + r20 * g.com[0] + r21 * g.com[1] + r22 * g.com[2]
-    gx, gy, gz = g.gravity[0], g.gravity[1], g.gravity[2]
-    lo, hi = g.stroke[0], g.stroke[1]
+    _leg_wrench(g.com, g.gravity, g.stroke, g.work, g.l_min, g.stop_k, g.stop_c, g.s0, g.lumped, g.qadr, g.body,
+                qpos, y, yd, force, xfrc)
+
+
+@numba.njit(cache=True)
+def _leg_wrench(com, grav, stroke, work, l_min, stop_k, stop_c, s0, lumped, qa, body, qpos, y, yd, force, xfrc):
+    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(qpos, qa)
+    cx = px + r00 * com[0] + r01 * com[1] + r02 * com[2]
+    cy = py + r10 * com[0] + r11 * com[1] + r12 * com[2]
+    cz = pz + r20 * com[0] + r21 * com[1] + r22 * com[2]
+    gx, gy, gz = grav[0], grav[1], grav[2]
+    lo, hi = stroke[0], stroke[1]
     fx = fy = fz = tx = ty = tz = 0.0
-    work = g.work
-    for i in range(g.l_min.shape[0]):
+    for i in range(l_min.shape[0]):
         ax, ay, az, ux, uy, uz = work[i, 0], work[i, 1], work[i, 2], work[i, 3], work[i, 4], work[i, 5]
         axial = force[i]
         if y[i] < lo:
-            axial += max(0.0, g.stop_k[i] * (lo - y[i]) - g.stop_c[i] * yd[i])
+            axial += max(0.0, stop_k[i] * (lo - y[i]) - stop_c[i] * yd[i])
         elif y[i] > hi:
-            axial -= max(0.0, g.stop_k[i] * (y[i] - hi) + g.stop_c[i] * yd[i])
+            axial -= max(0.0, stop_k[i] * (y[i] - hi) + stop_c[i] * yd[i])
         gu = gx * ux + gy * uy + gz * uz
-        across = (g.s0 + g.lumped * y[i]) / (g.l_min[i] + y[i]) - g.lumped
+        across = (s0 + lumped * y[i]) / (l_min[i] + y[i]) - lumped
         f0 = axial * ux + across * (gx - gu * ux)
         f1 = axial * uy + across * (gy - gu * uy)
         f2 = axial * uz + across * (gz - gu * uz)
@@ -287,15 +291,15 @@ def leg_wrench(g, qpos, y, yd, force, xfrc):
         tx += r1 * f2 - r2 * f1
         ty += r2 * f0 - r0 * f2
         tz += r0 * f1 - r1 * f0
-    xfrc[g.body, 0], xfrc[g.body, 1], xfrc[g.body, 2] = fx, fy, fz
-    xfrc[g.body, 3], xfrc[g.body, 4], xfrc[g.body, 5] = tx, ty, tz
+    xfrc[body, 0], xfrc[body, 1], xfrc[body, 2] = fx, fy, fz
+    xfrc[body, 3], xfrc[body, 4], xfrc[body, 5] = tx, ty, tz
 
 
 def leg_jacobian(g: LegGeometry, qpos: np.ndarray, nv: int) -> np.ndarray:
     """(n, nv) Jacobian of the piston positions y with respect to qvel (the free joint's dofs: the
     linear velocity in the world frame, the angular in the platform frame); its transpose maps leg
     forces to generalised forces."""
-    pose = _pose.py_func(g, qpos)
+    pose = _pose.py_func(qpos, g.qadr)
     p, r = np.array(pose[:3]), np.array(pose[3:]).reshape(3, 3)
     jac = np.zeros((len(g.l_min), nv))
     for i, a in enumerate(g.anchor):
