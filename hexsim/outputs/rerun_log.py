@@ -29,10 +29,16 @@ from hexsim.tables import write_atomic
 VIEW_RATE_HZ = 50.0  # [Hz] rate of the 3D scene in the recording
 
 
-def _blueprint(compensated: bool, analysis: str) -> rrb.Blueprint:
+#: the 3D view's camera on the hexapod [m, world]: from the front right, above the platform, looking at
+#: the legs' middle (the whole machine in view, 1.3 m across)
+HEXAPOD_EYE = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=[2.3, -2.3, 1.7], look_target=[0.0, 0.0, 0.45],
+                                eye_up=[0.0, 0.0, 1.0])
+
+
+def _blueprint(compensated: bool, analysis: str, system: str = "hexapod") -> rrb.Blueprint:
     """Time series beside the 3D view: the reversal bump (signal minus its fundamental fit) on its own
     axis, then the signal with its fit, positions, valve, pressures and, for a compensated run only,
-    the compensator's parameters."""
+    the compensator's parameters. The hexapod's 3D view starts at :data:`HEXAPOD_EYE`."""
     panels = [
         rrb.TimeSeriesView(origin="/bump", name=f"reversal bump: {analysis} minus its fundamental"),
         rrb.TimeSeriesView(origin="/acceleration", name=f"{analysis} and its fundamental fit"),
@@ -43,7 +49,9 @@ def _blueprint(compensated: bool, analysis: str) -> rrb.Blueprint:
     if compensated:
         panels.append(rrb.TimeSeriesView(origin="/compensator", name="compensator parameters a, b, c, s"))
     return rrb.Blueprint(
-        rrb.Horizontal(rrb.Spatial3DView(origin="/world", name="hexapod"), rrb.Vertical(*panels),
+        rrb.Horizontal(rrb.Spatial3DView(origin="/world", name=system if system == "hexapod" else "single actuator",
+                                         eye_controls=HEXAPOD_EYE if system == "hexapod" else None),
+                       rrb.Vertical(*panels),
                        column_shares=[2, 3]),
         collapse_panels=True,
     )
@@ -143,7 +151,8 @@ def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness)
 
 def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
-    rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal))
+    rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal,
+                                               result.config.scenario.system))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     times = rr.TimeColumn("time", duration=result.t)
     n = result.n_legs
