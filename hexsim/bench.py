@@ -21,6 +21,9 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
   floor under ``actuator_fast``;
 * ``replay_kernel``: the compiled valve replay (:mod:`hexsim.simulation.native`) of one single-actuator window.
 
+Besides, the start-up of the command line: ``hexsim --help`` (``python -m hexsim --help`` in a fresh
+interpreter) against ``python -c pass``, the median of ``repeats`` (at least 3) of each, as a ratio.
+
 The repeats go round the cases (case 1, 2, …, then again), so a machine that slows down or speeds up
 during the benchmark biases no case against another.
 
@@ -113,6 +116,22 @@ def _replay(duration: float) -> float:
     return time.perf_counter() - start
 
 
+def _startup(repeats: int) -> dict:
+    """Wall time [s] of ``python -m hexsim --help`` and of ``python -c pass`` in fresh interpreters (medians
+    of ``repeats`` each, alternating) and their ratio: what a user waits for before the first answer."""
+    import subprocess
+    import sys
+
+    walls: dict[str, list[float]] = {"help": [], "python": []}
+    for _ in range(max(3, repeats)):
+        for name, args in (("help", ["-m", "hexsim", "--help"]), ("python", ["-c", "pass"])):
+            start = time.perf_counter()
+            subprocess.run([sys.executable, *args], check=True, capture_output=True)
+            walls[name].append(time.perf_counter() - start)
+    help_s, python_s = statistics.median(walls["help"]), statistics.median(walls["python"])
+    return {"help_s": help_s, "python_s": python_s, "ratio": help_s / python_s}
+
+
 def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> dict:
     """Median wall time per simulated second of each case, real-time factors and the ratios to bare
     ``mj_step``. ``duration`` [s] of simulated time per repeat (>= 1.5 s for the scenarios)."""
@@ -148,6 +167,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
     out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
                                                / out["cases"]["actuator_bare_fast"]["wall_per_sim_s"])
+    out["startup"] = _startup(repeats)
     if sweep:
         from hexsim.simulation.workers import default_start_method
 
@@ -173,6 +193,9 @@ def table(result: dict) -> str:
                  f"(fast scheme: {result['fast_scheme']})")
     lines.append(f"actuator_fast / actuator_bare_fast = {result['ratio_actuator_fast_to_bare_fast']:.2f}  "
                  "(the single actuator over bare mj_step of its own model, both at dt = 1e-3 s)")
+    st = result["startup"]
+    lines.append(f"hexsim --help {st['help_s']:.2f} s, python -c pass {st['python_s']:.2f} s: "
+                 f"{st['ratio']:.1f}x the bare interpreter's start")
     if "sweep" in result:
         sw = result["sweep"]
         lines.append(f"sweep of {sw['runs']} runs: {sw['wall_1_worker_s']:.1f} s with 1 worker, "

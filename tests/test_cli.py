@@ -162,8 +162,11 @@ def test_bench_prints_ratios_against_bare_mj_step(tmp_path, capsys):
     assert doc["ratio_hexapod_full_to_bare"] == cases["hexapod_full"]["wall_per_sim_s"] / cases["bare_mj_step"]["wall_per_sim_s"]
     assert doc["ratio_actuator_fast_to_bare_fast"] == (cases["actuator_fast"]["wall_per_sim_s"]
                                                        / cases["actuator_bare_fast"]["wall_per_sim_s"])
+    startup = doc["startup"]  # hexsim --help against python -c pass, a ratio (not asserted: the machine's)
+    assert startup["ratio"] == startup["help_s"] / startup["python_s"] and startup["python_s"] > 0
     printed = capsys.readouterr().out
     assert "hexapod_full / bare_mj_step" in printed and "actuator_fast / actuator_bare_fast" in printed
+    assert "hexsim --help" in printed
     assert main(["bench", "--repeats", "0"]) == 2
 
 
