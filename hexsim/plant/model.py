@@ -20,6 +20,7 @@ from hexsim.plant.platform import (
     is_platform_model,
     joint_legs,
     leg_geometry,
+    platform_spec,
     read_legs,
 )
 
@@ -49,8 +50,6 @@ def load_model(name: str, formulation: str = "full") -> mujoco.MjModel:
     if formulation not in FORMULATIONS:
         raise InputError(f"unknown model formulation {formulation!r}; choose from {', '.join(FORMULATIONS)}")
     if formulation == "platform" and name == "hexapod":
-        from hexsim.plant.platform import platform_spec
-
         return no_islands(platform_spec(mujoco.MjSpec.from_file(str(model_path(name)))).compile())
     return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
 

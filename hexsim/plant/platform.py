@@ -231,12 +231,8 @@ def read_legs(g, qpos, qvel, y, yd):
     """Piston positions y (n,) [m] and velocities ẏ (n,) [m/s] of a platform-only model (``g`` its
     :class:`LegGeometry`) from the platform's qpos/qvel, written in place (module docstring); each
     anchor's world position and leg unit vector into ``g.work``."""
-    _read_legs(g.anchor, g.base, g.l_min, g.work, g.qadr, g.dadr, qpos, qvel, y, yd)
-
-
-@numba.njit(cache=True)
-def _read_legs(anchor, base, l_min, work, qa, da, qpos, qvel, y, yd):
-    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(qpos, qa)
+    anchor, base, l_min, work, da = g.anchor, g.base, g.l_min, g.work, g.dadr
+    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(qpos, g.qadr)
     vx, vy, vz, wx, wy, wz = qvel[da], qvel[da + 1], qvel[da + 2], qvel[da + 3], qvel[da + 4], qvel[da + 5]
     for i in range(l_min.shape[0]):
         a0, a1, a2 = anchor[i, 0], anchor[i, 1], anchor[i, 2]
@@ -259,13 +255,9 @@ def leg_wrench(g, qpos, y, yd, force, xfrc):
     of mass, world frame) for the leg forces ``force`` (n,) [N] along the legs at their anchors, the
     end stops and the legs' weight correction (module docstring); y, ẏ (n,) and the anchors (``g.work``)
     from :func:`read_legs` at the same ``qpos``."""
-    _leg_wrench(g.com, g.gravity, g.stroke, g.work, g.l_min, g.stop_k, g.stop_c, g.s0, g.lumped, g.qadr, g.body,
-                qpos, y, yd, force, xfrc)
-
-
-@numba.njit(cache=True)
-def _leg_wrench(com, grav, stroke, work, l_min, stop_k, stop_c, s0, lumped, qa, body, qpos, y, yd, force, xfrc):
-    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(qpos, qa)
+    com, grav, stroke, work, l_min = g.com, g.gravity, g.stroke, g.work, g.l_min
+    stop_k, stop_c, s0, lumped = g.stop_k, g.stop_c, g.s0, g.lumped
+    px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(qpos, g.qadr)
     cx = px + r00 * com[0] + r01 * com[1] + r02 * com[2]
     cy = py + r10 * com[0] + r11 * com[1] + r12 * com[2]
     cz = pz + r20 * com[0] + r21 * com[1] + r22 * com[2]
@@ -291,8 +283,8 @@ def _leg_wrench(com, grav, stroke, work, l_min, stop_k, stop_c, s0, lumped, qa, 
         tx += r1 * f2 - r2 * f1
         ty += r2 * f0 - r0 * f2
         tz += r0 * f1 - r1 * f0
-    xfrc[body, 0], xfrc[body, 1], xfrc[body, 2] = fx, fy, fz
-    xfrc[body, 3], xfrc[body, 4], xfrc[body, 5] = tx, ty, tz
+    xfrc[g.body, 0], xfrc[g.body, 1], xfrc[g.body, 2] = fx, fy, fz
+    xfrc[g.body, 3], xfrc[g.body, 4], xfrc[g.body, 5] = tx, ty, tz
 
 
 def leg_jacobian(g: LegGeometry, qpos: np.ndarray, nv: int) -> np.ndarray:
