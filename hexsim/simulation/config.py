@@ -97,13 +97,15 @@ class RunConfig:
 class SimulationResult:
     """Recorded signals of a run, sampled at ``record_rate_hz``; arrays (N,) or (N, n_legs) or (N, 3).
 
-    t [s]; y, ydot: measured piston position [m] / velocity [m/s] (jointpos/jointvel sensors); y_ref:
+    t [s]; y, ydot: measured piston position [m] / velocity [m/s] at t_k (the slide joints', or on the
+    platform-only model the legs' computed from the platform's pose and velocity); y_ref:
     piston setpoint in force (ZOH) [m] (with a sensor delay, y is the delayed measurement and ydot the
     true velocity); u_v: valve setpoint [V]; u_c: compensation voltage [V]; p1: bottom-chamber pressure
     [Pa]; p_s: supply pressure (N,) [Pa] (of the first manifold); force: hydraulic leg force [N]; acc:
     accelerometer, site frame, specific force [m/s^2]; gyro [rad/s] and angacc [rad/s^2] (world) of the
     platform (hexapod only); pose: measured platform pose (N, 6) rel. neutral; pose_ref: commanded pose;
-    constraint_violation: largest connect violation [m] per sample; oil_temperature [°C];
+    constraint_violation: largest connect violation [m] per sample (0 on the platform-only model, which
+    has no connects); oil_temperature [°C];
     compensator_state: the compensator's logged parameters, name -> (N, n_legs).
     """
 
