@@ -176,3 +176,21 @@ def test_payload_from_the_legs_p1_offsets_by_statics():
     assert found["inconsistency"] < 0.02
     unrelated = payload_from_statics(np.array([0.3e5, -0.2e5, 0.1e5, 0.25e5, -0.3e5, 0.05e5]))
     assert unrelated["inconsistency"] > 0.1
+
+
+def test_noise_free_heave_log_gets_no_cross_axis_scale_and_no_warning(tmp_path):
+    """hexsim's own noise-free log (``hexsim run heave --log``): the accelerometer's x and y axes move by
+    numerical noise only, so they get no scale (it used to fit 0.969 and report a sensitivity error), and
+    the report's figure draws the zero p_s residual without a warning (the log-scaled spectrum)."""
+    import warnings
+
+    log = tmp_path / "heave.csv"
+    write_log(log, simulate(RunConfig(make_scenario("heave", duration=6.0, frequency=1.0))))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["validate", str(log), "--report", str(tmp_path / "report"), "--quiet"]) == 0
+    doc = json.loads((tmp_path / "report" / "validation.json").read_text())
+    assert doc["verdict"] == "none"
+    scale = doc["calibration"]["nominal"]["acceleration"]["scale"]
+    assert scale[0] == scale[1] == 1.0 and abs(scale[2] - 1.0) < 1e-3
+    assert "sensitivity error" not in (tmp_path / "report" / "report.md").read_text()

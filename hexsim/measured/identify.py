@@ -103,6 +103,11 @@ SCALE_LIMIT = {"position": 0.01, "acceleration": 0.05}
 #: 0.26 m/s^2 on a single-actuator log whose motion is 1.4 m/s^2): a hexapod's accelerometer axes across
 #: a heave motion replay at ~0.05 of it, and their scale clamped at the limit by chance.
 SCALE_MIN_SNR = 3.0
+#: ... and at least this share of the largest motion among the channel's signals (standard deviations):
+#: on a noise-free log (hexsim's own) the noise estimate sits at its floor and the cross axes of a heave
+#: replay, moving by numerical noise alone (1e-6 of the heave axis), had their scales fitted at 0.969
+#: and reported as a sensitivity error.
+SCALE_MIN_SHARE = 0.1
 
 
 def available_channels(log: MeasurementLog) -> list[str]:
@@ -234,7 +239,8 @@ def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[di
     measured ≈ offset + scale · simulated, the scale for :data:`SCALED` channels only. For windowed
     replays the position starts each window at the measured value, so only its scale is fitted, on the
     increments from the window start. Scales are limited to 1 ± :data:`SCALE_LIMIT` and fitted only to
-    signals that move (:data:`SCALE_MIN_SNR`). Returns (calibrated residual = offset + scale sim - measured per
+    signals that move, against the noise (:data:`SCALE_MIN_SNR`) and against the channel's other signals
+    (:data:`SCALE_MIN_SHARE`). Returns (calibrated residual = offset + scale sim - measured per
     channel, calibration: channel -> {"offset": [...], "scale": [...]} per signal)."""
     out, cal = {}, {}
     s0 = problem.settle
@@ -242,6 +248,7 @@ def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[di
         sim_c, meas = _signals(sim[ch]), _signals(problem.measured[ch])
         res = sim_c - meas
         offsets, scales = [], []
+        motion = [float(np.std(sim_c[rows, s0:, j])) for j in range(sim_c.shape[2])]
         for j in range(sim_c.shape[2]):
             x = sim_c[:, :, j]
             r = res[rows, s0:, j].ravel()
@@ -252,7 +259,8 @@ def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[di
                 offsets.append(0.0)
                 scales.append(1.0 + beta)
                 continue
-            if ch in SCALED and np.std(x[rows, s0:]) >= SCALE_MIN_SNR * problem.log_noise[ch]:
+            if (ch in SCALED and motion[j] >= SCALE_MIN_SNR * problem.log_noise[ch]
+                    and motion[j] >= SCALE_MIN_SHARE * max(motion)):
                 a = np.stack([np.ones(r.size), x[rows, s0:].ravel()], axis=1)
                 offset, beta = np.linalg.lstsq(a, -r, rcond=None)[0]
                 if abs(beta) > SCALE_LIMIT[ch]:  # clamp the scale, refit the offset

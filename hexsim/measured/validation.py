@@ -450,8 +450,12 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
         ax[i, 1].set_xlabel("measured velocity [m/s]")
         f, pb = spectrum(b, fs)
         _, pa = spectrum(a, fs)
-        ax[i, 2].semilogy(f, pb, color="C3")
-        ax[i, 2].semilogy(f, pa, color="C0")
+        peak = max(float(pb.max()), float(pa.max()))
+        if peak > 0:  # a floor 100 dB under the peak, as the run's spectrum; zeros cannot be log-scaled
+            ax[i, 2].semilogy(f, np.maximum(pb, 1e-10 * peak), color="C3")
+            ax[i, 2].semilogy(f, np.maximum(pa, 1e-10 * peak), color="C0")
+        else:
+            ax[i, 2].text(0.5, 0.5, "residual zero: no spectrum", transform=ax[i, 2].transAxes, ha="center")
         ax[i, 2].set_xlabel("frequency [Hz]")
         ax[i, 2].set_ylabel("PSD")
     ax[-1, 0].set_xlabel("time [s]")
