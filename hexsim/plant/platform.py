@@ -287,16 +287,14 @@ def leg_wrench(g, qpos, y, yd, force, xfrc):
     xfrc[g.body, 3], xfrc[g.body, 4], xfrc[g.body, 5] = tx, ty, tz
 
 
-def leg_jacobian(g: LegGeometry, qpos: np.ndarray, nv: int) -> np.ndarray:
-    """(n, nv) Jacobian of the piston positions y with respect to qvel (the free joint's dofs: the
-    linear velocity in the world frame, the angular in the platform frame); its transpose maps leg
-    forces to generalised forces."""
-    pose = _pose.py_func(qpos, g.qadr)
-    p, r = np.array(pose[:3]), np.array(pose[3:]).reshape(3, 3)
-    jac = np.zeros((len(g.l_min), nv))
-    for i, a in enumerate(g.anchor):
-        u = p + r @ a - g.base[i]
-        u /= np.linalg.norm(u)
-        jac[i, g.dadr:g.dadr + 3] = u
-        jac[i, g.dadr + 3:g.dadr + 6] = np.cross(a, r.T @ u)
+def leg_jacobian(m: mujoco.MjModel, d: mujoco.MjData, g: LegGeometry) -> np.ndarray:
+    """(n, nv) Jacobian of the piston positions y with respect to qvel: row i is u_iᵀ times MuJoCo's
+    translational Jacobian (``mj_jac``) of the platform at leg i's anchor; its transpose maps leg forces
+    to generalised forces. Needs ``d``'s kinematics and the anchors of :func:`read_legs` (``g.work``) at
+    the same pose."""
+    jacp = np.empty((3, m.nv))
+    jac = np.empty((len(g.l_min), m.nv))
+    for i, row in enumerate(g.work):
+        mujoco.mj_jac(m, d, jacp, None, row[:3].copy(), g.body)
+        jac[i] = row[3:] @ jacp
     return jac

@@ -275,7 +275,7 @@ def leg_mobility(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> tuple[
     apply_leg_forces(d, idx, np.zeros(n))
     mujoco.mj_forward(m, d)
     if idx.platform_only:
-        jac = leg_jacobian(idx.legs, d.qpos, m.nv)
+        jac = leg_jacobian(m, d, idx.legs)
         inv_m_jt = np.empty((n, m.nv))
         mujoco.mj_solveM(m, d, inv_m_jt, jac)
         return jac @ inv_m_jt.T, jac @ d.qacc
@@ -347,7 +347,7 @@ def _platform_static_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex
     body = idx.legs.body
     mujoco.mj_applyFT(m, d, d.xfrc_applied[body, :3].copy(), d.xfrc_applied[body, 3:].copy(),
                       d.xipos[body].copy(), body, weight)
-    jac = leg_jacobian(idx.legs, d.qpos, m.nv)
+    jac = leg_jacobian(m, d, idx.legs)
     try:
         return np.linalg.solve(jac.T, d.qfrc_bias - d.qfrc_passive - weight)
     except np.linalg.LinAlgError:
