@@ -85,6 +85,15 @@ def test_a_user_compensator_class_runs_in_the_loop():
         hexsim.RunConfig(config.scenario, compensator=3)
 
 
+def test_a_scenario_can_be_named_as_on_the_command_line():
+    assert hexsim.RunConfig("roll").scenario == hexsim.Scenario.sine("roll")
+    assert hexsim.RunConfig("actuator").scenario.system == "actuator"
+    with pytest.raises(InputError, match="unknown scenario 'hover'"):
+        hexsim.RunConfig("hover")
+    with pytest.raises(InputError, match="scenario must be a Scenario or a scenario name, got 3"):
+        hexsim.RunConfig(3)
+
+
 def test_sweep_varies_parameters_by_name_and_refuses_unknown_ones():
     from hexsim.simulation.sweeps import vary
 

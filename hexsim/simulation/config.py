@@ -17,7 +17,7 @@ from compensation import CompensatorSettings, PlantTruth
 from compensation.base import Compensator
 from hexsim.control.controller import PController
 from hexsim.control.kinematics import HexapodGeometry
-from hexsim.control.scenario import Scenario
+from hexsim.control.scenario import Scenario, make_scenario
 from hexsim.errors import InputError, WorkspaceError
 from hexsim.plant import hydraulics
 from hexsim.plant.effects import Effects, LegChange
@@ -36,10 +36,12 @@ ENGINES = ("native", "python")
 
 @dataclass(frozen=True)
 class RunConfig:
-    """Everything that defines one run. ``record_rate_hz`` None: 1 kHz, the rate of the measurement-log
-    example (``docs/measurement-log.md``); it must divide the 10 kHz physics rate."""
+    """Everything that defines one run. ``scenario``: a :class:`Scenario`, or a name as on the command
+    line (``"heave"`` … ``"yaw"``, ``"actuator"``, ``"file:PATH"``) built with its defaults.
+    ``record_rate_hz`` None: 1 kHz, the rate of the measurement-log example (``docs/measurement-log.md``);
+    it must divide the 10 kHz physics rate. Raises InputError naming the setting that is wrong."""
 
-    scenario: Scenario
+    scenario: Scenario | str
     hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
     controller: ControllerParams = field(default_factory=ControllerParams)
     # a built-in by name (compensation.COMPENSATORS), or a class/factory called as
@@ -67,6 +69,10 @@ class RunConfig:
     model: str = "platform"
 
     def __post_init__(self) -> None:
+        if isinstance(self.scenario, str):
+            object.__setattr__(self, "scenario", make_scenario(self.scenario))
+        if not isinstance(self.scenario, Scenario):
+            raise InputError(f"scenario must be a Scenario or a scenario name, got {self.scenario!r}")
         if self.model not in FORMULATIONS:
             raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {self.model!r}")
         if not (isinstance(self.compensator, str) or callable(self.compensator)):
