@@ -11,7 +11,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 #: hexsim's packages in data-path order; a module may import its own package and those before it.
 ORDER = ["shared", "plant", "control", "simulation", "outputs", "measured", "commands"]
-SHARED = {"errors", "tables", "signals", "jitcache"}
+SHARED = {"errors", "tables", "signals", "jitcache", "models"}  # models: the MJCF and its builder
 COMMANDS = {"cli", "bench", "__init__", "__main__"}
 
 

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.models import hexapod
 from hexsim.plant.platform import (
     LegGeometry,
     is_platform_model,
@@ -24,7 +25,8 @@ from hexsim.plant.platform import (
     read_legs,
 )
 
-#: Built-in models: name -> MJCF file inside the ``hexsim.models`` package (sources in ``models/``).
+#: Built-in models: name -> MJCF file inside the ``hexsim.models`` package (sources in ``models/``); the
+#: hexapod's is written by its builder (:mod:`hexsim.models.hexapod`), which :func:`load_model` compiles.
 MODELS = {
     "hexapod": "scene.xml",
     "actuator": "single_actuator.xml",
@@ -44,13 +46,16 @@ FORMULATIONS = ("full", "platform")
 
 def load_model(name: str, formulation: str = "full") -> mujoco.MjModel:
     """Compile a built-in model (``"hexapod"`` or ``"actuator"``), with island discovery off
-    (:func:`no_islands`). ``formulation="platform"`` builds the hexapod's platform-only model from the
-    full MJCF with ``MjSpec`` (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one
-    formulation. Raises InputError for an unknown name or formulation."""
+    (:func:`no_islands`). The hexapod is compiled from its ``MjSpec`` builder in its scene
+    (:func:`hexsim.models.hexapod.build`, to the full precision of its numbers; ``scene.xml`` is the same
+    model for viewers); ``formulation="platform"`` builds its platform-only model from that spec
+    (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one formulation. Raises
+    InputError for an unknown name or formulation."""
     if formulation not in FORMULATIONS:
         raise InputError(f"unknown model formulation {formulation!r}; choose from {', '.join(FORMULATIONS)}")
-    if formulation == "platform" and name == "hexapod":
-        return no_islands(platform_spec(mujoco.MjSpec.from_file(str(model_path(name)))).compile())
+    if name == "hexapod":
+        spec = hexapod.scene(hexapod.build())
+        return no_islands((platform_spec(spec) if formulation == "platform" else spec).compile())
     return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
 
 
