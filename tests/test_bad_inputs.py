@@ -81,6 +81,9 @@ CASES = {
     "payload not a number": (lambda tmp: RUN + ["--payload", "12x@0,0"], r"--payload: not KG\[@X,Y\[,Z\]\]: '12x@0,0'"),
     "payload on the actuator": (lambda tmp: ACT + ["--payload", "50"], r"payload applies to the hexapod"),
     "payload heavier than negative platform": (lambda tmp: RUN + ["--payload", "-900"], r"payload of -900 kg leaves the platform"),
+    "payload leaving an impossible body": (lambda tmp: RUN + ["--payload", "-300"],
+                                           r"payload of -300 kg at \(0\.0, 0\.0, 0\.0\) m leaves principal moments "
+                                           r"59\.49, 59\.49, 146\.4 kg m\^2 that no rigid body has"),
     "zero buffer time": (lambda tmp: RUN + ["--buffer-time", "0"], r"buffer_time must be a finite positive.*0"),
     "filter above Nyquist": (lambda tmp: RUN + ["--compensator", "buffered", "--velocity-cutoff", "400"],
                              r"velocity_cutoff_hz 400.* Nyquist"),

@@ -195,8 +195,8 @@ def test_island_discovery_off_changes_nothing(monkeypatch):
     from hexsim.plant import model
     from hexsim.simulation import runner
 
-    def discovering(name, formulation="full"):
-        m = model.load_model(name, formulation)
+    def discovering(name, formulation="full", effects=None):
+        m = model.load_model(name, formulation, effects)
         m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         return m
 

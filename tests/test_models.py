@@ -91,3 +91,35 @@ def test_the_xml_writers_six_digits_leave_the_connects_within_two_micrometres():
 
     assert misfit(_builder().build().compile()) < 1e-7
     assert misfit(mujoco.MjModel.from_xml_path(str(MODELS_DIR / "micro_motion_system.xml"))) < 2e-6
+
+
+def test_a_load_is_a_spec_edit_the_same_as_writing_it_into_the_mjcf():
+    """mass_kg, inclination_deg and a payload edit the spec before it compiles: MuJoCo's derived constants
+    (subtree mass, M0) follow, as if the MJCF said so."""
+    from hexsim.plant.effects import Effects
+    from hexsim.plant.model import load_model
+
+    loaded = load_model("actuator", effects=Effects(mass_kg=60.0, inclination_deg=30.0))
+    text = model_path("actuator").read_text().replace('mass="40"', 'mass="60"')
+    written = mujoco.MjModel.from_xml_string(text)
+    np.testing.assert_array_equal(loaded.body_subtreemass, written.body_subtreemass)
+    np.testing.assert_array_equal(loaded.dof_M0, written.dof_M0)
+    np.testing.assert_allclose(loaded.opt.gravity, [9.81 * 0.5, 0.0, -9.81 * np.sqrt(3) / 2], rtol=1e-15)
+    heavier = load_model("hexapod", effects=Effects(payload_kg=200.0, payload_at_m=(0.1, 0.0, 0.2)))
+    plain = load_model("hexapod")
+    assert heavier.body("platform").subtreemass[0] == pytest.approx(plain.body("platform").subtreemass[0] + 200.0)
+    assert heavier.body("platform").ipos[0] == pytest.approx(0.1 * 200.0 / 800.0)
+
+
+def test_the_replays_batch_is_the_single_actuator_attached_n_times():
+    from hexsim.measured.replay import batch_model
+    from hexsim.plant.effects import Effects
+    from hexsim.plant.model import load_model
+
+    one = load_model("actuator", effects=Effects(mass_kg=55.0))
+    batch = batch_model(3, Effects(mass_kg=55.0))
+    assert [batch.joint(f"leg{i}").id for i in (1, 2, 3)] == [0, 1, 2] and batch.nu == 3 and batch.nsensor == 6
+    np.testing.assert_array_equal(batch.body_mass[1:], [one.body_mass[1]] * 3)
+    np.testing.assert_array_equal(batch.jnt_range, [one.jnt_range[0]] * 3)
+    np.testing.assert_array_equal(batch.key_qpos[0], [one.key_qpos[0, 0]] * 3)
+    assert [batch.sensor(f"leg{i}_acc").type[0] for i in (1, 2, 3)] == [mujoco.mjtSensor.mjSENS_ACCELEROMETER] * 3

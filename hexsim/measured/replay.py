@@ -14,10 +14,7 @@ joint and one accelerometer per window), built from the shipped ``single_actuato
 
 from __future__ import annotations
 
-import copy
 import dataclasses
-import functools
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 import mujoco
@@ -29,7 +26,7 @@ from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics, legs
 from hexsim.plant.effects import Effects, LegChange
 from hexsim.plant.legs import PlantState, leg_table, step_plant
-from hexsim.plant.model import PlantIndex, apply_load, check_warnings, model_path
+from hexsim.plant.model import PlantIndex, check_warnings, model_spec
 from hexsim.plant.params import HydraulicParams
 from hexsim.signals import savgol
 
@@ -42,42 +39,35 @@ CHANNELS = {
 }
 
 
-@functools.lru_cache(maxsize=8)
-def _batch_xml(n: int) -> str:
-    tree = ET.parse(model_path("actuator"))
-    root = tree.getroot()
-    world = root.find("worldbody")
-    body = world.find("body[@name='load']")
-    world.remove(body)
-    actuators, sensors = root.find("actuator"), root.find("sensor")
-    for el in list(actuators) + list(sensors):
-        (actuators if el in list(actuators) else sensors).remove(el)
-    for i in range(n):
-        b = copy.deepcopy(body)
-        b.set("name", f"load{i + 1}")
-        b.set("pos", f"{0.3 * i:g} 0 0.62")
-        b.find("joint").set("name", f"leg{i + 1}")
-        b.find("site").set("name", f"leg{i + 1}_site")
-        world.append(b)
-        ET.SubElement(actuators, "motor", name=f"leg{i + 1}_force", joint=f"leg{i + 1}")
-        ET.SubElement(sensors, "accelerometer", name=f"leg{i + 1}_acc", site=f"leg{i + 1}_site")
-        ET.SubElement(sensors, "jointpos", name=f"leg{i + 1}_pos", joint=f"leg{i + 1}")
-    key = root.find("keyframe/key")
-    key.set("qpos", " ".join([key.get("qpos")] * n))
-    return ET.tostring(root, encoding="unicode")
-
-
 def batch_model(n: int, effects: Effects) -> mujoco.MjModel:
     """n independent copies of the single actuator (slides ``leg1``…``legN``, sensors ``legI_acc``,
-    ``legI_pos``), with the load of ``effects`` (mass, inclination) applied to every copy."""
-    m = mujoco.MjModel.from_xml_string(_batch_xml(n))
-    if effects.mass_kg is not None or effects.inclination_deg is not None:
-        one = mujoco.MjModel.from_xml_path(str(model_path("actuator")))
-        apply_load(one, effects)
-        m.opt.gravity[:] = one.opt.gravity
-        if effects.mass_kg is not None:
-            m.body_mass[1:] = effects.mass_kg
-    return m
+    ``legI_pos``), 0.3 m apart, with the load of ``effects`` (mass, inclination) applied to every copy:
+    the actuator's own spec, its load body attached n times (``MjsFrame.attach_body``)."""
+
+    def bare() -> mujoco.MjSpec:  # the single actuator loaded, without its motor, sensors and keyframe
+        spec = model_spec("actuator", effects=effects)
+        for element in [*spec.actuators, *spec.sensors, *spec.keys]:
+            spec.delete(element)
+        return spec
+
+    single = model_spec("actuator")  # kept alive: an element's arrays are views of its spec's memory
+    neutral = [float(q) for q in single.key("neutral").qpos]
+    spec = bare()
+    spec.delete(spec.body("load"))
+    for i in range(1, n + 1):
+        copy = spec.worldbody.add_frame(pos=[float(f"{0.3 * (i - 1):g}"), 0.0, 0.0])
+        child = bare()  # kept alive while its body is attached (the body does not hold its spec)
+        copy.attach_body(child.body("load"), f"copy{i}_", "").name = f"load{i}"
+        spec.joint(f"copy{i}_leg1").name = f"leg{i}"
+        spec.site(f"copy{i}_platform_centre").name = f"leg{i}_site"
+    for i in range(1, n + 1):
+        spec.add_actuator(name=f"leg{i}_force", target=f"leg{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    for i in range(1, n + 1):
+        for kind, obj, suffix, target in ((mujoco.mjtSensor.mjSENS_ACCELEROMETER, mujoco.mjtObj.mjOBJ_SITE, "acc", "_site"),
+                                          (mujoco.mjtSensor.mjSENS_JOINTPOS, mujoco.mjtObj.mjOBJ_JOINT, "pos", "")):
+            spec.add_sensor(name=f"leg{i}_{suffix}", type=kind, objtype=obj, objname=f"leg{i}{target}")
+    spec.add_key(name="neutral", qpos=neutral * n)
+    return spec.compile()
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ the supply pressure move, gravity not along the actuator and hysteresis in the f
 left them open. :class:`Effects` switches such extensions on; every field's zero value is the seed's
 model, so ``Effects()`` reproduces the nominal plant exactly. Null offset, bulk modulus and friction are
 fields of :class:`~hexsim.plant.params.HydraulicParams`; mass and inclination of the actuator and a payload on
-the hexapod's platform are rigid-body facts and change the MuJoCo model (:func:`hexsim.plant.model.apply_load`).
+the hexapod's platform are rigid-body facts and edit the MuJoCo spec before it is compiled
+(:func:`hexsim.plant.model.apply_load`).
 
 The equations of the effects are written once, in the leg step of :mod:`hexsim.plant.legs`.
 """

@@ -18,6 +18,7 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.models import hexapod
 from hexsim.plant.platform import (
     LegGeometry,
+    add_point_masses,
     is_platform_model,
     joint_legs,
     leg_geometry,
@@ -44,19 +45,30 @@ def model_path(name: str) -> pathlib.Path:
 FORMULATIONS = ("full", "platform")
 
 
-def load_model(name: str, formulation: str = "full") -> mujoco.MjModel:
-    """Compile a built-in model (``"hexapod"`` or ``"actuator"``), with island discovery off
-    (:func:`no_islands`). The hexapod is compiled from its ``MjSpec`` builder in its scene
+def model_spec(name: str, formulation: str = "full", effects=None) -> mujoco.MjSpec:
+    """The ``MjSpec`` of a built-in model (``"hexapod"`` or ``"actuator"``) with the load of ``effects``
+    (:func:`apply_load`; None: none). The hexapod is its builder's spec in its scene
     (:func:`hexsim.models.hexapod.build`, to the full precision of its numbers; ``scene.xml`` is the same
-    model for viewers); ``formulation="platform"`` builds its platform-only model from that spec
+    model for viewers); ``formulation="platform"`` edits it into the platform-only model
     (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one formulation. Raises
-    InputError for an unknown name or formulation."""
+    InputError for an unknown name or formulation, or a load the model cannot take."""
     if formulation not in FORMULATIONS:
         raise InputError(f"unknown model formulation {formulation!r}; choose from {', '.join(FORMULATIONS)}")
     if name == "hexapod":
         spec = hexapod.scene(hexapod.build())
-        return no_islands((platform_spec(spec) if formulation == "platform" else spec).compile())
-    return no_islands(mujoco.MjModel.from_xml_path(str(model_path(name))))
+        if formulation == "platform":
+            platform_spec(spec)
+    else:
+        spec = mujoco.MjSpec.from_file(str(model_path(name)))
+    if effects is not None:
+        apply_load(spec, effects)
+    return spec
+
+
+def load_model(name: str, formulation: str = "full", effects=None) -> mujoco.MjModel:
+    """Compile :func:`model_spec` (the same arguments and errors), with island discovery off
+    (:func:`no_islands`)."""
+    return no_islands(model_spec(name, formulation, effects).compile())
 
 
 @functools.cache
@@ -192,63 +204,34 @@ def check_warnings(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         raise PhysicsError(f"MuJoCo warning {', '.join(kinds)} at t = {d.time:.4f} s")
 
 
-def apply_load(m: mujoco.MjModel, effects) -> None:
-    """Change the rigid bodies in place for the load of ``effects`` (:class:`hexsim.plant.effects.Effects`).
+def apply_load(spec: mujoco.MjSpec, effects) -> None:
+    """Edit the rigid bodies of ``spec`` for the load of ``effects`` (:class:`hexsim.plant.effects.Effects`),
+    in place, before it is compiled.
 
     Single actuator: ``effects.mass_kg`` [kg] replaces the mass of the body that slide ``leg1`` carries;
     ``effects.inclination_deg`` [deg] tilts gravity so the actuator axis is that far from vertical: only
     g cos(angle) acts along the axis (the seed's model is vertical, eq. 3.8; the seed notes gravity is
     not along the hexapod's legs, ch. 4). Hexapod: ``effects.payload_kg`` [kg] at
     ``effects.payload_at_m`` (platform frame [m]) is added to the body ``platform`` as a point mass
-    (:func:`add_point_mass`). Raises InputError for a load the model cannot take (mass or inclination on
-    the hexapod, a payload on the single actuator or one that leaves the platform without mass).
+    (:func:`hexsim.plant.platform.add_point_masses`). Raises InputError for a load the model cannot take
+    (mass or inclination on the hexapod, a payload on the single actuator or one that leaves the
+    platform without mass).
     """
-    idx = PlantIndex.from_model(m)
+    single = spec.body("platform") is None
     if effects.payload_kg != 0.0:
-        if idx.n_legs == 1:
+        if single:
             raise InputError("a payload applies to the hexapod's platform; the single actuator takes mass_kg")
-        add_point_mass(m, _id(m, mujoco.mjtObj.mjOBJ_BODY, "platform"), effects.payload_kg, effects.payload_at_m)
+        add_point_masses(spec.body("platform"), effects.payload_kg, np.asarray([effects.payload_at_m], dtype=float),
+                         "a payload")
     if effects.mass_kg is None and effects.inclination_deg is None:
         return
-    if idx.n_legs != 1:
+    if not single:
         raise InputError("mass_kg and inclination_deg apply to the single-actuator model only")
     if effects.mass_kg is not None:
-        m.body_mass[m.jnt_bodyid[_id(m, mujoco.mjtObj.mjOBJ_JOINT, "leg1")]] = effects.mass_kg
+        spec.joint("leg1").parent.mass = effects.mass_kg
     if effects.inclination_deg is not None:
-        g = float(np.linalg.norm(m.opt.gravity))
+        g = float(np.linalg.norm(spec.option.gravity))
         angle = np.deg2rad(effects.inclination_deg)
-        m.opt.gravity[:] = (g * np.sin(angle), 0.0, -g * np.cos(angle))
+        spec.option.gravity = [g * np.sin(angle), 0.0, -g * np.cos(angle)]
 
 
-def add_point_mass(m: mujoco.MjModel, body: int, mass: float, at) -> None:
-    """Add a point mass ``mass`` [kg] (negative: take mass away) at ``at`` (3,) [m, body frame] to body
-    ``body`` of a compiled model, in place: new mass, centre of mass (``body_ipos``) and inertia about it
-    (parallel-axis theorem on the full tensor, then principal axes into ``body_inertia`` /
-    ``body_iquat``). Raises InputError if the body would be left with no mass or an inertia that is not
-    positive definite."""
-    m0, c0 = float(m.body_mass[body]), np.array(m.body_ipos[body], dtype=float)
-    p = np.asarray(at, dtype=float)
-    total = m0 + mass
-    if total <= 0.0:
-        raise InputError(f"a payload of {mass:g} kg leaves the {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, body)} "
-                         f"with {total:g} kg")
-    rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, m.body_iquat[body])
-    rot = rot.reshape(3, 3)
-    inertia0 = rot @ np.diag(m.body_inertia[body]) @ rot.T  # about c0, body frame
-    c = (m0 * c0 + mass * p) / total
-
-    def shift(mass_i, r):  # inertia of a point mass mass_i at offset r
-        return mass_i * (np.dot(r, r) * np.eye(3) - np.outer(r, r))
-
-    inertia = inertia0 + shift(m0, c0 - c) + shift(mass, p - c)
-    values, vectors = np.linalg.eigh(inertia)
-    if values.min() <= 0.0:
-        raise InputError(f"a payload of {mass:g} kg at {tuple(p)} m leaves an inertia that is not positive definite")
-    if np.linalg.det(vectors) < 0:
-        vectors[:, 0] = -vectors[:, 0]
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, vectors.reshape(-1))
-    m.body_mass[body], m.body_ipos[body] = total, c
-    m.body_inertia[body], m.body_iquat[body] = values, quat
-    mujoco.mj_setConst(m, mujoco.MjData(m))  # subtree masses and the other constants derived from the bodies

@@ -177,7 +177,7 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
         full.delete(element)
     for static in [b for b in full.worldbody.bodies if b.name != "platform" and not b.bodies and not b.sites]:
         full.delete(static)  # the base, a visual geom only: an empty body still costs a step
-    _lump(full.body("platform"), anchors, m_r)
+    add_point_masses(full.body("platform"), m_r, anchors, "a rod")
     for name, data in (("hexsim_leg_base", base.ravel()), ("hexsim_leg_anchor", anchors.ravel()),
                        ("hexsim_leg_lmin", l_min), ("hexsim_leg_stroke", stroke), ("hexsim_leg_mass", [m_r, s0, m_r]),
                        ("hexsim_end_stop", [tau, zeta])):
@@ -189,27 +189,39 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     return full
 
 
-def _lump(platform: mujoco.MjsBody, anchors: np.ndarray, mass: float) -> None:
-    """Add a point mass ``mass`` [kg] at each of ``anchors`` (n, 3) [m, body frame] to ``platform``'s
-    inertial (principal axes through ``iquat``)."""
-    m0, c0 = platform.mass, np.array(platform.ipos)
+def add_point_masses(body: mujoco.MjsBody, mass: float, points: np.ndarray, what: str = "a point mass") -> None:
+    """Add a point mass ``mass`` [kg] (negative: take mass away) at each of ``points`` (k, 3) [m, body
+    frame] to the inertial of ``body`` (a spec's body, edited in place): new mass, centre of mass and
+    inertia about it (parallel-axis theorem on the full tensor, then principal axes through ``iquat``).
+    Raises InputError, naming ``what``, if the body would be left with no mass, an inertia that is not
+    positive definite, or principal moments that break the triangle inequality A + B >= C."""
+    m0, c0 = body.mass, np.array(body.ipos)
     rot = np.empty(9)
-    mujoco.mju_quat2Mat(rot, np.array(platform.iquat))
+    mujoco.mju_quat2Mat(rot, np.array(body.iquat))
     rot = rot.reshape(3, 3)
-    inertia0 = rot @ np.diag(platform.inertia) @ rot.T
-    total = m0 + mass * len(anchors)
-    com = (m0 * c0 + mass * anchors.sum(axis=0)) / total
+    inertia0 = rot @ np.diag(body.inertia) @ rot.T
+    total = m0 + mass * len(points)
+    where = f" at {tuple(float(x) for x in points[0])} m" if len(points) == 1 else ""
+    if total <= 0.0:
+        raise InputError(f"{what} of {mass:g} kg leaves the {body.name} with {total:g} kg")
+    com = (m0 * c0 + mass * points.sum(axis=0)) / total
 
     def shifted(m, r):
         return m * (r @ r * np.eye(3) - np.outer(r, r))
 
-    inertia = inertia0 + shifted(m0, c0 - com) + sum(shifted(mass, a - com) for a in anchors)
+    inertia = inertia0 + shifted(m0, c0 - com) + sum(shifted(mass, a - com) for a in points)
     w, v = np.linalg.eigh(inertia)
+    if w.min() <= 0.0:
+        raise InputError(f"{what} of {mass:g} kg{where} leaves an inertia that is not positive definite")
+    if w[0] + w[1] < w[2]:  # eigh sorts ascending; MuJoCo refuses such a body when it compiles
+        raise InputError(f"{what} of {mass:g} kg{where} leaves principal moments {w[0]:.4g}, {w[1]:.4g}, "
+                         f"{w[2]:.4g} kg m^2 that no rigid body has (A + B < C)")
     if np.linalg.det(v) < 0:
         v[:, 0] = -v[:, 0]
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, v.flatten())
-    platform.mass, platform.ipos, platform.inertia, platform.iquat = total, com, w, quat
+    body.mass, body.ipos, body.inertia, body.iquat = total, com, w, quat
+    body.explicitinertial = True
 
 
 # ------------------------------------------------------------------------------ compiled kinematics

@@ -24,7 +24,7 @@ from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import DOF_NAMES
 from hexsim.errors import InputError
 from hexsim.plant.effects import Effects
-from hexsim.plant.model import PlantIndex, apply_load, load_model, reset_neutral
+from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 from hexsim.plant.params import HydraulicParams
 from hexsim.simulation.config import leg_mobility
 
@@ -49,8 +49,7 @@ def oil_spring_modes(hyd: HydraulicParams | None = None, effects: Effects | None
     ``effects`` (:func:`hexsim.plant.model.apply_load`) and the bulk modulus, areas and pipeline volume of
     ``hyd`` (default the seed's, app. A). Raises InputError for a payload the platform cannot take."""
     hyd = hyd or HydraulicParams()
-    m = load_model("hexapod")
-    apply_load(m, effects or Effects())
+    m = load_model("hexapod", effects=effects or Effects())
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
     mujoco.set_mjcb_control(None)

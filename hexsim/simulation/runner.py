@@ -37,7 +37,6 @@ from hexsim.plant.faults import FaultInjector
 from hexsim.plant.legs import PlantState
 from hexsim.plant.model import (
     PlantIndex,
-    apply_load,
     check_warnings,
     load_model,
     reset_neutral,
@@ -83,8 +82,7 @@ class Simulator:
     # ------------------------------------------------------------------ set-up
     def _setup_model(self) -> None:
         cfg = self.config
-        m = load_model(cfg.scenario.system, cfg.model)
-        apply_load(m, cfg.effects)
+        m = load_model(cfg.scenario.system, cfg.model, cfg.effects)
         if cfg.timestep is not None:
             m.opt.timestep = cfg.timestep
         self.model, self.data = m, mujoco.MjData(m)
