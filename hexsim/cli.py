@@ -123,6 +123,8 @@ def _add_validate(sub) -> None:
     val.add_argument("--without", default="", metavar="EFFECT[,EFFECT…]",
                      help="leave these library effects out of the candidates (an effect you know the machine "
                           "cannot have, or a check of what the tool says about an effect outside its list)")
+    val.add_argument("--model", choices=("platform", "full"), default="platform",
+                     help="hexapod logs: replay on the platform-only model (default) or the full multi-body model")
     val.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per step otherwise)")
 
@@ -235,7 +237,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         print(f"assumed: {note}")
     if log.missing:
         print(f"not checked (missing columns): {', '.join(log.missing)}")
-    doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs, without=without,
+    doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs, without=without, model=args.model,
                    progress=not args.quiet and sys.stderr.isatty(),
                    notify=None if args.quiet or sys.stderr.isatty() else _progress_line)
     print(f"verdict: {doc['verdict']}")

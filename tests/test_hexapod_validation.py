@@ -13,6 +13,7 @@ import pytest
 from compensation import CompensatorSettings
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
+from hexsim.errors import InputError
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects, LegChange
 from hexsim.simulation.config import RunConfig
@@ -194,3 +195,25 @@ def test_noise_free_heave_log_gets_no_cross_axis_scale_and_no_warning(tmp_path):
     scale = doc["calibration"]["nominal"]["acceleration"]["scale"]
     assert scale[0] == scale[1] == 1.0 and abs(scale[2] - 1.0) < 1e-3
     assert "sensitivity error" not in (tmp_path / "report" / "report.md").read_text()
+
+
+def test_validate_replays_on_the_full_model_when_asked(tmp_path):
+    """``--model full``: a hexapod log replayed on the full multi-body model (its connects hold the legs:
+    a nonzero connect violation, zero on the platform-only model), the search problem keeps the model,
+    and the JSON and report say which; hexsim's own log of the full model is answered none."""
+    from hexsim.measured.hexapod_replay import replay_hexapod
+    from hexsim.measured.identify import make_problem, search_problem
+    from hexsim.measured.measurement import read_log
+
+    path = tmp_path / "heave_full.csv"
+    write_log(path, simulate(RunConfig(make_scenario("heave", duration=6.0, frequency=1.0), model="full")))
+    log = read_log(path)
+    assert replay_hexapod(log, until_s=0.5, model="full").constraint_violation.max() > 0.0
+    assert replay_hexapod(log, until_s=0.5).constraint_violation.max() == 0.0
+    assert search_problem(make_problem(log, "full")).model == "full"
+    with pytest.raises(InputError, match="model must be one of"):
+        make_problem(log, "rigid")
+    assert main(["validate", str(path), "--model", "full", "--report", str(tmp_path / "report"), "--quiet"]) == 0
+    doc = json.loads((tmp_path / "report" / "validation.json").read_text())
+    assert doc["model"] == "full" and doc["verdict"] == "none"
+    assert "(model: full)" in (tmp_path / "report" / "report.md").read_text()

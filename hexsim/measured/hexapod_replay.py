@@ -22,6 +22,7 @@ from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.residuals import noise_of
 from hexsim.plant.effects import Effects, LegChange
+from hexsim.plant.model import FORMULATIONS
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.signals import near_reversals, savgol, zero_order_hold
 from hexsim.simulation.config import RunConfig, SimulationResult
@@ -41,10 +42,12 @@ GROUPS = {
 
 def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = None,
                    effects: Effects | None = None, timestep: float | None = None,
-                   leg_changes: tuple[LegChange, ...] = (), until_s: float | None = None) -> SimulationResult:
+                   leg_changes: tuple[LegChange, ...] = (), until_s: float | None = None,
+                   model: str = "platform") -> SimulationResult:
     """The closed-loop replay of a hexapod log (see the module doc) as a simulation result sampled at
     t = i ms; ``leg_changes``: legs with their own parameters; ``until_s``: replay only the first this
-    many seconds of the log (the replay starts at rest, so a prefix is the same run cut short). Raises InputError if the log is not a hexapod log or lacks the leg setpoints and valve
+    many seconds of the log (the replay starts at rest, so a prefix is the same run cut short); ``model``:
+    the hexapod formulation (``"platform"`` or ``"full"``). Raises InputError if the log is not a hexapod log or lacks the leg setpoints and valve
     commands, WorkspaceError / PhysicsError as :func:`hexsim.simulation.runner.simulate`."""
     if log.system != "hexapod":
         raise InputError(f"{log.path}: closed-loop hexapod replay needs a hexapod log (this is {log.system})")
@@ -67,7 +70,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
     config = RunConfig(scenario, hydraulics=hydraulics or HydraulicParams(), controller=controller,
                        effects=effects or Effects(), feedforward=feedforward, timestep=timestep,
-                       leg_changes=tuple(leg_changes))
+                       leg_changes=tuple(leg_changes), model=model)
     return simulate(config)
 
 
@@ -90,10 +93,12 @@ class HexapodProblem:
 
     windowed = False  # one replay from the neutral pose: a position offset is an offset
 
-    def __init__(self, log: MeasurementLog, max_segments: int | None = None) -> None:
+    def __init__(self, log: MeasurementLog, max_segments: int | None = None, model: str = "platform") -> None:
         from hexsim.measured.replay import PlantModel, supply_from_log
 
-        self.log = log
+        if model not in FORMULATIONS:
+            raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {model!r}")
+        self.log, self.model = log, model
         fs = log.sample_rate_hz
         t = log.time - log.time[0]
         first = int(np.searchsorted(t, SETTLE_S - 1e-9))
@@ -121,7 +126,7 @@ class HexapodProblem:
     def prefix(self, segments: int) -> "HexapodProblem":
         """The same problem on the first ``segments`` segments only (the replay cut short there): a
         cheaper problem to search parameters on."""
-        return HexapodProblem(self.log, max_segments=segments)
+        return HexapodProblem(self.log, max_segments=segments, model=self.model)
 
     @property
     def segments(self) -> int:
@@ -133,7 +138,7 @@ class HexapodProblem:
     def simulate(self, model, dt: float = 1e-4) -> dict[str, np.ndarray]:
         """Replayed channels, name -> (segments, samples, signals), physical units."""
         result = replay_hexapod(self.log, model.hydraulics, model.effects, timestep=dt,
-                                leg_changes=model.leg_changes, until_s=self.until_s)
+                                leg_changes=model.leg_changes, until_s=self.until_s, model=self.model)
         t = self.log.time - self.log.time[0]
         sim = {"position": result.y, "p1": result.p1, "p_s": result.p_s[:, None], "acceleration": result.acc}
         return {g: self._cut(np.stack([np.interp(t, result.t, sim[g][:, k]) for k in range(sim[g].shape[1])],

@@ -502,14 +502,15 @@ def default_candidates(system: str) -> tuple[str, ...]:
     return HEXAPOD_CANDIDATES if system == "hexapod" else EFFECT_NAMES
 
 
-def make_problem(log: MeasurementLog):
+def make_problem(log: MeasurementLog, model: str = "platform"):
     """The identification problem of a log: windowed valve replay for a single actuator
     (:class:`Problem`), closed-loop replay in segments for a hexapod
-    (:class:`hexsim.measured.hexapod_replay.HexapodProblem`)."""
+    (:class:`hexsim.measured.hexapod_replay.HexapodProblem`) on the hexapod formulation ``model``
+    (``"platform"`` or ``"full"``, :data:`hexsim.plant.model.FORMULATIONS`; the single actuator has one)."""
     if log.system == "hexapod":
         from hexsim.measured.hexapod_replay import HexapodProblem
 
-        return HexapodProblem(log)
+        return HexapodProblem(log, model=model)
     return Problem(log)
 
 
@@ -544,9 +545,9 @@ def _fit_one(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tup
     return fit
 
 
-def _fit_in_worker(log: MeasurementLog, key: str, base: PlantModel, budget: Budget,
+def _fit_in_worker(source: tuple, key: str, base: PlantModel, budget: Budget,
                    on_top_of: tuple[str, ...], starts=None) -> FitResult:
-    return _fit_one(make_problem(log), key, base, budget, on_top_of, starts)
+    return _fit_one(make_problem(*source), key, base, budget, on_top_of, starts)
 
 
 def start_cost(problem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
@@ -569,8 +570,8 @@ def start_cost(problem, key: str, base: PlantModel, budget: Budget) -> tuple[tup
     return best
 
 
-def _start_cost_in_worker(log, key, base, budget):
-    return start_cost(make_problem(log), key, base, budget)
+def _start_cost_in_worker(source, key, base, budget):
+    return start_cost(make_problem(*source), key, base, budget)
 
 
 def standout_legs(problem, scored: Scored, budget: Budget) -> list[int]:
@@ -632,14 +633,15 @@ class Identification:
         return self.nrmse(self.final)
 
 
-def _parallel(jobs: int, fn, worker, log, calls: list[tuple], on_done=None) -> list:
+def _parallel(jobs: int, fn, worker, problem, calls: list[tuple], on_done=None) -> list:
     """``fn(*args)`` for each args of ``calls``, results in the order of ``calls``; in worker processes as
-    ``worker(log, *args)`` (which rebuilds the problem from the log) when jobs > 1. ``on_done(result)``
-    is called as each finishes (progress)."""
+    ``worker((log, model), *args)`` (which rebuilds ``problem`` from its log and hexapod formulation,
+    :func:`make_problem`) when jobs > 1. ``on_done(result)`` is called as each finishes (progress)."""
     on_done = on_done or (lambda result: None)
+    source = (problem.log, getattr(problem, "model", "platform"))
     if in_workers(jobs) and len(calls) > 1:
         with worker_pool(min(jobs, len(calls))) as pool:
-            futures = {pool.submit(worker, log, *args): i for i, args in enumerate(calls)}
+            futures = {pool.submit(worker, source, *args): i for i, args in enumerate(calls)}
             results = [None] * len(calls)
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()
@@ -660,7 +662,7 @@ def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, bas
     if log.system != "hexapod" or len(keys) <= FIT_PER_ROUND:
         return keys, {}, []
     notify(f"screening {len(keys)} candidates by their best start on the first {SEARCH_SEGMENTS} segments")
-    costs = _parallel(jobs, partial(start_cost, problem), _start_cost_in_worker, log,
+    costs = _parallel(jobs, partial(start_cost, problem), _start_cost_in_worker, problem,
                       [(k, base, budget) for k in keys])
     ranked = sorted(range(len(keys)), key=lambda i: costs[i][1])
     chosen = [keys[i] for i in ranked[:FIT_PER_ROUND]]
@@ -681,7 +683,7 @@ def _fit_round(problem, log, keys, base: PlantModel, budget: Budget, on_top_of, 
         notify(f"fitted {fit.key}{' on top of ' + '+'.join(on_top_of) if on_top_of else ''} "
                f"({count[0]}/{len(keys)})")
 
-    return _parallel(jobs, partial(_fit_one, problem), _fit_in_worker, log,
+    return _parallel(jobs, partial(_fit_one, problem), _fit_in_worker, problem,
                      [(k, base, budget, on_top_of, starts.get(k)) for k in keys], done)
 
 
@@ -750,17 +752,18 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
 
 
 def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
-             progress: bool = False, notify=None) -> Identification:
+             progress: bool = False, notify=None, model: str = "platform") -> Identification:
     """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
     select effects forward (see the module doc).
 
     ``candidates``: default every effect that applies to the log's system (on a hexapod also on one leg
     alone for the legs that stand out). ``jobs`` worker processes fit candidates in parallel (1: in this
     process). ``progress``: a progress bar (terminals); ``notify``: called with one line of text per
-    step (logs, pipes). Raises InputError for a log the replay cannot use.
+    step (logs, pipes). ``model``: the hexapod formulation the log is replayed on (:func:`make_problem`).
+    Raises InputError for a log the replay cannot use or an unknown ``model``.
     """
     notify = notify or (lambda text: None)
-    problem = make_problem(log)
+    problem = make_problem(log, model)
     notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
     if candidates is None:
         candidates = default_candidates(log.system)

@@ -365,7 +365,7 @@ def markdown(doc: dict, png_names: list[str]) -> str:
     lines += [f"- {c}" for c in doc["conclusions"]] + [""]
     for e in doc["added_effects"]:
         lines.append(f"`{effect_label(e)}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))
-    lines += ["", f"Replay: {doc['replay']}", "", "## Error per channel", "",
+    lines += ["", f"Replay: {doc['replay']} (model: {doc.get('model', 'platform')})", "", "## Error per channel", "",
               "| channel | NRMSE before | NRMSE after | budget (noise, tolerance) |", "|---|---|---|---|"]
     for ch, before in doc["error_before"].items():
         b, u = doc["budget"][ch], doc["units"][ch]
@@ -465,20 +465,23 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
 
 
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
-             without: tuple[str, ...] = ()) -> dict:
+             without: tuple[str, ...] = (), model: str = "platform") -> dict:
     """Identify (see :func:`hexsim.measured.identify.identify`) on ``log`` (a :class:`MeasurementLog` or the path of
     a log, ``docs/measurement-log.md``), then write the report folder ``report`` (report.md +
     residuals.png + validation.json) and/or the JSON file ``json_path``. Returns the JSON document
     (verdict, added effects, calibration, noise budget, errors before/after). ``without``: library
-    effects left out of the candidates (listed in the JSON as ``left_out``). Raises InputError for a
-    log that cannot be read or replayed or a report folder that cannot be created."""
+    effects left out of the candidates (listed in the JSON as ``left_out``); ``model``: the hexapod
+    formulation a hexapod log is replayed on, ``"platform"`` (default) or ``"full"`` (the JSON's
+    ``model``). Raises InputError for a log that cannot be read or replayed, an unknown ``model`` or a
+    report folder that cannot be created."""
     if not isinstance(log, MeasurementLog):
         log = read_log(log)
     report = None if report is None else pathlib.Path(report)
     json_path = None if json_path is None or isinstance(json_path, StdoutTarget) else pathlib.Path(json_path)
     candidates = tuple(n for n in default_candidates(log.system) if n not in without)
-    ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify)
-    doc = summary(ident) | {"left_out": list(without)}
+    ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
+    doc = summary(ident) | {"left_out": list(without),
+                            "model": model if log.system == "hexapod" else "single actuator"}
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
         plot(ident, report / "residuals.png")
