@@ -123,3 +123,17 @@ def test_the_replays_batch_is_the_single_actuator_attached_n_times():
     np.testing.assert_array_equal(batch.jnt_range, [one.jnt_range[0]] * 3)
     np.testing.assert_array_equal(batch.key_qpos[0], [one.key_qpos[0, 0]] * 3)
     assert [batch.sensor(f"leg{i}_acc").type[0] for i in (1, 2, 3)] == [mujoco.mjtSensor.mjSENS_ACCELEROMETER] * 3
+
+
+def test_the_models_load_when_hexsim_is_imported_from_the_checkout():
+    """In the repository's root ``import hexsim`` finds the source tree, whose models live in the
+    top-level models/ folder (installed as hexsim.models): they load from there too (CI installs
+    without -e, so there this runs the source tree against an installed copy)."""
+    import subprocess
+    import sys
+
+    code = ("import hexsim.plant.model as m; "
+            "print(m.load_model('hexapod').nbody, m.load_model('actuator').nbody, m.model_path('hexapod').name)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=MODELS_DIR.parent)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["15", "2", "scene.xml"]

@@ -8,15 +8,38 @@ from __future__ import annotations
 
 import functools
 import importlib.resources
+import importlib.util
 import pathlib
+import sys
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from hexsim.errors import InputError, PhysicsError
-from hexsim.models import hexapod
-from hexsim.plant.platform import (
+
+
+def _models_package() -> None:
+    """Make ``hexsim.models`` importable when hexsim runs from a source checkout that is not installed
+    (``python -c "import hexsim"`` in the repository's root after a non-editable install): the
+    installed package is the checkout's top-level ``models/`` (pyproject's package-dir), so there it is
+    loaded from that folder under the same name."""
+    if importlib.util.find_spec("hexsim.models") is not None:
+        return
+    folder = pathlib.Path(__file__).resolve().parents[2] / "models"
+    spec = importlib.util.spec_from_file_location("hexsim.models", folder / "__init__.py",
+                                                  submodule_search_locations=[str(folder)])
+    if spec is None:
+        raise ModuleNotFoundError(f"hexsim.models: neither installed nor a models/ folder at {folder}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["hexsim.models"] = module
+    spec.loader.exec_module(module)
+
+
+_models_package()
+
+from hexsim.models import hexapod  # noqa: E402
+from hexsim.plant.platform import (  # noqa: E402
     LegGeometry,
     add_point_masses,
     is_platform_model,
