@@ -237,8 +237,8 @@ def apply_load(spec: mujoco.MjSpec, effects) -> None:
     not along the hexapod's legs, ch. 4). Hexapod: ``effects.payload_kg`` [kg] at
     ``effects.payload_at_m`` (platform frame [m]) is added to the body ``platform`` as a point mass
     (:func:`hexsim.plant.platform.add_point_masses`). Raises InputError for a load the model cannot take
-    (mass or inclination on the hexapod, a payload on the single actuator or one that leaves the
-    platform without mass).
+    (mass or inclination on the hexapod, a payload on the single actuator, or one that leaves the
+    platform without mass or with principal moments no rigid body has).
     """
     single = spec.body("platform") is None
     if effects.payload_kg != 0.0:
