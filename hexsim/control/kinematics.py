@@ -4,7 +4,7 @@ A platform pose is (surge x, sway y, heave z [m], roll, pitch, yaw [rad]) of the
 relative to its neutral pose, in the world frame (z up). The rotation is R = Rz(yaw) Ry(pitch) Rx(roll)
 (intrinsic z-y'-x'', the usual aerospace order). Leg i joins base anchor a_i (world) to platform anchor
 b_i (platform frame); its length is L_i = |p + R b_i - a_i| and its piston position y_i = L_i - L_min,i.
-All joint coordinates are read from the MJCF (models/micro_motion_system.xml).
+All joint coordinates are read from the compiled model (built by models/hexapod.py with MjSpec).
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The platform-only formulation of the hexapod: the platform as the only moving body, the legs as
 geometry (issue 15).
 
-The full model (``models/micro_motion_system.xml``) has 13 bodies, 18 leg joints and six 3-D connect
-constraints closing the loops; most of a step is MuJoCo solving those constraints. Here the same
+The full model (``models/hexapod.py``, its XML ``models/micro_motion_system.xml``) has 13 bodies, 18
+leg joints and six 3-D connect constraints closing the loops; most of a step is MuJoCo solving those constraints. Here the same
 hexapod, built with ``mujoco.MjSpec`` from the full model's own spec (one source of geometry), is one
 free body, and each leg is computed from the platform's pose:
 
