@@ -400,8 +400,18 @@ def markdown(doc: dict, png_names: list[str]) -> str:
             lines += ["", f"Screened out in round {i + 1} (cost of the best start on the search segments relative "
                       f"to the model it extends; only the best were fitted): " + _md(", ".join(out)) + "."]
     lines += _discovery_markdown(doc)
+    lines += _residuals_markdown(doc)
+    lines += ["", f"Not checked (columns missing): {', '.join(doc['not_checked']) or 'nothing'}.",
+              f"Assumed: {'; '.join(doc['assumed']) or 'nothing'}.", ""]
+    lines += [f"![{n}]({n})" for n in png_names]
+    return "\n".join(lines) + "\n"
+
+
+def _residuals_markdown(doc: dict) -> list[str]:
+    """The report's residual sections: whiteness, correlation with u_v and spectrum before → after, and
+    the RMS of the residual before per class of the motion state."""
     where = f" (position and P1 of leg{doc['residuals_leg']})" if doc.get("residuals_leg") else ""
-    lines += ["", f"## Residual before → after{where}", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
+    lines = ["", f"## Residual before → after{where}", "", "| channel | Ljung–Box p | max cross-corr. with u_v (bound) | "
               "spectrum peak [Hz] |", "|---|---|---|---|"]
     for ch in doc["residuals_before"]:
         b, a = doc["residuals_before"][ch], doc["residuals_after"][ch]
@@ -416,10 +426,7 @@ def markdown(doc: dict, png_names: list[str]) -> str:
     for cls in classes:
         row = [f"{doc['residuals_before'][ch]['conditioned'].get(cls, {}).get('rms', float('nan')):.3g}" for ch in chans]
         lines.append(f"| {_md(cls)} | " + " | ".join(row) + " |")
-    lines += ["", f"Not checked (columns missing): {', '.join(doc['not_checked']) or 'nothing'}.",
-              f"Assumed: {'; '.join(doc['assumed']) or 'nothing'}.", ""]
-    lines += [f"![{n}]({n})" for n in png_names]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def plot(ident: Identification, path: pathlib.Path) -> None:
