@@ -22,7 +22,7 @@ from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.residuals import noise_of
 from hexsim.plant.effects import Effects, LegChange
-from hexsim.plant.model import FORMULATIONS
+from hexsim.plant.model import check_formulation
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.signals import near_reversals, savgol, zero_order_hold
 from hexsim.simulation.config import RunConfig, SimulationResult
@@ -47,8 +47,9 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     """The closed-loop replay of a hexapod log (see the module doc) as a simulation result sampled at
     t = i ms; ``leg_changes``: legs with their own parameters; ``until_s``: replay only the first this
     many seconds of the log (the replay starts at rest, so a prefix is the same run cut short); ``model``:
-    the hexapod formulation (``"platform"`` or ``"full"``). Raises InputError if the log is not a hexapod log or lacks the leg setpoints and valve
-    commands, WorkspaceError / PhysicsError as :func:`hexsim.simulation.runner.simulate`."""
+    the hexapod formulation (``"platform"`` or ``"full"``). Raises InputError if the log is not a hexapod
+    log or lacks the leg setpoints and valve commands, WorkspaceError / PhysicsError as
+    :func:`hexsim.simulation.runner.simulate`."""
     if log.system != "hexapod":
         raise InputError(f"{log.path}: closed-loop hexapod replay needs a hexapod log (this is {log.system})")
     c = log.columns
@@ -96,8 +97,7 @@ class HexapodProblem:
     def __init__(self, log: MeasurementLog, max_segments: int | None = None, model: str = "platform") -> None:
         from hexsim.measured.replay import PlantModel, supply_from_log
 
-        if model not in FORMULATIONS:
-            raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {model!r}")
+        check_formulation(model)
         self.log, self.model = log, model
         fs = log.sample_rate_hz
         t = log.time - log.time[0]

@@ -68,6 +68,12 @@ def model_path(name: str) -> pathlib.Path:
 FORMULATIONS = ("full", "platform")
 
 
+def check_formulation(model: str) -> None:
+    """Raise InputError unless ``model`` names a formulation of the hexapod (:data:`FORMULATIONS`)."""
+    if model not in FORMULATIONS:
+        raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {model!r}")
+
+
 def model_spec(name: str, formulation: str = "full", effects=None) -> mujoco.MjSpec:
     """The ``MjSpec`` of a built-in model (``"hexapod"`` or ``"actuator"``) with the load of ``effects``
     (:func:`apply_load`; None: none). The hexapod is its builder's spec in its scene
@@ -75,8 +81,7 @@ def model_spec(name: str, formulation: str = "full", effects=None) -> mujoco.MjS
     model for viewers); ``formulation="platform"`` edits it into the platform-only model
     (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one formulation. Raises
     InputError for an unknown name or formulation, or a load the model cannot take."""
-    if formulation not in FORMULATIONS:
-        raise InputError(f"unknown model formulation {formulation!r}; choose from {', '.join(FORMULATIONS)}")
+    check_formulation(formulation)
     if name == "hexapod":
         spec = hexapod.scene(hexapod.build())
         if formulation == "platform":

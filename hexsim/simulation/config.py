@@ -23,7 +23,7 @@ from hexsim.plant import hydraulics
 from hexsim.plant.effects import Effects, LegChange
 from hexsim.plant.faults import Fault, FaultInjector
 from hexsim.plant.legs import PlantState, advance_legs, leg_table
-from hexsim.plant.model import FORMULATIONS, PlantIndex
+from hexsim.plant.model import PlantIndex, check_formulation
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.plant.platform import leg_jacobian, leg_wrench
 from hexsim.plant.temperature import WarmUp
@@ -73,8 +73,7 @@ class RunConfig:
             object.__setattr__(self, "scenario", make_scenario(self.scenario))
         if not isinstance(self.scenario, Scenario):
             raise InputError(f"scenario must be a Scenario or a scenario name, got {self.scenario!r}")
-        if self.model not in FORMULATIONS:
-            raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {self.model!r}")
+        check_formulation(self.model)
         if not (isinstance(self.compensator, str) or callable(self.compensator)):
             raise InputError(f"compensator must be a name or a Compensator class, got {self.compensator!r}")
         if self.engine not in ENGINES:
