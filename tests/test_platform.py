@@ -88,6 +88,32 @@ def test_the_platform_model_reproduces_the_full_model(case, tmp_path_factory):
     assert sm_platform.noise_ratio == pytest.approx(sm_full.noise_ratio, rel=5e-3)
 
 
+def test_the_platform_model_has_no_constraints_so_their_pipeline_is_off(monkeypatch):
+    """hexsim switches MuJoCo's constraint pipeline off on the platform-only model (its end stops are
+    forces, contacts are off, there are no joints with limits and no equalities): a run with it on
+    again, end stop hit included, is the same to the bit."""
+    from hexsim.plant import model
+    from hexsim.simulation import runner
+
+    m = load_model("hexapod", "platform")
+    assert m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    assert m.neq == 0 and m.ngeom == 0 and not m.jnt_limited.any() and m.njnt == 1
+
+    def constrained(name, formulation="full", effects=None):
+        m = model.load_model(name, formulation, effects)
+        m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+        return m
+
+    config = RunConfig(make_scenario("heave", duration=1.5, frequency=2.0), compensator="buffered",
+                       faults=(Fault.parse("end_stop:leg=4,t=0.8"),))
+    off = simulate(config)
+    assert off.y[:, 3].max() > 0.2  # leg 4 runs into its end stop
+    monkeypatch.setattr(runner, "load_model", constrained)
+    on = simulate(config)
+    for name in ("y", "p1", "u_c", "acc", "pose"):
+        np.testing.assert_array_equal(getattr(off, name), getattr(on, name), err_msg=name)
+
+
 def test_both_engines_step_the_platform_model_alike():
     scenario = make_scenario("heave", duration=2.0, frequency=2.0)
     native = simulate(RunConfig(scenario, compensator="buffered", model="platform"))
