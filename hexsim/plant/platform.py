@@ -165,6 +165,23 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     tau, zeta = compiled.jnt_solref[slide[0]]
     anchors = compiled.site_pos[anchor_ids].copy()
 
+    _strip_legs(full, n)
+    add_point_masses(full.body("platform"), m_r, anchors, "a rod")
+    for name, data in (("hexsim_leg_base", base.ravel()), ("hexsim_leg_anchor", anchors.ravel()),
+                       ("hexsim_leg_lmin", l_min), ("hexsim_leg_stroke", stroke), ("hexsim_leg_mass", [m_r, s0, m_r]),
+                       ("hexsim_end_stop", [tau, zeta])):
+        full.add_numeric(name=name, data=list(map(float, data)), size=len(data))
+    key = full.key("neutral")
+    plat = compiled.jnt_qposadr[compiled.body_jntadr[body("platform")]]
+    key.qpos = list(d.qpos[plat:plat + 7])
+    full.modelname = "micro_motion_system_platform"
+    full.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)  # ~10 % of a step, to the bit
+    return full
+
+
+def _strip_legs(full: mujoco.MjSpec, n: int) -> None:
+    """Delete from ``full`` the ``n`` legs' bodies, connects, motors and joint sensors, and every geom,
+    light, site (but ``platform_centre``) and static body left empty (each costs time every step)."""
     for e in list(full.equalities):
         full.delete(e)
     for a in list(full.actuators):
@@ -178,19 +195,6 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
         full.delete(element)
     for static in [b for b in full.worldbody.bodies if b.name != "platform" and not b.bodies and not b.sites]:
         full.delete(static)  # the base, a visual geom only: an empty body still costs a step
-    add_point_masses(full.body("platform"), m_r, anchors, "a rod")
-    for name, data in (("hexsim_leg_base", base.ravel()), ("hexsim_leg_anchor", anchors.ravel()),
-                       ("hexsim_leg_lmin", l_min), ("hexsim_leg_stroke", stroke), ("hexsim_leg_mass", [m_r, s0, m_r]),
-                       ("hexsim_end_stop", [tau, zeta])):
-        full.add_numeric(name=name, data=list(map(float, data)), size=len(data))
-    key = full.key("neutral")
-    plat = compiled.jnt_qposadr[compiled.body_jntadr[body("platform")]]
-    key.qpos = list(d.qpos[plat:plat + 7])
-    full.modelname = "micro_motion_system_platform"
-    # no constraint is left (the end stops are forces, contacts are off): MuJoCo's constraint pipeline
-    # would still run every step; switched off, a step is ~10 % cheaper with results to the bit
-    full.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
-    return full
 
 
 def add_point_masses(body: mujoco.MjsBody, mass: float, points: np.ndarray, what: str = "a point mass") -> None:
