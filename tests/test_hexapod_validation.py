@@ -197,6 +197,23 @@ def test_noise_free_heave_log_gets_no_cross_axis_scale_and_no_warning(tmp_path):
     assert "sensitivity error" not in (tmp_path / "report" / "report.md").read_text()
 
 
+def test_the_replay_error_estimates_what_the_replay_misses_on_a_log_the_model_made(tmp_path):
+    """The closed-loop replay of hexsim's own noise-free log misses it by what it reconstructs (the
+    controller's input from smoothed positions): ``replay_error`` (the replay of the model's own replay)
+    estimates that miss per channel to within a factor of three."""
+    from hexsim.measured.hexapod_replay import HexapodProblem
+    from hexsim.measured.measurement import read_log
+
+    path = tmp_path / "heave.csv"
+    write_log(path, simulate(RunConfig(make_scenario("heave", duration=3.0, frequency=1.0))))
+    problem = HexapodProblem(read_log(path))
+    fine = problem.simulate(problem.nominal)
+    estimate = problem.replay_error(problem.nominal)
+    for ch in ("position", "p1", "acceleration"):
+        miss = float(np.sqrt(np.mean((fine[ch] - problem.measured[ch]) ** 2)))
+        assert miss / 3 < estimate[ch] < 3 * miss, (ch, miss, estimate[ch])
+
+
 def test_validate_replays_on_the_full_model_when_asked(tmp_path):
     """``--model full``: a hexapod log replayed on the full multi-body model (its connects hold the legs:
     a nonzero connect violation, zero on the platform-only model), the search problem keeps the model,

@@ -3,8 +3,10 @@ engineer would sign it.
 
 1. **Noise budget.** Every channel c is judged against b_c = sqrt(sigma_c^2 + tau_c^2): sigma_c the sensor
    noise (the smaller of two robust estimates: the log's own second difference and the nominal replay
-   residual's, 1.4826 MAD / sqrt(6)), tau_c the replay's own numerical error, estimated by Richardson from
-   the replay at the step h = 1e-4 s and at 2h (first-order scheme: error(h) ≈ y(2h) - y(h)).
+   residual's, 1.4826 MAD / sqrt(6)), tau_c the replay's own numerical error: the step's, estimated by
+   Richardson from the replay at the step h = 1e-4 s and at 2h (y(2h) - y(h): the error of a first-order
+   scheme, three times that of a second-order one), and the replay's reconstruction of the logged run
+   (the closed-loop hexapod replay of the model's own replay), in quadrature.
 2. **Calibration.** Every model, the nominal included, fits sensor calibration as nuisance parameters
    (:func:`calibrate`): an offset per channel and a scale for the position transducer and the
    accelerometer. They are reported as calibration, never as an effect.
@@ -151,6 +153,12 @@ class Problem:
         out = replay(self.log, model, self.windows, dt=dt)
         return {ch: out[ch] for ch in self.channels}
 
+    def replay_error(self, model: PlantModel) -> dict[str, float]:
+        """The replay's own error beyond the step's (see :meth:`HexapodProblem.replay_error`): none here,
+        the logged u_v drives the model as logged and each window's start state is left out of the score
+        (:data:`SETTLE_S`)."""
+        return {ch: 0.0 for ch in self.channels}
+
     replay_mode = ("valve replay: the logged u_v drives the model open loop in windows, each started from "
                    "the measured state")
     scored = "windows after their settling time"
@@ -203,26 +211,30 @@ class Budget:
 def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
     """The noise budget of :data:`problem` (see the module doc, step 1); ``nominal_sim`` is the nominal
     model's replay at :data:`REPLAY_DT`."""
-    coarse = problem.simulate(problem.nominal, dt=RICHARDSON * REPLAY_DT)
     s = problem.settle
-    noise, tol = {}, {}
-    for ch in problem.channels:
-        res = (nominal_sim[ch] - problem.measured[ch])[:, s:]
-        noise[ch] = min(problem.log_noise[ch], noise_of(res, ch))
-        tol[ch] = float(np.sqrt(np.mean((nominal_sim[ch] - coarse[ch])[:, s:] ** 2)))
-    return Budget(noise, tol)
+    noise = {ch: min(problem.log_noise[ch], noise_of((nominal_sim[ch] - problem.measured[ch])[:, s:], ch))
+             for ch in problem.channels}
+    return Budget(noise, numerical_tolerance(problem, problem.nominal, nominal_sim))
+
+
+def numerical_tolerance(problem, model: PlantModel, fine: dict[str, np.ndarray]) -> dict[str, float]:
+    """Per channel [SI], the replay's numerical error for ``model`` (its replay ``fine`` at
+    :data:`REPLAY_DT`): the step's, RMS of the replay at 2h minus that at h (Richardson: the error itself
+    for a first-order scheme, three times it for a second-order one), and the replay's own
+    (``problem.replay_error``), added in quadrature."""
+    coarse = problem.simulate(model, dt=RICHARDSON * REPLAY_DT)
+    own = problem.replay_error(model)
+    s = problem.settle
+    return {ch: math.hypot(float(np.sqrt(np.mean((fine[ch] - coarse[ch])[:, s:] ** 2))), own[ch])
+            for ch in problem.channels}
 
 
 def with_model_tolerance(problem, model: PlantModel, budget: Budget) -> Budget:
-    """``budget`` with each channel's numerical tolerance the larger of its own and ``model``'s (the same
-    Richardson estimate on that model's replay): a model with effects (a heavier platform, a sagging
-    supply) has its own discretisation error, which the nominal's does not measure."""
-    fine = problem.simulate(model)
-    coarse = problem.simulate(model, dt=RICHARDSON * REPLAY_DT)
-    s = problem.settle
-    tol = {ch: max(budget.tolerance[ch], float(np.sqrt(np.mean((fine[ch] - coarse[ch])[:, s:] ** 2))))
-           for ch in problem.channels}
-    return Budget(budget.noise, tol)
+    """``budget`` with each channel's numerical tolerance the larger of its own and ``model``'s
+    (:func:`numerical_tolerance`): a model with effects (a heavier platform, a sagging supply) has its
+    own discretisation error, which the nominal's does not measure."""
+    own = numerical_tolerance(problem, model, problem.simulate(model))
+    return Budget(budget.noise, {ch: max(budget.tolerance[ch], own[ch]) for ch in problem.channels})
 
 
 def _lstsq1(x: np.ndarray, y: np.ndarray) -> float:

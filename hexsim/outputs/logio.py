@@ -31,7 +31,8 @@ def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
         cols[f"leg{n}_p1_Pa"] = result.p1[:, i]
     cols["ps_Pa"] = result.p_s
     for k, name in enumerate(("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")):
-        cols[f"dof_ref_{name}"] = result.pose_ref[:, k]
+        if result.pose_ref is not None:  # None: a run of leg setpoints (a replayed log) has no DOF reference
+            cols[f"dof_ref_{name}"] = result.pose_ref[:, k]
     for k, axis in enumerate("xyz"):
         cols[f"platform_acc_{axis}_mps2"] = result.acc[:, k]
     for k, axis in enumerate("xyz"):
