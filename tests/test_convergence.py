@@ -37,3 +37,16 @@ def test_step_converges_to_the_fine_reference(heave, dt):
     if dt == 1e-4:  # the default step also matches every single reversal peak
         assert sm.reversal_peaks.size == sm_ref.reversal_peaks.size
         assert np.max(np.abs(sm.reversal_peaks / sm_ref.reversal_peaks - 1.0)) < 0.02
+
+
+@pytest.mark.parametrize("name", ["heave", "roll"])
+def test_default_step_keeps_every_buffered_reversal_peak_of_the_default_run(name):
+    """The default run (20 s, 0.5 Hz) with the buffered compensator, whose peaks are a quarter of the
+    uncompensated ones: every single reversal peak at 1e-4 s within 2 % of the 1e-5 s reference (measured
+    0.44 % heave, 1.37 % roll; 2.13 % and 2.56 % while the valve's switch at a controller sample acted half
+    a step early, hexsim.plant.legs.step_legs)."""
+    scenario = make_scenario(name)
+    ref, run = (run_smoothness(simulate(RunConfig(scenario, timestep=dt, compensator="buffered")))
+                for dt in (1e-5, 1e-4))
+    assert ref.reversal_peaks.size == run.reversal_peaks.size >= 16
+    assert np.max(np.abs(run.reversal_peaks / ref.reversal_peaks - 1.0)) < 0.02

@@ -297,7 +297,16 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
     Order: spool play, spool dynamics, P1 (:func:`pressure_step`), then the supply pressure of each
     manifold (exact first-order update, dP_s/dt = (P_s0 - R_s phi_s - P_s) / tau_s, with the step's
     supply flow phi_s = sum of phi_PA + C_l (P_s - P1) - ydot A2), then the leg force with the new P1
-    and P_s (:func:`leg_force`)."""
+    and P_s (:func:`leg_force`).
+
+    Timing: the force from the new P1 acts over the mechanics step that follows (MuJoCo's semi-implicit
+    Euler), so P1 is staggered half a step from y, ydot (leapfrog: P1 steps from t - h/2 to t + h/2 with
+    the flow at t). An ideal spool (f_v = 0) jumps at the controller sample t_k, the middle of that
+    interval: the step's flow is half at the old opening and half at the new (two half steps of
+    :func:`pressure_step`). Taking the new opening for the whole step put every valve change half a step
+    early: on the default heave at 1e-4 s, against 1e-5 s, the worst single buffered reversal peak was
+    2.13 % off, 0.44 % with the split (roll/pitch/yaw/surge/sway: 1.5–4.2 % before, 0.5–1.7 % after).
+    A spool with dynamics (f_v > 0) moves every step; its flow uses the step's end position."""
     p1, p_s, x_v = S.p1, S.p_s, S.x_v
     n = p1.shape[0]
     supply = P[0]
@@ -305,8 +314,13 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
         supply_flow[:] = 0.0
     for i in range(n):
         Pi = P[i]
+        x_old = x_v[i]
         _spool_step(i, u[i], dt, S, Pi)
-        p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_v[i], p_s[i], y[i], ydot[i], dt, Pi)
+        if Pi.f_v == 0.0 and x_v[i] != x_old:  # the valve switched at this step's start: see Timing
+            p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_old, p_s[i], y[i], ydot[i], 0.5 * dt, Pi)
+            p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_v[i], p_s[i], y[i], ydot[i], 0.5 * dt, Pi)
+        else:
+            p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_v[i], p_s[i], y[i], ydot[i], dt, Pi)
         if supply.r_s > 0.0:
             dps = S.p_s[i] - S.p1[i]
             phi_pa = edge_flow(flow_areas(S.x_v[i], Pi)[0] * Pi.k_pa, dps, Pi)[0]
