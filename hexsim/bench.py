@@ -25,7 +25,9 @@ Besides, the start-up of the command line: ``hexsim --help`` (``python -m hexsim
 interpreter) against ``python -c pass``, the median of ``repeats`` (at least 3) of each, as a ratio.
 
 The repeats go round the cases (case 1, 2, …, then again), so a machine that slows down or speeds up
-during the benchmark biases no case against another.
+during the benchmark biases no case against another; and the baseline is timed right before every
+case: a ratio "÷ bare" is the median over the repeats of the case's wall time over its own baseline's
+(the machine's speed swings by ±30 % between minutes, the pairs share theirs).
 
 ``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 20 s) with 1 worker (in this process),
 2 forked and 2 spawned workers, ``repeats`` rounds, medians of the wall times.
@@ -152,18 +154,24 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     out: dict = {"machine": {"cpu": platform.processor() or platform.machine(), "python": platform.python_version(),
                              "mujoco": mujoco.__version__}, "duration_s": duration, "repeats": repeats, "cases": {}}
     walls: dict[str, list[float]] = {name: [] for name in cases}
+    pairs: dict[str, list[tuple[float, float]]] = {name: [] for name in cases}
     for _ in range(repeats):
         for name, fn in cases.items():
-            walls[name].append(fn())
+            base = cases["bare_mj_step"]()  # the baseline right before each case: the pair shares the minute
+            walls["bare_mj_step"].append(base)
+            if name != "bare_mj_step":
+                walls[name].append(fn())
+                pairs[name].append((walls[name][-1], base))
     for name in cases:
         per_s = statistics.median(walls[name]) / duration
-        out["cases"][name] = {"wall_per_sim_s": per_s, "us_per_sim_s": per_s * 1e6,
-                              "realtime_factor": 1.0 / per_s}
-    bare = out["cases"]["bare_mj_step"]["wall_per_sim_s"]
-    out["ratio_hexapod_full_to_bare"] = out["cases"]["hexapod_full"]["wall_per_sim_s"] / bare
-    out["ratio_platform_bare_to_bare"] = out["cases"]["bare_mj_step_platform"]["wall_per_sim_s"] / bare
-    out["ratio_hexapod_platform_to_bare"] = out["cases"]["hexapod_platform"]["wall_per_sim_s"] / bare
-    out["ratio_hexapod_fast_to_bare"] = out["cases"]["hexapod_fast"]["wall_per_sim_s"] / bare
+        out["cases"][name] = {"wall_per_sim_s": per_s, "us_per_sim_s": per_s * 1e6, "realtime_factor": 1.0 / per_s,
+                              "to_bare": statistics.median(w / b for w, b in pairs[name]) if pairs[name] else 1.0,
+                              "walls_with_baseline_s": pairs[name]}
+    ratio = {name: c["to_bare"] for name, c in out["cases"].items()}
+    out["ratio_hexapod_full_to_bare"] = ratio["hexapod_full"]
+    out["ratio_platform_bare_to_bare"] = ratio["bare_mj_step_platform"]
+    out["ratio_hexapod_platform_to_bare"] = ratio["hexapod_platform"]
+    out["ratio_hexapod_fast_to_bare"] = ratio["hexapod_fast"]
     out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
     out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
                                                / out["cases"]["actuator_bare_fast"]["wall_per_sim_s"])
@@ -180,11 +188,9 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
 
 
 def table(result: dict) -> str:
-    lines = [f"{'case':22s} {'µs per sim s':>13s} {'× real time':>12s} {'÷ bare':>8s}"]
-    bare = result["cases"]["bare_mj_step"]["wall_per_sim_s"]
+    lines = [f"{'case':30s} {'µs per sim s':>13s} {'× real time':>12s} {'÷ bare':>8s}"]
     for name, c in result["cases"].items():
-        lines.append(f"{name:22s} {c['us_per_sim_s']:13.0f} {c['realtime_factor']:12.2f} "
-                     f"{c['wall_per_sim_s'] / bare:8.2f}")
+        lines.append(f"{name:30s} {c['us_per_sim_s']:13.0f} {c['realtime_factor']:12.2f} {c['to_bare']:8.2f}")
     lines.append(f"hexapod_full / bare_mj_step = {result['ratio_hexapod_full_to_bare']:.2f}")
     lines.append(f"bare_mj_step_platform / bare_mj_step = {result['ratio_platform_bare_to_bare']:.2f}  "
                  "(a step of the platform-only model over a step of the full model)")

@@ -1,6 +1,6 @@
 """Accuracy of the physics step: runs at dt = 1e-4 s (the default) and 1e-3 s against a dt = 1e-5 s
-reference (issue 5: noise_ratio, peak_noise_g and the reversal peaks within 2 %, leg positions within
-0.1 mm). All runs sample the same instants (1 kHz records at t = i ms) with the same sensor noise."""
+reference (issue 5: noise_ratio, peak_noise_g and every reversal peak within 2 %, leg positions within
+0.1 mm; with the buffered compensator, the default step only). All runs sample the same instants (1 kHz records at t = i ms) with the same sensor noise."""
 
 import numpy as np
 import pytest
@@ -34,9 +34,10 @@ def test_step_converges_to_the_fine_reference(heave, dt):
     assert _rel(sm.peak_noise_g, sm_ref.peak_noise_g) < 0.02
     assert _rel(sm.mean_reversal_peak, sm_ref.mean_reversal_peak) < 0.02
     assert np.max(np.abs(run.y - ref.y)) < 1e-4
-    if dt == 1e-4:  # the default step also matches every single reversal peak
-        assert sm.reversal_peaks.size == sm_ref.reversal_peaks.size
-        assert np.max(np.abs(sm.reversal_peaks / sm_ref.reversal_peaks - 1.0)) < 0.02
+    # every single reversal peak too (measured 0.2 % at 1e-4 s, 0.6 % at 1e-3 s; 0.9 % and 3.9 % while
+    # the valve's switch at a controller sample acted half a step early)
+    assert sm.reversal_peaks.size == sm_ref.reversal_peaks.size
+    assert np.max(np.abs(sm.reversal_peaks / sm_ref.reversal_peaks - 1.0)) < 0.02
 
 
 @pytest.mark.parametrize("name", ["heave", "roll"])
