@@ -172,6 +172,18 @@ def test_nothing_finer_than_the_log_resolves_is_a_finding(logs):
     assert flagged and "bound" in flagged[0]
 
 
+def test_an_effect_is_told_from_none_by_its_standard_error(logs):
+    """A small effect measured precisely is a finding, a larger one within four standard errors of
+    the no-effect value is not; a no-effect value that is also the range's bound (R_s >= 0) is a physical
+    limit, not a bound the fit ran into."""
+    log = read_log(logs["null_twotone"])
+    supply = CANDIDATES["supply_pressure"]
+    x = np.array([0.15, 30.0, 70.0])  # 0.15 bar/(L/min): under 1 % of R_s's 0-20 range
+    assert not plausibility(supply, log, x, np.array([3e-5, 0.01, 0.001]))
+    assert "without the effect" in plausibility(supply, log, x, np.array([0.05, 0.01, 0.001]))[0]
+    assert "without the effect" in plausibility(supply, log, x)[0]  # no standard error: the range's 1 %
+
+
 def test_sensors_are_checked_against_each_other(logs):
     """The accelerometer against the position's second derivative, before any model: a consistent log
     says nothing; a 10 % sensitivity error and a flipped sign are each named in one sentence."""

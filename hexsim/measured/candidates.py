@@ -24,6 +24,10 @@ from hexsim.plant.model import moving_mass
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
 #: A fitted value closer than this fraction of its plausible range to a bound is "at the bound".
 AT_BOUND = 0.01
+#: A fitted value within this many standard errors of the value that switches its effect off is no
+#: finding (the discovery's threshold too). A fixed share of the range instead rejected R_s = 0.150 ±
+#: 0.00003 bar/(L/min) (under 1 % of its 0-20 range) and C_l = 1.005 ± 0.005 e-12 as "no effect".
+NO_EFFECT_SE = 4.0
 #: [bar] how far above the highest measured supply pressure (99th percentile) the set pressure P_s0 may lie.
 #: The supply only sags under flow and comes back to its set pressure when little oil is drawn, so the
 #: truth sits at the top of the measured range; with the former 0.5 bar the true 70 bar of a hexapod log
@@ -48,6 +52,15 @@ class Candidate:
     apply: Callable[[PlantModel, np.ndarray], PlantModel]
     physics: str
     no_effect: tuple[float | None, ...] = ()  # per parameter: the value that switches the effect off, or None
+    # per parameter: its value in the model without the effect, where the screening linearises
+    # (identify.linear_start); default no_effect. Unlike no_effect, not a verdict on a fitted value: an
+    # edge asymmetry with k_PA = 1 and k_AT = 0.9 is an effect.
+    neutral: tuple[float | None, ...] = ()
+
+    @property
+    def origin(self) -> tuple[float | None, ...]:
+        """Where the screening linearises: :attr:`neutral`, else :attr:`no_effect`."""
+        return self.neutral or self.no_effect
 
 
 def _eff(model: PlantModel, **kw) -> PlantModel:
@@ -126,12 +139,18 @@ def _payload(model: PlantModel, x) -> PlantModel:
     return _eff(model, payload_kg=x[0], payload_at_m=(x[1], x[2], 0.0))
 
 
+#: [m] A leg setpoint within this of its first value: the platform is still at rest (:func:`payload_start`).
+REST_TOLERANCE_M = 1e-5
+
+
 def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
-    """A start for the payload candidate (m_p [kg], x_p, y_p [m]) from statics: the legs' P1 over the
-    first 0.1 s of the log (the replay starts at rest in the neutral pose) minus the model's static P1
-    there, through :func:`hexsim.measured.hexapod_replay.payload_from_statics`. None for a log without the legs'
-    P1 or offsets that are not one load."""
-    p1 = log.leg_array("p1_Pa")
+    """A start for the payload candidate (m_p [kg], x_p, y_p [m]) from statics: the legs' P1 while the
+    platform is still at rest (the replay starts at rest in the neutral pose: the rows before any leg's
+    setpoint has moved by :data:`REST_TOLERANCE_M`, at most the first 0.1 s, at least three rows) minus
+    the model's static P1 there, through :func:`hexsim.measured.hexapod_replay.payload_from_statics`. None
+    for a log without the legs' P1 or offsets that are not one load. (Over a fixed 0.1 s, a 1 Hz heave's
+    fade-in had already raised P1 by 0.53 bar: a 30 kg payload read as 64 kg.)"""
+    p1, ref = log.leg_array("p1_Pa"), log.leg_array("ref_m")
     if log.system != "hexapod" or p1 is None:
         return None
     from hexsim.control.scenario import Scenario
@@ -144,6 +163,9 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     hyd = supply_from_log(log, HydraulicParams())
     rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0), hydraulics=hyd)).p1_initial
     first = log.time - log.time[0] <= 0.1
+    if ref is not None:
+        first &= np.cumsum(np.any(np.abs(ref - ref[0]) > REST_TOLERANCE_M, axis=1)) == 0
+    first[:3] = True
     found = payload_from_statics(p1[first].mean(axis=0) - rest, hyd)
     if found["inconsistency"] > 0.1:
         return None
@@ -197,7 +219,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               (0.0, 0.0), (10.0, 10.0),
               "Coulomb/static and viscous levels within 0-10x the seed's identified ones (seed §2.3.3, "
               "app. A)", _friction,
-              "Stribeck friction (seed eq. 3.9) with Coulomb + static levels scaled by k_c, viscous by k_sigma"),
+              "Stribeck friction (seed eq. 3.9) with Coulomb + static levels scaled by k_c, viscous by k_sigma",
+              neutral=(1.0, 1.0)),
     Candidate("bulk_modulus", ("E",), ("GPa",), lambda log: ((0.3,), (1.0,), (1.5,)), (0.1,), (2.0,),
               "effective bulk modulus of mineral oil 1.4-2.0 GPa, down to ~0.1 GPa with hoses and "
               "entrained air (Merritt §2.5)",
@@ -214,7 +237,7 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "tolerance for a new valve, worn or damaged edges more",
               lambda m, x: _eff(m, edge_gain_pa=x[0], edge_gain_at=x[1]),
               "valve edge asymmetry: the supply edge P→A and the return edge A→T pass k_PA and k_AT times the "
-              "flow of eq. (3.4)"),
+              "flow of eq. (3.4)", neutral=(1.0, 1.0)),
     Candidate("entrained_air", ("a",), ("%",), lambda log: ((0.2,), (1.0,), (5.0,)), (0.0,), (20.0,),
               "undissolved air in mineral oil: well bled systems well under 1 %, aerated oil up to ~10-20 % "
               "by volume at atmospheric pressure (Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), "
@@ -257,18 +280,26 @@ def resolution_floor(cand: Candidate, log: MeasurementLog) -> dict[str, float]:
     return {}
 
 
-def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray) -> list[str]:
+def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.ndarray | None = None) -> list[str]:
     """Why the fitted parameters ``x`` are not a finding (empty if they are): a value at a bound of its
-    plausible range, at the value that means no effect, or finer than the log resolves."""
+    plausible range, at the value that means no effect, or finer than the log resolves. ``se``: the
+    parameters' standard errors (same units; nan where the fit held a parameter at a bound). A value is
+    at the no-effect value when it lies within :data:`NO_EFFECT_SE` standard errors of it (without a
+    standard error: within :data:`AT_BOUND` of the range); a no-effect value that is also a bound of the
+    range (R_s >= 0, C_l >= 0) is the physical limit, not a bound the fit ran into."""
     lower, upper = plausible_bounds(cand, log)
     span = upper - lower
+    se = np.full(len(x), np.nan) if se is None else np.asarray(se, dtype=float)
     problems = []
     for i, (name, unit) in enumerate(zip(cand.parameters, cand.units)):
         off = cand.no_effect[i] if i < len(cand.no_effect) else None
         v = float(x[i])
-        if off is not None and abs(v - off) <= AT_BOUND * span[i]:
-            problems.append(f"{name} = {v:.4g} {unit} is the value without the effect")
-        elif v <= lower[i] + AT_BOUND * span[i] or v >= upper[i] - AT_BOUND * span[i]:
+        near = NO_EFFECT_SE * se[i] if np.isfinite(se[i]) and se[i] > 0 else AT_BOUND * span[i]
+        if off is not None and abs(v - off) <= near:
+            problems.append(f"{name} = {v:.4g} {unit} is the value without the effect"
+                            + (f" (within {NO_EFFECT_SE:g} standard errors)" if near != AT_BOUND * span[i] else ""))
+        elif ((v <= lower[i] + AT_BOUND * span[i] and off != lower[i])
+              or (v >= upper[i] - AT_BOUND * span[i] and off != upper[i])):
             problems.append(f"{name} = {v:.4g} {unit} at a bound of its plausible range "
                             f"{lower[i]:.4g}…{upper[i]:.4g}")
     for name, floor in resolution_floor(cand, log).items():
