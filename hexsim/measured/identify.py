@@ -765,12 +765,17 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
     current, model = nominal, problem.nominal
     search = search_problem(problem)
     if max(within_budget(nominal, budget).values()) > WITHIN:
-        legs = standout_legs(problem, nominal, budget)
-        if legs:
-            notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in legs))
-            problem.focus_leg = legs[0]  # the report's residual analysis looks at it
+        legs: list[int] = []
         bar = tqdm(desc="fitting effects", unit="fit", disable=not progress, leave=False)
         while len(accepted) < MAX_EFFECTS:
+            # the legs that stand out of what the model so far leaves: a leak on one leg hides under a
+            # sagging supply's error on all six until the supply is in (then its leg stands out)
+            new = [leg for leg in standout_legs(problem, current, budget) if leg not in legs]
+            if new:
+                notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in new))
+                if not legs:
+                    problem.focus_leg = new[0]  # the report's residual analysis looks at it
+                legs += new
             keys = _round_keys(problem, candidates, accepted, legs)
             if not keys:
                 break
