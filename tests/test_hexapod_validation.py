@@ -284,3 +284,16 @@ def test_two_effects_one_on_a_leg_under_a_sagging_supply_are_both_named(tmp_path
     assert set(named) == {("supply_pressure", None), ("leakage", 1)}
     assert named[("supply_pressure", None)]["R_s"]["value"] == pytest.approx(0.3, rel=0.05)
     assert named[("leakage", 1)]["C_l"]["value"] == pytest.approx(2.0, rel=0.05)
+
+
+def test_a_lagging_valve_outside_the_list_is_answered_with_its_lag(tmp_path):
+    """Spool dynamics of 40 Hz (damping 0.7) with spool_dynamics left out of the library: no library
+    effect is named, and the discovery's second question (asked when no flow-equation term stands out)
+    answers that every leg's valve flow follows its setpoint late by about 2 zeta / omega = 5.6 ms (it
+    had no answer: no term of the flow equations stood out)."""
+    path = _independent_log(tmp_path / "spool.csv", seed=35, effects=Effects(spool_frequency=40.0))
+    doc = validation.validate(path, jobs=2, without=("spool_dynamics",))
+    assert doc["verdict"] == "unexplained" and doc["added_effect"] == "none"
+    lags = {t["leg"]: -t["coefficient"] for t in doc["discovery"]["terms"] if t["term"] == "d phi/dt"}
+    assert set(lags) == set(range(1, 7))
+    assert all(abs(lag / (2 * 0.7 / (2 * np.pi * 40.0)) - 1.0) < 0.2 for lag in lags.values()), lags
