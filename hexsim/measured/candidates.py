@@ -294,10 +294,11 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
     for i, (name, unit) in enumerate(zip(cand.parameters, cand.units)):
         off = cand.no_effect[i] if i < len(cand.no_effect) else None
         v = float(x[i])
-        near = NO_EFFECT_SE * se[i] if np.isfinite(se[i]) and se[i] > 0 else AT_BOUND * span[i]
+        by_se = bool(np.isfinite(se[i]) and se[i] > 0)
+        near = NO_EFFECT_SE * se[i] if by_se else AT_BOUND * span[i]
         if off is not None and abs(v - off) <= near:
             problems.append(f"{name} = {v:.4g} {unit} is the value without the effect"
-                            + (f" (within {NO_EFFECT_SE:g} standard errors)" if near != AT_BOUND * span[i] else ""))
+                            + (f" (within {NO_EFFECT_SE:g} standard errors)" if by_se else ""))
         elif ((v <= lower[i] + AT_BOUND * span[i] and off != lower[i])
               or (v >= upper[i] - AT_BOUND * span[i] and off != upper[i])):
             problems.append(f"{name} = {v:.4g} {unit} at a bound of its plausible range "

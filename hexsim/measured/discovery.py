@@ -194,11 +194,8 @@ def _discover_legs(problem, base: PlantModel, base_scored, budget, score) -> dic
            "the held-out equation error", "terms": terms, "added_to_model": []}
     if far:
         out["far_off_legs"] = far
-    if not terms and not far:  # the second question: a valve that lags (LAG_TERMS), reported only
-        for leg in range(1, 7):
-            target, x = flow_equation(c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"], p_s,
-                                      log.sample_rate_hz, leg_model(base, leg), lag=True)
-            out["terms"] += _sparse_terms(target, x, fit, test, LAG_TERMS, leg)[0]
+    if not terms and not far:  # the second question: a valve that lags, reported only
+        out["terms"] = _lag_terms(log, p_s, base, fit, test)
     if not per_leg:
         why = "no term of any leg's flow equation stands out of the noise"
         if far:
@@ -227,6 +224,19 @@ def _discover_legs(problem, base: PlantModel, base_scored, budget, score) -> dic
             "leg_changes": [{"leg": ch.leg, "values": dict(ch.values)} for ch in model.leg_changes]}
     out["_scored"] = scored
     return out
+
+
+def _lag_terms(log, p_s: np.ndarray, base: PlantModel, fit: np.ndarray, test: np.ndarray) -> list[dict]:
+    """:data:`LAG_TERMS` on each hexapod leg's flow equation (its own parameters), as
+    :func:`_sparse_terms` reports them."""
+    from hexsim.measured.candidates import leg_model
+
+    c, terms = log.columns, []
+    for leg in range(1, 7):
+        target, x = flow_equation(c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"], p_s,
+                                  log.sample_rate_hz, leg_model(base, leg), lag=True)
+        terms += _sparse_terms(target, x, fit, test, LAG_TERMS, leg)[0]
+    return terms
 
 
 def _far_off(legs: list[int]) -> str:
