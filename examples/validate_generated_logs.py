@@ -25,85 +25,75 @@ from hexsim.outputs.logio import write_log
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] per bar/(L/min)
 
 
-def heave(duration: float = 6.0) -> hexsim.Scenario:
+def hexapod_plant(seed: int, **changes) -> hexsim.RunConfig:
+    """The independent plant of the hexapod's logs: the full multi-body model at 5e-5 s, 6 s of 1 Hz heave,
+    with ``changes`` (effects=…, leg_changes=…, compensator=…) hidden in it."""
     from hexsim.control.scenario import make_scenario
 
-    return make_scenario("heave", duration=duration, frequency=1.0)
+    return hexsim.RunConfig(make_scenario("heave", duration=6.0, frequency=1.0), model="full", timestep=5e-5,
+                            seed=seed, **changes)
 
 
-def actuator(duration: float = 6.0) -> hexsim.Scenario:
+def actuator_plant(seed: int, **changes) -> hexsim.RunConfig:
+    """The single actuator's logs: 6 s of 1 Hz motion at 5e-5 s, with ``changes`` hidden in it."""
     from hexsim.control.scenario import make_scenario
 
-    return make_scenario("actuator", duration=duration, frequency=1.0)
+    return hexsim.RunConfig(make_scenario("actuator", duration=6.0, frequency=1.0), timestep=5e-5, seed=seed,
+                            **changes)
 
+
+Effects, leg = hexsim.Effects, hexsim.LegChange.of
+SUPPLY_30MS = {"supply_time_constant": 0.03}
 
 #: name -> (hidden truth, the generator's RunConfig, validate's ``without``)
 CASES = {
-    "hexapod_null": ("nothing", hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=1), ()),
+    "hexapod_null": ("nothing", hexapod_plant(1), ()),
     "hexapod_null_buffered": ("nothing (buffered compensator on the machine)",
-                              hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=2,
-                                               compensator="buffered"), ()),
+                              hexapod_plant(2, compensator="buffered"), ()),
     "hexapod_leakage_leg3": ("leakage C_l 4e-12 m^3/(s Pa) on leg 3",
-                             hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=3,
-                                              leg_changes=(hexsim.LegChange.of(3, leakage=4e-12),)), ()),
+                             hexapod_plant(3, leg_changes=(leg(3, leakage=4e-12),)), ()),
     "hexapod_edge_leg5": ("return edge k_AT 0.70 on leg 5",
-                          hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=4,
-                                           leg_changes=(hexsim.LegChange.of(5, edge_gain_at=0.7),)), ()),
+                          hexapod_plant(4, leg_changes=(leg(5, edge_gain_at=0.7),)), ()),
     "hexapod_supply": ("supply R_s 0.6 bar/(L/min), tau_s 30 ms",
-                       hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=5,
-                                        effects=hexsim.Effects(supply_resistance=0.6 * BAR_PER_LPM,
-                                                               supply_time_constant=0.03)), ()),
+                       hexapod_plant(5, effects=Effects(supply_resistance=0.6 * BAR_PER_LPM, **SUPPLY_30MS)), ()),
     "hexapod_payload": ("payload 120 kg at (0, 0.3) m",
-                        hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=6,
-                                         effects=hexsim.Effects(payload_kg=120.0, payload_at_m=(0.0, 0.3, 0.0))), ()),
+                        hexapod_plant(6, effects=Effects(payload_kg=120.0, payload_at_m=(0.0, 0.3, 0.0))), ()),
     "hexapod_small_leakage_leg3": ("leakage C_l 1e-12 m^3/(s Pa) on leg 3",
-                                   hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=21,
-                                                    leg_changes=(hexsim.LegChange.of(3, leakage=1e-12),)), ()),
+                                   hexapod_plant(21, leg_changes=(leg(3, leakage=1e-12),)), ()),
     "hexapod_small_supply": ("supply R_s 0.15 bar/(L/min), tau_s 30 ms",
-                             hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=23,
-                                              effects=hexsim.Effects(supply_resistance=0.15 * BAR_PER_LPM,
-                                                                     supply_time_constant=0.03)), ()),
+                             hexapod_plant(23, effects=Effects(supply_resistance=0.15 * BAR_PER_LPM, **SUPPLY_30MS)),
+                             ()),
     "hexapod_small_payload": ("payload 30 kg at (0.1, 0) m",
-                              hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=24,
-                                               effects=hexsim.Effects(payload_kg=30.0, payload_at_m=(0.1, 0.0, 0.0))),
-                              ()),
+                              hexapod_plant(24, effects=Effects(payload_kg=30.0, payload_at_m=(0.1, 0.0, 0.0))), ()),
     "hexapod_small_edge_leg5": ("return edge k_AT 0.90 on leg 5",
-                                hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=25,
-                                                 leg_changes=(hexsim.LegChange.of(5, edge_gain_at=0.9),)), ()),
+                                hexapod_plant(25, leg_changes=(leg(5, edge_gain_at=0.9),)), ()),
     "hexapod_two_effects": ("supply 0.3 bar/(L/min) and leakage 2e-12 on leg 1",
-                            hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=31,
-                                             effects=hexsim.Effects(supply_resistance=0.3 * BAR_PER_LPM,
-                                                                    supply_time_constant=0.03),
-                                             leg_changes=(hexsim.LegChange.of(1, leakage=2e-12),)), ()),
+                            hexapod_plant(31, effects=Effects(supply_resistance=0.3 * BAR_PER_LPM, **SUPPLY_30MS),
+                                          leg_changes=(leg(1, leakage=2e-12),)), ()),
     "hexapod_sensor_delay": ("position measured 2 ms late",
-                             hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=34,
-                                              effects=hexsim.Effects(sensor_delay=0.002)), ()),
+                             hexapod_plant(34, effects=Effects(sensor_delay=0.002)), ()),
     "hexapod_leakage_outside": ("leakage C_l 4e-12 on leg 3, leakage left out of the library",
-                                hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=3,
-                                                 leg_changes=(hexsim.LegChange.of(3, leakage=4e-12),)),
-                                ("leakage",)),
+                                hexapod_plant(3, leg_changes=(leg(3, leakage=4e-12),)), ("leakage",)),
     "hexapod_spool_outside": ("spool dynamics 40 Hz, spool_dynamics left out of the library",
-                              hexsim.RunConfig(heave(), model="full", timestep=5e-5, seed=35,
-                                               effects=hexsim.Effects(spool_frequency=40.0)), ("spool_dynamics",)),
-    "actuator_null": ("nothing", hexsim.RunConfig(actuator(), timestep=5e-5, seed=7), ()),
-    "actuator_leakage": ("leakage C_l 3.9e-12 m^3/(s Pa)",
-                         hexsim.RunConfig(actuator(), timestep=5e-5, seed=8,
-                                          effects=hexsim.Effects(leakage=3.9e-12)), ()),
-    "actuator_air": ("entrained air 2.8 %",
-                     hexsim.RunConfig(actuator(), timestep=5e-5, seed=9,
-                                      effects=hexsim.Effects(air_fraction=0.028)), ()),
+                              hexapod_plant(35, effects=Effects(spool_frequency=40.0)), ("spool_dynamics",)),
+    "actuator_null": ("nothing", actuator_plant(7), ()),
+    "actuator_leakage": ("leakage C_l 3.9e-12 m^3/(s Pa)", actuator_plant(8, effects=Effects(leakage=3.9e-12)), ()),
+    "actuator_air": ("entrained air 2.8 %", actuator_plant(9, effects=Effects(air_fraction=0.028)), ()),
     "actuator_leakage_outside": ("leakage C_l 3.9e-12, leakage left out of the library",
-                                 hexsim.RunConfig(actuator(), timestep=5e-5, seed=8,
-                                                  effects=hexsim.Effects(leakage=3.9e-12)), ("leakage",)),
+                                 actuator_plant(8, effects=Effects(leakage=3.9e-12)), ("leakage",)),
 }
+
+
+def _unit(unit: str) -> str:
+    """A parameter's unit after its value: '× 1e-12 m^3/(s Pa)' for a scaled unit, nothing for '-'."""
+    return f" × {unit}" if unit[:1].isdigit() else f" {unit}" if unit not in ("", "-") else ""
 
 
 def _effects(doc: dict) -> str:
     """The named effects with their legs and fitted parameters, or what discovery added."""
     named = []
     for effect in doc["added_effects"]:
-        params = ", ".join(f"{k} = {v['value']:.4g}" + (f" × {v['unit']}" if v["unit"][:1].isdigit() else
-                                                        f" {v['unit']}" if v["unit"] not in ("", "-") else "") for k, v in effect["parameters"].items())
+        params = ", ".join(f"{k} = {v['value']:.4g}{_unit(v['unit'])}" for k, v in effect["parameters"].items())
         on = f" on leg {effect['leg']}" if effect.get("leg") else ""
         named.append(f"{effect['name']}{on} ({params})")
     terms = (doc.get("discovery") or {}).get("terms") or []
