@@ -12,6 +12,7 @@ The Python face, everything a notebook needs (imported on first use, so ``import
 
 * runs: :func:`simulate`, :class:`Simulator` (stepped), :class:`RunConfig`, :class:`Scenario` (``Scenario.sine``,
   ``Scenario.from_file``), :class:`SimulationResult`;
+* the machine: :class:`Machine`, :func:`load_machine` (a machine file or a built-in's name);
 * the plant: :class:`HydraulicParams`, :class:`ControllerParams`, :class:`Effects`, :class:`LegChange`, :class:`WarmUp`;
 * compensation: :class:`Compensator` (subclass it and pass the class as ``RunConfig(compensator=...)``),
   :class:`CompensatorSettings`;
@@ -39,6 +40,8 @@ _FACE = {
     "HydraulicParams": ("hexsim.plant.params", "HydraulicParams"),
     "ControllerParams": ("hexsim.plant.params", "ControllerParams"),
     "Effects": ("hexsim.plant.effects", "Effects"),
+    "Machine": ("hexsim.plant.machine", "Machine"),
+    "load_machine": ("hexsim.plant.machine", "load_machine"),
     "LegChange": ("hexsim.plant.effects", "LegChange"),
     "WarmUp": ("hexsim.plant.temperature", "WarmUp"),
     "Compensator": ("compensation.base", "Compensator"),

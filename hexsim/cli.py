@@ -23,7 +23,7 @@ from hexsim.control.scenario import (
     make_scenario,
 )
 from hexsim.errors import HexsimError, InputError
-from hexsim.plant.params import ControllerParams, HydraulicParams
+from hexsim.plant.params import ControllerParams
 from hexsim.plant.temperature import WarmUp
 from hexsim.simulation.workers import START_METHODS, worker_count
 from hexsim.tables import StdoutTarget, write_atomic, write_json
@@ -57,7 +57,31 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_modes(sub)
     _add_bench(sub)
+    _add_machine(sub)
     return parser
+
+
+def _machine_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--machine", metavar="NAME|FILE.json", default=None,
+                   help="the machine: a machine file (docs/machine-file.md) or a built-in's name "
+                        "(hexsim machine list; default micro_motion_system, the seed's appendix A)")
+
+
+def _add_machine(sub) -> None:
+    """The ``machine`` command: show, set and list machine files."""
+    ma = sub.add_parser("machine", help="show, edit or list machine files (valve, cylinder, supply, load, controller)",
+                        description="A machine file says everything hexsim assumes about a machine "
+                        "(docs/machine-file.md). show prints a complete one, set edits keys of one (checked "
+                        "before it is written), list names the built-in ones.")
+    actions = ma.add_subparsers(dest="action", required=True)
+    show = actions.add_parser("show", help="print a complete machine file (default: the built-in micro_motion_system)")
+    show.add_argument("machine", nargs="?", default=None, metavar="NAME|FILE.json")
+    st = actions.add_parser("set", help="set keys of a machine file: hexsim machine set FILE key=value …")
+    st.add_argument("file", type=pathlib.Path, help="the machine file to edit (made from the built-in default if "
+                    "it does not exist)")
+    st.add_argument("assignments", nargs="+", metavar="key=value",
+                    help="dotted key and JSON value, e.g. valve.type=4-way cylinder.bore_m=0.016 load.mass_kg=null")
+    actions.add_parser("list", help="the built-in machines")
 
 
 def _worker_options(parser: argparse.ArgumentParser, what: str) -> None:
@@ -125,6 +149,7 @@ def _add_validate(sub) -> None:
                           "cannot have, or a check of what the tool says about an effect outside its list)")
     val.add_argument("--model", choices=("platform", "full"), default="platform",
                      help="hexapod logs: replay on the platform-only model (default) or the full multi-body model")
+    _machine_option(val)
     val.add_argument("--quiet", action="store_true",
                      help="no progress (a bar on a terminal, one line per step otherwise)")
 
@@ -137,7 +162,10 @@ def _add_friction(sub) -> None:
         description="Estimate F_f = F_L - M ydd - M g along the stroke from P1 and P_s (or force_N) and the "
         "position, and fit the asymmetric Stribeck curve of seed eq. (2.4) with standard errors.",
     )
-    fr.add_argument("log", type=pathlib.Path, help="the log's CSV file (its JSON sidecar next to it)")
+    fr.add_argument("logs", nargs="+", metavar="LOG[+LOG]",
+                    help="the logs' CSV files (sidecars next to them); LOG_A+LOG_B pairs two runs of one experiment "
+                    "that logged different pressures (p1_Pa in one, p2_Pa in the other)")
+    _machine_option(fr)
     fr.add_argument("--plot", type=pathlib.Path, help="write the friction-velocity map (.png, .pdf or .svg)")
     fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON; - for stdout")
 
@@ -178,6 +206,7 @@ def _add_modes(sub) -> None:
     mo.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
                     help="a payload of KG kg added to the 600 kg platform at X,Y,Z m (platform frame), as for run")
     mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON; - for stdout")
+    _machine_option(mo)
 
 
 def _add_bench(sub) -> None:
@@ -232,7 +261,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
             raise InputError(f"--without: unknown effect {name!r} (the library: {', '.join(CANDIDATE_NAMES)})")
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(f"--report {args.report}: exists and is not a folder")
-    log = read_log(args.log)
+    log = read_log(args.log, machine=args.machine)
+    print(f"machine: {log.machine.label}")
     for note in log.assumed:
         print(f"assumed: {note}")
     if log.missing:
@@ -266,9 +296,14 @@ def cmd_friction(args: argparse.Namespace) -> int:
     from hexsim.measured.measurement import read_log
 
     _check_outputs(args)
-    result = identify_friction(read_log(args.log))
+    logs = [[read_log(pathlib.Path(part), machine=args.machine, needs=("pos_m",)) for part in item.split("+")] for item in args.logs]
+    result = identify_friction(logs)
+    print(f"machine: {result['machine']}")
     print(f"friction from {result['force_source']}, M = {result['mass_kg']:g} kg, "
-          f"inclination {result['inclination_deg']:g}°")
+          f"inclination {result['inclination_deg']:g}°, {result['experiments']} experiment(s)")
+    for row in result["steady"]:
+        print(f"  steady {row['velocity_mps'] * 1e3:+8.1f} mm/s: F_f = {row['friction_N']:7.1f} N measured, "
+              f"{row['fitted_N']:7.1f} N fitted")
     for side in ("positive", "negative"):
         ps = result[side]["parameters"]
         print(f"  {side:8s}: " + ", ".join(
@@ -287,16 +322,19 @@ def cmd_friction(args: argparse.Namespace) -> int:
 
 
 def cmd_modes(args: argparse.Namespace) -> int:
-    from hexsim.plant.effects import Effects
+    from hexsim.plant.machine import load_machine
     from hexsim.simulation.modes import modes_table, oil_spring_modes
 
     _check_outputs(args)
-    effects, payload = Effects(), "600 kg platform"
+    machine = load_machine(args.machine)
+    if machine.system != "hexapod":
+        raise InputError(f"--machine {machine.label}: modes are the hexapod's; this machine is a {machine.system}")
+    effects, payload = machine.effects, f"machine {machine.label}, 600 kg platform"
     if args.payload is not None:
         kg, at = args.payload
         effects = effects.replace(payload_kg=kg, payload_at_m=at)
         payload = f"600 kg platform with {kg:g} kg at ({', '.join(f'{v:g}' for v in at)}) m"
-    modes = oil_spring_modes(effects=effects)
+    modes = oil_spring_modes(machine.hydraulics, effects=effects)
     print(modes_table(modes, payload))
     if args.json:
         data = {"configuration": payload, "pose": "neutral",
@@ -324,17 +362,17 @@ def _payload(text: str) -> tuple[float, tuple[float, float, float]]:
 
 
 def _scenario_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw or file:PATH")
+    p.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw, file:PATH (platform setpoints) "
+                   "or valve:PATH (valve commands, open loop; a measurement log's CSV replays as it is)")
     p.add_argument("--duration", type=_number, help="simulated time [s] (default: max(20 s, 6 periods); file: its length)")
     p.add_argument("--amplitude", type=_number,
                    help=f"sine amplitude [m for actuator/heave/surge/sway, rad for roll/pitch/yaw] "
                         f"(default {DEFAULT_AMPLITUDE['heave']} m, {DEFAULT_AMPLITUDE['roll']:.4f} rad)")
     p.add_argument("--frequency", type=_number, help=f"sine frequency [Hz] (default {DEFAULT_FREQUENCY})")
     p.add_argument("--seed", type=int, default=0, help="seed of the position-sensor noise (default 0)")
-    p.add_argument("--params", type=pathlib.Path, metavar="FILE.json",
-                   help="parameter file: sections hydraulics / controller / effects overriding the seed's values "
-                        "(see hexsim/plant/paramfile.py); the options below override the file")
-    p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default {ControllerParams.kp:g})")
+    _machine_option(p)
+    p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default: the machine's, {ControllerParams.kp:g} built in); "
+                   "this and the options below override the machine file")
     p.add_argument("--flow-area", choices=("smooth", "quadratic", "sharp"),
                    help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) blended onto the port's "
                         "opening above 0.78 V (default), quadratic (3.11 at every opening, as the seed simulated) or "
@@ -382,15 +420,11 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
 
 
 def _run_config(args: argparse.Namespace, compensator: str):
-    from hexsim.plant.effects import Effects
     from hexsim.plant.faults import Fault
-    from hexsim.plant.paramfile import read_params
+    from hexsim.plant.machine import load_machine
 
-    if args.params is not None:
-        given = read_params(args.params)
-        hydraulics, controller, effects = given["hydraulics"], given["controller"], given["effects"]
-    else:
-        hydraulics, controller, effects = HydraulicParams(), ControllerParams(), Effects()
+    machine = load_machine(args.machine)
+    hydraulics, controller, effects = machine.hydraulics, machine.controller, machine.effects
     if args.kp is not None:
         controller = controller.replace(kp=args.kp)
     if args.sensor_noise is not None:
@@ -401,6 +435,7 @@ def _run_config(args: argparse.Namespace, compensator: str):
         effects = effects.replace(payload_kg=args.payload[0], payload_at_m=args.payload[1])
     scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
                              frequency=args.frequency, controller_rate_hz=controller.rate_hz)
+    _check_machine_scenario(machine, scenario)
     try:
         settings = CompensatorSettings(
             velocity_cutoff_hz=args.velocity_cutoff, velocity_band=args.velocity_band, q_threshold=args.q_threshold,
@@ -415,9 +450,54 @@ def _run_config(args: argparse.Namespace, compensator: str):
     )
 
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
+                     machine=machine.name if machine.path is None else str(machine.path),
                      compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
+
+
+def _check_machine_scenario(machine, scenario) -> None:
+    """InputError if ``scenario`` cannot run on ``machine``: a hexapod motion on a single actuator, or a
+    position setpoint on a machine without a position controller (controller.type none)."""
+    if machine.system == "single-actuator" and scenario.system == "hexapod":
+        raise InputError(f"--machine {machine.label} is a single actuator; scenario {scenario.name} needs a hexapod")
+    if machine.open_loop and not scenario.open_loop:
+        raise InputError(f"--machine {machine.label} has no position controller (controller.type none): run a valve "
+                         f"command, valve:PATH, or set controller.type to P")
+
+
+def cmd_machine(args: argparse.Namespace) -> int:
+    import json
+
+    from hexsim.plant.machine import builtin_names, dump, load_machine, machine_from_document, parse_assignment, set_keys
+
+    if args.action == "list":
+        for name in builtin_names():
+            m = load_machine(name)
+            print(f"{name:24s} {m.system:16s} {m.hydraulics.valve_type} valve  {m.description.split(': ')[0][:60]}")
+        return 0
+    if args.action == "show":
+        sys.stdout.write(dump(load_machine(args.machine).document()))
+        return 0
+    path: pathlib.Path = args.file
+    if path.suffix.lower() != ".json":
+        raise InputError(f"{path}: expected a .json machine file")
+    if not path.parent.exists():
+        raise InputError(f"{path}: folder {path.parent} does not exist")
+    if path.exists():
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{path}: not valid JSON ({exc})") from None
+        machine_from_document(doc, str(path))  # the file as it is must be a machine file
+    else:
+        doc = load_machine(None).document()
+        doc["name"] = path.stem
+    new = set_keys(doc, [parse_assignment(a) for a in args.assignments])
+    machine_from_document(new, str(path))  # checked before anything is written
+    write_atomic(path, lambda tmp: tmp.write_text(dump(new), encoding="utf-8"))
+    print(f"wrote {path}")
+    return 0
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
@@ -447,15 +527,25 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.simulation.runner import simulate
 
     result = simulate(config)
-    sm = run_smoothness(result)
-    report = run_report(result, sm)
-    print(summary_table(report))
+    if config.scenario.open_loop:
+        from hexsim.outputs.plotting import plot_open_loop
+        from hexsim.outputs.report import open_loop_report, open_loop_table
+
+        sm, report = None, open_loop_report(result)
+        print(open_loop_table(report))
+    else:
+        sm = run_smoothness(result)
+        report = run_report(result, sm)
+        print(summary_table(report))
     written = []
     if args.json:  # without the wall time, so the same command writes the same bytes
         write_json(args.json, {k: v for k, v in report.items() if k not in ("realtime_factor", "wall_time_s")})
         written.append(args.json)
     if args.plot:
-        plot_run(args.plot, result, sm)
+        if sm is None:
+            plot_open_loop(args.plot, result)
+        else:
+            plot_run(args.plot, result, sm)
         written.append(args.plot)
     if args.rrd:
         write_rrd(args.rrd, result, sm)
@@ -480,13 +570,15 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     base = _run_config(args, "none")
     print(f"comparing {', '.join(dict.fromkeys(('none', *names)))} on {base.scenario.name} "
-          f"({base.scenario.duration:g} s) with {worker_count(args.jobs)} worker(s)…", flush=True)
+          f"({base.scenario.duration:g} s, machine {base.machine_label}) with {worker_count(args.jobs)} worker(s)…",
+          flush=True)
     entries = compare(base, names, jobs=args.jobs)
     print(league_table(entries))
     written = []
     if args.json:
         sc = base.scenario
-        write_json(args.json, {"scenario": sc.name, "duration_s": sc.duration, "frequency_hz": sc.frequency,
+        write_json(args.json, {"scenario": sc.name, "machine": base.machine_label, "duration_s": sc.duration,
+                               "frequency_hz": sc.frequency,
                                "compensators": {e.compensator: e.figures() for e in entries}})
         written.append(args.json)
     if args.plot:
@@ -553,8 +645,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             raise InputError(f"grid point {settings}: {exc}") from None
 
     points = expand(grid, make_config)
-    print(f"sweeping {len(points)} runs ({' × '.join(f'{len(v)} {k}' for k, v in grid.items())}) with "
-          f"{worker_count(args.jobs)} worker(s)…", flush=True)
+    print(f"sweeping {len(points)} runs ({' × '.join(f'{len(v)} {k}' for k, v in grid.items())}, machine "
+          f"{points[0].config.machine_label}) with {worker_count(args.jobs)} worker(s)…", flush=True)
     rows, wall = run_sweep(points, jobs=args.jobs, progress=not args.quiet and sys.stderr.isatty(),
                            start_method=args.start_method)
     columns = ["point", *grid, *METRICS]
@@ -574,7 +666,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         write_atomic(args.csv, lambda tmp: tmp.write_text(buf.getvalue()))
         print(f"wrote {args.csv}")
     if args.json:
-        data = {"grid": grid, "rows": rows}
+        data = {"machine": points[0].config.machine_label, "grid": grid, "rows": rows}
         write_json(args.json, data)
         print(f"wrote {args.json}")
     return 0
@@ -601,7 +693,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with streams, _workers(args):
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
-                        "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench}
+                        "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

@@ -46,9 +46,17 @@ def _log(tmp, edit=None, side=None):
     return path
 
 
-def _params(tmp, doc):
-    path = tmp / "params.json"
-    path.write_text(doc if isinstance(doc, str) else json.dumps(doc))
+def _machine(tmp, doc):
+    """A machine file in ``tmp``: ``doc`` as text, or the keys of ``doc`` over a valid file's format and version."""
+    path = tmp / "machine.json"
+    path.write_text(doc if isinstance(doc, str) else json.dumps({"format": "hexsim-machine", "version": 1, **doc}))
+    return path
+
+
+def _valve_file(tmp, volts):
+    """A valve-command file whose third row commands ``volts``."""
+    path = tmp / "valve.csv"
+    path.write_text("time_s,valve_cmd_V\n0,0\n0.001,1\n0.002,%g\n0.003,0\n" % volts)
     return path
 
 
@@ -126,22 +134,35 @@ CASES = {
                                            r"--without: unknown effect 'magic' \(the library: supply_pressure"),
     "log duplicate column": (lambda tmp: ["validate", str(_log(tmp, lambda h, r: (h[:5] + ["pos_m"], r)))],
                              r"column 'pos_m' appears more than once"),
-    # parameter files
-    "params negative bulk modulus": (lambda tmp: RUN + ["--params", str(_params(tmp, {"hydraulics": {"bulk_modulus": -1e9}}))],
-                                     r"params\.json: hydraulics: .*bulk_modulus .*-1000000000"),
-    "params overlap beyond stroke": (lambda tmp: RUN + ["--params", str(_params(tmp, {"hydraulics": {"overlap": 0.002}}))],
-                                     r"params\.json: hydraulics: .*overlap \(0\.002 m\) .*x_v_max"),
-    "params negative mass": (lambda tmp: ACT + ["--params", str(_params(tmp, {"effects": {"mass_kg": -40}}))],
-                             r"params\.json: effects: .*mass_kg .*-40"),
-    "params unknown key": (lambda tmp: RUN + ["--params", str(_params(tmp, {"hydraulics": {"bulk_modulous": 1e9}}))],
-                           r"hydraulics\.bulk_modulous is not a parameter"),
-    "params non-numeric": (lambda tmp: RUN + ["--params", str(_params(tmp, {"controller": {"kp": "high"}}))],
-                           r"controller\.kp: 'high' is not a number"),
-    "params NaN": (lambda tmp: RUN + ["--params", str(_params(tmp, '{"hydraulics": {"density": NaN}}'))],
-                   r"params\.json: NaN is not a number JSON allows"),
-    "params malformed": (lambda tmp: RUN + ["--params", str(_params(tmp, "{hydraulics: 1"))], r"params\.json: not valid JSON"),
-    "params unknown section": (lambda tmp: RUN + ["--params", str(_params(tmp, {"pump": {}}))], r"unknown section 'pump'"),
-    "params missing": (lambda tmp: RUN + ["--params", str(tmp / "gone.json")], r"gone\.json: no such parameter file"),
+    # machine files (hexsim/plant/machine.py, docs/machine-file.md)
+    "machine negative bulk modulus": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"oil": {"bulk_modulus_Pa": -1e9}}))],
+                                      r"machine\.json: oil\.bulk_modulus_Pa must be a finite positive number, got -1000000000"),
+    "machine overlap beyond stroke": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"valve": {"overlap_m": 0.002}}))],
+                                      r"machine\.json: valve\.overlap_m \(0\.002 m\) .*x_v_max"),
+    "machine rod not smaller than bore": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"cylinder": {"rod_m": 0.05}}))],
+                                          r"machine\.json: cylinder\.rod_m \(0\.05 m\) must be smaller than"),
+    "machine negative volume": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"cylinder": {"dead_volume_rod_m3": -1e-6}}))],
+                                r"cylinder\.dead_volume_rod_m3 must be a finite positive number, got -1e-06"),
+    "machine negative mass": (lambda tmp: ACT + ["--machine", str(_machine(tmp, {"load": {"mass_kg": -40}}))],
+                              r"machine\.json: load\.mass_kg must be a finite positive number, got -40"),
+    "machine unknown key": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"oil": {"bulk_modulous_Pa": 1e9}}))],
+                            r"unknown key 'oil\.bulk_modulous_Pa'; known in oil: oil\.bulk_modulus_Pa"),
+    "machine unknown valve type": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"valve": {"type": "5-way"}}))],
+                                   r"valve\.type: expected one of 3-way, 4-way, got '5-way'"),
+    "machine non-numeric": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"controller": {"kp_VPm": "high"}}))],
+                            r"controller\.kp_VPm: expected a number in V/m, got 'high'"),
+    "machine NaN": (lambda tmp: RUN + ["--machine", str(_machine(tmp, '{"format": "hexsim-machine", "version": 1, "oil": {"density_kgpm3": NaN}}'))],
+                    r"machine\.json: NaN is not a number JSON allows"),
+    "machine malformed": (lambda tmp: RUN + ["--machine", str(_machine(tmp, "{valve: 1"))], r"machine\.json: not valid JSON"),
+    "machine wrong version": (lambda tmp: RUN + ["--machine", str(_machine(tmp, {"version": 7}))],
+                              r"key 'version' is 7; this hexsim reads version 1"),
+    "machine missing": (lambda tmp: RUN + ["--machine", str(tmp / "gone.json")], r"gone\.json: no such machine file"),
+    "machine single actuator on heave": (lambda tmp: RUN + ["--machine", "servo_cylinder"],
+                                         r"servo_cylinder \(built-in\) is a single actuator; scenario heave needs a hexapod"),
+    "machine without controller on a setpoint": (lambda tmp: ACT + ["--machine", "servo_cylinder"],
+                                                 r"has no position controller \(controller\.type none\)"),
+    "valve file beyond 10 V": (lambda tmp: ["run", f"valve:{_valve_file(tmp, 12.0)}"],
+                               r"column 'valve_cmd_V', row 4: value 12 is not a valve setpoint"),
     # faults
     "fault without value": (lambda tmp: RUN + ["--fault", "valve_stuck:leg=2,t=1"], r"missing value="),
     "fault unknown kind": (lambda tmp: RUN + ["--fault", "melt:t=1"], r"unknown kind 'melt'"),

@@ -16,6 +16,7 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
     ("heave_bump.py", ["--duration", "4", "--frequency", "1"]),
     ("seed_single_actuator.py", ["--duration", "6"]),
     ("buffered_compensation.py", ["--duration", "10"]),
+    ("servo_cylinder.py", ["--only", "3V_s1"]),
 ])
 def test_example_runs(script, args, tmp_path):
     out = tmp_path / "out.png"

@@ -28,7 +28,7 @@ from hexsim.cli import build_parser, main
 from hexsim.control.scenario import make_scenario
 from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
-from hexsim.plant.paramfile import read_params
+from hexsim.plant.machine import read_machine
 
 EXAMPLES = int(os.environ.get("HEXSIM_FUZZ_EXAMPLES", "40"))
 FUZZ = settings(max_examples=EXAMPLES, derandomize=not os.environ.get("HEXSIM_FUZZ_RANDOM"), deadline=None,
@@ -206,25 +206,29 @@ def test_any_scenario_file_is_read_or_refused_with_one_clear_error(edits, encodi
         _contract_reader(lambda p: make_scenario(f"file:{p}"), path)
 
 
-params_docs = st.one_of(
-    st.dictionaries(st.sampled_from(["hydraulics", "controller", "effects", "hydraulic", "x"]),
-                    st.one_of(st.dictionaries(st.sampled_from(["bulk_modulus", "overlap", "kp", "rate_hz",
-                                                               "leakage", "edge_gain_at", "supply_pressure",
-                                                               "flow_area", "arctan_normalised", "mass_kg",
-                                                               "nonsense"]), json_junk, max_size=3),
-                              json_junk), max_size=3).map(json.dumps),
-    st.sampled_from(["", "{", "[1, 2]", "NaN", '{"hydraulics": {"bulk_modulus": NaN}}',
-                     '{"hydraulics": {"bulk_modulus": Infinity}}', "\x00\x01"]),
+_SECTIONS = {"valve": ["type", "flow_area", "overlap_m", "rated_flow_m3ps", "spool_diameter_m", "nonsense"],
+             "cylinder": ["bore_m", "rod_m", "stroke_m", "dead_volume_rod_m3"],
+             "oil": ["bulk_modulus_Pa", "density_kgpm3"], "supply": ["pressure_Pa"],
+             "load": ["mass_kg", "inclination_deg", "payload_at_m"], "controller": ["type", "kp_VPm", "rate_hz"],
+             "friction": ["positive", "arctan_normalised"], "pump": ["x"]}
+machine_docs = st.one_of(
+    st.fixed_dictionaries(
+        {"format": st.sampled_from(["hexsim-machine", "hexsim-machine", "other"]), "version": st.sampled_from([1, 1, 2])},
+        optional={"system": st.one_of(st.sampled_from(["hexapod", "single-actuator"]), json_junk),
+                  **{section: st.one_of(st.dictionaries(st.sampled_from(keys), json_junk, max_size=3), json_junk)
+                     for section, keys in _SECTIONS.items()}}).map(json.dumps),
+    st.sampled_from(["", "{", "[1, 2]", "NaN", '{"format": "hexsim-machine", "version": 1, "oil": {"bulk_modulus_Pa": NaN}}',
+                     '{"format": "hexsim-machine", "version": 1, "valve": {"overlap_m": Infinity}}', "\x00\x01"]),
 )
 
 
 @FUZZ
-@given(doc=params_docs)
-def test_any_parameter_file_is_read_or_refused_with_one_clear_error(doc):
+@given(doc=machine_docs)
+def test_any_machine_file_is_read_or_refused_with_one_clear_error(doc):
     with tempfile.TemporaryDirectory() as tmp:
-        path = pathlib.Path(tmp) / "params.json"
+        path = pathlib.Path(tmp) / "machine.json"
         path.write_text(doc, encoding="utf-8", errors="surrogatepass")
-        _contract_reader(read_params, path)
+        _contract_reader(read_machine, path)
 
 
 def _sweep_parser() -> argparse.ArgumentParser:

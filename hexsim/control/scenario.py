@@ -7,6 +7,10 @@
 - ``file:PATH``: a CSV of platform setpoints relative to the neutral pose with ``time_s`` and any of
   ``dof_ref_{x,y,z}_m`` and ``dof_ref_{roll,pitch,yaw}_rad`` (the measurement-log column names),
   linearly interpolated.
+- ``valve:PATH``: an open-loop experiment: a CSV with ``time_s`` and the valve setpoints u_v [V],
+  ``valve_cmd_V`` (single actuator) or ``leg{i}_valve_cmd_V`` (hexapod, i = 1…6), each held until the next
+  row; the measurement-log column names, so a measured log's CSV replays as it is (its other columns are
+  ignored). No position controller runs: the command drives the valves directly.
 """
 
 from __future__ import annotations
@@ -58,6 +62,16 @@ class Scenario:
     #: piston setpoints given directly, (times (N,) [s], values (N, n_legs) [m]), each held until the next
     #: row (a measurement log's leg{i}_ref_m); no platform setpoint then
     legs: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
+    #: valve setpoints given directly (open loop), (times (N,) [s], values (N, n_legs) [V]), each held
+    #: until the next row; no position controller runs
+    valve: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
+    #: piston positions (n_legs,) [m] to start from (a valve file's first ``pos_m``); None: the neutral pose
+    start: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def open_loop(self) -> bool:
+        """Whether the valve setpoints are given (``valve:PATH``): no position controller runs."""
+        return self.valve is not None
 
     @classmethod
     def sine(cls, name: str = "heave", *, amplitude: float | None = None, frequency: float | None = None,
@@ -109,12 +123,14 @@ class Scenario:
 def make_scenario(name: str, *, duration: float | None = None, amplitude: float | None = None,
                   frequency: float | None = None, controller_rate_hz: float = 500.0) -> Scenario:
     """Build a scenario by name (see module doc). Raises InputError for an unknown name or bad option."""
-    if name.startswith("file:"):
+    if name.startswith(("file:", "valve:")):
         if amplitude is not None or frequency is not None:
-            raise InputError("--amplitude and --frequency do not apply to a file: scenario")
+            raise InputError(f"--amplitude and --frequency do not apply to a {name.split(':')[0]}: scenario")
+        if name.startswith("valve:"):
+            return _valve_scenario(pathlib.Path(name[6:]), duration)
         return _file_scenario(pathlib.Path(name[5:]), duration)
     if name not in SCENARIOS:
-        raise InputError(f"unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)} or file:PATH")
+        raise InputError(f"unknown scenario {name!r}; choose one of {', '.join(SCENARIOS)}, file:PATH or valve:PATH")
     frequency = DEFAULT_FREQUENCY if frequency is None else frequency
     amplitude = DEFAULT_AMPLITUDE[name] if amplitude is None else amplitude
     if not (math.isfinite(frequency) and frequency > 0):
@@ -175,3 +191,38 @@ def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
     _check_duration(duration, 3 * period, f"{path.name} (dominant {frequency:.3g} Hz on {DOF_NAMES[axis]})")
     return Scenario(f"file:{path}", "hexapod", duration, axis, frequency, period, None, (times, values))
 
+
+
+def _valve_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
+    """An open-loop experiment from a CSV of valve setpoints (module doc). Raises InputError naming the
+    file, column or row: no valve column, a time that does not start at 0, a setpoint beyond ±10.5 V, a
+    duration longer than the file."""
+    cols = read_numeric_csv(path)
+    times = cols["time_s"]
+    legs = [f"leg{i}_valve_cmd_V" for i in range(1, 7)]
+    if "valve_cmd_V" in cols:
+        names, system = ["valve_cmd_V"], "actuator"
+    elif all(c in cols for c in legs):
+        names, system = legs, "hexapod"
+    else:
+        raise InputError(f"{path}: no valve setpoint column; expected valve_cmd_V (single actuator) or "
+                         f"leg1_valve_cmd_V … leg6_valve_cmd_V (hexapod)")
+    if times[0] != 0.0:
+        raise InputError(f"{path}: column 'time_s', row 2: the first time must be 0 s, got {times[0]:g} s")
+    values = np.column_stack([cols[c] for c in names])
+    for j, c in enumerate(names):
+        bad = np.abs(values[:, j]) > 10.5
+        if np.any(bad):
+            r = int(np.argmax(bad))
+            raise InputError(f"{path}: column {c!r}, row {r + 2}: value {values[r, j]:g} is not a valve setpoint in V "
+                             f"within ±10 V")
+    end = float(times[-1] + (times[-1] - times[-2] if len(times) > 1 else 0.0))
+    duration = end if duration is None else duration
+    if not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"--duration must be a positive number of seconds, got {duration}")
+    if duration > end + 1e-9:
+        raise InputError(f"{path}: --duration {duration:g} s is longer than the file ({end:g} s)")
+    axis = -1 if system == "actuator" else 2
+    start = np.array([cols["pos_m"][0]]) if system == "actuator" and "pos_m" in cols else None
+    return Scenario(f"valve:{path}", system, duration, axis, 1.0 / duration, 0.0, None, valve=(times, values),
+                    start=start)

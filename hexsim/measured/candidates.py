@@ -89,13 +89,12 @@ def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     from scipy.signal import lfilter
 
     from hexsim.plant import hydraulics
-    from hexsim.plant.params import HydraulicParams
     from hexsim.signals import savgol
 
     u, y, p1 = (log.leg_array(k) for k in ("valve_cmd_V", "pos_m", "p1_Pa"))
     if "ps_Pa" not in log.columns or u is None or y is None or p1 is None:
         return None
-    hyd, fs = HydraulicParams(), log.sample_rate_hz
+    hyd, fs = log.machine.hydraulics, log.sample_rate_hz
     p_s = log.columns["ps_Pa"]
     ydot = savgol(y, fs, 0.021, deriv=1, axis=0)
     a1, _ = hydraulics.flow_areas(hydraulics.spool_position(u, hyd), hyd)
@@ -156,12 +155,12 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     from hexsim.control.scenario import Scenario
     from hexsim.measured.hexapod_replay import payload_from_statics
     from hexsim.measured.replay import supply_from_log
-    from hexsim.plant.params import HydraulicParams
     from hexsim.simulation.config import RunConfig
     from hexsim.simulation.runner import Simulator
 
-    hyd = supply_from_log(log, HydraulicParams())
-    rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0), hydraulics=hyd)).p1_initial
+    hyd = supply_from_log(log, log.machine.hydraulics)
+    rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0), hydraulics=hyd,
+                               effects=log.machine.effects)).p1_initial
     first = log.time - log.time[0] <= 0.1
     if ref is not None:
         first &= np.cumsum(np.any(np.abs(ref - ref[0]) > REST_TOLERANCE_M, axis=1)) == 0

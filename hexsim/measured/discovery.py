@@ -315,6 +315,9 @@ def discover(problem, base: PlantModel, base_scored, budget, score=None) -> dict
     if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation, its terms added to
     that leg (:func:`_discover_legs`)."""
     log = problem.log
+    if base.hydraulics.four_way:  # its dictionary is the 3-way valve's (P_s - P1, the rod side at supply)
+        return {"done": False, "why": "the discovery's equation terms are written for the seed's 3-way valve; this "
+                "machine has a 4-way valve (both chambers), for which they do not hold"}
     if log.system == "hexapod":
         return _discover_legs(problem, base, base_scored, budget, score)
     if "p1_Pa" not in log.columns:

@@ -35,6 +35,7 @@ N_LEGS = 6
 GROUPS = {
     "position": ([f"leg{i}_pos_m" for i in range(1, N_LEGS + 1)], "m", 1e-4),
     "p1": ([f"leg{i}_p1_Pa" for i in range(1, N_LEGS + 1)], "Pa", 1e4),
+    "p2": ([f"leg{i}_p2_Pa" for i in range(1, N_LEGS + 1)], "Pa", 1e4),
     "p_s": (["ps_Pa"], "Pa", 1e4),
     "acceleration": ([f"platform_acc_{a}_mps2" for a in "xyz"], "m/s^2", 0.05),
 }
@@ -52,6 +53,9 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     :func:`hexsim.simulation.runner.simulate`."""
     if log.system != "hexapod":
         raise InputError(f"{log.path}: closed-loop hexapod replay needs a hexapod log (this is {log.system})")
+    if log.open_loop:
+        raise InputError(f"{log.path}: an open-loop hexapod log (controller type none): the hexapod replay is closed "
+                         f"loop; replay it as a run instead: hexsim run valve:{log.path}")
     c = log.columns
     need = [f"leg{i}_{k}" for i in range(1, N_LEGS + 1) for k in ("ref_m", "valve_cmd_V", "pos_m")]
     missing = [name for name in need if name not in c]
@@ -69,8 +73,8 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     held = lambda x: zero_order_hold(t, x, ticks)  # noqa: E731
     feedforward = held(u_v) - controller.kp * (held(ref) - held(savgol(pos, log.sample_rate_hz, FEEDFORWARD_SMOOTH_S, axis=0)))
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
-    config = RunConfig(scenario, hydraulics=hydraulics or HydraulicParams(), controller=controller,
-                       effects=effects or Effects(), feedforward=feedforward, timestep=timestep,
+    config = RunConfig(scenario, hydraulics=hydraulics or log.machine.hydraulics, controller=controller,
+                       effects=effects or log.machine.effects, feedforward=feedforward, timestep=timestep,
                        leg_changes=tuple(leg_changes), model=model)
     return simulate(config)
 
@@ -95,7 +99,7 @@ class HexapodProblem:
     windowed = False  # one replay from the neutral pose: a position offset is an offset
 
     def __init__(self, log: MeasurementLog, max_segments: int | None = None, model: str = "platform") -> None:
-        from hexsim.measured.replay import PlantModel, supply_from_log
+        from hexsim.measured.replay import nominal_plant
 
         check_formulation(model)
         self.log, self.model = log, model
@@ -119,7 +123,7 @@ class HexapodProblem:
                          for g in self.channels}
         self.scales = {g: max(float(np.std(self.measured[g])), GROUPS[g][2]) for g in self.channels}
         self.log_noise = {g: noise_of(self.measured[g], g) for g in self.channels}
-        self.nominal = PlantModel(supply_from_log(log, HydraulicParams()), Effects())
+        self.nominal = nominal_plant(log)
         # the replay runs to the last scored row (a prefix of the log for a view of fewer segments)
         self.until_s = float(t[self.rows[-1]]) + 2.0 / fs
 
@@ -140,7 +144,8 @@ class HexapodProblem:
         result = replay_hexapod(self.log, model.hydraulics, model.effects, timestep=dt,
                                 leg_changes=model.leg_changes, until_s=self.until_s, model=self.model)
         t = self.log.time - self.log.time[0]
-        sim = {"position": result.y, "p1": result.p1, "p_s": result.p_s[:, None], "acceleration": result.acc}
+        sim = {"position": result.y, "p1": result.p1, "p2": result.p2, "p_s": result.p_s[:, None],
+               "acceleration": result.acc}
         return {g: self._cut(np.stack([np.interp(t, result.t, sim[g][:, k]) for k in range(sim[g].shape[1])],
                                       axis=1)) for g in self.channels}
 
@@ -189,7 +194,8 @@ class HexapodProblem:
                 "held_out": "odd segments"}
 
     def analysis_view(self, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        view = {"position": self.focus_leg - 1, "p1": self.focus_leg - 1, "p_s": 0, "acceleration": 2}
+        view = {"position": self.focus_leg - 1, "p1": self.focus_leg - 1, "p2": self.focus_leg - 1, "p_s": 0,
+                "acceleration": 2}
         return {g: r[:, :, view[g]] for g, r in res.items()}
 
     def motion_state(self):

@@ -64,11 +64,10 @@ from hexsim.measured.replay import (
     Windows,
     measured_velocity,
     replay,
-    supply_from_log,
+    nominal_plant,
 )
 from hexsim.measured.residuals import effective_n, noise_of
-from hexsim.plant.effects import EFFECT_NAMES, Effects
-from hexsim.plant.params import HydraulicParams
+from hexsim.plant.effects import EFFECT_NAMES
 from hexsim.signals import near_reversals
 from hexsim.simulation.workers import in_workers, worker_pool
 
@@ -146,7 +145,7 @@ class Problem:
         self.scales = channel_scales(log)
         self.measured = {ch: self.windows.take(log.columns[CHANNELS[ch][0]]) for ch in self.channels}
         self.log_noise = {ch: noise_of(log.columns[CHANNELS[ch][0]], ch) for ch in self.channels}
-        self.nominal = PlantModel(supply_from_log(log, HydraulicParams()), Effects())
+        self.nominal = nominal_plant(log)
 
     def simulate(self, model: PlantModel, dt: float = REPLAY_DT) -> dict[str, np.ndarray]:
         """Replayed channels, name -> (windows, samples), physical units."""

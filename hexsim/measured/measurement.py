@@ -16,29 +16,37 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hexsim.errors import InputError
-from hexsim.plant.params import ControllerParams
+from hexsim.plant.machine import Machine, load_machine
 from hexsim.tables import read_numeric_csv
 
 SYSTEMS = ("single-actuator", "hexapod")
 #: Physical range of each column kind (lower, upper) in SI units, and the hint when a value is outside.
 _RANGES = {
     "_m": (-0.01, 0.01, "a piston position in metres within the stroke (a value in mm?)"),  # + stroke_m
-    "_Pa": (-1e5, 4.0e7, "a pressure in Pa between 0 and 400 bar"),
+    # gauge pressures; real transducers read below vacuum in the spikes of a valve switch and by their
+    # offsets (the real servo cylinder's rod side: -3.1 bar at worst), so the floor is -5 bar, not -1
+    "_Pa": (-5e5, 4.0e7, "a pressure in Pa between -5 bar (transducer offsets and spikes) and 400 bar"),
     "_V": (-10.5, 10.5, "a valve setpoint in V within ±10 V"),
-    "_mps2": (-300.0, 300.0, "an acceleration in m/s^2 (below 30 g)"),
+    # a unit check: small cylinders reverse at tens of g (a 3 kg piston at 6 V: 31 g), accelerometers read ±100 g
+    "_mps2": (-1000.0, 1000.0, "an acceleration in m/s^2 (below 100 g)"),
     "_radps": (-20.0, 20.0, "an angular rate in rad/s"),
     "_N": (-1e6, 1e6, "a force in N"),
 }
 #: A pressure column whose largest value is below this [Pa] is taken to be in bar (or MPa), not Pa.
 _PRESSURE_UNIT_FLOOR = 1.0e4
 DEFAULT_STROKE = 0.2  # [m], the seed's actuator (app. A); a log's sidecar may declare its own stroke_m
+#: Columns a replay of the log needs (``hexsim validate``); ``hexsim friction`` needs only the position.
+REPLAY_COLUMNS = ("valve_cmd_V", "pos_m")
 _JITTER = 0.01  # allowed deviation of a sample period from the nominal, fraction of the period (the format)
 
 
 @dataclass(frozen=True)
 class MeasurementLog:
     """A validated log. ``columns``: name -> (N,) array in SI units (all columns of the CSV, unknown ones
-    kept); ``time`` (N,) [s]; ``n_legs`` 1 (single actuator) or 6 (hexapod)."""
+    kept); ``time`` (N,) [s]; ``n_legs`` 1 (single actuator) or 6 (hexapod); ``machine`` the machine it is
+    judged against (:class:`hexsim.plant.machine.Machine`: ``--machine``, else the sidecar's ``machine``,
+    else the built-in); ``open_loop``: the sidecar's controller type is ``none`` (no position loop ran;
+    ``kp`` is then the machine's, unused)."""
 
     path: pathlib.Path
     system: str
@@ -51,6 +59,8 @@ class MeasurementLog:
     oil_temperature_c: float
     sidecar: dict
     stroke_m: float = DEFAULT_STROKE  # travel of the axis [m] (sidecar stroke_m)
+    machine: Machine = field(default_factory=Machine)
+    open_loop: bool = False
     assumed: list[str] = field(default_factory=list)
     missing: list[str] = field(default_factory=list)
 
@@ -101,30 +111,44 @@ def read_sidecar(csv_path: pathlib.Path) -> dict:
     return side
 
 
-def read_log(path) -> MeasurementLog:
-    """Read and validate ``path`` (CSV) and its sidecar. Raises InputError naming file, column/key, row and
-    value for: a missing or malformed sidecar or key, an unknown system, a sample rate that does not
-    match ``time_s``, non-uniform sampling (jitter > 1 % of the period), non-numeric or non-finite values,
-    time not increasing, a value outside its column's physical range (a pressure in bar, a position in
-    mm), or a log without the columns a replay needs (valve setpoint and position)."""
+def read_log(path, machine: Machine | str | pathlib.Path | None = None,
+             needs: tuple[str, ...] = REPLAY_COLUMNS) -> MeasurementLog:
+    """Read and validate ``path`` (CSV) and its sidecar, judged against ``machine`` (a
+    :class:`~hexsim.plant.machine.Machine`, a machine file or a built-in's name; None: the sidecar's
+    ``"machine"``, a path relative to the log, else the built-in micro_motion_system). ``needs``: the
+    columns (per leg) the caller needs (default: what a replay needs, the valve setpoint and the
+    position). Raises InputError naming file, column/key, row and value for: a missing or malformed
+    sidecar or key, an unknown system, a sample rate that does not match ``time_s``, non-uniform sampling
+    (jitter > 1 % of the period), non-numeric or non-finite values, time not increasing, a value outside
+    its column's physical range (a pressure in bar, a position in mm), a log without a needed column, or
+    a sidecar whose declared valve or cylinder is not the machine's."""
     path = pathlib.Path(path)
     side = read_sidecar(path)
-    settings = _sidecar_settings(side, path.with_suffix(".json"))
+    side_name = path.with_suffix(".json")
+    if not isinstance(machine, Machine):
+        named = side.get("machine")
+        if machine is None and named is not None and not isinstance(named, str):
+            raise InputError(f"{side_name}: key 'machine' must be the path of a machine file, got {named!r}")
+        machine = load_machine(machine if machine is not None else named,
+                               relative_to=None if machine is not None else path.parent)
+    _check_declared_machine(side, side_name, machine)
+    settings = _sidecar_settings(side, side_name, machine)
     cols = read_numeric_csv(path)
     _check_sampling(path, cols["time_s"], settings["sample_rate_hz"])
     for name, values in cols.items():
         _check_range(path, name, values, settings["stroke_m"])
-    log = MeasurementLog(path=path, columns=cols, sidecar=side, **settings)
-    for kind in ("valve_cmd_V", "pos_m"):
+    log = MeasurementLog(path=path, columns=cols, sidecar=side, machine=machine, **settings)
+    for kind in needs:
         for i in range(log.n_legs):
             name = log.leg_column(kind, i)
             if name not in cols:
                 raise InputError(f"{path}: missing column {name!r}, needed to replay the log (header: "
                                  f"{', '.join(cols)})")
-    for kind in ("ref_m", "p1_Pa"):
+    setpoint = () if log.open_loop else ("ref_m",)  # an open-loop experiment has no setpoint to miss
+    for kind in (*setpoint, "p1_Pa", *(("p2_Pa",) if machine.hydraulics.four_way else ())):
         if log.leg_array(kind) is None:
             log.missing.append(kind if log.n_legs == 1 else f"leg*_{kind}")
-    if "ps_Pa" not in cols:
+    if "ps_Pa" not in cols and not machine.hydraulics.four_way:
         log.missing.append("ps_Pa")
     acc = "acc_mps2" if log.n_legs == 1 else "platform_acc_z_mps2"
     if acc not in cols:
@@ -132,10 +156,30 @@ def read_log(path) -> MeasurementLog:
     return log
 
 
-def _sidecar_settings(side: dict, side_name: pathlib.Path) -> dict:
+def _check_declared_machine(side: dict, side_name: pathlib.Path, machine: Machine) -> None:
+    """InputError if the sidecar declares a valve type (``"valve"``) or cylinder dimensions
+    (``"cylinder": {"bore_m", "rod_m", "stroke_m"}``) that are not ``machine``'s (beyond 1 %): a log judged
+    against another machine's model answers about that machine."""
+    hyd = machine.hydraulics
+    valve = side.get("valve")
+    if valve is not None and valve != hyd.valve_type:
+        raise InputError(f"{side_name}: the log's valve is {valve!r}, machine {machine.label} has a {hyd.valve_type} "
+                         f"valve: pass --machine with this machine's file (docs/machine-file.md)")
+    cyl = side.get("cylinder", {})
+    if not isinstance(cyl, dict):
+        raise InputError(f"{side_name}: key 'cylinder' must be an object (bore_m, rod_m, stroke_m), got {cyl!r}")
+    for key, ours in (("bore_m", hyd.bore_diameter), ("rod_m", hyd.rod_diameter), ("stroke_m", hyd.stroke)):
+        if key in cyl:
+            value = _number(cyl, key, f"{side_name} cylinder")
+            if abs(value - ours) > 0.01 * ours:
+                raise InputError(f"{side_name}: the log's cylinder {key} is {value:g}, machine {machine.label} has "
+                                 f"{ours:g}: pass --machine with this machine's file (docs/machine-file.md)")
+
+
+def _sidecar_settings(side: dict, side_name: pathlib.Path, machine: Machine) -> dict:
     """The MeasurementLog fields the sidecar sets (system, rates, K_p, temperature, stroke, mass,
-    inclination) and ``assumed``: the defaults taken for keys it leaves out. Raises InputError naming
-    the key for a missing required key or a bad value."""
+    inclination, open loop) and ``assumed``: the defaults taken for keys it leaves out (the machine's).
+    Raises InputError naming the key for a missing required key or a bad value."""
     for key in ("system", "sample_rate_hz"):
         if key not in side:
             raise InputError(f"{side_name}: missing key {key!r} (required by the log format)")
@@ -147,8 +191,10 @@ def _sidecar_settings(side: dict, side_name: pathlib.Path) -> dict:
     ctrl = side.get("controller", {})
     if not isinstance(ctrl, dict):
         raise InputError(f"{side_name}: key 'controller' must be an object, got {ctrl!r}")
-    if ctrl.get("type", "P") != "P":
-        raise InputError(f"{side_name}: controller type {ctrl.get('type')!r} is not supported (only 'P')")
+    if ctrl.get("type", "P") not in ("P", "none"):
+        raise InputError(f"{side_name}: controller type {ctrl.get('type')!r} is not supported ('P' or 'none', "
+                         f"open loop)")
+    open_loop = ctrl.get("type", "P") == "none"
 
     def value(table, key, where, default, note, positive=True):
         if key in table:
@@ -158,21 +204,28 @@ def _sidecar_settings(side: dict, side_name: pathlib.Path) -> dict:
         return default
 
     single = system == "single-actuator"
-    kp = value(ctrl, "kp_V_per_m", f"{side_name} controller", ControllerParams.kp,
-               f"controller K_p = {ControllerParams.kp:g} V/m (hexsim default)")
-    ctrl_rate = value(ctrl, "rate_hz", f"{side_name} controller", ControllerParams.rate_hz,
-                      f"controller rate = {ControllerParams.rate_hz:g} Hz (seed §2.2.4)")
+    if not single and machine.system == "single-actuator":  # a single-actuator log may be one leg of a hexapod
+        raise InputError(f"{side_name}: a hexapod log; machine {machine.label} is a single actuator: pass --machine "
+                         f"with this machine's file")
+    mc, load = machine.controller, machine.effects
+    kp = value(ctrl, "kp_V_per_m", f"{side_name} controller", mc.kp,
+               not open_loop and f"controller K_p = {mc.kp:g} V/m (machine {machine.label})")
+    ctrl_rate = value(ctrl, "rate_hz", f"{side_name} controller", mc.rate_hz,
+                      not open_loop and f"controller rate = {mc.rate_hz:g} Hz (machine {machine.label})")
     temp = value(side, "oil_temperature_C", str(side_name), 35.0, "oil temperature 35 °C (seed app. A)", positive=False)
-    stroke = value(side, "stroke_m", str(side_name), DEFAULT_STROKE,
-                   single and f"stroke {DEFAULT_STROKE:g} m (the seed's actuator)")
-    mass = value(side, "mass_kg", str(side_name), None, single and "moving mass from the model (40 kg, seed app. A)")
-    incl = value(side, "inclination_deg", str(side_name), 0.0,
-                 single and "actuator vertical (inclination 0°, as the seed's model)", positive=False)
+    stroke = value(side, "stroke_m", str(side_name), machine.hydraulics.stroke,
+                   single and f"stroke {machine.hydraulics.stroke:g} m (machine {machine.label})")
+    mass = value(side, "mass_kg", str(side_name), load.mass_kg, single and (
+        f"moving mass {load.mass_kg:g} kg (machine {machine.label})" if load.mass_kg is not None
+        else f"moving mass from the model (40 kg, seed app. A; machine {machine.label})"))
+    incl0 = load.inclination_deg or 0.0
+    incl = value(side, "inclination_deg", str(side_name), incl0,
+                 single and f"inclination {incl0:g}° from vertical (machine {machine.label})", positive=False)
     if not 0.0 <= incl <= 90.0:
         raise InputError(f"{side_name}: key 'inclination_deg' must be within 0…90, got {incl:g}")
     return {"system": system, "sample_rate_hz": rate, "kp": kp,
             "controller_rate_hz": ctrl_rate, "mass_kg": mass, "inclination_deg": incl, "oil_temperature_c": temp,
-            "stroke_m": stroke, "assumed": assumed}
+            "stroke_m": stroke, "assumed": assumed, "open_loop": open_loop}
 
 
 def _check_sampling(path: pathlib.Path, time: np.ndarray, rate: float) -> None:

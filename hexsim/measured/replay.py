@@ -36,6 +36,7 @@ from hexsim.signals import savgol
 CHANNELS = {
     "position": ("pos_m", "m", 1e-4),
     "p1": ("p1_Pa", "Pa", 1e4),
+    "p2": ("p2_Pa", "Pa", 1e4),
     "p_s": ("ps_Pa", "Pa", 1e4),
     "acceleration": ("acc_mps2", "m/s^2", 0.05),
 }
@@ -118,6 +119,19 @@ def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:
     return savgol(pos, log.sample_rate_hz, 0.021, deriv=1)
 
 
+def nominal_plant(log: MeasurementLog) -> PlantModel:
+    """The model a log is judged against before any effect: its machine's hydraulics and effects
+    (:attr:`MeasurementLog.machine`), the supply level the log states (:func:`supply_from_log`) and, on a
+    single actuator, the moving mass and inclination the sidecar declares."""
+    hyd, eff = log.machine.hydraulics, log.machine.effects
+    if log.system == "single-actuator":
+        if log.mass_kg is not None and log.mass_kg != eff.mass_kg:
+            eff = eff.replace(mass_kg=log.mass_kg)
+        if log.inclination_deg != (eff.inclination_deg or 0.0):
+            eff = eff.replace(inclination_deg=log.inclination_deg)
+    return PlantModel(supply_from_log(log, hyd), eff)
+
+
 def supply_from_log(log: MeasurementLog, hyd: HydraulicParams) -> HydraulicParams:
     """``hyd`` with the supply pressure P_s0 set to the median of the log's ``ps_Pa`` (an operating
     condition the log states, not a fitted effect); unchanged if the log has no supply pressure."""
@@ -183,7 +197,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     idx = PlantIndex.from_model(m)
     state, y0 = _window_start(log, model, windows, m, d, idx)
     u_log = log.columns["valve_cmd_V"]
-    out = {name: np.empty((k, n)) for name in ("position", "p1", "p_s", "acceleration", "u_v")}
+    out = {name: np.empty((k, n)) for name in ("position", "p1", "p2", "p_s", "acceleration", "u_v")}
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
     mujoco.set_mjcb_control(None)
     if native:
@@ -193,7 +207,8 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
         out["u_v"] = u_sched
         legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
         bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
-                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"]))
+                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"],
+                                                   out["p2"]))
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
     else:
@@ -229,12 +244,21 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
         p_s0 = Windows(s0, 10).take(c["ps_Pa"]).mean(axis=1)
     else:
         p_s0 = np.full(k, hyd.supply_pressure)
+    p1_0, p2_0 = hydraulics.rest_pressures(mass * g_axis * np.ones(k), hyd, p_s0)
+    # a 4-way log with one chamber's pressure: the other from the piston's balance at the window start,
+    # P1 A1 - P2 A2 = F_f(ydot) + M g (the acceleration left out), not the at-rest split
+    v0 = d.qvel[idx.dof_adr]
+    balance = hydraulics.friction_force(v0, hyd) + mass * g_axis
     if "p1_Pa" in c:
         p1_0 = c["p1_Pa"][s0]
-    else:
-        p1_0 = hydraulics.equilibrium_pressure(mass * g_axis, hyd, p_s0) * np.ones(k)
+        if hyd.four_way and "p2_Pa" not in c:
+            p2_0 = np.clip((p1_0 * hyd.area_bottom - balance) / hyd.area_rod, hyd.cavitation_pressure, p_s0)
+    if hyd.four_way and "p2_Pa" in c:
+        p2_0 = c["p2_Pa"][s0]
+        if "p1_Pa" not in c:
+            p1_0 = np.clip((p2_0 * hyd.area_rod + balance) / hyd.area_bottom, hyd.cavitation_pressure, p_s0)
     u_b, x_v, v_v = spool_history(u_log, log.sample_rate_hz, hyd, eff, s0)
-    return PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0)._replace(u_b=u_b, x_v=x_v, v_v=v_v), y0
+    return PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0, p2_0)._replace(u_b=u_b, x_v=x_v, v_v=v_v), y0
 
 
 def _python_replay(log, model, windows, sim, state, out) -> None:
@@ -254,6 +278,7 @@ def _python_replay(log, model, windows, sim, state, out) -> None:
             ydot = d.qvel[idx.dof_adr].copy()
             if s_ == 0:
                 out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
+                out["p2"][:, j] = state.p2
                 out["u_v"][:, j] = u
             state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, model.hydraulics, model.effects)
             mujoco.mj_step(m, d)

@@ -15,7 +15,7 @@ from scipy import signal, stats
 
 MAX_LAG = 20  # lags [samples] of the whiteness and cross-correlation tests
 #: Floors of the noise estimates, per channel [SI]: 0.1 µm, 100 Pa, 100 Pa, 1e-3 m/s^2.
-NOISE_FLOOR = {"position": 1e-7, "p1": 100.0, "p_s": 100.0, "acceleration": 1e-3}
+NOISE_FLOOR = {"position": 1e-7, "p1": 100.0, "p2": 100.0, "p_s": 100.0, "acceleration": 1e-3}
 
 
 def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:

@@ -263,6 +263,7 @@ def summary(ident: Identification) -> dict:
     first = ident.accepted[0] if ident.accepted else None
     return {
         "log": str(p.log.path),
+        "machine": p.log.machine.label,
         "system": p.log.system,
         "verdict": ident.verdict,
         "added_effect": ident.added_effect,
@@ -361,7 +362,8 @@ def effect_label(entry: dict) -> str:
 
 def markdown(doc: dict, png_names: list[str]) -> str:
     effects = " + ".join(f"`{effect_label(e)}`" for e in doc["added_effects"]) or "none"
-    lines = [f"# Validation of `{doc['log']}`", "", f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
+    lines = [f"# Validation of `{doc['log']}`", "", f"Machine: {doc['machine']}.", "",
+             f"**Verdict: {doc['verdict']}** — added effects: {effects}", ""]
     lines += [f"- {c}" for c in doc["conclusions"]] + [""]
     for e in doc["added_effects"]:
         lines.append(f"`{effect_label(e)}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))

@@ -19,16 +19,23 @@ from hexsim.tables import write_atomic
 def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
     """Columns (name -> (N,) array) of the measurement log for this run, SI units, names per the format."""
     cols: dict[str, np.ndarray] = {"time_s": result.t}
+    closed = not result.config.scenario.open_loop  # open loop: no setpoint column
+    four_way = result.config.hydraulics.four_way  # the rod side's pressure, p2_Pa
     if result.config.scenario.system == "actuator":
-        cols.update(ref_m=result.y_ref[:, 0], valve_cmd_V=result.u_v[:, 0], pos_m=result.y[:, 0],
-                    p1_Pa=result.p1[:, 0], ps_Pa=result.p_s, acc_mps2=result.acc[:, 2])
+        cols.update({**({"ref_m": result.y_ref[:, 0]} if closed else {}), "valve_cmd_V": result.u_v[:, 0],
+                     "pos_m": result.y[:, 0], "p1_Pa": result.p1[:, 0],
+                     **({"p2_Pa": result.p2[:, 0]} if four_way else {}), "ps_Pa": result.p_s,
+                     "acc_mps2": result.acc[:, 2]})
         return cols
     for i in range(result.n_legs):
         n = i + 1
-        cols[f"leg{n}_ref_m"] = result.y_ref[:, i]
+        if closed:
+            cols[f"leg{n}_ref_m"] = result.y_ref[:, i]
         cols[f"leg{n}_valve_cmd_V"] = result.u_v[:, i]
         cols[f"leg{n}_pos_m"] = result.y[:, i]
         cols[f"leg{n}_p1_Pa"] = result.p1[:, i]
+        if four_way:
+            cols[f"leg{n}_p2_Pa"] = result.p2[:, i]
     cols["ps_Pa"] = result.p_s
     for k, name in enumerate(("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")):
         if result.pose_ref is not None:  # None: a run of leg setpoints (a replayed log) has no DOF reference
@@ -40,15 +47,24 @@ def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
     return cols
 
 
-def sidecar(result: SimulationResult) -> dict:
-    """The JSON sidecar: system, sample rate, controller, parameters, acquisition (how each channel was
-    sampled), description."""
+def sidecar(result: SimulationResult, folder: pathlib.Path | None = None) -> dict:
+    """The JSON sidecar: system, sample rate, controller (``none`` for an open-loop run), machine (the
+    machine file relative to ``folder``, the log's, or a built-in's name), parameters, acquisition (how
+    each channel was sampled), description."""
     cfg = result.config
     rate = 1.0 / float(np.median(np.diff(result.t)))
+    controller = ({"type": "none"} if cfg.scenario.open_loop else
+                  {"type": "P", "kp_V_per_m": cfg.controller.kp, "rate_hz": cfg.controller.rate_hz})
+    machine = {}
+    if cfg.machine is not None:
+        given = pathlib.Path(cfg.machine)
+        machine = {"machine": os.path.relpath(given.resolve(), (folder or pathlib.Path()).resolve())
+                   if given.suffix == ".json" else cfg.machine}
     return {
         "system": "single-actuator" if cfg.scenario.system == "actuator" else "hexapod",
         "sample_rate_hz": round(rate, 6),
-        "controller": {"type": "P", "kp_V_per_m": cfg.controller.kp, "rate_hz": cfg.controller.rate_hz},
+        "controller": controller,
+        **machine,
         "parameters": ("seed appendix A (nominal)" if cfg.hydraulics == type(cfg.hydraulics)()
                        and cfg.effects == type(cfg.effects)() and not cfg.leg_changes
                        else "hexsim with parameters other than the seed's (not stated here)"),
@@ -62,7 +78,7 @@ def sidecar(result: SimulationResult) -> dict:
 #: Sensor noise (rms, SI units) that :func:`add_sensor_noise` puts on simulated logs so they look like
 #: measurements: position transducer 2 µm (resolution, "a few µm"), pressure transducers 0.02 bar
 #: (0.1 % of a 250 bar range, hexsim's assumption), accelerometer 0.02 m/s^2.
-SENSOR_NOISE = {"pos_m": 2e-6, "p1_Pa": 2e3, "ps_Pa": 2e3, "_mps2": 0.02}
+SENSOR_NOISE = {"pos_m": 2e-6, "p1_Pa": 2e3, "p2_Pa": 2e3, "ps_Pa": 2e3, "_mps2": 0.02}
 
 
 def add_sensor_noise(cols: dict[str, np.ndarray], rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -93,5 +109,5 @@ def write_log(path: str | os.PathLike, result: SimulationResult,
 
     side = path.with_suffix(".json")
     write_atomic(path, write_csv)
-    write_atomic(side, lambda tmp: tmp.write_text(json.dumps(sidecar(result), indent=2) + "\n"))
+    write_atomic(side, lambda tmp: tmp.write_text(json.dumps(sidecar(result, path.parent), indent=2) + "\n"))
     return path, side

@@ -51,6 +51,26 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
     save_figure(fig, path, dpi=90)
 
 
+def plot_open_loop(path: str | os.PathLike, result: SimulationResult) -> None:
+    """The figure of an open-loop run (a ``valve:`` scenario; atomically, .png, .pdf or .svg): valve
+    setpoints, piston positions, velocities and the chamber pressures over time."""
+    sc = result.config.scenario
+    fig = Figure(figsize=(12, 7), layout="constrained")
+    ax = fig.subplots(2, 2)
+    fig.suptitle(f"hexsim {pathlib.Path(sc.name[6:]).name}: open loop, {sc.system}, machine {result.config.machine_label}")
+    for i in range(result.n_legs):
+        ax[0, 0].plot(result.t, result.u_v[:, i], lw=0.8, label=f"leg{i + 1}")
+        ax[0, 1].plot(result.t, result.y[:, i] * 1e3, lw=0.8, label=f"leg{i + 1}")
+        ax[1, 0].plot(result.t, result.ydot[:, i] * 1e3, lw=0.8, label=f"leg{i + 1}")
+    ax[0, 0].set(title="valve setpoint u_v", xlabel="time [s]", ylabel="[V]")
+    ax[0, 1].set(title="piston position y", xlabel="time [s]", ylabel="[mm]")
+    ax[1, 0].set(title="piston velocity", xlabel="time [s]", ylabel="[mm/s]")
+    _pressure_panel(ax[1, 1], result)
+    for a in ax.flat:
+        a.set_xlim(0.0, result.t[-1])
+    save_figure(fig, path, dpi=90)
+
+
 def _acceleration_panels(a, b, sm: Smoothness) -> tuple:
     """The analysed signal with its offset + fundamental fit (a) and the noise with the reversal peaks (b);
     the start before the analysis window (fade-in, one settling period) shaded."""
@@ -89,6 +109,8 @@ def _flow_curve_panel(a, result: SimulationResult, compensated: bool) -> None:
 def _pressure_panel(a, result: SimulationResult):
     for i in range(result.n_legs):
         a.plot(result.t, result.p1[:, i] / 1e5, lw=0.7, label=f"P1 leg{i + 1}")
+        if result.config.hydraulics.four_way:
+            a.plot(result.t, result.p2[:, i] / 1e5, lw=0.7, ls=":", label=f"P2 leg{i + 1} (rod side)")
     a.plot(result.t, result.p_s / 1e5, "k--", lw=1, label="P_s")
     a.set(title="pressures", xlabel="time [s]", ylabel="[bar]")
     a.legend(fontsize=7, ncol=2)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from hexsim.simulation.config import SimulationResult
-from hexsim.simulation.metrics import Smoothness, max_tracking_error
+from hexsim.simulation.metrics import Smoothness, max_tracking_error, steady_segments
 
 
 def run_report(result: SimulationResult, sm: Smoothness) -> dict:
@@ -13,6 +13,7 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
     sc, cfg = result.config.scenario, result.config
     return {
         "scenario": sc.name,
+        "machine": cfg.machine_label,
         "system": sc.system,
         "duration_s": sc.duration,
         "axis": sc.axis_name,
@@ -48,6 +49,42 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "realtime_factor": result.realtime_factor,
         "wall_time_s": result.wall_time_s,
     }
+
+
+def open_loop_report(result: SimulationResult) -> dict:
+    """The figures of an open-loop run (a ``valve:`` scenario): per leg the steady motions at each
+    constant valve setpoint (:func:`hexsim.simulation.metrics.steady_segments`: speed, P1 and, with a
+    4-way valve, P2), the piston's range and the lowest and highest pressures. SI units."""
+    sc, cfg = result.config.scenario, result.config
+    four_way = cfg.hydraulics.four_way
+    legs = []
+    for i in range(result.n_legs):
+        pressures = {"p1_Pa": result.p1[:, i], **({"p2_Pa": result.p2[:, i]} if four_way else {})}
+        legs.append({"steady": steady_segments(result.t, result.u_v[:, i], result.y[:, i], pressures),
+                     "piston_range_m": [float(result.y[:, i].min()), float(result.y[:, i].max())],
+                     "p1_range_Pa": [float(result.p1[:, i].min()), float(result.p1[:, i].max())],
+                     **({"p2_range_Pa": [float(result.p2[:, i].min()), float(result.p2[:, i].max())]}
+                        if four_way else {})})
+    return {"scenario": sc.name, "machine": cfg.machine_label, "system": sc.system,
+            "open_loop": True, "valve_type": cfg.hydraulics.valve_type, "duration_s": sc.duration,
+            "engine": cfg.engine, "timestep_s": result.timestep, "legs": legs,
+            "realtime_factor": result.realtime_factor, "wall_time_s": result.wall_time_s}
+
+
+def open_loop_table(report: dict) -> str:
+    """The summary lines of an open-loop run: what ran, and each leg's steady motions."""
+    rows = [("scenario", f"{report['scenario']} ({report['system']}, open loop, {report['duration_s']:g} s)"),
+            ("machine", f"{report['machine']} ({report['valve_type']} valve)")]
+    for i, leg in enumerate(report["legs"]):
+        lo, hi = leg["piston_range_m"]
+        rows.append((f"leg{i + 1}", f"piston {lo * 1e3:.1f}…{hi * 1e3:.1f} mm"))
+        for s in leg["steady"]:
+            p2 = f", P2 {s['p2_Pa'] / 1e5:.2f} bar" if "p2_Pa" in s else ""
+            rows.append(("  steady", f"u_v {s['u_V']:+.2f} V: {s['velocity_mps'] * 1e3:+.1f} mm/s, "
+                                     f"P1 {s['p1_Pa'] / 1e5:.2f} bar{p2} ({s['t_start_s']:.2f}…{s['t_end_s']:.2f} s)"))
+    rows.append(("realtime_factor", f"{report['realtime_factor']:.2f}x ({report['wall_time_s']:.1f} s wall)"))
+    width = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
 
 
 def fault_outcomes(result: SimulationResult) -> list[dict]:
@@ -89,6 +126,7 @@ def summary_table(report: dict) -> str:
         ("scenario", f"{report['scenario']} ({report['system']}"
                      f"{', ' + report['model'] + ' model' if report['system'] == 'hexapod' else ''}, {report['duration_s']:g} s, "
                      f"{report['frequency_hz']:g} Hz, compensator {report['compensator']})"),
+        ("machine", report["machine"]),
         ("signal", report["signal"]),
         ("fundamental", f"{report['fundamental']:.4f} {unit}"),
         ("noise_ratio", f"{report['noise_ratio']:.4f}"),

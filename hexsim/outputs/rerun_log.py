@@ -144,14 +144,15 @@ def _geom_shape(m: mujoco.MjModel, g: int):
     return None
 
 
-def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
-    """Write the recording of a run to ``path`` (atomically)."""
+def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness | None) -> None:
+    """Write the recording of a run to ``path`` (atomically); ``sm`` None (an open-loop run): no
+    smoothness analysis in it."""
     write_atomic(path, lambda tmp: _write(tmp, result, sm))
 
 
-def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
+def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None) -> None:
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
-    rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal,
+    rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal if sm else "acceleration",
                                                result.config.scenario.system))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     times = rr.TimeColumn("time", duration=result.t)
@@ -163,23 +164,28 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness) -> None:
         _scalars(rec, f"/valve/{leg}/u_v", times, result.u_v[:, i])
         _scalars(rec, f"/valve/{leg}/U_c", times, result.u_c[:, i])
         _scalars(rec, f"/pressure/{leg}/p1", times, result.p1[:, i] / 1e5)
+        if result.config.hydraulics.four_way:
+            _scalars(rec, f"/pressure/{leg}/p2", times, result.p2[:, i] / 1e5)
     _scalars(rec, "/pressure/p_s", times, result.p_s / 1e5)
     for key, values in result.compensator_state.items():
         for i in range(n):
             _scalars(rec, f"/compensator/leg{i + 1}/{key}", times, values[:, i])
-    fit_times = rr.TimeColumn("time", duration=sm.t)
-    _scalars(rec, "/acceleration/signal", fit_times, sm.fit + sm.noise)
-    _scalars(rec, "/acceleration/fundamental", fit_times, sm.fit)
-    _scalars(rec, "/bump/noise", fit_times, sm.noise)
-    rec.log("/acceleration/signal", rr.SeriesLines(names=f"{sm.signal} [{sm.unit}]", colors=[[40, 90, 170]]),
-            static=True)
-    rec.log("/acceleration/fundamental", rr.SeriesLines(names="fundamental fit", colors=[[230, 150, 30]]),
-            static=True)
-    rec.log("/bump/noise", rr.SeriesLines(names=f"signal - fit [{sm.unit}]", colors=[[200, 40, 40]]), static=True)
+    if sm is not None:
+        fit_times = rr.TimeColumn("time", duration=sm.t)
+        _scalars(rec, "/acceleration/signal", fit_times, sm.fit + sm.noise)
+        _scalars(rec, "/acceleration/fundamental", fit_times, sm.fit)
+        _scalars(rec, "/bump/noise", fit_times, sm.noise)
+        rec.log("/acceleration/signal", rr.SeriesLines(names=f"{sm.signal} [{sm.unit}]", colors=[[40, 90, 170]]),
+                static=True)
+        rec.log("/acceleration/fundamental", rr.SeriesLines(names="fundamental fit", colors=[[230, 150, 30]]),
+                static=True)
+        rec.log("/bump/noise", rr.SeriesLines(names=f"signal - fit [{sm.unit}]", colors=[[200, 40, 40]]), static=True)
+    else:
+        _scalars(rec, "/acceleration/signal", times, result.acc[:, 2])
     for i in range(n):
         for path, label in ((f"/legs/leg{i + 1}/position", "y"), (f"/legs/leg{i + 1}/setpoint", "r"),
                             (f"/valve/leg{i + 1}/u_v", "u_v"), (f"/valve/leg{i + 1}/U_c", "U_c"),
-                            (f"/pressure/leg{i + 1}/p1", "P1")):
+                            (f"/pressure/leg{i + 1}/p1", "P1"), (f"/pressure/leg{i + 1}/p2", "P2")):
             rec.log(path, rr.SeriesLines(names=f"leg{i + 1} {label}"), static=True)
     rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
 

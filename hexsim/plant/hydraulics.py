@@ -13,6 +13,8 @@ phi_1 > 0 fills the bottom chamber; the leg force > 0 extends the leg.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
@@ -21,9 +23,9 @@ from hexsim.plant import legs
 from hexsim.plant.legs import TRANSITION_DP, leg_params
 from hexsim.plant.params import HydraulicParams
 
-__all__ = ["TRANSITION_DP", "spool_position", "flow_areas", "edge_flow", "valve_flow", "valve_flow_dp1", "static_velocity",
-           "chamber_volume", "pressure_rate", "step_pressure", "friction_force", "leg_force", "equilibrium_pressure",
-           "eigenfrequency"]
+__all__ = ["TRANSITION_DP", "spool_position", "flow_areas", "edge_flow", "valve_flow", "valve_flow_dp1", "valve_flow_rod",
+           "static_velocity", "steady_state", "SteadyState", "chamber_volume", "pressure_rate", "step_pressure",
+           "friction_force", "leg_force", "equilibrium_pressure", "rest_pressures", "eigenfrequency"]
 
 _jit = numba.njit(cache=True)
 
@@ -59,7 +61,13 @@ def _map_edge(a, dp, P, q):
 @_jit
 def _map_pressure_step(p1, x, p_s, y, ydot, dt, P, out):
     for i in range(x.shape[0]):
-        out[i] = legs.pressure_step(p1[i], 0.0, x[i], p_s[i], y[i], ydot[i], dt, P)[0]
+        out[i] = legs.pressure_step(p1[i], 0.0, x[i], p_s[i], y[i], ydot[i], dt, P, p_s[i])[0]
+
+
+@_jit
+def _map_orifice_rod(x, p2, p_s, P, phi, dphi):
+    for i in range(x.shape[0]):
+        phi[i], dphi[i] = legs.orifice_rod(x[i], p2[i], p_s[i], P)
 
 
 @_jit
@@ -75,7 +83,8 @@ def _map_leg_force(p1, p_s, v, P, out):
 
 
 # the array maps compile in the scalar physics of hexsim.plant.legs: drop their cache when that file changes
-jitcache.guard((_map_areas, _map_edge, _map_orifice, _map_pressure_step, _map_friction, _map_leg_force),
+jitcache.guard((_map_areas, _map_edge, _map_orifice, _map_orifice_rod, _map_pressure_step, _map_friction,
+                _map_leg_force),
                legs.__file__)
 
 
@@ -151,6 +160,69 @@ def valve_flow_dp1(x_v, p1, p: HydraulicParams, p_s=None):
     return _orifice(x_v, p1, p, p_s)[1]
 
 
+def valve_flow_rod(x_v, p2, p: HydraulicParams, p_s=None):
+    """Flow phi_2 [m^3/s] into the rod-side chamber B through a 4-way valve at spool position x_v [m] and
+    rod-side pressure p2 [Pa]: P→B opens where A→T does, B→T where P→A does (seed eq. 3.4 per edge,
+    :func:`hexsim.plant.legs.orifice_rod`). ``p_s`` [Pa] default ``p.supply_pressure``. Arrays broadcast."""
+    p_s = p.supply_pressure if p_s is None else p_s
+    (x, q2, qs), shape = _flat(x_v, p2, p_s)
+    phi, dphi = np.empty_like(x), np.empty_like(x)
+    _map_orifice_rod(x, q2, qs, leg_params(p), phi, dphi)
+    return _shaped(phi, shape)
+
+
+class SteadyState(NamedTuple):
+    """A cylinder moving at constant speed under a constant valve setpoint: velocity [m/s], cap-side P1
+    and rod-side P2 [Pa] (P2 = P_s with the 3-way valve), the friction force [N] at that speed."""
+
+    velocity: float
+    p1: float
+    p2: float
+    friction: float
+
+
+def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float | None = None) -> SteadyState:
+    """The steady motion at valve setpoint u_v [V] against an external force ``load_force`` [N] along the
+    axis (positive retracts the piston: the weight M g cos θ of a load it lifts): the velocity v at which
+    flow continuity holds in each chamber (phi_1 = v A1; 4-way also phi_2 = -v A2, seed eq. 3.7 with
+    dP/dt = 0) and the piston's forces balance, P1 A1 - P2 A2 - F_f(v) = load_force (seed eq. 3.8 with
+    ÿ = 0). Solved by bracketing v (scipy.optimize.brentq) with each chamber's pressure from its own
+    continuity equation. Raises ValueError if no speed within ±5 m/s balances (the load is beyond the
+    stall force at that setpoint)."""
+    from scipy.optimize import brentq
+
+    p_s = p.supply_pressure if p_s is None else float(p_s)
+    x_v = float(spool_position(u_v, p))
+
+    def chamber(v: float, flow, target: float) -> float:  # the pressure at which flow(p) = target
+        return brentq(lambda q: float(flow(x_v, q, p, p_s)) - target, p.cavitation_pressure, p_s + 1e7,
+                      xtol=1e-6)
+
+    def pressures(v: float) -> tuple[float, float]:
+        p1 = chamber(v, valve_flow, v * p.area_bottom)
+        p2 = chamber(v, valve_flow_rod, -v * p.area_rod) if p.four_way else p_s
+        return p1, p2
+
+    def imbalance(v: float) -> float:
+        p1, p2 = pressures(v)
+        return p1 * p.area_bottom - p2 * p.area_rod - float(friction_force(v, p)) - load_force
+
+    reach = []  # the speeds at which both chambers can still follow (the flow at the pressure limits)
+    for flow, area in ((valve_flow, p.area_bottom), (valve_flow_rod, -p.area_rod)):
+        if flow is valve_flow_rod and not p.four_way:
+            continue
+        ends = [float(flow(x_v, q, p, p_s)) / area for q in (p.cavitation_pressure, p_s + 1e7)]
+        reach.append((min(ends), max(ends)))
+    lo, hi = max(r[0] for r in reach), min(r[1] for r in reach)
+    lo, hi = lo + 1e-9 * abs(lo) + 1e-12, hi - 1e-9 * abs(hi) - 1e-12
+    try:
+        v = brentq(imbalance, lo, hi, xtol=1e-9)
+    except ValueError:
+        raise ValueError(f"no steady motion at u_v = {u_v:g} V against {load_force:g} N (stalled)") from None
+    p1, p2 = pressures(v)
+    return SteadyState(v, p1, p2, float(friction_force(v, p)))
+
+
 def static_velocity(u_v, p1, p: HydraulicParams, p_s=None):
     """Piston velocity [m/s] at valve setpoint u_v [V] in steady state (dP1/dt = 0, bottom pressure p1 [Pa]):
     phi_1(x_v(u_v), P1) / A1, the static flow curve of seed eq. (5.1). Arrays broadcast."""
@@ -209,7 +281,8 @@ def friction_force(ydot, p: HydraulicParams):
 
 def leg_force(p1, ydot, p: HydraulicParams, p_s=None):
     """Hydraulic force on the piston along the leg [N]: P1 A1 - P_s A2 - F_f(ydot) (seed eq. 3.8),
-    arrays broadcast (:func:`hexsim.plant.legs.leg_force`, elementwise).
+    arrays broadcast (:func:`hexsim.plant.legs.leg_force`, elementwise). For a 4-way valve pass the
+    rod-side pressure P2 as ``p_s``.
 
     Gravity (the -M g of eq. 3.8) is not included: the rigid-body simulator applies it.
     """
@@ -228,6 +301,21 @@ def equilibrium_pressure(load_force, p: HydraulicParams, p_s=None):
     """
     p_s = p.supply_pressure if p_s is None else p_s
     return (np.asarray(load_force, dtype=float) + p_s * p.area_rod) / p.area_bottom
+
+
+def rest_pressures(load_force, p: HydraulicParams, p_s=None):
+    """(P1, P2) [Pa] of a leg holding ``load_force`` [N] at rest. 3-way: P2 = P_s and P1 from
+    :func:`equilibrium_pressure`. 4-way: P1 A1 - P2 A2 = load_force with P1 + P2 = P_s + P_t, the
+    null-position sum of a matched, symmetric spool (each chamber between equal P and T edges sits at
+    (P_s + P_t)/2 without load; a load shifts the two by the same amount in opposite directions, as the
+    spool moves off null to hold it). Arrays broadcast."""
+    p_s = p.supply_pressure if p_s is None else p_s
+    load = np.asarray(load_force, dtype=float)
+    if not p.four_way:
+        return equilibrium_pressure(load, p, p_s), np.broadcast_to(np.asarray(p_s, dtype=float), load.shape).copy()
+    total = np.asarray(p_s, dtype=float) + p.tank_pressure
+    p2 = (total * p.area_bottom - load) / (p.area_bottom + p.area_rod)
+    return total - p2, p2
 
 
 def eigenfrequency(mass: float, p: HydraulicParams, *, stroke: float | None = None, y: float | None = None) -> float:

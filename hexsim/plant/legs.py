@@ -81,6 +81,9 @@ class LegParams(NamedTuple):
     air: float  # entrained air: volume fraction at atmospheric pressure [-]; 0: none
     air_exponent: float  # polytropic exponent of the air [-]
     p_cav: float  # cavitation pressure [Pa, gauge]: the lowest P1 (HydraulicParams.cavitation_pressure)
+    four_way: float  # 1.0: 4-way valve, both chambers fed by the valve; 0.0: 3-way, rod side at P_s
+    v_pl2: float  # rod-side dead volume V_pl,B [m^3] (4-way)
+    stroke: float  # cylinder stroke L_s [m]: rod-side volume (L_s - y) A2 + V_pl,B (4-way)
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -93,7 +96,8 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         *(hyd.smooth_blend if hyd.flow_area == "smooth" else (math.inf, math.inf)), float(hyd.flow_area == "sharp"), hyd.arctan_gain,
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
-        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure)
+        eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure,
+        float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke)
 
 
 #: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
@@ -116,9 +120,11 @@ def leg_table(hyd: HydraulicParams, eff: Effects, n: int, changes: tuple[LegChan
 
 
 class PlantState(NamedTuple):
-    """Hydraulic state of n legs, arrays (n,), changed in place by :func:`step_legs`: P1 [Pa], P_s seen
-    by each leg [Pa], spool position x_v [m] and velocity v_v [m/s], setpoint after the spool play u_b [V],
-    volume of the cavity in the bottom chamber v_c [m^3] (0 unless P1 is at the cavitation pressure)."""
+    """Hydraulic state of n legs, arrays (n,), changed in place by :func:`step_legs`: P1 [Pa] (cap side),
+    P_s seen by each leg [Pa], spool position x_v [m] and velocity v_v [m/s], setpoint after the spool play
+    u_b [V], volume of the cavity in the bottom chamber v_c [m^3] (0 unless P1 is at the cavitation
+    pressure), P2 [Pa] (rod side: integrated with a 4-way valve, a copy of P_s with the 3-way valve) and
+    the rod side's cavity v_c2 [m^3]."""
 
     p1: np.ndarray
     p_s: np.ndarray
@@ -126,15 +132,20 @@ class PlantState(NamedTuple):
     v_v: np.ndarray
     u_b: np.ndarray
     v_c: np.ndarray
+    p2: np.ndarray
+    v_c2: np.ndarray
 
     @classmethod
-    def at_rest(cls, p1, u_v, hyd: HydraulicParams, p_s=None) -> "PlantState":
-        """Steady state: spool at its setpoint, no play taken up, supply at ``p_s`` (default nominal)."""
+    def at_rest(cls, p1, u_v, hyd: HydraulicParams, p_s=None, p2=None) -> "PlantState":
+        """Steady state: spool at its setpoint, no play taken up, supply at ``p_s`` (default nominal), rod
+        side at ``p2`` (default: P_s, the 3-way valve's; a 4-way caller passes its own, e.g.
+        :func:`hexsim.plant.hydraulics.rest_pressures`)."""
         p1 = np.array(p1, dtype=float)
         u_v = np.broadcast_to(np.asarray(u_v, dtype=float), p1.shape).copy()
         p_s = np.full(p1.shape, hyd.supply_pressure) if p_s is None else np.broadcast_to(p_s, p1.shape).astype(float)
+        p2 = p_s.copy() if p2 is None else np.broadcast_to(np.asarray(p2, dtype=float), p1.shape).copy()
         return cls(p1=p1, p_s=p_s, x_v=spool_position(u_v, leg_params(hyd)), v_v=np.zeros_like(p1), u_b=u_v,
-                   v_c=np.zeros_like(p1))
+                   v_c=np.zeros_like(p1), p2=p2, v_c2=np.zeros_like(p1))
 
     def copy(self) -> "PlantState":
         return PlantState(*(np.array(a, dtype=float) for a in self))
@@ -212,34 +223,71 @@ def bulk_modulus(p1, P):
 
 
 @_inline
-def pressure_step(p1, v_c, x_v, p_s, y, ydot, dt, P):
-    """(P1 [Pa], cavity volume v_c [m^3]) after a step dt [s] of the bottom chamber; ydot is the piston
-    velocity at the start of the step.
+def chamber_step(p, v_c, net, dnet, volume, dt, P):
+    """(p [Pa], cavity volume v_c [m^3]) of one chamber after a step dt [s]: seed eq. (3.7) for a chamber
+    of oil volume ``volume`` [m^3] whose net inflow (valve, leakage, minus the piston's displacement rate)
+    is ``net`` [m^3/s] with derivative ``dnet`` = d net / dp [m^3/(s Pa)]; ``net`` at p, or at the
+    cavitation pressure p_cav while a cavity is open (v_c > 0).
 
-    Without a cavity (v_c = 0): eq. (3.7), dP1/dt = E / (y A1 + V_pl) (phi_1 + C_l (P_s - P1) - ydot A1),
-    linearly implicit (Rosenbrock–Euler) in P1 (E = :func:`bulk_modulus` at the step's start P1).
-    Cavitation: oil cannot be stretched below the cavitation pressure p_cav (air release, vapour;
-    :attr:`hexsim.plant.params.HydraulicParams.cavitation_pressure`). If the step would take P1 below p_cav, P1
-    stays at p_cav and a cavity opens with the volume the oil would have had to expand by,
-    (p_cav - P1') V / E; while it is open the net inflow phi_1 + leakage - ydot A1 (at P1 = p_cav) fills
-    it; once it is full the rest of the step's inflow compresses the oil from p_cav. Flow continuity is
-    kept: every volume that leaves the chamber is either the oil's expansion or the cavity's."""
-    volume = max(y, 0.0) * P.a1 + P.v_pl
+    Without a cavity: dp/dt = E / V net, linearly implicit (Rosenbrock–Euler) in p (E =
+    :func:`bulk_modulus` at the step's start p). Cavitation: oil cannot be stretched below p_cav (air
+    release, vapour; :attr:`hexsim.plant.params.HydraulicParams.cavitation_pressure`). If the step would take
+    p below p_cav, p stays at p_cav and a cavity opens with the volume the oil would have had to expand
+    by, (p_cav - p') V / E; while it is open the net inflow (at p_cav) fills it; once it is full the rest
+    of the step's inflow compresses the oil from p_cav. Flow continuity is kept: every volume that leaves
+    the chamber is either the oil's expansion or the cavity's."""
     if v_c > 0.0:
-        phi, _ = orifice(x_v, P.p_cav, p_s, P)
-        v_c -= dt * (phi + P.c_l * (p_s - P.p_cav) - ydot * P.a1)
+        v_c -= dt * net
         if v_c >= 0.0:
             return P.p_cav, v_c
         return P.p_cav - v_c * bulk_modulus(P.p_cav, P) / volume, 0.0
-    phi, dphi = orifice(x_v, p1, p_s, P)
-    if P.c_l != 0.0:
-        phi += P.c_l * (p_s - p1)
-        dphi -= P.c_l
-    stiff = bulk_modulus(p1, P) / volume
-    p_new = p1 + dt * stiff * (phi - ydot * P.a1) / (1.0 - dt * stiff * dphi)
+    stiff = bulk_modulus(p, P) / volume
+    p_new = p + dt * stiff * net / (1.0 - dt * stiff * dnet)
     if p_new < P.p_cav:
         return P.p_cav, (P.p_cav - p_new) / stiff
     return p_new, 0.0
+
+
+@_inline
+def pressure_step(p1, v_c, x_v, p_s, y, ydot, dt, P, p_rod):
+    """(P1 [Pa], cavity volume v_c [m^3]) after a step dt [s] of the bottom (cap-side) chamber; ydot is
+    the piston velocity at the start of the step, ``p_rod`` [Pa] the rod side's pressure the internal
+    leakage crosses the piston from (P_s with the 3-way valve, P2 with the 4-way).
+
+    Eq. (3.7): dP1/dt = E / (y A1 + V_pl) (phi_1 + C_l (p_rod - P1) - ydot A1), by :func:`chamber_step`
+    (linearly implicit; cavitation at p_cav)."""
+    volume = max(y, 0.0) * P.a1 + P.v_pl
+    if v_c > 0.0:
+        phi, _ = orifice(x_v, P.p_cav, p_s, P)
+        return chamber_step(p1, v_c, phi + P.c_l * (p_rod - P.p_cav) - ydot * P.a1, 0.0, volume, dt, P)
+    phi, dphi = orifice(x_v, p1, p_s, P)
+    if P.c_l != 0.0:
+        phi += P.c_l * (p_rod - p1)
+        dphi -= P.c_l
+    return chamber_step(p1, v_c, phi - ydot * P.a1, dphi, volume, dt, P)
+
+
+@_inline
+def orifice_rod(x_v, p2, p_s, P):
+    """(phi_2, d phi_2/d P2): flow into the rod-side chamber B [m^3/s] through the 4-way valve and its
+    derivative. The spool opening a1(x_v) that connects P→A connects B→T, a2(x_v) (A→T) connects P→B
+    (a matched, symmetric spool; the edge gains of the effects apply to the A side only):
+    phi_2 = C_d a2 sqrt(2 (P_s - P2)/rho) - C_d a1 sqrt(2 (P2 - P_t)/rho) (seed eq. 3.4 per edge)."""
+    a1, a2 = flow_areas(x_v, P)
+    q_in, dq_in = edge_flow(a2, p_s - p2, P)
+    q_out, dq_out = edge_flow(a1, p2 - P.p_t, P)
+    return q_in - q_out, -dq_in - dq_out
+
+
+@_inline
+def rod_pressure_step(p2, v_c2, x_v, p_s, p1, y, ydot, dt, P):
+    """(P2 [Pa], cavity volume [m^3]) of the rod-side chamber after a step dt [s] (4-way valve): eq. (3.7)
+    for chamber B, dP2/dt = E / ((L_s - y) A2 + V_pl,B) (phi_2 - C_l (P2 - P1) + ydot A2), by
+    :func:`chamber_step`; ``p1`` [Pa] the cap side's pressure at the step's start (internal leakage)."""
+    volume = max(P.stroke - y, 0.0) * P.a2 + P.v_pl2
+    p = P.p_cav if v_c2 > 0.0 else p2
+    phi, dphi = orifice_rod(x_v, p, p_s, P)
+    return chamber_step(p2, v_c2, phi - P.c_l * (p - p1) + ydot * P.a2, dphi - P.c_l, volume, dt, P)
 
 
 @_inline
@@ -253,10 +301,11 @@ def friction(v, P):
 
 
 @_inline
-def leg_force(p1, p_s, ydot, P):
-    """Hydraulic force on the piston along the leg [N]: P1 A1 - P_s A2 - F_f(ydot) (seed eq. 3.8
-    without the -M g, which the rigid-body simulator applies)."""
-    return p1 * P.a1 - p_s * P.a2 - friction(ydot, P)
+def leg_force(p1, p_rod, ydot, P):
+    """Hydraulic force on the piston along the leg [N]: P1 A1 - p_rod A2 - F_f(ydot) (seed eq. 3.8
+    without the -M g, which the rigid-body simulator applies), p_rod [Pa] the rod side's pressure (P_s
+    with the 3-way valve, P2 with the 4-way)."""
+    return p1 * P.a1 - p_rod * P.a2 - friction(ydot, P)
 
 
 @_inline
@@ -294,10 +343,11 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
     the supply manifold of each leg; ``supply_flow`` (n,) out: the flow phi_s [m^3/s] drawn from
     manifold g in entry g (computed with a supply model, R_s > 0).
 
-    Order: spool play, spool dynamics, P1 (:func:`pressure_step`), then the supply pressure of each
-    manifold (exact first-order update, dP_s/dt = (P_s0 - R_s phi_s - P_s) / tau_s, with the step's
-    supply flow phi_s = sum of phi_PA + C_l (P_s - P1) - ydot A2), then the leg force with the new P1
-    and P_s (:func:`leg_force`).
+    Order: spool play, spool dynamics, P1 (:func:`pressure_step`) and, with a 4-way valve, P2
+    (:func:`rod_pressure_step`, from P1 at the step's start), then the supply pressure of each manifold
+    (exact first-order update, dP_s/dt = (P_s0 - R_s phi_s - P_s) / tau_s, with the step's supply flow
+    phi_s = sum of phi_PA + C_l (P_s - P1) - ydot A2 (3-way) or phi_PA + phi_PB (4-way)), then the leg
+    force with the new P1 and P_s or P2 (:func:`leg_force`). With the 3-way valve P2 is set to P_s.
 
     Timing: the force from the new P1 acts over the mechanics step that follows (MuJoCo's semi-implicit
     Euler), so P1 is staggered half a step from y, ydot (leapfrog: P1 steps from t - h/2 to t + h/2 with
@@ -307,7 +357,7 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
     early: on the default heave at 1e-4 s, against 1e-5 s, the worst single buffered reversal peak was
     2.13 % off, 0.44 % with the split (roll/pitch/yaw/surge/sway: 1.5–4.2 % before, 0.5–1.7 % after).
     A spool with dynamics (f_v > 0) moves every step; its flow uses the step's end position."""
-    p1, p_s, x_v = S.p1, S.p_s, S.x_v
+    p1, p_s, p2, x_v = S.p1, S.p_s, S.p2, S.x_v
     n = p1.shape[0]
     supply = P[0]
     if supply.r_s > 0.0:
@@ -317,21 +367,42 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
         x_old = x_v[i]
         _spool_step(i, u[i], dt, S, Pi)
         if Pi.f_v == 0.0 and x_v[i] != x_old:  # the valve switched at this step's start: see Timing
-            p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_old, p_s[i], y[i], ydot[i], 0.5 * dt, Pi)
-            p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_v[i], p_s[i], y[i], ydot[i], 0.5 * dt, Pi)
+            _chambers(i, x_old, y[i], ydot[i], 0.5 * dt, S, Pi)
+            _chambers(i, x_v[i], y[i], ydot[i], 0.5 * dt, S, Pi)
         else:
-            p1[i], S.v_c[i] = pressure_step(p1[i], S.v_c[i], x_v[i], p_s[i], y[i], ydot[i], dt, Pi)
+            _chambers(i, x_v[i], y[i], ydot[i], dt, S, Pi)
         if supply.r_s > 0.0:
+            areas = flow_areas(S.x_v[i], Pi)
             dps = S.p_s[i] - S.p1[i]
-            phi_pa = edge_flow(flow_areas(S.x_v[i], Pi)[0] * Pi.k_pa, dps, Pi)[0]
-            supply_flow[groups[i]] += phi_pa + Pi.c_l * dps - ydot[i] * Pi.a2
+            phi_pa = edge_flow(areas[0] * Pi.k_pa, dps, Pi)[0]
+            if Pi.four_way > 0.5:
+                supply_flow[groups[i]] += phi_pa + edge_flow(areas[1], S.p_s[i] - p2[i], Pi)[0]
+            else:
+                supply_flow[groups[i]] += phi_pa + Pi.c_l * dps - ydot[i] * Pi.a2
     if supply.r_s > 0.0:
         decay = math.exp(-dt / supply.tau_s)
         for i in range(n):
             target = supply.p_s0 - supply.r_s * supply_flow[groups[i]]
             S.p_s[i] = max(target + (S.p_s[i] - target) * decay, supply.p_t)
     for i in range(n):
-        force[i] = leg_force(p1[i], p_s[i], ydot[i], P[i])
+        if P[i].four_way > 0.5:
+            force[i] = leg_force(p1[i], p2[i], ydot[i], P[i])
+        else:
+            p2[i] = p_s[i]
+            force[i] = leg_force(p1[i], p_s[i], ydot[i], P[i])
+
+
+@_inline
+def _chambers(i, x_v, y, ydot, dt, S, P):
+    """Leg i's chamber pressures over dt [s] at spool position x_v [m], in place in the state S: P1
+    (:func:`pressure_step`) and, with a 4-way valve, P2 (:func:`rod_pressure_step`), both from the
+    pressures at the step's start."""
+    if P.four_way > 0.5:
+        p1_old = S.p1[i]
+        S.p1[i], S.v_c[i] = pressure_step(p1_old, S.v_c[i], x_v, S.p_s[i], y, ydot, dt, P, S.p2[i])
+        S.p2[i], S.v_c2[i] = rod_pressure_step(S.p2[i], S.v_c2[i], x_v, S.p_s[i], p1_old, y, ydot, dt, P)
+    else:
+        S.p1[i], S.v_c[i] = pressure_step(S.p1[i], S.v_c[i], x_v, S.p_s[i], y, ydot, dt, P, S.p_s[i])
 
 
 def step_plant(state: PlantState, u_v, y, ydot, dt: float, hyd: HydraulicParams, eff: Effects,

@@ -20,6 +20,7 @@ import numpy as np
 from hexsim.errors import InputError
 
 FlowArea = Literal["smooth", "quadratic", "sharp"]
+ValveType = Literal["3-way", "4-way"]
 
 
 def _check_positive(obj, *names: str) -> None:
@@ -40,8 +41,14 @@ def _check_nonnegative(obj, *names: str) -> None:
 class HydraulicParams:
     """One valve-controlled asymmetric cylinder of the Micro Motion System (seed ch. 3, app. A).
 
-    The 3/3 proportional valve feeds the bottom chamber (area A1); the rod side (area A2) sees the supply
-    pressure P_s directly (seed Fig. 3.1).
+    ``valve_type="3-way"`` (the seed's, default): the 3/3 proportional valve feeds the bottom chamber
+    (area A1); the rod side (area A2) sees the supply pressure P_s directly (seed Fig. 3.1).
+    ``valve_type="4-way"``: a 4/3 valve on a differential cylinder, as most servo-hydraulic rigs: the
+    spool that opens P→A opens B→T with the same area, and A→T with P→B; both chamber pressures P1 (cap
+    side, A) and P2 (rod side, B) are integrated (eq. 3.7 for each chamber, the rod side's volume
+    (L_s - y) A2 + V_pl,B). Its port, overlap and flow area are the same fields as the 3-way valve's
+    (a symmetric, matched spool); for ``flow_area="sharp"`` a negative ``overlap`` is an underlap.
+    A data sheet's rated flow converts to these fields in :mod:`hexsim.machine`.
     """
 
     supply_pressure: float = 7.0e6  # P_s [Pa], seed app. A (70 bar, seed §2.2.2)
@@ -52,6 +59,12 @@ class HydraulicParams:
     rod_diameter: float = 0.03  # d_r [m]: A2 = pi/4 (D^2 - d_r^2), seed app. A
     bulk_modulus: float = 1.5e9  # E [Pa], seed app. A
     pipeline_volume: float = 5e-7  # V_pl [m^3], seed app. A (l = 65 mm, seed eq. 3.1)
+    # 3-way: the seed's valve, rod side at supply; 4-way: both chambers fed and drained by the valve
+    valve_type: ValveType = "3-way"
+    pipeline_volume_rod: float = 5e-7  # V_pl,B [m^3], dead volume of the rod side (4-way only); the cap
+    # side's pipeline volume repeated, as the seed gives one line length (seed eq. 3.1)
+    stroke: float = 0.2  # L_s [m], cylinder stroke: the rod side's volume (L_s - y) A2 + V_pl,B (4-way
+    # only); seed app. A (0.2 m). The MJCF's joint range is the rigid-body stroke.
     u_v_max: float = 10.0  # u_v,max [V], seed app. A
     x_v_max: float = 1.1e-3  # x_v,max [m], seed app. A
     overlap: float = 5e-6  # O_l [m], overlap at mid-position, seed app. A
@@ -93,6 +106,8 @@ class HydraulicParams:
             "bore_diameter",
             "bulk_modulus",
             "pipeline_volume",
+            "pipeline_volume_rod",
+            "stroke",
             "u_v_max",
             "x_v_max",
             "spool_diameter",
@@ -105,7 +120,6 @@ class HydraulicParams:
             self,
             "tank_pressure",
             "rod_diameter",
-            "overlap",
             "viscous_pos",
             "viscous_neg",
             "coulomb_pos",
@@ -120,6 +134,17 @@ class HydraulicParams:
             )
         if not (math.isfinite(self.null_offset) and abs(self.null_offset) < self.u_v_max):
             raise InputError(f"HydraulicParams.null_offset must be inside ±u_v_max, got {self.null_offset!r}")
+        if not (isinstance(self.overlap, (int, float)) and math.isfinite(self.overlap)):
+            raise InputError(f"HydraulicParams.overlap must be a finite number, got {self.overlap!r}")
+        if self.overlap < 0 and self.flow_area != "sharp":
+            raise InputError(
+                f"HydraulicParams.overlap {self.overlap!r} m: an underlap (negative overlap) needs the sharp-edged "
+                f"flow area (flow_area='sharp', eq. 3.3); the smooth area (3.11) has no opening at x_v = 0")
+        if self.overlap <= -self.x_v_max:
+            raise InputError(f"HydraulicParams.overlap ({self.overlap} m): an underlap must be smaller than the "
+                             f"spool stroke x_v_max ({self.x_v_max} m)")
+        if self.valve_type not in ("3-way", "4-way"):
+            raise InputError(f"HydraulicParams.valve_type must be '3-way' or '4-way', got {self.valve_type!r}")
         if self.overlap >= self.x_v_max:
             raise InputError(
                 f"HydraulicParams.overlap ({self.overlap} m) must be smaller than the spool stroke x_v_max "
@@ -169,6 +194,11 @@ class HydraulicParams:
     def area_rod(self) -> float:
         """A2 [m^2], annulus area on the rod side (seed app. A: pi/4 * (0.04^2 - 0.03^2))."""
         return math.pi / 4 * (self.bore_diameter**2 - self.rod_diameter**2)
+
+    @property
+    def four_way(self) -> bool:
+        """Whether both chambers are fed by the valve (``valve_type == "4-way"``)."""
+        return self.valve_type == "4-way"
 
     @functools.cached_property
     def orifice_constant(self) -> float:

@@ -67,6 +67,9 @@ class RunConfig:
     # model built from the MJCF (hexsim.plant.platform), ~4x faster; "full", the multi-body MJCF with leg
     # bodies and closing constraints, the reference it is tested against (tests/test_platform.py)
     model: str = "platform"
+    # the machine the parameters came from, as hexsim.plant.machine.load_machine reads it back (a built-in's
+    # name or a machine file's path; Machine.spec); outputs name it. None: parameters given in Python
+    machine: str | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.scenario, str):
@@ -87,6 +90,29 @@ class RunConfig:
             divider(self.record_rate_hz or 1000.0, self.timestep, f"record rate (timestep {self.timestep:g} s)")
 
 
+    @classmethod
+    def from_machine(cls, machine, scenario: Scenario | str, **options) -> "RunConfig":
+        """A run of ``scenario`` on ``machine`` (a :class:`hexsim.plant.machine.Machine`, a machine file or a
+        built-in's name): its hydraulics, controller and effects, named in the outputs; ``options`` are the
+        other fields (compensator, seed, timestep, …). Raises InputError for a machine file that is not
+        valid."""
+        from hexsim.plant.machine import Machine, load_machine
+
+        m = machine if isinstance(machine, Machine) else load_machine(machine)
+        return cls(scenario, hydraulics=m.hydraulics, controller=m.controller, effects=m.effects, machine=m.spec,
+                   **options)
+
+    @property
+    def machine_label(self) -> str:
+        """The machine as outputs name it: the machine file or built-in the run came from, or for
+        parameters given in Python the built-in default or "… with parameters changed in Python"."""
+        if self.machine is not None:
+            return self.machine
+        if (self.hydraulics == HydraulicParams() and self.controller == ControllerParams()
+                and self.effects == Effects() and not self.leg_changes):
+            return "micro_motion_system"
+        return "micro_motion_system with parameters changed in Python"
+
     @property
     def compensator_name(self) -> str:
         """The compensator's name for reports: the built-in's, or a user class's ``name`` (else its
@@ -106,7 +132,8 @@ class SimulationResult:
     platform-only model the legs' computed from the platform's pose and velocity); y_ref:
     piston setpoint in force (ZOH) [m] (with a sensor delay, y is the delayed measurement and ydot the
     true velocity); u_v: valve setpoint [V]; u_c: compensation voltage [V]; p1: bottom-chamber pressure
-    [Pa]; p_s: supply pressure (N,) [Pa] (of the first manifold); force: hydraulic leg force [N]; acc:
+    [Pa] (cap side); p2: rod-side pressure [Pa] (integrated with a 4-way valve, P_s with the seed's 3-way);
+    p_s: supply pressure (N,) [Pa] (of the first manifold); force: hydraulic leg force [N]; acc:
     accelerometer, site frame, specific force [m/s^2]; gyro [rad/s] and angacc [rad/s^2] (world) of the
     platform (hexapod only); pose: measured platform pose (N, 6) rel. neutral; pose_ref: commanded pose;
     constraint_violation: largest connect violation [m] per sample (0 on the platform-only model, which
@@ -122,6 +149,7 @@ class SimulationResult:
     u_v: np.ndarray
     u_c: np.ndarray
     p1: np.ndarray
+    p2: np.ndarray
     p_s: np.ndarray
     force: np.ndarray
     acc: np.ndarray
@@ -171,9 +199,14 @@ class HydraulicCoupling:
     """
 
     def __init__(self, idx: PlantIndex, config: RunConfig, controller: PController, schedule: ControlSchedule,
-                 p1_initial: np.ndarray, plant: PlantTruth | None = None, faults: FaultInjector | None = None) -> None:
+                 p1_initial: np.ndarray, plant: PlantTruth | None = None, faults: FaultInjector | None = None,
+                 p2_initial: np.ndarray | None = None, valve: np.ndarray | None = None,
+                 start_y: np.ndarray | None = None) -> None:
         """``config`` gives the plant (hydraulics, effects, leg changes, warm-up); ``schedule`` the
-        controller's setpoints and sensor noise; ``p1_initial`` (n_legs,) [Pa] the start pressures;
+        controller's setpoints and sensor noise; ``p1_initial``, ``p2_initial`` (n_legs,) [Pa] the start
+        pressures (P2 default: P_s, the 3-way valve's); ``valve`` (n_ticks, n_legs) [V]: the valve setpoints
+        of an open-loop run, one per controller sample (None: the P controller); ``start_y`` (n_legs,) [m]
+        the pistons' start (None: the neutral pose);
         ``plant`` the truth an oracle compensator reads (updated as the oil warms)."""
         hyd, warm_up = config.hydraulics, config.warm_up
         self.idx = idx
@@ -190,9 +223,11 @@ class HydraulicCoupling:
         self.leg_changes = tuple(config.leg_changes)
         self.groups = np.zeros(idx.n_legs, dtype=np.intp)  # one supply manifold for all legs
         n = idx.n_legs
-        self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd)
+        self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd, p2=p2_initial)
         delay_steps = int(round(self.effects.sensor_delay / self.dt))
-        self._y_history = np.tile(np.asarray(idx.neutral_y, dtype=float), (delay_steps + 1, 1))
+        start = idx.neutral_y if start_y is None else start_y
+        self._y_history = np.tile(np.asarray(start, dtype=float), (delay_steps + 1, 1))
+        self.valve = valve
         self.y_measured = self._y_history[0].copy()
         self.u_v = np.zeros(n)
         self.u_c = np.zeros(n)
@@ -251,7 +286,11 @@ class HydraulicCoupling:
         if inj:
             self.r = inj.setpoint(t_k, self.r)
             seen = inj.measured(t_k, seen)
-        self.u_v, self.u_c = self.controller.sample(self.r, seen)
+        if self.valve is None:
+            self.u_v, self.u_c = self.controller.sample(self.r, seen)
+        else:  # open loop: the given command, saturated like the controller's
+            u_max = hyd.u_v_max
+            self.u_v, self.u_c = np.clip(self.valve[j], -u_max, u_max), np.zeros(self.idx.n_legs)
         self.supply_level = None
         if inj:
             self.u_v = inj.valve(t_k, self.u_v)
@@ -364,13 +403,19 @@ def _platform_static_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex
 OMEGA_DT_LIMIT = 1.5
 
 
-def check_timestep(mobility: np.ndarray, y_min: np.ndarray, hyd: HydraulicParams, dt: float) -> None:
+def check_timestep(mobility: np.ndarray, y_min: np.ndarray, hyd: HydraulicParams, dt: float,
+                   y_max: np.ndarray | None = None) -> None:
     """InputError if the step dt [s] cannot integrate the oil springs of the legs at their lowest piston
-    setpoints y_min (n_legs,) [m]: stiffness E A1^2 / (y A1 + V_pl) per leg (seed eq. 3.7), stiffest mode
+    setpoints y_min (n_legs,) [m]: stiffness E A1^2 / (y A1 + V_pl) per leg (seed eq. 3.7; with a 4-way
+    valve plus the rod side's E A2^2 / ((L_s - y_max) A2 + V_pl,B) at the highest setpoints y_max), stiffest mode
     ω = sqrt(max eig(A K)) with A the legs' mobility (:func:`leg_mobility`); refused if ω dt exceeds
     :data:`OMEGA_DT_LIMIT`. The message names the bound, the leg, its lowest setpoint and the step that
     would do."""
     stiffness = hyd.bulk_modulus * hyd.area_bottom**2 / hydraulics.chamber_volume(y_min, hyd)
+    if hyd.four_way:
+        y_max = y_min if y_max is None else y_max
+        rod_volume = np.maximum(hyd.stroke - np.asarray(y_max, dtype=float), 0.0) * hyd.area_rod + hyd.pipeline_volume_rod
+        stiffness = stiffness + hyd.bulk_modulus * hyd.area_rod**2 / rod_volume
     modes, shapes = np.linalg.eig(mobility @ np.diag(stiffness))
     k = int(np.argmax(modes.real))
     omega = float(np.sqrt(max(modes.real[k], 0.0)))
@@ -396,8 +441,11 @@ def _shorter_step(omega: float) -> float:
 def piston_setpoints(m: mujoco.MjModel, idx: PlantIndex, scenario: Scenario, t: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """Piston setpoints (N, n_legs) [m] at times t (N,) [s], and the platform poses (N, 6) (hexapod) or None.
 
+    Open loop (a ``valve:`` scenario): no setpoint, NaN.
     Raises WorkspaceError naming the leg and length if a setpoint leaves the stroke.
     """
+    if scenario.open_loop:
+        return np.full((len(t), idx.n_legs), np.nan), None
     if scenario.legs is not None:
         times, values = scenario.legs
         if values.shape[1] != idx.n_legs:

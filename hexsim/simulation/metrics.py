@@ -144,3 +144,32 @@ def run_smoothness(result: SimulationResult, t_start: float | None = None) -> Sm
 def max_tracking_error(result: SimulationResult) -> float:
     """Largest |piston setpoint − measured piston position| over all legs and the whole run [m]."""
     return float(np.max(np.abs(result.y_ref - result.y)))
+
+
+def steady_segments(t: np.ndarray, u_v: np.ndarray, y: np.ndarray, pressures: dict[str, np.ndarray] | None = None,
+                    *, middle: float = 0.5, min_samples: int = 50) -> list[dict]:
+    """The steady motions of an open-loop experiment: for each stretch of constant valve setpoint
+    (|u_v| > 0.05 V), the samples in the middle ``middle`` fraction of the piston's observed range
+    (away from the end stops, after the start transient), their speed (slope of a straight-line fit of
+    the position, m/s) and the median of each pressure channel ``pressures`` (name -> (N,) [Pa]). t, u_v,
+    y: (N,) [s, V, m]. The same function reads a measured log and a simulated run, so the two compare
+    sample for sample. Stretches with fewer than ``min_samples`` such samples are left out. Returns a
+    list of dicts: u_V, t_start_s, t_end_s, samples, velocity_mps and each pressure name."""
+    lo, hi = float(np.min(y)), float(np.max(y))
+    band = (lo + 0.5 * (1 - middle) * (hi - lo), hi - 0.5 * (1 - middle) * (hi - lo))
+    change = np.flatnonzero(np.diff(u_v) != 0) + 1
+    bounds = np.concatenate([[0], change, [len(t)]])
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if abs(u_v[a]) <= 0.05:
+            continue
+        inside = np.arange(a, b)[(y[a:b] > band[0]) & (y[a:b] < band[1])]
+        if len(inside) < min_samples:
+            continue
+        slope = np.polynomial.polynomial.polyfit(t[inside], y[inside], 1)[1]
+        row = {"u_V": float(u_v[a]), "t_start_s": float(t[inside[0]]), "t_end_s": float(t[inside[-1]]),
+               "samples": int(len(inside)), "velocity_mps": float(slope)}
+        for name, p in (pressures or {}).items():
+            row[name] = float(np.median(p[inside]))
+        out.append(row)
+    return out

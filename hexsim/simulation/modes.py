@@ -47,7 +47,7 @@ class Mode:
 def oil_spring_modes(hyd: HydraulicParams | None = None, effects: Effects | None = None) -> list[Mode]:
     """The hexapod's oil-spring modes at the neutral pose, lowest first (six of them), with the payload of
     ``effects`` (:func:`hexsim.plant.model.apply_load`) and the bulk modulus, areas and pipeline volume of
-    ``hyd`` (default the seed's, app. A). Raises InputError for a payload the platform cannot take."""
+    ``hyd`` (default the seed's, app. A; with a 4-way valve the rod side's column in parallel). Raises InputError for a payload the platform cannot take."""
     hyd = hyd or HydraulicParams()
     m = load_model("hexapod", effects=effects or Effects())
     d = mujoco.MjData(m)
@@ -56,6 +56,9 @@ def oil_spring_modes(hyd: HydraulicParams | None = None, effects: Effects | None
     reset_neutral(m, d)
     mobility, _ = leg_mobility(m, d, idx)
     stiffness = hyd.bulk_modulus * hyd.area_bottom**2 / (idx.neutral_y * hyd.area_bottom + hyd.pipeline_volume)
+    if hyd.four_way:  # the rod side's oil column is a second spring in parallel
+        stiffness = stiffness + hyd.bulk_modulus * hyd.area_rod**2 / (
+            (hyd.stroke - idx.neutral_y) * hyd.area_rod + hyd.pipeline_volume_rod)
     w2, vectors = np.linalg.eig(mobility @ np.diag(stiffness))
     if np.any(np.abs(w2.imag) > 1e-9 * np.abs(w2.real)) or np.any(w2.real <= 0):
         raise InputError("the linearised hexapod has modes that are not oscillatory (inertia or stiffness not positive)")

@@ -124,7 +124,7 @@ class Control(NamedTuple):
 
 class Recorder(NamedTuple):
     """Rows the kernel writes every ``div`` physics steps, ``n_total`` samples in all, kept as a ring of
-    len(k) rows (sample r goes to row r % len(k)): step k, sensordata, P1 (n), P_s of leg 0, leg force,
+    len(k) rows (sample r goes to row r % len(k)): step k, sensordata, P1 (n), P_s of leg 0, P2 (n), leg force,
     measured position, piston velocity, connect violation [m], setpoint, u_v, U_c, compensator (a, b, c, s) (rows, 4, n);
     ``status[0]``: the first step whose state is not finite, else -1. The accelerometer's entries of
     sensordata (``acc_adr``) are recorded at t_k as the mean over the sample interval before it, the steps
@@ -138,6 +138,7 @@ class Recorder(NamedTuple):
     sens: np.ndarray
     p1: np.ndarray
     p_s: np.ndarray
+    p2: np.ndarray
     force: np.ndarray
     y: np.ndarray
     ydot: np.ndarray
@@ -152,13 +153,14 @@ class Recorder(NamedTuple):
 
 
 class ReplayOut(NamedTuple):
-    """Outputs of :func:`valve_replay`, each (k legs, n rows): position [m], P1 [Pa], P_s [Pa] and
-    acceleration [m/s^2] of each leg."""
+    """Outputs of :func:`valve_replay`, each (k legs, n rows): position [m], P1 [Pa], P_s [Pa],
+    acceleration [m/s^2] and P2 [Pa] (rod side) of each leg."""
 
     position: np.ndarray
     p1: np.ndarray
     p_s: np.ndarray
     acceleration: np.ndarray
+    p2: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -187,6 +189,7 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
                     out.position[i, j] = y[i]
                     out.p1[i, j] = S.p1[i]
                     out.p_s[i, j] = S.p_s[i]
+                    out.p2[i, j] = S.p2[i]
             step_legs(P, dt, u_sched[:, j], y, yd, S, force, groups, supply_flow)
             for i in range(k):
                 ctrl[aadr[i]] = force[i]
@@ -295,13 +298,14 @@ def _control_sample(ctl, P, y_meas, k, out):
 
 @numba.njit(cache=True, inline="always")
 def _record_state(rec, w, k, S, y_meas, yd, ctl, j, out):
-    """Row ``w`` of the :class:`Recorder`: the state at t_k (P1, P_s, measured position, ẏ) and, with the
+    """Row ``w`` of the :class:`Recorder`: the state at t_k (P1, P_s, P2, measured position, ẏ) and, with the
     controller inside, the sample's setpoint, u_v, U_c and the compensator's (a, b, c, s)."""
     u, u_c, stat, _, _ = out
     rec.k[w] = k
     rec.p_s[w] = S.p_s[0]
     for i in range(S.p1.shape[0]):
         rec.p1[w, i] = S.p1[i]
+        rec.p2[w, i] = S.p2[i]
         rec.y[w, i] = y_meas[i]
         rec.ydot[w, i] = yd[i]
         if ctl.div > 0:

@@ -31,7 +31,7 @@ from compensation import PlantTruth, SettingsError, make_compensator
 from compensation.base import Compensator, ReplayedCompensation
 from hexsim.control.controller import PController
 from hexsim.control.kinematics import HexapodGeometry
-from hexsim.errors import InputError, PhysicsError
+from hexsim.errors import InputError, PhysicsError, WorkspaceError
 from hexsim.plant import hydraulics
 from hexsim.plant.faults import FaultInjector
 from hexsim.plant.legs import PlantState
@@ -42,6 +42,7 @@ from hexsim.plant.model import (
     reset_neutral,
 )
 from hexsim.plant.platform import with_end_stops
+from hexsim.signals import zero_order_hold
 from hexsim.simulation import native
 from hexsim.simulation.config import (
     ControlSchedule,
@@ -56,7 +57,7 @@ from hexsim.simulation.config import (
 )
 
 #: recorded channels of shape (samples, n_legs)
-_LEG_CHANNELS = ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "force")
+_LEG_CHANNELS = ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "p2", "force")
 
 
 class Simulator:
@@ -97,27 +98,53 @@ class Simulator:
         cfg, m, d, idx = self.config, self.model, self.data, self.idx
         sc, hyd, cp = cfg.scenario, cfg.hydraulics, cfg.controller
         n_ticks = int(math.ceil(sc.duration * cp.rate_hz)) + 1
-        setpoints, _ = piston_setpoints(m, idx, sc, np.arange(n_ticks) / cp.rate_hz)
+        ticks = np.arange(n_ticks) / cp.rate_hz
+        setpoints, _ = piston_setpoints(m, idx, sc, ticks)
         noise = np.random.default_rng(cfg.seed).normal(0.0, cp.position_noise, size=setpoints.shape)
+        valve = None
+        if sc.open_loop:
+            if cfg.compensator != "none" or cfg.feedforward is not None:
+                raise InputError(f"scenario {sc.name} is open loop (valve setpoints given): no compensator applies")
+            times, values = sc.valve
+            if values.shape[1] != idx.n_legs:
+                raise InputError(f"scenario {sc.name} has {values.shape[1]} valve columns, the model {idx.n_legs} legs")
+            valve = zero_order_hold(times, values, ticks)
         mujoco.set_mjcb_control(None)
         reset_neutral(m, d)
+        if sc.start is not None:
+            lo, hi = idx.stroke[:, 0], idx.stroke[:, 1]
+            if np.any((sc.start < lo) | (sc.start > hi)):
+                raise WorkspaceError(f"scenario {sc.name} starts at piston position {sc.start[0]:.4f} m, outside the "
+                                     f"stroke {lo[0]:g}…{hi[0]:g} m")
+            d.qpos[idx.qpos_adr] = sc.start
+            mujoco.mj_forward(m, d)
         mobility, _ = leg_mobility(m, d, idx)
         if idx.platform_only:  # end stops as stiff as the full model's limits on the legs' effective mass
             self.idx = idx = dataclasses.replace(idx, legs=with_end_stops(m, idx.legs, 1.0 / np.diag(mobility)))
-        check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt)
-        p1_0 = hydraulics.equilibrium_pressure(static_leg_forces(m, d, idx), hyd)
-        for i, p in enumerate(p1_0):
-            if not hyd.tank_pressure < p < hyd.supply_pressure:
-                raise PhysicsError(
-                    f"leg{i + 1} needs P1 = {p / 1e5:.1f} bar to hold the neutral pose, outside tank…supply "
-                    f"({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)")
-        self.p1_initial = p1_0
+        travel = idx.stroke[:, 1] - idx.stroke[:, 0]
+        if np.any(np.abs(travel - hyd.stroke) > 1e-6 * hyd.stroke):
+            leg = int(np.argmax(np.abs(travel - hyd.stroke)))
+            raise InputError(f"cylinder stroke {hyd.stroke:g} m (machine {cfg.machine_label}) is not the model's: leg{leg + 1} "
+                             f"travels {travel[leg]:g} m (its joint range); the machine file's cylinder.stroke_m must "
+                             f"match the model it runs on")
+        if sc.open_loop:  # anywhere in the stroke
+            check_timestep(mobility, idx.stroke[:, 0], hyd, self.dt, idx.stroke[:, 1])
+        else:
+            check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt, setpoints.max(axis=0))
+        p1_0, p2_0 = hydraulics.rest_pressures(static_leg_forces(m, d, idx), hyd)
+        for i, (p, name) in enumerate([(p, "P1") for p in p1_0] + [(p, "P2") for p in p2_0]):
+            if hyd.four_way or name == "P1":
+                if not hyd.tank_pressure < p < hyd.supply_pressure:
+                    raise PhysicsError(
+                        f"leg{i % idx.n_legs + 1} needs {name} = {p / 1e5:.1f} bar to hold the neutral pose, outside "
+                        f"tank…supply ({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)")
+        self.p1_initial, self.p2_initial = p1_0, p2_0
         plant = PlantTruth(params=hyd, p1_static=p1_0.copy(), flow_curve=hydraulics.static_velocity)
         self.compensator = _make_compensator(cfg, idx.n_legs, plant)
         controller = PController(cp, hyd.u_v_max, self.compensator)
         injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
         self.coupling = HydraulicCoupling(idx, cfg, controller, ControlSchedule(setpoints, noise, self.ctrl_div), p1_0,
-                                          plant, injector)
+                                          plant, injector, p2_0, valve, sc.start)
 
     def _setup_recording(self) -> None:
         cfg, n = self.config, self.idx.n_legs
@@ -154,7 +181,7 @@ class Simulator:
                                 coupling.groups, np.zeros(n), coupling._y_history, np.zeros(n))
         # without faults or warming oil, the P controller and the compensator run inside the kernel as well
         mode = native.comp_mode(self.compensator)
-        self.inner = mode is not None and not coupling.faults and coupling.warm_up is None
+        self.inner = mode is not None and not coupling.faults and coupling.warm_up is None and coupling.valve is None
         comp = self.compensator
         self.ctl = native.Control(self.ctrl_div if self.inner else 0, coupling.controller.params.kp,
                                   coupling.setpoints, coupling.noise, mode or 0, native.kernel_state(comp, n),
@@ -162,7 +189,7 @@ class Simulator:
         n_rec, rec = len(self.rec["t"]), self.rec
         self.recorder = native.Recorder(
             self.rec_div, self.n_total, np.zeros(n_rec, dtype=np.int64), np.zeros((n_rec, m.nsensordata)), rec["p1"],
-            rec["p_s"], rec["force"], rec["y"], rec["ydot"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
+            rec["p_s"], rec["p2"], rec["force"], rec["y"], rec["ydot"], rec["viol"], rec["y_ref"], rec["u_v"], rec["u_c"],
             np.empty((n_rec if self.inner and mode == 1 else 1, 4, n)), np.full(1, -1, dtype=np.int64),
             self._acc_adr, np.zeros(len(self._acc_adr) + 1))
         mujoco.mj_forward(m, d)
@@ -230,7 +257,7 @@ class Simulator:
         try:
             for i in range(self.rows, k_end // self.rec_div):
                 w = i % len(rec["t"])
-                p1_before, p_s_before = coupling.state.p1.copy(), coupling.state.p_s[0]
+                p1_before, p_s_before, p2_before = coupling.state.p1.copy(), coupling.state.p_s[0], coupling.state.p2.copy()
                 self._python_steps(1)  # step k = i * rec_div: the sensors see t_k
                 sd = d.sensordata
                 rec["t"][w] = i * self.rec_div * self.dt
@@ -238,6 +265,7 @@ class Simulator:
                 rec["ydot"][w] = coupling.ydot
                 rec["y_ref"][w], rec["u_v"][w], rec["u_c"][w] = coupling.r, coupling.u_v, coupling.u_c
                 rec["p1"][w], rec["p_s"][w], rec["force"][w] = p1_before, p_s_before, coupling.force
+                rec["p2"][w] = p2_before
                 rec["temperature"][w] = coupling.temperature
                 for key, value in self.compensator.state().items():
                     self.comp_state[key][w] = value

@@ -1,0 +1,440 @@
+"""Machine files: everything hexsim assumes about one machine, in one versioned JSON file.
+
+A machine file describes the valve (3-way as the seed's, or 4-way), the cylinder, the oil, the supply, the
+friction per direction, the load, the sensors and the controller of a machine (``docs/machine-file.md``
+lists every key with its unit, default and source). Every command takes one (``--machine FILE`` or the
+name of a built-in); a measurement log's sidecar may name its own (``"machine": "PATH"``, relative to the
+log). The built-in default, ``micro_motion_system``, is the seed's appendix A, and a run from it is
+bit-identical to one with the dataclasses' defaults.
+
+The file is a JSON object: ``format`` ("hexsim-machine"), ``version`` (1), ``name``, ``description``,
+``system`` ("hexapod" or "single-actuator"), ``sources`` (optional: key -> where its value comes from, a
+data sheet, a measurement, a guess), and sections ``valve``, ``cylinder``, ``oil``, ``supply``,
+``friction`` (``positive``/``negative`` per direction), ``load``, ``sensors``, ``controller``. Keys carry
+their SI unit as a suffix (``cylinder.bore_m``, ``supply.pressure_Pa``). Keys left out take the built-in
+default and are listed in :attr:`Machine.defaulted`; a key set to ``null`` where the table allows it means
+"not given" (``load.mass_kg``: the model's moving mass). The keys map onto
+:class:`~hexsim.plant.params.HydraulicParams`, :class:`~hexsim.plant.params.ControllerParams` and
+:class:`~hexsim.plant.effects.Effects`, which check the physics (a rod not smaller than the bore, a
+negative volume); every problem is one :class:`~hexsim.errors.InputError` naming the file, the key and the
+value.
+
+A valve as a data sheet gives it: ``valve.rated_flow_m3ps`` Q_N through one control edge at
+``valve.rated_dp_Pa`` Δp_N across that edge at full command (the "per land" convention of Moog and
+Rexroth servo-valve data sheets, e.g. Q_N at 35 bar per land) sets the port width w of the sharp-edged
+opening a = w (x_v - O_l) (seed eq. 3.3): w = Q_N / (C_d (x_v,max - O_l) sqrt(2 Δp_N / rho)), from the
+orifice equation (3.4). It replaces ``valve.spool_diameter_m`` (set that to null).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import json
+import math
+import os
+import pathlib
+from dataclasses import dataclass, field
+
+from hexsim.errors import InputError
+from hexsim.plant.effects import Effects
+from hexsim.plant.params import ControllerParams, HydraulicParams
+
+FORMAT = "hexsim-machine"
+VERSION = 1
+SYSTEMS = ("hexapod", "single-actuator")
+CONTROL_TYPES = ("P", "none")
+DEFAULT_NAME = "micro_motion_system"
+_SEED = "seed app. A"
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a machine file: dotted ``path`` (section.name_unit), the dataclass field it sets
+    (``target`` = (section, field) of hydraulics/controller/effects/machine), its unit, meaning, source,
+    the JSON kind ("number", "text", "flag", "vector") and whether null is allowed."""
+
+    path: str
+    target: tuple[str, str]
+    unit: str
+    meaning: str
+    source: str
+    kind: str = "number"
+    nullable: bool = False
+    choices: tuple[str, ...] = ()
+
+
+def _k(path, target, unit, meaning, source, **kw) -> Key:
+    return Key(path, tuple(target.split(".")), unit, meaning, source, **kw)
+
+
+#: Every key of a machine file, in file order.
+KEYS: tuple[Key, ...] = (
+    _k("valve.type", "hydraulics.valve_type", "-", "3-way (rod side at supply, the seed's) or 4-way (both chambers "
+       "fed by the valve)", "seed Fig. 3.1 (3-way)", kind="text", choices=("3-way", "4-way")),
+    _k("valve.flow_area", "hydraulics.flow_area", "-", "opening against spool position: smooth (3.11 blended onto "
+       "the port), quadratic (3.11 everywhere), sharp (3.3, linear with overlap/underlap)", "seed eq. 3.3, 3.11",
+       kind="text", choices=("smooth", "quadratic", "sharp")),
+    _k("valve.command_range_V", "hydraulics.u_v_max", "V", "valve setpoint at full spool stroke u_v,max", _SEED),
+    _k("valve.spool_stroke_m", "hydraulics.x_v_max", "m", "spool travel at u_v,max x_v,max", _SEED),
+    _k("valve.spool_diameter_m", "hydraulics.spool_diameter", "m", "spool diameter d: port width pi d of the "
+       "full-perimeter opening (null: from the rated flow)", _SEED, nullable=True),
+    _k("valve.rated_flow_m3ps", "machine.rated_flow", "m^3/s", "data sheet: rated flow Q_N through one control "
+       "edge at rated_dp_Pa and full command (null: the port from spool_diameter_m)", "valve data sheet",
+       nullable=True),
+    _k("valve.rated_dp_Pa", "machine.rated_dp", "Pa", "data sheet: pressure drop per control edge (land) at which "
+       "Q_N is rated", "35 bar per land (Moog, Rexroth servo-valve data sheets)"),
+    _k("valve.overlap_m", "hydraulics.overlap", "m", "overlap O_l at mid-position (negative: underlap, sharp area "
+       "only)", _SEED),
+    _k("valve.null_offset_V", "hydraulics.null_offset", "V", "setpoint that centres the spool u_0", "seed §5.3 (0)"),
+    _k("valve.smooth_area_gain", "hydraulics.smooth_area_gain", "m^2/m^2", "k_a of the smooth area a = k_a x_v^2",
+       "seed eq. 3.11 (300)"),
+    _k("valve.discharge_coefficient", "hydraulics.discharge_coefficient", "-", "orifice discharge coefficient C_d",
+       _SEED),
+    _k("valve.spool_frequency_Hz", "effects.spool_frequency", "Hz", "spool loop natural frequency f_v (0: ideal "
+       "spool, eq. 3.2)", "seed eq. 3.2 (ideal)"),
+    _k("valve.spool_damping", "effects.spool_damping", "-", "spool loop damping zeta_v", "valve data sheets (0.7)"),
+    _k("valve.spool_play_V", "effects.spool_play", "V", "half width of the backlash before the spool h",
+       "seed §4.4 (none)"),
+    _k("valve.edge_gain_PA", "effects.edge_gain_pa", "-", "flow gain of the supply edge P→A relative to (3.4)",
+       "seed eq. 3.4 (1)"),
+    _k("valve.edge_gain_AT", "effects.edge_gain_at", "-", "flow gain of the return edge A→T relative to (3.4)",
+       "seed eq. 3.4 (1)"),
+    _k("cylinder.bore_m", "hydraulics.bore_diameter", "m", "piston (bore) diameter D: A1 = pi/4 D^2", _SEED),
+    _k("cylinder.rod_m", "hydraulics.rod_diameter", "m", "rod diameter d_r: A2 = pi/4 (D^2 - d_r^2)", _SEED),
+    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; "
+       "must match the model's joint range)", _SEED),
+    _k("cylinder.dead_volume_cap_m3", "hydraulics.pipeline_volume", "m^3", "cap side dead volume (hoses, "
+       "pipeline) V_pl", "seed app. A, eq. 3.1"),
+    _k("cylinder.dead_volume_rod_m3", "hydraulics.pipeline_volume_rod", "m^3", "rod side dead volume V_pl,B "
+       "(4-way)", "as the cap side"),
+    _k("cylinder.leakage_m3psPa", "effects.leakage", "m^3/(s Pa)", "internal leakage across the piston C_l",
+       "seed (none)"),
+    _k("oil.bulk_modulus_Pa", "hydraulics.bulk_modulus", "Pa", "effective bulk modulus E", _SEED),
+    _k("oil.density_kgpm3", "hydraulics.density", "kg/m^3", "oil density rho", "seed app. A (Tellus T46, 35 °C)"),
+    _k("oil.cavitation_pressure_Pa", "hydraulics.cavitation_pressure", "Pa", "lowest chamber pressure (gauge)",
+       "0.1 bar abs. (Gholizadeh et al. 2011)"),
+    _k("oil.air_fraction", "effects.air_fraction", "-", "entrained air per volume at atmospheric pressure",
+       "none"),
+    _k("oil.air_exponent", "effects.air_exponent", "-", "polytropic exponent of that air", "1.4 (adiabatic)"),
+    _k("supply.pressure_Pa", "hydraulics.supply_pressure", "Pa", "supply pressure P_s (gauge)", _SEED),
+    _k("supply.tank_pressure_Pa", "hydraulics.tank_pressure", "Pa", "tank pressure P_t (gauge)", _SEED),
+    _k("supply.resistance_Pa_s_per_m3", "effects.supply_resistance", "Pa s/m^3", "P_s sag per unit supply flow R_s "
+       "(0: ideal supply)", "seed (ideal)"),
+    _k("supply.time_constant_s", "effects.supply_time_constant", "s", "pump/accumulator time constant tau_s",
+       "Merritt §4.13"),
+    *(_k(f"friction.{side}.{name}", f"hydraulics.{attr}_{suffix}", unit, f"{what}, {side} velocity",
+         "seed eq. 3.9, app. A")
+      for side, suffix in (("positive", "pos"), ("negative", "neg"))
+      for name, attr, unit, what in (("viscous_Nspm", "viscous", "N s/m", "viscous coefficient sigma"),
+                                     ("coulomb_N", "coulomb", "N", "Coulomb level F_c0"),
+                                     ("static_N", "static", "N", "Stribeck (static) level F_s0"),
+                                     ("stribeck_velocity_mps", "stribeck_velocity", "m/s", "Stribeck velocity c_s"))),
+    _k("friction.arctan_gain_spm", "hydraulics.arctan_gain", "s/m", "k of arctan(k ydot)", "seed eq. 3.9"),
+    _k("friction.arctan_normalised", "hydraulics.arctan_normalised", "-", "true: (2/pi) arctan, a smoothed sign; "
+       "false: arctan as published", "seed eq. 3.9", kind="flag"),
+    _k("load.mass_kg", "effects.mass_kg", "kg", "moving mass M of a single actuator (null: the model's, 40 kg)",
+       "seed app. A", nullable=True),
+    _k("load.inclination_deg", "effects.inclination_deg", "deg", "single actuator's axis from vertical (null: "
+       "vertical)", "seed eq. 3.8 (vertical)", nullable=True),
+    _k("load.payload_kg", "effects.payload_kg", "kg", "hexapod: mass added to the platform", "none"),
+    _k("load.payload_at_m", "effects.payload_at_m", "m", "hexapod: its centre of gravity, platform frame",
+       "none", kind="vector"),
+    _k("sensors.position_noise_m", "controller.position_noise", "m", "rms white noise of the position sensor",
+       "a transducer's resolution"),
+    _k("sensors.position_delay_s", "effects.sensor_delay", "s", "delay of the position measurement", "none"),
+    _k("controller.type", "machine.control", "-", "P (position loop per leg) or none (open loop: the valve "
+       "command is given)", "seed §2.2.4", kind="text", choices=CONTROL_TYPES),
+    _k("controller.kp_VPm", "controller.kp", "V/m", "P gain K_p", "hexsim (seed §3.3 tuned by hand)"),
+    _k("controller.rate_hz", "controller.rate_hz", "Hz", "controller (or command output) rate", "seed §2.2.4"),
+)
+_BY_PATH = {k.path: k for k in KEYS}
+_META = ("format", "version", "name", "description", "system", "sources")
+
+
+@dataclass(frozen=True)
+class Machine:
+    """One machine: its hydraulics, controller and effects (load and sensors included) as hexsim's
+    dataclasses, with the file's name, description and ``system`` ("hexapod" or "single-actuator").
+    ``control`` "P" or "none" (open loop). ``rated_flow`` [m^3/s] / ``rated_dp`` [Pa]: the data sheet's
+    valve rating when the port width came from it. ``path``: the file (None: built-in); ``defaulted``:
+    the keys the file left out (the built-in default taken)."""
+
+    name: str = DEFAULT_NAME
+    description: str = ("Rexroth-Hydraudyne Micro Motion System: six legs with a 3-way proportional valve, seed "
+                        "appendix A")
+    system: str = "hexapod"
+    hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
+    controller: ControllerParams = field(default_factory=ControllerParams)
+    effects: Effects = field(default_factory=Effects)
+    control: str = "P"
+    rated_flow: float | None = None
+    rated_dp: float = 3.5e6
+    path: pathlib.Path | None = None
+    defaulted: tuple[str, ...] = ()
+    sources: tuple[tuple[str, str], ...] = ()  # (key, where its value comes from) as the file states them
+
+    @property
+    def label(self) -> str:
+        """How outputs name the machine: ``NAME (built-in)`` or ``NAME (PATH)``."""
+        return f"{self.name} ({'built-in' if self.path is None else self.path})"
+
+    @property
+    def open_loop(self) -> bool:
+        return self.control == "none"
+
+    @property
+    def spec(self) -> str:
+        """What :func:`load_machine` reads this machine back from: the built-in's name or the file's path."""
+        return self.name if self.path is None else str(self.path)
+
+    def document(self) -> dict:
+        """The complete machine file as a JSON-ready dict (every key, file order)."""
+        doc: dict = {"format": FORMAT, "version": VERSION, "name": self.name, "description": self.description,
+                     "system": self.system}
+        if self.sources:
+            doc["sources"] = dict(self.sources)
+        for key in KEYS:
+            node = doc
+            *sections, leaf = key.path.split(".")
+            for s in sections:
+                node = node.setdefault(s, {})
+            node[leaf] = _json_value(self._value(key))
+        return doc
+
+    def _value(self, key: Key):
+        section, name = key.target
+        if section == "machine":
+            return getattr(self, {"rated_flow": "rated_flow", "rated_dp": "rated_dp", "control": "control"}[name])
+        if key.path == "valve.spool_diameter_m" and self.rated_flow is not None:
+            return None
+        return getattr(getattr(self, section), name)
+
+
+def _json_value(value):
+    if isinstance(value, tuple):
+        return [float(v) for v in value]
+    return value
+
+
+def builtin_names() -> list[str]:
+    """Names of the machine files shipped with hexsim (``models/machines/*.json``) and the default."""
+    names = {DEFAULT_NAME}
+    folder = _builtin_folder()
+    if folder is not None:
+        names |= {p.stem for p in folder.glob("*.json")}
+    return sorted(names)
+
+
+def _builtin_folder() -> pathlib.Path | None:
+    """``machines/`` of the installed ``hexsim.models`` package, or of the checkout's ``models/``."""
+    spec = importlib.util.find_spec("hexsim.models")
+    if spec is not None and spec.submodule_search_locations:
+        folder = pathlib.Path(list(spec.submodule_search_locations)[0]) / "machines"
+    else:
+        folder = pathlib.Path(__file__).resolve().parents[2] / "models" / "machines"
+    return folder if folder.is_dir() else None
+
+
+def load_machine(spec: str | os.PathLike | None = None, *, relative_to: pathlib.Path | None = None) -> Machine:
+    """The machine ``spec`` names: None or ``micro_motion_system`` the built-in default, the name of
+    another built-in (:func:`builtin_names`), or a path to a machine file (relative to ``relative_to``
+    when given, as a log's sidecar names it). Raises InputError naming the file, key and value."""
+    if spec is None or str(spec) == DEFAULT_NAME:
+        return Machine()
+    path = pathlib.Path(spec)
+    if relative_to is not None and not path.is_absolute():
+        path = relative_to / path
+    if not path.exists() and path.suffix == "" and str(spec) in builtin_names():
+        folder = _builtin_folder()
+        return read_machine(folder / f"{spec}.json", builtin=True)
+    return read_machine(path)
+
+
+def read_machine(path: str | os.PathLike, *, builtin: bool = False) -> Machine:
+    """Read and check the machine file ``path``. Raises InputError (file, key, value) for malformed
+    JSON, a missing or wrong ``format``/``version``, an unknown key, a value of the wrong kind, and
+    anything the parameter dataclasses refuse."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such machine file (built-in machines: {', '.join(builtin_names())})")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno}, column {exc.colno})") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"{path}: {exc}") from None
+    machine = machine_from_document(doc, str(path))
+    return dataclasses.replace(machine, path=None if builtin else path)
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows (NaN and Infinity are refused)")
+
+
+def _flatten(doc: dict, where: str, prefix: str = "") -> dict[str, object]:
+    out = {}
+    for key, value in doc.items():
+        dotted = f"{prefix}{key}"
+        if isinstance(value, dict):
+            if dotted in _BY_PATH:
+                raise InputError(f"{where}: {dotted} must be a value, got an object")
+            out.update(_flatten(value, where, dotted + "."))
+        else:
+            out[dotted] = value
+    return out
+
+
+def machine_from_document(doc: object, where: str = "machine file") -> Machine:
+    """A :class:`Machine` from a parsed machine file ``doc``; ``where`` names it in errors. Raises
+    InputError (see :func:`read_machine`)."""
+    if not isinstance(doc, dict):
+        raise InputError(f"{where}: expected a JSON object (a machine file), got {type(doc).__name__}")
+    if doc.get("format") != FORMAT:
+        raise InputError(f"{where}: key 'format' must be {FORMAT!r}, got {doc.get('format')!r} (is this a machine file?)")
+    if doc.get("version") != VERSION:
+        raise InputError(f"{where}: key 'version' is {doc.get('version')!r}; this hexsim reads version {VERSION}")
+    meta = {k: doc[k] for k in _META if k in doc}
+    for k in ("name", "description"):
+        if k in meta and not isinstance(meta[k], str):
+            raise InputError(f"{where}: key {k!r} must be a string, got {meta[k]!r}")
+    sources = meta.get("sources", {})
+    if not isinstance(sources, dict) or not all(isinstance(v, str) for v in sources.values()):
+        raise InputError(f"{where}: key 'sources' must be an object of key: text (where each value comes from)")
+    for key in sources:
+        if key not in _BY_PATH:
+            raise InputError(f"{where}: sources names {key!r}, which is not a machine-file key")
+    system = meta.get("system", "hexapod")
+    if system not in SYSTEMS:
+        raise InputError(f"{where}: key 'system' is {system!r}; expected one of {', '.join(SYSTEMS)}")
+    flat = _flatten({k: v for k, v in doc.items() if k not in _META}, where)
+    for key in flat:
+        if key not in _BY_PATH:
+            section = key.split(".")[0]
+            known = [k.path for k in KEYS if k.path.startswith(section + ".")]
+            hint = f"; known in {section}: {', '.join(known)}" if known else \
+                f"; sections: {', '.join(sorted({k.path.split('.')[0] for k in KEYS}))}"
+            raise InputError(f"{where}: unknown key {key!r}{hint}")
+    values = {"hydraulics": {}, "controller": {}, "effects": {}, "machine": {}}
+    for path, value in flat.items():
+        key = _BY_PATH[path]
+        values[key.target[0]][key.target[1]] = _checked(key, value, where)
+    m = values["machine"]
+    rated_flow, rated_dp = m.get("rated_flow"), m.get("rated_dp", Machine.rated_dp)
+    hyd_values = dict(values["hydraulics"])
+    if rated_flow is not None:
+        if hyd_values.get("spool_diameter") is not None:
+            raise InputError(f"{where}: valve.rated_flow_m3ps and valve.spool_diameter_m both set; the rated flow "
+                             f"sets the port width: set valve.spool_diameter_m to null")
+        hyd_values["spool_diameter"] = None
+    elif "spool_diameter" in hyd_values and hyd_values["spool_diameter"] is None:
+        raise InputError(f"{where}: valve.spool_diameter_m is null but valve.rated_flow_m3ps is not given: one of "
+                         f"them sets the port width")
+    try:
+        hyd = _build_hydraulics(hyd_values, rated_flow, rated_dp)
+        controller = ControllerParams(**values["controller"])
+        effects = Effects(**values["effects"])
+    except InputError as exc:
+        raise InputError(f"{where}: {_key_names(str(exc))}") from None
+    control = m.get("control", "P")
+    defaulted = tuple(k.path for k in KEYS if k.path not in flat)
+    return Machine(name=meta.get("name", pathlib.Path(where).stem), description=meta.get("description", ""),
+                   system=system, hydraulics=hyd, controller=controller, effects=effects, control=control,
+                   rated_flow=rated_flow, rated_dp=rated_dp, defaulted=defaulted, sources=tuple(sources.items()))
+
+
+def _build_hydraulics(values: dict, rated_flow: float | None, rated_dp: float) -> HydraulicParams:
+    """HydraulicParams from the file's values; with a rated flow, the port width from it (module doc)."""
+    if rated_flow is None:
+        return HydraulicParams(**values)
+    base = HydraulicParams(**{k: v for k, v in values.items() if k != "spool_diameter"})
+    opening = base.x_v_max - base.overlap
+    width = rated_flow / (base.discharge_coefficient * opening * math.sqrt(2.0 * rated_dp / base.density))
+    return base.replace(spool_diameter=width / math.pi)
+
+
+def _key_names(message: str) -> str:
+    """A dataclass's error with its field names replaced by the machine file's keys."""
+    for key in sorted(KEYS, key=lambda k: -len(k.target[1])):  # longest first: pipeline_volume_rod before pipeline_volume
+        section, name = key.target
+        cls = {"hydraulics": "HydraulicParams", "controller": "ControllerParams", "effects": "Effects"}.get(section)
+        if cls:
+            message = message.replace(f"{cls}.{name} ", f"{key.path} ").replace(f"{cls}.{name}", key.path)
+    return message
+
+
+def _checked(key: Key, value, where: str):
+    at = f"{where}: {key.path}"
+    if value is None:
+        if key.nullable:
+            return None
+        raise InputError(f"{at}: null is not allowed here ({key.meaning})")
+    if key.kind == "text":
+        if not isinstance(value, str) or (key.choices and value not in key.choices):
+            raise InputError(f"{at}: expected one of {', '.join(key.choices)}, got {value!r}")
+        return value
+    if key.kind == "flag":
+        if not isinstance(value, bool):
+            raise InputError(f"{at}: expected true or false, got {value!r}")
+        return value
+    if key.kind == "vector":
+        if not (isinstance(value, list) and len(value) == 3 and all(_is_number(v) for v in value)):
+            raise InputError(f"{at}: expected [x, y, z] in {key.unit}, got {value!r}")
+        return tuple(float(v) for v in value)
+    if not _is_number(value):
+        raise InputError(f"{at}: expected a number in {key.unit}, got {value!r}")
+    if key.target == ("machine", "rated_flow") or key.target == ("machine", "rated_dp"):
+        if value <= 0:
+            raise InputError(f"{at}: must be a positive number in {key.unit}, got {value!r}")
+    return float(value)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def parse_assignment(text: str) -> tuple[str, object]:
+    """``key=value`` of ``hexsim machine set``: the value as JSON (numbers, true/false, null, [x, y, z],
+    "text"), or as text when it is not JSON (``valve.type=4-way``). Raises InputError for a malformed
+    assignment or an unknown key."""
+    if "=" not in text:
+        raise InputError(f"{text!r}: expected key=value (e.g. cylinder.bore_m=0.016)")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    if key not in _BY_PATH and key not in ("name", "description", "system"):
+        raise InputError(f"{key!r} is not a machine-file key; `hexsim machine show` lists them")
+    try:
+        value = json.loads(raw, parse_constant=_no_constant)
+    except ValueError:
+        value = raw
+    return key, value
+
+
+def set_keys(doc: dict, assignments: list[tuple[str, object]]) -> dict:
+    """A copy of the machine-file ``doc`` with the dotted keys of ``assignments`` set (sections created
+    where missing)."""
+    out = json.loads(json.dumps(doc))
+    for key, value in assignments:
+        node = out
+        *sections, leaf = key.split(".")
+        for s in sections:
+            node = node.setdefault(s, {})
+            if not isinstance(node, dict):
+                raise InputError(f"{key}: {s} is not a section in this file")
+        node[leaf] = value
+    return out
+
+
+def dump(doc: dict) -> str:
+    """The machine file's text: two-space indented JSON with a final newline."""
+    return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
+
+
+def reference_markdown() -> str:
+    """The table of every key (unit, default of the built-in, meaning, source) for docs/machine-file.md."""
+    default = Machine()
+    rows = ["| key | unit | default (built-in) | meaning | source |", "|---|---|---|---|---|"]
+    for key in KEYS:
+        value = default._value(key)
+        shown = json.dumps(_json_value(value)) if not isinstance(value, float) else f"{value:.6g}"
+        rows.append(f"| `{key.path}` | {key.unit} | {shown} | {key.meaning} | {key.source} |")
+    return "\n".join(rows) + "\n"

@@ -1,0 +1,118 @@
+"""Machine files (hexsim/plant/machine.py, docs/machine-file.md): one file says everything hexsim assumes
+about a machine; show → set → read round-trips; every parameter of the plant is reachable from a key;
+the built-in Micro Motion System from its file runs the same run to the bit; the docs' key table is the
+code's."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+
+import numpy as np
+import pytest
+
+import hexsim
+from hexsim.cli import main
+from hexsim.errors import InputError
+from hexsim.plant.effects import Effects
+from hexsim.plant.machine import KEYS, Machine, load_machine, read_machine, reference_markdown
+from hexsim.plant.params import ControllerParams, HydraulicParams
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_show_set_read_round_trips(tmp_path, capsys):
+    path = tmp_path / "rig.json"
+    assert main(["machine", "show"]) == 0
+    path.write_text(capsys.readouterr().out)
+    assert read_machine(path).hydraulics == HydraulicParams()
+    assert main(["machine", "set", str(path), "valve.type=4-way", "cylinder.bore_m=0.05", "load.inclination_deg=null",
+                 "controller.kp_VPm=150", "name=rig"]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {path}"
+    m = read_machine(path)
+    assert m.name == "rig" and m.hydraulics.valve_type == "4-way" and m.hydraulics.bore_diameter == 0.05
+    assert m.controller.kp == 150.0 and m.effects.inclination_deg is None
+    # everything not set is the built-in's
+    assert m.hydraulics == HydraulicParams(valve_type="4-way", bore_diameter=0.05)
+    assert m.effects == Effects() and m.controller == ControllerParams(kp=150.0)
+    # show of the file prints it back, complete
+    assert main(["machine", "show", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out) == json.loads(path.read_text())
+
+
+def test_set_refuses_a_bad_value_and_leaves_the_file_as_it_was(tmp_path, capsys):
+    path = tmp_path / "rig.json"
+    assert main(["machine", "set", str(path), "cylinder.bore_m=0.05"]) == 0  # made from the built-in
+    before = path.read_text()
+    for bad, said in (("cylinder.rod_m=0.06", "cylinder.rod_m (0.06 m) must be smaller than bore_diameter"),
+                      ("cylinder.bore_mm=50", "'cylinder.bore_mm' is not a machine-file key"),
+                      ("valve.type=2-way", "valve.type: expected one of 3-way, 4-way, got '2-way'"),
+                      ("oil.bulk_modulus_Pa=0", "oil.bulk_modulus_Pa must be a finite positive number, got 0")):
+        assert main(["machine", "set", str(path), bad]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and said in err[0], (bad, err)
+        assert path.read_text() == before
+
+
+def test_every_plant_parameter_has_a_key():
+    """Nothing hexsim assumes about a machine is left outside the file."""
+    targets = {k.target for k in KEYS}
+    for section, cls in (("hydraulics", HydraulicParams), ("controller", ControllerParams), ("effects", Effects)):
+        missing = [f.name for f in dataclasses.fields(cls) if (section, f.name) not in targets]
+        assert not missing, f"{cls.__name__} fields without a machine-file key: {missing}"
+    for key in ("valve.type", "cylinder.bore_m", "cylinder.rod_m", "cylinder.stroke_m", "supply.pressure_Pa",
+                "load.mass_kg", "load.inclination_deg"):
+        assert key in {k.path for k in KEYS}
+
+
+def test_the_builtin_machine_from_its_file_runs_the_same_run_to_the_bit(tmp_path, capsys):
+    path = tmp_path / "mms.json"
+    assert main(["machine", "show"]) == 0
+    path.write_text(capsys.readouterr().out)
+    m = load_machine(path)
+    assert (m.hydraulics, m.controller, m.effects) == (HydraulicParams(), ControllerParams(), Effects())
+    scenario = hexsim.Scenario.sine("actuator", duration=6.0, frequency=1.0)
+    ours = hexsim.simulate(hexsim.RunConfig(scenario, hydraulics=m.hydraulics, controller=m.controller,
+                                            effects=m.effects, machine=str(path)))
+    default = hexsim.simulate(hexsim.RunConfig(scenario))
+    for name in ("y", "p1", "p2", "force", "acc", "u_v"):
+        assert np.array_equal(getattr(ours, name), getattr(default, name)), name
+    assert np.array_equal(default.p2[:, 0], np.full(len(default.t), HydraulicParams().supply_pressure))  # 3-way
+
+
+def test_rated_flow_sets_the_port_so_full_command_passes_the_rated_flow():
+    """A data sheet's Q_N at Δp_N per land: at full command and Δp_N across one edge the valve passes Q_N
+    (orifice equation, seed eq. 3.4, written out here)."""
+    doc = {**Machine().document(), "valve": {"flow_area": "sharp", "spool_diameter_m": None,
+                                             "rated_flow_m3ps": 1.0e-4, "rated_dp_Pa": 3.5e6, "overlap_m": 1e-5}}
+    from hexsim.plant.machine import machine_from_document
+
+    hyd = machine_from_document(doc).hydraulics
+    opening = math.pi * hyd.spool_diameter * (hyd.x_v_max - hyd.overlap)
+    flow = hyd.discharge_coefficient * opening * math.sqrt(2 * 3.5e6 / hyd.density)
+    assert flow == pytest.approx(1.0e-4, rel=1e-12)
+    from hexsim.plant import hydraulics
+
+    a1, _ = hydraulics.flow_areas(hyd.x_v_max, hyd)
+    assert float(hydraulics.edge_flow(a1, 3.5e6, hyd)) == pytest.approx(1.0e-4, rel=1e-5)  # laminar blend: 3e-6
+    with pytest.raises(InputError, match="both set"):
+        machine_from_document({**doc, "valve": {**doc["valve"], "spool_diameter_m": 0.01}})
+
+
+def test_builtin_servo_cylinder_is_a_4_way_single_actuator_without_controller():
+    m = load_machine("servo_cylinder")
+    assert m.system == "single-actuator" and m.hydraulics.valve_type == "4-way" and m.open_loop
+    assert (m.hydraulics.bore_diameter, m.hydraulics.rod_diameter, m.hydraulics.stroke) == (0.016, 0.01, 0.2)
+    assert all(k in {key.path for key in KEYS} for k, _ in m.sources)
+
+
+def test_unknown_machine_name_lists_the_builtins():
+    with pytest.raises(InputError, match="built-in machines: micro_motion_system, servo_cylinder"):
+        load_machine("no_such_rig")
+
+
+def test_docs_list_every_key_as_the_code_declares_it():
+    doc = (ROOT / "docs" / "machine-file.md").read_text()
+    assert reference_markdown() in doc, "docs/machine-file.md: regenerate the key table (hexsim.plant.machine.reference_markdown)"
