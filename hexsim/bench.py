@@ -29,6 +29,10 @@ during the benchmark biases no case against another; and the baseline is timed r
 case: a ratio "÷ bare" is the median over the repeats of the case's wall time over its own baseline's
 (the machine's speed swings by ±30 % between minutes, the pairs share theirs).
 
+``calibrate=True`` adds ``hexsim calibrate`` on two 20 s open-loop logs of the built-in ``servo_cylinder``
+(made by hexsim: a 2 V and a 6 V run, the command reversing every 2.5 s), ``repeats`` times, against bare
+``mj_step`` of the single actuator over the logs' 40 s (the pair timed together).
+
 ``sweep=True`` adds the throughput of ``hexsim sweep`` (8 runs of 20 s) with 1 worker (in this process),
 2 forked and 2 spawned workers, ``repeats`` rounds, medians of the wall times.
 """
@@ -134,7 +138,52 @@ def _startup(repeats: int) -> dict:
     return {"help_s": help_s, "python_s": python_s, "ratio": help_s / python_s}
 
 
-def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> dict:
+def _calibration_logs(folder) -> list:
+    """Two 20 s open-loop logs of the built-in servo cylinder (2 V and 6 V, the command reversing every
+    2.5 s), read back as measurement logs."""
+    import pathlib
+
+    from hexsim.control.scenario import make_scenario
+    from hexsim.measured.measurement import read_log
+    from hexsim.outputs.logio import write_log
+    from hexsim.plant.machine import load_machine
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.runner import simulate
+
+    machine = load_machine("servo_cylinder")
+    logs = []
+    for volts in (2.0, 6.0):
+        t = np.arange(0.0, 20.0, 1e-3)
+        u = np.where(t < 0.1, 0.0, np.where(((t - 0.1) // 2.5) % 2 == 0, volts, -volts))
+        path = pathlib.Path(folder) / f"valve_{volts:g}V.csv"
+        np.savetxt(path, np.column_stack([t, u]), delimiter=",", header="time_s,valve_cmd_V", comments="", fmt="%.6g")
+        result = simulate(RunConfig.from_machine(machine, make_scenario(f"valve:{path}")))
+        write_log(path.with_name(f"log_{volts:g}V.csv"), result, noise=np.random.default_rng(1))
+        logs.append(read_log(path.with_name(f"log_{volts:g}V.csv"), machine=machine))
+    return logs
+
+
+def _calibration(repeats: int) -> dict:
+    """Median wall time [s] of ``calibrate`` on two 20 s logs and of bare ``mj_step`` over their 40 s."""
+    import tempfile
+
+    from hexsim.measured.calibration import calibrate
+
+    with tempfile.TemporaryDirectory() as folder:
+        logs = _calibration_logs(folder)
+        machine = logs[0].machine
+        pairs = []
+        for _ in range(repeats):
+            base = _bare(40.0, "actuator")
+            start = time.perf_counter()
+            calibrate(logs, machine, cross_validate=False)
+            pairs.append((time.perf_counter() - start, base))
+    wall = statistics.median(w for w, _ in pairs)
+    return {"logs": "2 × 20 s, servo_cylinder, open loop", "wall_s": wall,
+            "to_bare_40s": statistics.median(w / b for w, b in pairs), "pairs": pairs}
+
+
+def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False, calibrate: bool = False) -> dict:
     """Median wall time per simulated second of each case, real-time factors and the ratios to bare
     ``mj_step``. ``duration`` [s] of simulated time per repeat (>= 1.5 s for the scenarios)."""
     cases = {
@@ -176,6 +225,8 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False) -> d
     out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
                                                / out["cases"]["actuator_bare_fast"]["wall_per_sim_s"])
     out["startup"] = _startup(repeats)
+    if calibrate:
+        out["calibration"] = _calibration(repeats)
     if sweep:
         from hexsim.simulation.workers import default_start_method
 
@@ -202,6 +253,10 @@ def table(result: dict) -> str:
     st = result["startup"]
     lines.append(f"hexsim --help {st['help_s']:.2f} s, python -c pass {st['python_s']:.2f} s: "
                  f"{st['ratio']:.1f}x the bare interpreter's start")
+    if "calibration" in result:
+        ca = result["calibration"]
+        lines.append(f"hexsim calibrate on {ca['logs']}: {ca['wall_s']:.1f} s, {ca['to_bare_40s']:.1f}x bare mj_step of "
+                     "the single actuator over the logs' 40 s")
     if "sweep" in result:
         sw = result["sweep"]
         lines.append(f"sweep of {sw['runs']} runs: {sw['wall_1_worker_s']:.1f} s with 1 worker, "

@@ -43,7 +43,8 @@ def _number(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line: ``hexsim run|compare|validate|friction|sweep|modes|bench`` (``--help`` on each)."""
+    """The command line: ``hexsim run|compare|validate|friction|calibrate|sweep|modes|bench|machine`` (``--help``
+    on each)."""
     parser = argparse.ArgumentParser(
         prog="hexsim",
         description="Six-DOF hydraulic motion platform simulator (Micro Motion System): the reversal bump and its compensation.",
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_compare(sub)
     _add_validate(sub)
     _add_friction(sub)
+    _add_calibrate(sub)
     _add_sweep(sub)
     _add_modes(sub)
     _add_bench(sub)
@@ -170,6 +172,28 @@ def _add_friction(sub) -> None:
     fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON; - for stdout")
 
 
+def _add_calibrate(sub) -> None:
+    """The ``calibrate`` command's options."""
+    ca = sub.add_parser(
+        "calibrate",
+        help="fit a machine file's nominal parameters to calibration experiments (open-loop constant commands)",
+        description="Grey-box calibration (docs/calibration.md): the valve's flow gain, overlap, null offset and "
+        "edge matching, the supply and tank pressures and the friction per direction are fitted, each inside its "
+        "data-sheet bracket, to the steady motions and end-stop pressures of open-loop constant-command logs; "
+        "standard errors, correlations, what the logs cannot separate and which experiment would; held-out logs "
+        "predicted. Writes the calibrated machine file.",
+    )
+    ca.add_argument("logs", nargs="+", type=pathlib.Path, metavar="LOG", help="the calibration experiments' CSV files")
+    _machine_option(ca)
+    ca.add_argument("--out", type=pathlib.Path, required=True, metavar="CALIBRATED.json",
+                    help="write the calibrated machine file here")
+    ca.add_argument("--hold-out", type=pathlib.Path, nargs="+", default=[], metavar="LOG",
+                    help="logs predicted, not fitted (their error before and after is reported)")
+    ca.add_argument("--no-cross-validation", action="store_true",
+                    help="skip the leave-one-log-out refits (one per log)")
+    ca.add_argument("--json", type=pathlib.Path, help="write the report as JSON; - for stdout")
+
+
 def _add_sweep(sub) -> None:
     """The ``sweep`` command's options."""
     sw = sub.add_parser(
@@ -221,6 +245,8 @@ def _add_bench(sub) -> None:
     be.add_argument("--duration", type=_number, default=2.0, help="simulated seconds per repeat (default 2, min 1.5)")
     be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
     be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON; - for stdout")
+    be.add_argument("--calibrate", action="store_true", help="also time hexsim calibrate on two 20 s open-loop logs "
+                    "of the built-in servo_cylinder (against bare mj_step over their 40 s)")
     be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 worker, 2 forked and 2 spawned workers "
                     "(about 75 s per repeat)")
 
@@ -233,7 +259,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         raise InputError(f"--repeats must be at least 1, got {args.repeats}")
     if args.duration < 1.5:
         raise InputError(f"--duration must be at least 1.5 s (2 Hz scenarios), got {args.duration:g}")
-    result = run_bench(args.duration, args.repeats, sweep=args.sweep)
+    result = run_bench(args.duration, args.repeats, sweep=args.sweep, calibrate=args.calibrate)
     print(table(result))
     if args.json:
         write_json(args.json, result)
@@ -318,6 +344,30 @@ def cmd_friction(args: argparse.Namespace) -> int:
     if args.plot:
         plot_map(result, args.plot)
         print(f"wrote {args.plot}")
+    return 0
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from hexsim.measured.calibration import calibrate, table
+    from hexsim.measured.measurement import read_log
+    from hexsim.plant.machine import dump, load_machine
+
+    _check_outputs(args)
+    if args.out.suffix.lower() != ".json":
+        raise InputError(f"--out {args.out}: expected a .json machine file name")
+    if not args.out.parent.exists():
+        raise InputError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    machine = load_machine(args.machine)
+    logs = [read_log(path, machine=machine) for path in args.logs]
+    held = [read_log(path, machine=machine) for path in args.hold_out]
+    print(f"machine: {machine.label}; calibrating on {len(logs)} log(s), {len(held)} held out", flush=True)
+    calibrated, report = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation)
+    print(table(report))
+    write_atomic(args.out, lambda tmp: tmp.write_text(dump(calibrated.document()), encoding="utf-8"))
+    print(f"wrote {args.out}")
+    if args.json:
+        write_json(args.json, report)
+        print(f"wrote {args.json}")
     return 0
 
 
@@ -693,7 +743,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with streams, _workers(args):
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
-                        "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine}
+                        "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine,
+                        "calibrate": cmd_calibrate}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

@@ -28,6 +28,7 @@ from hexsim.measured.identify import (
     signal_labels,
     within_budget,
 )
+from hexsim.measured.calibration import nominal_check
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.residuals import analyse
 from hexsim.tables import StdoutTarget, write_atomic, write_json
@@ -491,6 +492,11 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
     doc = summary(ident) | {"left_out": list(without),
                             "model": model if log.system == "hexapod" else "single actuator"}
+    check = nominal_check(log)  # an uncalibrated machine visibly off a constant-command log: calibrate first
+    if check is not None:
+        doc["nominal_check"] = check
+        if check["off"] and ident.verdict != "none":
+            doc["conclusions"].insert(0, check["sentence"])
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
         plot(ident, report / "residuals.png")

@@ -43,7 +43,7 @@ class Effects:
     hysteresis of the flow curve the seed measured, §4.2). Leakage: internal across the piston,
     C_l (P_s - P1) into the bottom chamber. Sensor delay: the position the controller and the log see
     is y(t - tau_y). Edge asymmetry: the supply (P→A) and return (A→T) edges of the spool pass k_PA and
-    k_AT times the flow of eq. (3.4) (ground edges differ by manufacturing tolerance and wear; the seed's
+    k_AT times the flow of eq. (3.4), and with a 4-way valve the rod side's P→B and B→T edges k_PB and k_BT (ground edges differ by manufacturing tolerance and wear; the seed's
     measured flow curve is not symmetric either, §4.2). Entrained air: a volume fraction a of undissolved
     air at atmospheric pressure makes the oil softer the lower the pressure (:func:`hexsim.plant.legs.bulk_modulus`).
     Payload (hexapod): a point mass m_p at c_p on the
@@ -60,6 +60,8 @@ class Effects:
     sensor_delay: float = 0.0  # tau_y [s], delay of the position measurement
     edge_gain_pa: float = 1.0  # k_PA [-], flow gain of the supply edge P→A relative to eq. (3.4); 1: seed
     edge_gain_at: float = 1.0  # k_AT [-], flow gain of the return edge A→T relative to eq. (3.4); 1: seed
+    edge_gain_pb: float = 1.0  # k_PB [-], the 4-way valve's supply edge P→B, relative to eq. (3.4)
+    edge_gain_bt: float = 1.0  # k_BT [-], the 4-way valve's return edge B→T, relative to eq. (3.4)
     mass_kg: float | None = None  # moving mass M [kg] of the single actuator; None: the MJCF's
     inclination_deg: float | None = None  # actuator axis from vertical [deg]; None: vertical (the MJCF)
     air_fraction: float = 0.0  # a [-], entrained (undissolved) air per volume of oil at atmospheric pressure
@@ -69,7 +71,8 @@ class Effects:
 
     def __post_init__(self) -> None:
         _check_nonnegative(self, "supply_resistance", "supply_time_constant", "spool_frequency", "spool_damping",
-                           "spool_play", "leakage", "sensor_delay", "edge_gain_pa", "edge_gain_at", "air_fraction")
+                           "spool_play", "leakage", "sensor_delay", "edge_gain_pa", "edge_gain_at", "edge_gain_pb",
+                           "edge_gain_bt", "air_fraction")
         if not (math.isfinite(self.air_exponent) and 1.0 <= self.air_exponent <= 1.4):
             raise InputError(f"Effects.air_exponent must be within 1 (isothermal) … 1.4 (adiabatic), got "
                              f"{self.air_exponent!r}")

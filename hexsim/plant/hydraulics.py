@@ -20,6 +20,7 @@ import numpy as np
 
 from hexsim import jitcache
 from hexsim.plant import legs
+from hexsim.plant.effects import NOMINAL, Effects
 from hexsim.plant.legs import TRANSITION_DP, leg_params
 from hexsim.plant.params import HydraulicParams
 
@@ -131,24 +132,24 @@ def edge_flow(area, dp, p: HydraulicParams):
     return _shaped(q, shape)
 
 
-def _orifice(x_v, p1, p: HydraulicParams, p_s):
+def _orifice(x_v, p1, p: HydraulicParams, p_s, eff: Effects = NOMINAL):
     """phi_1 (seed eq. 3.4) and d phi_1 / d P1, arrays broadcast (:func:`hexsim.plant.legs.orifice`)."""
     p_s = p.supply_pressure if p_s is None else p_s
     (x, q1, qs), shape = _flat(x_v, p1, p_s)
     phi, dphi = np.empty_like(x), np.empty_like(x)
-    _map_orifice(x, q1, qs, leg_params(p), phi, dphi)
+    _map_orifice(x, q1, qs, leg_params(p, eff), phi, dphi)
     return _shaped(phi, shape), _shaped(dphi, shape)
 
 
-def valve_flow(x_v, p1, p: HydraulicParams, p_s=None):
+def valve_flow(x_v, p1, p: HydraulicParams, p_s=None, eff: Effects = NOMINAL):
     """Flow phi_1 [m^3/s] into the bottom chamber through the 3-way valve (seed eq. 3.4).
 
     phi_1 = C_d a1(x_v) sqrt(2 (P_s - P1)/rho) - C_d a2(x_v) sqrt(2 (P1 - P_t)/rho), each edge by
     :func:`edge_flow`: odd in the pressure difference (a reversed difference reverses the flow through
     that edge) and laminar below 0.1 bar. ``p_s`` [Pa] overrides the supply pressure
-    (scalar or per leg); default ``p.supply_pressure``. Arrays broadcast.
+    (scalar or per leg); default ``p.supply_pressure``. ``eff``: the edge gains k_PA, k_AT. Arrays broadcast.
     """
-    return _orifice(x_v, p1, p, p_s)[0]
+    return _orifice(x_v, p1, p, p_s, eff)[0]
 
 
 def valve_flow_dp1(x_v, p1, p: HydraulicParams, p_s=None):
@@ -160,14 +161,15 @@ def valve_flow_dp1(x_v, p1, p: HydraulicParams, p_s=None):
     return _orifice(x_v, p1, p, p_s)[1]
 
 
-def valve_flow_rod(x_v, p2, p: HydraulicParams, p_s=None):
+def valve_flow_rod(x_v, p2, p: HydraulicParams, p_s=None, eff: Effects = NOMINAL):
     """Flow phi_2 [m^3/s] into the rod-side chamber B through a 4-way valve at spool position x_v [m] and
     rod-side pressure p2 [Pa]: P→B opens where A→T does, B→T where P→A does (seed eq. 3.4 per edge,
-    :func:`hexsim.plant.legs.orifice_rod`). ``p_s`` [Pa] default ``p.supply_pressure``. Arrays broadcast."""
+    :func:`hexsim.plant.legs.orifice_rod`; ``eff``: the edge gains k_PB, k_BT). ``p_s`` [Pa] default
+    ``p.supply_pressure``. Arrays broadcast."""
     p_s = p.supply_pressure if p_s is None else p_s
     (x, q2, qs), shape = _flat(x_v, p2, p_s)
     phi, dphi = np.empty_like(x), np.empty_like(x)
-    _map_orifice_rod(x, q2, qs, leg_params(p), phi, dphi)
+    _map_orifice_rod(x, q2, qs, leg_params(p, eff), phi, dphi)
     return _shaped(phi, shape)
 
 
@@ -181,21 +183,23 @@ class SteadyState(NamedTuple):
     friction: float
 
 
-def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float | None = None) -> SteadyState:
+def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float | None = None,
+                 eff: Effects = NOMINAL) -> SteadyState:
     """The steady motion at valve setpoint u_v [V] against an external force ``load_force`` [N] along the
     axis (positive retracts the piston: the weight M g cos θ of a load it lifts): the velocity v at which
     flow continuity holds in each chamber (phi_1 = v A1; 4-way also phi_2 = -v A2, seed eq. 3.7 with
     dP/dt = 0) and the piston's forces balance, P1 A1 - P2 A2 - F_f(v) = load_force (seed eq. 3.8 with
     ÿ = 0). Solved by bracketing v (scipy.optimize.brentq) with each chamber's pressure from its own
-    continuity equation. Raises ValueError if no speed within ±5 m/s balances (the load is beyond the
-    stall force at that setpoint)."""
+    continuity equation. ``eff``: the valve's edge gains (k_PA, k_AT, k_PB, k_BT) and null offset are the
+    hydraulics'; leakage, spool dynamics and the supply's sag are not in this steady state. Raises
+    ValueError if no speed balances (the load is beyond the stall force at that setpoint)."""
     from scipy.optimize import brentq
 
     p_s = p.supply_pressure if p_s is None else float(p_s)
     x_v = float(spool_position(u_v, p))
 
     def chamber(v: float, flow, target: float) -> float:  # the pressure at which flow(p) = target
-        return brentq(lambda q: float(flow(x_v, q, p, p_s)) - target, p.cavitation_pressure, p_s + 1e7,
+        return brentq(lambda q: float(flow(x_v, q, p, p_s, eff)) - target, p.cavitation_pressure, p_s + 1e7,
                       xtol=1e-6)
 
     def pressures(v: float) -> tuple[float, float]:
@@ -211,7 +215,7 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
     for flow, area in ((valve_flow, p.area_bottom), (valve_flow_rod, -p.area_rod)):
         if flow is valve_flow_rod and not p.four_way:
             continue
-        ends = [float(flow(x_v, q, p, p_s)) / area for q in (p.cavitation_pressure, p_s + 1e7)]
+        ends = [float(flow(x_v, q, p, p_s, eff)) / area for q in (p.cavitation_pressure, p_s + 1e7)]
         reach.append((min(ends), max(ends)))
     lo, hi = max(r[0] for r in reach), min(r[1] for r in reach)
     lo, hi = lo + 1e-9 * abs(lo) + 1e-12, hi - 1e-9 * abs(hi) - 1e-12

@@ -84,6 +84,8 @@ class LegParams(NamedTuple):
     four_way: float  # 1.0: 4-way valve, both chambers fed by the valve; 0.0: 3-way, rod side at P_s
     v_pl2: float  # rod-side dead volume V_pl,B [m^3] (4-way)
     stroke: float  # cylinder stroke L_s [m]: rod-side volume (L_s - y) A2 + V_pl,B (4-way)
+    k_pb: float  # supply-edge gain P→B [-] (4-way)
+    k_bt: float  # return-edge gain B→T [-] (4-way)
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -97,7 +99,7 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
         eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure,
-        float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke)
+        float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke, eff.edge_gain_pb, eff.edge_gain_bt)
 
 
 #: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
@@ -271,11 +273,11 @@ def pressure_step(p1, v_c, x_v, p_s, y, ydot, dt, P, p_rod):
 def orifice_rod(x_v, p2, p_s, P):
     """(phi_2, d phi_2/d P2): flow into the rod-side chamber B [m^3/s] through the 4-way valve and its
     derivative. The spool opening a1(x_v) that connects P→A connects B→T, a2(x_v) (A→T) connects P→B
-    (a matched, symmetric spool; the edge gains of the effects apply to the A side only):
-    phi_2 = C_d a2 sqrt(2 (P_s - P2)/rho) - C_d a1 sqrt(2 (P2 - P_t)/rho) (seed eq. 3.4 per edge)."""
+    (a matched spool; each edge's gain k_PB, k_BT):
+    phi_2 = k_PB C_d a2 sqrt(2 (P_s - P2)/rho) - k_BT C_d a1 sqrt(2 (P2 - P_t)/rho) (seed eq. 3.4 per edge)."""
     a1, a2 = flow_areas(x_v, P)
-    q_in, dq_in = edge_flow(a2, p_s - p2, P)
-    q_out, dq_out = edge_flow(a1, p2 - P.p_t, P)
+    q_in, dq_in = edge_flow(a2 * P.k_pb, p_s - p2, P)
+    q_out, dq_out = edge_flow(a1 * P.k_bt, p2 - P.p_t, P)
     return q_in - q_out, -dq_in - dq_out
 
 
@@ -376,7 +378,7 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
             dps = S.p_s[i] - S.p1[i]
             phi_pa = edge_flow(areas[0] * Pi.k_pa, dps, Pi)[0]
             if Pi.four_way > 0.5:
-                supply_flow[groups[i]] += phi_pa + edge_flow(areas[1], S.p_s[i] - p2[i], Pi)[0]
+                supply_flow[groups[i]] += phi_pa + edge_flow(areas[1] * Pi.k_pb, S.p_s[i] - p2[i], Pi)[0]
             else:
                 supply_flow[groups[i]] += phi_pa + Pi.c_l * dps - ydot[i] * Pi.a2
     if supply.r_s > 0.0:

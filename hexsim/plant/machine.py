@@ -9,7 +9,8 @@ bit-identical to one with the dataclasses' defaults.
 
 The file is a JSON object: ``format`` ("hexsim-machine"), ``version`` (1), ``name``, ``description``,
 ``system`` ("hexapod" or "single-actuator"), ``sources`` (optional: key -> where its value comes from, a
-data sheet, a measurement, a guess), and sections ``valve``, ``cylinder``, ``oil``, ``supply``,
+data sheet, a measurement, a guess), ``calibration`` (optional: what ``hexsim calibrate`` fitted, from
+which logs, with standard errors), and sections ``valve``, ``cylinder``, ``oil``, ``supply``,
 ``friction`` (``positive``/``negative`` per direction), ``load``, ``sensors``, ``controller``. Keys carry
 their SI unit as a suffix (``cylinder.bore_m``, ``supply.pressure_Pa``). Keys left out take the built-in
 default and are listed in :attr:`Machine.defaulted`; a key set to ``null`` where the table allows it means
@@ -100,6 +101,10 @@ KEYS: tuple[Key, ...] = (
        "seed eq. 3.4 (1)"),
     _k("valve.edge_gain_AT", "effects.edge_gain_at", "-", "flow gain of the return edge A→T relative to (3.4)",
        "seed eq. 3.4 (1)"),
+    _k("valve.edge_gain_PB", "effects.edge_gain_pb", "-", "4-way: flow gain of the supply edge P→B relative to (3.4)",
+       "a matched spool (1)"),
+    _k("valve.edge_gain_BT", "effects.edge_gain_bt", "-", "4-way: flow gain of the return edge B→T relative to (3.4)",
+       "a matched spool (1)"),
     _k("cylinder.bore_m", "hydraulics.bore_diameter", "m", "piston (bore) diameter D: A1 = pi/4 D^2", _SEED),
     _k("cylinder.rod_m", "hydraulics.rod_diameter", "m", "rod diameter d_r: A2 = pi/4 (D^2 - d_r^2)", _SEED),
     _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; "
@@ -149,7 +154,7 @@ KEYS: tuple[Key, ...] = (
     _k("controller.rate_hz", "controller.rate_hz", "Hz", "controller (or command output) rate", "seed §2.2.4"),
 )
 _BY_PATH = {k.path: k for k in KEYS}
-_META = ("format", "version", "name", "description", "system", "sources")
+_META = ("format", "version", "name", "description", "system", "sources", "calibration")
 
 
 @dataclass(frozen=True)
@@ -173,6 +178,9 @@ class Machine:
     path: pathlib.Path | None = None
     defaulted: tuple[str, ...] = ()
     sources: tuple[tuple[str, str], ...] = ()  # (key, where its value comes from) as the file states them
+    # what `hexsim calibrate` wrote: the logs, each fitted key's prior, bounds, value, standard error,
+    # the correlations and the held-out errors (hexsim.measured.calibration); None: not calibrated
+    calibration: dict | None = field(default=None, compare=False)
 
     @property
     def label(self) -> str:
@@ -194,6 +202,8 @@ class Machine:
                      "system": self.system}
         if self.sources:
             doc["sources"] = dict(self.sources)
+        if self.calibration is not None:
+            doc["calibration"] = self.calibration
         for key in KEYS:
             node = doc
             *sections, leaf = key.path.split(".")
@@ -304,6 +314,9 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
     for key in sources:
         if key not in _BY_PATH:
             raise InputError(f"{where}: sources names {key!r}, which is not a machine-file key")
+    calibration = meta.get("calibration")
+    if calibration is not None and not isinstance(calibration, dict):
+        raise InputError(f"{where}: key 'calibration' must be an object (as hexsim calibrate writes it)")
     system = meta.get("system", "hexapod")
     if system not in SYSTEMS:
         raise InputError(f"{where}: key 'system' is {system!r}; expected one of {', '.join(SYSTEMS)}")
@@ -340,7 +353,8 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
     defaulted = tuple(k.path for k in KEYS if k.path not in flat)
     return Machine(name=meta.get("name", pathlib.Path(where).stem), description=meta.get("description", ""),
                    system=system, hydraulics=hyd, controller=controller, effects=effects, control=control,
-                   rated_flow=rated_flow, rated_dp=rated_dp, defaulted=defaulted, sources=tuple(sources.items()))
+                   rated_flow=rated_flow, rated_dp=rated_dp, defaulted=defaulted, sources=tuple(sources.items()),
+                   calibration=calibration)
 
 
 def _build_hydraulics(values: dict, rated_flow: float | None, rated_dp: float) -> HydraulicParams:

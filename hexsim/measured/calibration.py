@@ -1,0 +1,495 @@
+"""Calibrating a machine's nominal parameters from calibration experiments: ``hexsim calibrate``.
+
+A data sheet only brackets a real machine's valve flow gain, overlap, edge matching, supply level and
+seal friction. Before effects are judged (``hexsim validate``), they are fitted, inside those brackets,
+on calibration experiments: open-loop runs at constant valve commands in both directions and at
+several commands (as the real servo cylinder's 1, 3 and 5 V runs, ``examples/data/servo_cylinder``).
+
+**Features** (:func:`features`, measured on each log with the same functions a simulated run is read
+with): every stretch of constant command (|u_v| > 0.05 V) gives
+
+* a *steady motion* in the middle of the stroke (:func:`hexsim.simulation.metrics.steady_segments`): the
+  speed and the median of each logged chamber pressure (p1, p2; ps if logged);
+* an *end-stop plateau* where the command holds the piston against a stop: the chamber the valve
+  connects to the supply reads P_s, the other the tank (4-way valve; the 3-way valve's cap side reads
+  P_s or the tank).
+
+**Model** (:func:`predict`): the steady motion of the machine file at that command against the load
+along the axis (:func:`hexsim.plant.hydraulics.steady_state`: flow continuity in each chamber, seed eq.
+3.4/3.7 with dP/dt = 0, and the piston's force balance, eq. 3.8 with the friction of eq. 3.9); at an
+end stop P_s and P_t.
+
+**Parameters** (:class:`Parameter`, :func:`default_parameters`): machine-file keys, each with bounds, the
+bounds' source and the experiment that identifies it. A value edits the machine file by its key, so a
+calibrated nominal is a machine file like any other.
+
+**Fit** (:func:`calibrate`): bounded least squares (``scipy.optimize.least_squares``) on the features,
+weighted by :data:`SPEED_SIGMA_REL` / :data:`SPEED_SIGMA_ABS` and :data:`PRESSURE_SIGMA`; standard
+errors and correlations from the Jacobian, s^2 (J^T J)^-1 with s^2 the residual variance. A parameter
+the data cannot separate (a standard error above :data:`MAX_SE_SHARE` of its bound range, or a
+correlation beyond :data:`MAX_CORRELATION` with another, whichever has the larger relative error) is held
+at its prior and the rest refitted; the report says why and which experiment would identify it. A fit
+at a bound is reported as such: a hint that the model lacks something. Held-out logs are predicted, not
+fitted; with three or more fitted logs each is also predicted by a fit on the others (leave one log out).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from hexsim.errors import InputError
+from hexsim.measured.measurement import MeasurementLog
+from hexsim.plant import hydraulics
+from hexsim.plant.machine import KEYS, Machine, machine_from_document
+from hexsim.plant.model import gravity, moving_mass
+from hexsim.simulation.metrics import steady_segments
+
+#: Weight of a steady speed: 1 % of it plus 0.5 mm/s (a line fit over a stretch of 1 kHz positions is far
+#: more precise; the weight says how closely the steady model is asked to follow, not the sensor).
+SPEED_SIGMA_REL = 0.01
+SPEED_SIGMA_ABS = 5e-4
+#: Weight of a median pressure [Pa]: 0.3 bar (the real rig's transducer noise; offsets of that size are common).
+PRESSURE_SIGMA = 3e4
+#: A parameter whose standard error exceeds this share of its bound range is not identified by the data.
+MAX_SE_SHARE = 0.25
+#: Two parameters this correlated trade against each other: the one known worse is held at its prior.
+MAX_CORRELATION = 0.98
+#: End-stop plateau: the last share of a stretch, slower than END_SPEED [m/s], its median within END_MARGIN_M
+#: [m] of the observed end of the travel.
+END_SHARE, END_SPEED, END_MARGIN_M = 0.4, 1e-3, 2e-3
+_UNITS = {k.path: k.unit for k in KEYS}
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One fitted quantity: its machine-file ``key`` (which sets its field and unit, and edits the model),
+    the bounds [lower, upper] in that unit, where the bounds come from, and the experiment that
+    identifies it."""
+
+    key: str
+    lower: float
+    upper: float
+    source: str
+    experiment: str
+    limit: str = ""  # the lower bound is a physical limit, not a bracket (what it is: "the tank at atmosphere")
+
+    @property
+    def unit(self) -> str:
+        return _UNITS[self.key]
+
+
+def default_parameters(machine: Machine) -> list[Parameter]:
+    """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
+    flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
+    valve k_PB, k_BT: k_PA is the reference the flow gain carries), the supply and tank pressures, the Coulomb
+    friction per direction and, on an axis with weight along it, the moving mass."""
+    hyd, eff = machine.hydraulics, machine.effects
+    doc = machine.document()
+
+    def rel(key: str, lo: float, hi: float, source: str, experiment: str) -> Parameter:
+        value = _get(doc, key)
+        return Parameter(key, lo * value, hi * value, source, experiment)
+
+    big = "large commands in both directions (beyond half the range)"
+    params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7, 1.3,
+                  "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
+    small = "small commands (a few % of the range) in both directions"
+    x_max = hyd.x_v_max
+    if hyd.flow_area == "sharp":
+        params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
+                                "−3 % (underlap) to +10 % of the spool stroke (servo valves ±0.5 %, proportional "
+                                "valves up to 10 %)", small))
+    params.append(Parameter("valve.null_offset_V", -0.03 * hyd.u_v_max, 0.03 * hyd.u_v_max,
+                            "±3 % of the command range (servo-valve data sheets: ≤ 2–3 %)", small))
+    edges = ("AT", "PB", "BT") if hyd.four_way else ("AT",)
+    both = "both directions at several commands, with every chamber pressure logged"
+    for edge in edges:
+        params.append(Parameter(f"valve.edge_gain_{edge}", 0.8, 1.25,
+                                "control edges matched within ±20 % (grinding tolerance, wear)", both))
+    params.append(rel("supply.pressure_Pa", 0.9, 1.1, "±10 % of the set pressure (relief valve, gauge)",
+                      "the piston held against an end stop with the valve open (that chamber reads P_s), or ps_Pa "
+                      "logged"))
+    params.append(Parameter("supply.tank_pressure_Pa", 0.0, 3e5, "return-line back pressure 0–3 bar (filter, "
+                            "cooler, lines)", "the piston held against an end stop (the other chamber reads the "
+                            "tank)", limit="the tank at atmospheric pressure"))
+    speeds = "several speeds in each direction"
+    for side in ("positive", "negative"):
+        params.append(rel(f"friction.{side}.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess (wear, "
+                          "temperature, seal type)", speeds))
+    if eff.inclination_deg is None or eff.inclination_deg < 80.0:
+        mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
+        params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
+                                "guess (not weighed)", "both directions at the same command (the weight adds to one, "
+                                "subtracts from the other)"))
+    return [p for p in params if p.upper > p.lower]
+
+
+@dataclass(frozen=True)
+class Feature:
+    """One measured quantity of a calibration experiment: which log, the stretch's command u_V [V] and
+    time span, ``kind`` ("steady" or "end stop"), ``quantity`` ("velocity", "p1", "p2", "ps"), the measured
+    value (m/s or Pa) and its weight ``sigma`` (same unit)."""
+
+    log: str
+    kind: str
+    u_V: float
+    t_start_s: float
+    t_end_s: float
+    quantity: str
+    measured: float
+    sigma: float
+
+
+_PRESSURES = (("p1", "p1_Pa"), ("p2", "p2_Pa"), ("ps", "ps_Pa"))
+
+
+def features(log: MeasurementLog) -> list[Feature]:
+    """The calibration features of an open-loop constant-command log (module doc). Raises InputError for a
+    log without a valve command or without a stretch of constant command that moves the piston."""
+    if log.system != "single-actuator":
+        raise InputError(f"{log.path}: calibration reads single-actuator logs (this is {log.system})")
+    c = log.columns
+    t, u, y = log.time, c["valve_cmd_V"], c["pos_m"]
+    pressures = {name: c[col] for name, col in _PRESSURES if col in c}
+    name = log.path.name
+    out = []
+    for row in steady_segments(t, u, y, pressures):
+        v = row["velocity_mps"]
+        out.append(Feature(name, "steady", row["u_V"], row["t_start_s"], row["t_end_s"], "velocity", v,
+                           SPEED_SIGMA_REL * abs(v) + SPEED_SIGMA_ABS))
+        out += [Feature(name, "steady", row["u_V"], row["t_start_s"], row["t_end_s"], q, row[q], PRESSURE_SIGMA)
+                for q in pressures]
+    lo, hi = float(np.min(y)), float(np.max(y))
+    change = np.flatnonzero(np.diff(u) != 0) + 1
+    bounds = np.concatenate([[0], change, [len(t)]])
+    fs = log.sample_rate_hz
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if abs(u[a]) <= 0.05 or b - a < 0.2 * fs:
+            continue
+        tail = np.arange(int(b - END_SHARE * (b - a)), b)
+        stop = hi if u[a] > 0 else lo
+        speed = abs(np.polynomial.polynomial.polyfit(t[tail], y[tail], 1)[1])
+        if speed > END_SPEED or abs(float(np.median(y[tail])) - stop) > END_MARGIN_M:
+            continue
+        out += [Feature(name, "end stop", float(u[a]), float(t[tail[0]]), float(t[tail[-1]]), q,
+                        float(np.median(p[tail])), PRESSURE_SIGMA) for q, p in pressures.items()]
+    if not any(f.kind == "steady" for f in out):
+        raise InputError(f"{log.path}: no stretch of constant valve command moves the piston through mid-stroke; "
+                         f"calibration needs open-loop runs at constant commands (docs/calibration.md)")
+    return out
+
+
+def load_force(log: MeasurementLog, machine: Machine) -> float:
+    """The external force along the axis [N] that the piston lifts: M g cos(inclination), from the log's
+    declared mass and inclination (the machine's where it declares none)."""
+    mass = machine.effects.mass_kg or log.mass_kg or moving_mass()
+    incl = machine.effects.inclination_deg if machine.effects.inclination_deg is not None else log.inclination_deg
+    return mass * gravity() * math.cos(math.radians(incl))
+
+
+def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> np.ndarray:
+    """The model's value of each feature (same order, same units) on ``machine``; ``loads``: the load
+    force of each log [N] (:func:`load_force`). A stretch the valve cannot move against its load predicts
+    no motion (velocity 0, pressures at their limits)."""
+    hyd, eff = machine.hydraulics, machine.effects
+    cache: dict[tuple[str, float], hydraulics.SteadyState | None] = {}
+    out = np.empty(len(feats))
+    for i, f in enumerate(feats):
+        if f.kind == "end stop":
+            feeds = "p1" if f.u_V > 0 else "p2"
+            if f.quantity == "ps":
+                out[i] = hyd.supply_pressure
+            elif not hyd.four_way:
+                out[i] = hyd.supply_pressure if f.u_V > 0 else hyd.tank_pressure
+            else:
+                out[i] = hyd.supply_pressure if f.quantity == feeds else hyd.tank_pressure
+            continue
+        key = (f.log, f.u_V)
+        if key not in cache:
+            try:
+                cache[key] = hydraulics.steady_state(f.u_V, loads[f.log], hyd, eff=eff)
+            except ValueError:
+                cache[key] = None
+        s = cache[key]
+        if s is None:
+            out[i] = 0.0 if f.quantity == "velocity" else hyd.supply_pressure
+        else:
+            out[i] = {"velocity": s.velocity, "p1": s.p1, "p2": s.p2, "ps": hyd.supply_pressure}[f.quantity]
+    return out
+
+
+def _get(doc: dict, key: str):
+    node = doc
+    for part in key.split("."):
+        node = node[part]
+    return node
+
+
+def _set(doc: dict, key: str, value: float) -> None:
+    *sections, leaf = key.split(".")
+    node = doc
+    for part in sections:
+        node = node.setdefault(part, {})
+    node[leaf] = float(value)
+
+
+def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
+    """``machine`` with each parameter's key set to its value (the machine file edited, checked again)."""
+    doc = json.loads(json.dumps(machine.document()))
+    for p, v in zip(params, values):
+        _set(doc, p.key, v)
+    return _replace_path(machine_from_document(doc, machine.label), machine)
+
+
+def _replace_path(new: Machine, old: Machine) -> Machine:
+    import dataclasses
+
+    return dataclasses.replace(new, path=old.path)
+
+
+@dataclass
+class Fit:
+    """The outcome of one least-squares fit: values (len(params),) in the keys' units, standard errors,
+    correlation matrix, weighted residuals, and the parameters held at their prior with the reason."""
+
+    params: list[Parameter]
+    values: np.ndarray
+    std_errors: np.ndarray
+    correlation: np.ndarray
+    residuals: np.ndarray
+    held: dict[str, str]
+
+
+def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> Fit:
+    """Bounded least squares of the free parameters (those not in ``held``) in normalised coordinates
+    z = (x - lower) / (upper - lower); then the held-at-prior rule of the module doc, refitting until no
+    free parameter breaks it."""
+    held = dict(held or {})
+    measured = np.array([f.measured for f in feats])
+    sigma = np.array([f.sigma for f in feats])
+    prior = np.array([_get(machine.document(), p.key) for p in params], dtype=float)
+    lo = np.array([p.lower for p in params])
+    span = np.array([p.upper - p.lower for p in params])
+    while True:
+        free = [i for i, p in enumerate(params) if p.key not in held]
+        x = prior.copy()
+        if not free:
+            residual = (predict(feats, machine, loads) - measured) / sigma
+            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), residual, held)
+
+        def residual(z, free=free):
+            x[free] = lo[free] + z * span[free]
+            return (predict(feats, with_values(machine, params, x), loads) - measured) / sigma
+
+        z0 = np.clip((prior[free] - lo[free]) / span[free], 0.0, 1.0)
+        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0)
+        x[free] = lo[free] + sol.x * span[free]
+        n, k = len(sol.fun), len(free)
+        s2 = float(sol.fun @ sol.fun) / max(n - k, 1)
+        # a parameter the fit pins at a bound is reported as at a bound and has no standard error; scipy's
+        # trf also returns its Jacobian column zeroed (the modified Jacobian of an active bound): statistics
+        # of the parameters inside their bounds only
+        inside = (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
+        jac = sol.jac[:, inside]
+        se_z, corr = np.zeros(k), np.eye(k)
+        if inside.any():
+            cov = np.linalg.pinv(jac.T @ jac) * s2
+            se_in = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+            se_z[inside] = se_in
+            unit = np.where(se_in > 0, se_in, 1.0)
+            corr[np.ix_(inside, inside)] = cov / np.outer(unit, unit)
+        norms = np.linalg.norm(sol.jac, axis=0)
+        blind = inside & (norms < 1e-9 * max(float(norms.max()), 1e-300))
+        worst, why = None, ""
+        for j in range(k):
+            if blind[j]:
+                worst, why = j, "the features do not depend on it"
+                break
+        if worst is None and inside.any():
+            j = int(np.argmax(se_z))  # the standard error as a share of the bound range
+            if se_z[j] > MAX_SE_SHARE:
+                worst, why = j, f"its standard error is {se_z[j]:.0%} of its bound range"
+        if worst is None and inside.sum() > 1:
+            c = np.abs(corr - np.eye(k))
+            a, b = np.unravel_index(int(np.argmax(c)), c.shape)
+            if c[a, b] > MAX_CORRELATION:
+                worst = a if se_z[a] >= se_z[b] else b
+                other = b if worst == a else a
+                why = (f"it trades against {params[free[other]].key} (correlation {corr[a, b]:+.3f}): the features "
+                       f"cannot separate the two")
+        if worst is None:
+            se = np.zeros(len(params))
+            se[free] = se_z * span[free]
+            full = np.eye(len(params))
+            full[np.ix_(free, free)] = corr
+            return Fit(params, x, se, full, sol.fun, held)
+        held[params[free[worst]].key] = why
+
+
+def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
+    """Speed errors (relative) and pressure errors [Pa] of predictions against the features."""
+    speed = [abs(p / f.measured - 1.0) for f, p in zip(feats, predicted) if f.quantity == "velocity" and f.measured]
+    press = [abs(p - f.measured) for f, p in zip(feats, predicted) if f.quantity != "velocity"]
+    return {"speeds": len(speed), "speed_error_mean": float(np.mean(speed)) if speed else None,
+            "speed_error_max": float(np.max(speed)) if speed else None, "pressures": len(press),
+            "pressure_error_mean_Pa": float(np.mean(press)) if press else None,
+            "pressure_error_max_Pa": float(np.max(press)) if press else None}
+
+
+def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
+              params: list[Parameter] | None = None, cross_validate: bool = True) -> tuple[Machine, dict]:
+    """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the features of ``logs``
+    (module doc); predict ``held_out``. Returns the calibrated machine (its ``calibration`` the report
+    without the feature rows) and the report: per parameter prior, value, standard error, bounds and
+    their source, status (fitted, at a bound, held at its prior: why, and the experiment that would
+    identify it), the correlations of the fitted ones, the errors before/after on the fitted features,
+    on each held-out log and (``cross_validate``, three or more logs) on each log left out of a refit,
+    and the feature rows. Raises InputError for a log that is not a calibration experiment."""
+    params = list(params if params is not None else default_parameters(machine))
+    feats = [f for log in logs for f in features(log)]
+    loads = {log.path.name: load_force(log, machine) for log in (*logs, *held_out)}
+    if len(loads) < len(logs) + len(held_out):
+        raise InputError("two logs of the same file name: calibration names features by their log's file name")
+    before = predict(feats, machine, loads)
+    fit = _fit(feats, machine, params, loads)
+    calibrated = with_values(machine, params, fit.values)
+    after = predict(feats, calibrated, loads)
+    report = {"machine": machine.label, "logs": [str(log.path) for log in logs],
+              "method": "bounded least squares of steady motions and end-stop pressures (hexsim.measured.calibration)",
+              "weights": {"speed": f"{SPEED_SIGMA_REL:.0%} + {SPEED_SIGMA_ABS * 1e3:g} mm/s",
+                          "pressure_Pa": PRESSURE_SIGMA},
+              "parameters": _parameter_rows(fit),
+              "correlation": {"keys": [p.key for p in params if p.key not in fit.held],
+                              "matrix": _free_block(fit).round(4).tolist()},
+              "fit": {"before": _errors(feats, before), "after": _errors(feats, after)}}
+    _add_priors(report, machine)
+    if held_out:
+        out_feats = [f for log in held_out for f in features(log)]
+        report["held_out"] = {"logs": [str(log.path) for log in held_out],
+                              "before": _errors(out_feats, predict(out_feats, machine, loads)),
+                              "after": _errors(out_feats, predict(out_feats, calibrated, loads))}
+    if cross_validate and len(logs) >= 3:
+        rows = []
+        for log in logs:
+            rest = [f for f in feats if f.log != log.path.name]
+            mine = [f for f in feats if f.log == log.path.name]
+            refit = _fit(rest, calibrated, params, loads, fit.held)
+            rows.append({"log": str(log.path), **_errors(mine, predict(mine, with_values(calibrated, params,
+                                                                                           refit.values), loads))})
+        report["leave_one_log_out"] = rows
+    report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)} for f, b, a in zip(feats, before, after)]
+    provenance = {k: v for k, v in report.items() if k != "rows"}
+    sources = dict(calibrated.sources)
+    for row in report["parameters"]:
+        if row["status"] != "held at its prior":
+            sources[row["key"]] = (f"hexsim calibrate: {row['value']:.6g} ± {row['std_error']:.2g} {row['unit']} from "
+                                   f"{len(logs)} log(s) (prior {row['prior']:.6g})")
+    import dataclasses
+
+    calibrated = dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),
+                                     description=(calibrated.description + " Calibrated by hexsim calibrate.").strip())
+    return calibrated, report
+
+
+def _free_block(fit: Fit) -> np.ndarray:
+    free = [i for i, p in enumerate(fit.params) if p.key not in fit.held]
+    return fit.correlation[np.ix_(free, free)]
+
+
+def _parameter_rows(fit: Fit) -> list[dict]:
+    rows = []
+    for p, value, se in zip(fit.params, fit.values, fit.std_errors):
+        row = {"key": p.key, "unit": p.unit, "value": float(value), "std_error": float(se),
+               "lower": p.lower, "upper": p.upper, "bounds_source": p.source, "experiment": p.experiment}
+        span = p.upper - p.lower
+        if p.key in fit.held:
+            row.update(status="held at its prior", why=fit.held[p.key])
+        elif p.limit and value - p.lower <= 1e-3 * span:
+            row.update(status="at its physical limit", why=p.limit)
+        elif min(value - p.lower, p.upper - value) <= 1e-3 * span:
+            row.update(status="at a bound", why="the fit ran into the bound: the data asks for more than the "
+                       "bracket allows, a hint that the model lacks an effect or the bracket is wrong")
+        else:
+            row["status"] = "fitted"
+        rows.append(row)
+    return rows
+
+
+def _add_priors(report: dict, machine: Machine) -> None:
+    """Each parameter row's prior (the machine's value before calibration), in place."""
+    doc = machine.document()
+    for row in report["parameters"]:
+        row["prior"] = float(_get(doc, row["key"]))
+
+
+def table(report: dict) -> str:
+    """The report as lines for stdout: parameters, then errors before/after, held out, left out."""
+    lines = [f"{'parameter':30s} {'prior':>11s} {'calibrated':>11s} {'± s.e.':>9s}  status"]
+    for r in report["parameters"]:
+        tail = r["status"] if r["status"] == "fitted" else f"{r['status']}: {r['why']}"
+        if r["status"] == "held at its prior":
+            tail += f"; identify it with {r['experiment']}"
+        lines.append(f"{r['key']:30s} {r['prior']:11.5g} {r['value']:11.5g} {r['std_error']:9.2g}  {tail}")
+
+    def errs(e: dict) -> str:
+        s = (f"speed {e['speed_error_mean']:.1%} mean, {e['speed_error_max']:.1%} worst ({e['speeds']})"
+             if e["speeds"] else "no speed")
+        if e["pressures"]:
+            s += (f"; pressure {e['pressure_error_mean_Pa'] / 1e5:.2f} bar mean, "
+                  f"{e['pressure_error_max_Pa'] / 1e5:.2f} bar worst ({e['pressures']})")
+        return s
+
+    lines.append(f"fitted features  before: {errs(report['fit']['before'])}")
+    lines.append(f"                 after:  {errs(report['fit']['after'])}")
+    if "held_out" in report:
+        lines.append(f"held-out logs    before: {errs(report['held_out']['before'])}")
+        lines.append(f"                 after:  {errs(report['held_out']['after'])}")
+    for row in report.get("leave_one_log_out", []):
+        lines.append(f"left out {pathlib.Path(row['log']).name:22s} {errs(row)}")
+    return "\n".join(lines)
+
+
+#: A nominal this far off a log's steady motions is "visibly off": validate says to calibrate first.
+OFF_SPEED, OFF_PRESSURE = 0.03, 1e5
+
+
+def nominal_check(log: MeasurementLog) -> dict | None:
+    """How far an uncalibrated machine is from an open-loop constant-command log's steady motions, and, if
+    visibly off (speeds beyond :data:`OFF_SPEED` or pressures beyond :data:`OFF_PRESSURE` [Pa]), which
+    parameters a calibration on this log alone moves beyond two standard errors and 5 % of their
+    bracket: the ``sentence`` that
+    ``hexsim validate`` puts first ("calibrate first"). None for a machine that was calibrated, or a
+    log without a steady motion."""
+    if log.machine.calibration is not None or log.system != "single-actuator" or "valve_cmd_V" not in log.columns:
+        return None
+    try:
+        feats = features(log)
+    except InputError:
+        return None
+    loads = {log.path.name: load_force(log, log.machine)}
+    err = _errors(feats, predict(feats, log.machine, loads))
+    off = (err["speed_error_max"] or 0.0) > OFF_SPEED or (err["pressure_error_max_Pa"] or 0.0) > OFF_PRESSURE
+    out = {"off": bool(off), **err}
+    if not off:
+        return out
+    _, report = calibrate([log], log.machine, cross_validate=False)
+    moved = [r for r in report["parameters"] if r["status"] != "held at its prior"
+             and abs(r["value"] - r["prior"]) > max(2.0 * r["std_error"], 0.05 * (r["upper"] - r["lower"]))]
+    out["moved"] = [{k: r[k] for k in ("key", "prior", "value", "std_error", "unit", "status")} for r in moved]
+    what = []
+    if err["speed_error_max"]:
+        what.append(f"speeds up to {err['speed_error_max']:.1%} off")
+    if err["pressure_error_max_Pa"]:
+        what.append(f"pressures up to {err['pressure_error_max_Pa'] / 1e5:.2f} bar off")
+    changes = ", ".join(f"{r['key']} {r['prior']:.4g} → {r['value']:.4g} {r['unit']}"
+                        + (" (at a bound)" if r["status"] == "at a bound" else "") for r in moved)
+    out["sentence"] = (f"The machine's nominal is visibly off this log's steady motions ({', '.join(what)}): calibrate "
+                       f"first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine"
+                       + (f"; a calibration on this log alone moves {changes}" if changes else "") + ".")
+    return out
