@@ -350,7 +350,7 @@ def cmd_friction(args: argparse.Namespace) -> int:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from hexsim.measured.calibration import calibrate, table
     from hexsim.measured.measurement import read_log
-    from hexsim.plant.machine import dump, load_machine
+    from hexsim.plant.machine import dump, load_machine, machine_from_document
 
     _check_outputs(args)
     if args.out.suffix.lower() != ".json":
@@ -363,7 +363,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     print(f"machine: {machine.label}; calibrating on {len(logs)} log(s), {len(held)} held out", flush=True)
     calibrated, report = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation)
     print(table(report))
-    write_atomic(args.out, lambda tmp: tmp.write_text(dump(calibrated.document()), encoding="utf-8"))
+    doc = calibrated.document()
+    machine_from_document(doc, str(args.out))  # checked as any machine file before it is written
+    write_atomic(args.out, lambda tmp: tmp.write_text(dump(doc), encoding="utf-8"))
     print(f"wrote {args.out}")
     if args.json:
         write_json(args.json, report)

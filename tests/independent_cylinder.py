@@ -46,6 +46,9 @@ class Rig:
     coulomb_neg: float = 76.1
     mass: float = 1.0
     inclination_deg: float = 90.0
+    # a valve whose opening is not linear in the command: (|u| V, fraction of the full opening) points,
+    # interpolated from (0, 0); None: linear beyond the overlap
+    curve: tuple[tuple[float, float], ...] | None = None
 
     def replace(self, **kw) -> "Rig":
         return replace(self, **kw)
@@ -72,8 +75,12 @@ def simulate(rig: Rig, t: np.ndarray, u: np.ndarray, y0: float) -> tuple[np.ndar
     def rhs(time, s, cmd):
         y, v, p1, p2 = s
         x = (cmd - rig.null_offset) / 10.0 * rig.x_max
-        open_pos = w * max(x - rig.overlap, 0.0)  # P->A and B->T
-        open_neg = w * max(-x - rig.overlap, 0.0)  # A->T and P->B
+        if rig.curve is None:
+            open_pos = w * max(x - rig.overlap, 0.0)  # P->A and B->T
+            open_neg = w * max(-x - rig.overlap, 0.0)  # A->T and P->B
+        else:
+            full = w * (rig.x_max - rig.overlap) * float(np.interp(abs(x) / rig.x_max * 10.0, curve_u, curve_f))
+            open_pos, open_neg = (full, 0.0) if x > 0 else (0.0, full)
         q_a = _edge(rig.k_pa, rig.cd, open_pos, rig.supply - p1, rig.rho) - _edge(rig.k_at, rig.cd, open_neg, p1 - rig.tank, rig.rho)
         q_b = _edge(rig.k_pb, rig.cd, open_neg, rig.supply - p2, rig.rho) - _edge(rig.k_bt, rig.cd, open_pos, p2 - rig.tank, rig.rho)
         dp1 = rig.bulk / (a1 * max(y, 0.0) + rig.v_a) * (q_a - a1 * v)
@@ -92,6 +99,9 @@ def simulate(rig: Rig, t: np.ndarray, u: np.ndarray, y0: float) -> tuple[np.ndar
         return [v, dv, dp1, dp2]
 
     load = rig.mass * g
+    if rig.curve is not None:
+        curve_u = [0.0, *(u for u, _ in rig.curve)]
+        curve_f = [0.0, *(f for _, f in rig.curve)]
     p2_0 = ((rig.supply + rig.tank) * a1 - load) / (a1 + a2)
     state = [y0, 0.0, rig.supply + rig.tank - p2_0, p2_0]
     out = np.empty((4, len(t)))

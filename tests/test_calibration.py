@@ -145,3 +145,29 @@ def test_validate_says_calibrate_first_when_the_nominal_is_visibly_off_a_constan
     calibrated, _ = calibrate([read_log(p, machine=NOMINAL) for p in sorted(DATA.glob("cyl_*V_s1_p*.csv"))], NOMINAL,
                               cross_validate=False)
     assert nominal_check(read_log(DATA / "cyl_1V_s2_pB.csv", machine=calibrated)) is None  # calibrated: judged as is
+
+
+def test_a_valve_curve_as_a_table_is_calibrated_point_by_point_and_predicts_between_them(tmp_path):
+    """A progressive valve (the independent plant's own curve): with flow_area "table" the openings at the
+    commands of the experiments are fitted, the point beyond every command is held and named, and runs at
+    commands between the points are predicted."""
+    curve = ((2.0, 0.15), (4.0, 0.36), (7.0, 0.72), (10.0, 1.0))
+    truth = Rig(curve=curve, overlap=0.0, k_pb=0.92, supply=43e5, tank=0.5e5)
+    doc = NOMINAL.document()
+    doc["valve"].update(flow_area="table", overlap_m=0.0, opening_table=[[2.0, 0.2], [4.0, 0.4], [7.0, 0.7], [10.0, 1.0]])
+    from hexsim.plant.machine import machine_from_document
+
+    table_machine = machine_from_document(doc)
+    fit = [read_log(experiment(truth, v, tmp_path, f"run_{v:g}V", np.random.default_rng(5)), machine=table_machine)
+           for v in (2.0, 4.0, 7.0)]
+    held = [read_log(experiment(truth, v, tmp_path, f"held_{v:g}V", np.random.default_rng(6)), machine=table_machine)
+            for v in (3.0, 5.5)]
+    calibrated, report = calibrate(fit, table_machine, held_out=held, cross_validate=False)
+    rows = {r["key"]: r for r in report["parameters"]}
+    for i, (_, f) in enumerate(curve[:3]):
+        assert rows[f"valve.opening_table[{i}]"]["value"] == pytest.approx(f, abs=0.004)
+    assert rows["valve.opening_table[3]"]["status"] == "held at its prior"  # no command beyond 7 V
+    assert "10 V" in rows["valve.opening_table[3]"]["experiment"]
+    after = report["held_out"]["after"]
+    assert after["speed_error_max"] < 0.015 and after["pressure_error_max_Pa"] < 0.2e5, after
+    assert [list(p) for p in calibrated.hydraulics.opening_table][3] == [10.0, 1.0]

@@ -191,3 +191,20 @@ def test_cavitation_floor_keeps_the_oil_volume():
         lowest.append(state.p1[0])
     assert lowest[0] == P.cavitation_pressure == pytest.approx(0.1e5 - 101325.0)  # 0.1 bar absolute
     assert state.v_c[0] == 0.0 and state.p1[0] == pytest.approx(4.0e6, rel=1e-3)
+
+
+def test_opening_table_interpolates_from_the_origin_on_both_sides_of_null():
+    """flow_area "table": the opening is pi d x_v,max times the table's fraction at |u_v|, linear between
+    points from (0, 0) (written out here), the same on the side x_v < 0."""
+    p = HydraulicParams(flow_area="table", opening_table=((1.0, 0.0), (3.0, 0.25), (10.0, 1.0)))
+    full = math.pi * p.spool_diameter * p.x_v_max
+    for u, fraction in ((0.5, 0.0), (1.0, 0.0), (2.0, 0.125), (3.0, 0.25), (6.5, 0.625), (10.0, 1.0)):
+        x = u / p.u_v_max * p.x_v_max
+        a1, a2 = hydraulics.flow_areas(x, p)
+        assert (a1, a2) == pytest.approx((full * fraction, 0.0), abs=1e-15)
+        a1, a2 = hydraulics.flow_areas(-x, p)
+        assert (a1, a2) == pytest.approx((0.0, full * fraction), abs=1e-15)
+    with pytest.raises(InputError, match="must end at u_v_max"):
+        HydraulicParams(flow_area="table", opening_table=((1.0, 0.1), (5.0, 0.5)))
+    with pytest.raises(InputError, match="set flow_area to 'table'"):
+        HydraulicParams(opening_table=((10.0, 1.0),))

@@ -63,7 +63,7 @@ MAX_CORRELATION = 0.98
 #: End-stop plateau: the last share of a stretch, slower than END_SPEED [m/s], its median within END_MARGIN_M
 #: [m] of the observed end of the travel.
 END_SHARE, END_SPEED, END_MARGIN_M = 0.4, 1e-3, 2e-3
-_UNITS = {k.path: k.unit for k in KEYS}
+_UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ class Parameter:
 
     @property
     def unit(self) -> str:
-        return _UNITS[self.key]
+        return _UNITS[self.key.split("[")[0]]
 
 
 def default_parameters(machine: Machine) -> list[Parameter]:
@@ -97,9 +97,13 @@ def default_parameters(machine: Machine) -> list[Parameter]:
         return Parameter(key, lo * value, hi * value, source, experiment)
 
     big = "large commands in both directions (beyond half the range)"
-    params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7, 1.3,
-                  "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
     small = "small commands (a few % of the range) in both directions"
+    if hyd.flow_area == "table":  # each point's opening (the port's width only scales them all: not fitted)
+        params = [Parameter(f"valve.opening_table[{i}]", 0.7 * f, 1.3 * f, "the data sheet's flow curve within ±30 %",
+                            f"commands near {u:g} V in both directions") for i, (u, f) in enumerate(hyd.opening_table)]
+    else:
+        params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7,
+                      1.3, "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
     x_max = hyd.x_v_max
     if hyd.flow_area == "sharp":
         params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
@@ -225,18 +229,24 @@ def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> 
 
 
 def _get(doc: dict, key: str):
+    """The value of ``key`` in a machine-file document; ``valve.opening_table[i]``: the opening of point i."""
+    path, _, index = key.partition("[")
     node = doc
-    for part in key.split("."):
+    for part in path.split("."):
         node = node[part]
-    return node
+    return node[int(index[:-1])][1] if index else node
 
 
 def _set(doc: dict, key: str, value: float) -> None:
-    *sections, leaf = key.split(".")
+    path, _, index = key.partition("[")
+    *sections, leaf = path.split(".")
     node = doc
     for part in sections:
         node = node.setdefault(part, {})
-    node[leaf] = float(value)
+    if index:
+        node[leaf][int(index[:-1])][1] = float(value)
+    else:
+        node[leaf] = float(value)
 
 
 def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
@@ -276,6 +286,16 @@ def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> F
     prior = np.array([_get(machine.document(), p.key) for p in params], dtype=float)
     lo = np.array([p.lower for p in params])
     span = np.array([p.upper - p.lower for p in params])
+    for i, p in enumerate(params):  # a parameter no feature sees across its whole bracket (a table point beyond
+        if p.key in held:  # every command of the experiments, the mass of a horizontal axis) is not fitted
+            continue
+        ends = []
+        for value in (p.lower, p.upper):
+            x = prior.copy()
+            x[i] = value
+            ends.append(predict(feats, with_values(machine, params, x), loads) / sigma)
+        if np.max(np.abs(ends[1] - ends[0])) < 1e-3:
+            held[p.key] = "the features do not depend on it across its bracket"
     while True:
         free = [i for i, p in enumerate(params) if p.key not in held]
         x = prior.copy()
@@ -388,8 +408,12 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     sources = dict(calibrated.sources)
     for row in report["parameters"]:
         if row["status"] != "held at its prior":
-            sources[row["key"]] = (f"hexsim calibrate: {row['value']:.6g} ± {row['std_error']:.2g} {row['unit']} from "
-                                   f"{len(logs)} log(s) (prior {row['prior']:.6g})")
+            key, _, index = row["key"].partition("[")  # a table point's source is its table's
+            text = (f"{'point ' + index[:-1] + ': ' if index else ''}{row['value']:.6g} ± {row['std_error']:.2g} "
+                    f"{row['unit']} (prior {row['prior']:.6g})")
+            earlier = sources.get(key, "") if index else ""
+            sources[key] = (f"{earlier}; {text}" if earlier.startswith("hexsim calibrate") else
+                            f"hexsim calibrate from {len(logs)} log(s): {text}")
     import dataclasses
 
     calibrated = dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),

@@ -155,6 +155,10 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None) -
     rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal if sm else "acceleration",
                                                result.config.scenario.system))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    cfg = result.config
+    rec.log("/run", rr.TextDocument(f"scenario {cfg.scenario.name}, machine {cfg.machine_label} "
+                                    f"({cfg.hydraulics.valve_type} valve), compensator {cfg.compensator_name}"),
+            static=True)
     times = rr.TimeColumn("time", duration=result.t)
     n = result.n_legs
     for i in range(n):

@@ -86,6 +86,24 @@ class LegParams(NamedTuple):
     stroke: float  # cylinder stroke L_s [m]: rod-side volume (L_s - y) A2 + V_pl,B (4-way)
     k_pb: float  # supply-edge gain P→B [-] (4-way)
     k_bt: float  # return-edge gain B→T [-] (4-way)
+    tab_n: float  # points of the opening table (flow_area "table"); 0: no table
+    # the table's points (|u_v| [V], opening fraction), the origin first, unused points the last one repeated
+    tu0: float
+    tu1: float
+    tu2: float
+    tu3: float
+    tu4: float
+    tu5: float
+    tu6: float
+    tu7: float
+    tf0: float
+    tf1: float
+    tf2: float
+    tf3: float
+    tf4: float
+    tf5: float
+    tf6: float
+    tf7: float
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -99,7 +117,16 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
         eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure,
-        float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke, eff.edge_gain_pb, eff.edge_gain_bt)
+        float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke, eff.edge_gain_pb, eff.edge_gain_bt,
+        *_table_fields(hyd))
+
+
+def _table_fields(hyd: HydraulicParams) -> tuple[float, ...]:
+    """tab_n and the eight (u, f) points of :class:`LegParams`: the origin, the table, the last point repeated."""
+    points = [(0.0, 0.0), *((float(u), float(f)) for u, f in hyd.opening_table)]
+    n = len(points) - 1
+    points += [points[-1]] * (8 - len(points))
+    return (float(n), *(u for u, _ in points), *(f for _, f in points))
 
 
 #: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
@@ -168,8 +195,13 @@ def flow_areas(x_v, P):
     """Openings (a1 P→A, a2 A→T) [m^2] at spool position x_v [m]: sharp edges with overlap (seed eq.
     3.3), or on the side x_v opens the smooth 300 x_v^2 (eq. 3.11) up to |x_v| = x_a, blended C^1 onto
     the sharp-edged port's pi d (|x_v| - O_l) at x_b and that line beyond, the geometric limit
-    (:attr:`hexsim.plant.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); edge
-    gains not applied."""
+    (:attr:`hexsim.plant.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); or
+    the opening table's fraction of the full opening pi d x_v,max at the command |x_v| u_v,max / x_v,max
+    (:func:`table_opening`); edge gains not applied."""
+    if P.tab_n > 0.5:
+        a = P.port_width * P.x_v_max * table_opening(abs(x_v) * (P.u_v_max / P.x_v_max), P)
+        a1 = a if x_v > 0.0 else 0.0
+        return a1, a - a1
     if P.sharp > 0.5:
         return P.port_width * max(x_v - P.overlap, 0.0), P.port_width * max(-x_v - P.overlap, 0.0)
     x = abs(x_v)
@@ -181,6 +213,34 @@ def flow_areas(x_v, P):
         a = P.port_width * (x - P.overlap)
     a1 = a if x_v > 0.0 else 0.0
     return a1, a - a1
+
+
+@_inline
+def _lerp(u, ua, fa, ub, fb):
+    if ub <= ua:
+        return fb
+    return fa + (fb - fa) * (u - ua) / (ub - ua)
+
+
+@_inline
+def table_opening(u, P):
+    """The opening fraction at command |u_v| = u [V]: linear between the table's points (tu_k, tf_k) of
+    :class:`LegParams`, from the origin; beyond the last point its value."""
+    if u <= P.tu1:
+        return _lerp(u, P.tu0, P.tf0, P.tu1, P.tf1)
+    if u <= P.tu2:
+        return _lerp(u, P.tu1, P.tf1, P.tu2, P.tf2)
+    if u <= P.tu3:
+        return _lerp(u, P.tu2, P.tf2, P.tu3, P.tf3)
+    if u <= P.tu4:
+        return _lerp(u, P.tu3, P.tf3, P.tu4, P.tf4)
+    if u <= P.tu5:
+        return _lerp(u, P.tu4, P.tf4, P.tu5, P.tf5)
+    if u <= P.tu6:
+        return _lerp(u, P.tu5, P.tf5, P.tu6, P.tf6)
+    if u <= P.tu7:
+        return _lerp(u, P.tu6, P.tf6, P.tu7, P.tf7)
+    return P.tf7
 
 
 @_inline

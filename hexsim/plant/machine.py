@@ -74,8 +74,11 @@ KEYS: tuple[Key, ...] = (
     _k("valve.type", "hydraulics.valve_type", "-", "3-way (rod side at supply, the seed's) or 4-way (both chambers "
        "fed by the valve)", "seed Fig. 3.1 (3-way)", kind="text", choices=("3-way", "4-way")),
     _k("valve.flow_area", "hydraulics.flow_area", "-", "opening against spool position: smooth (3.11 blended onto "
-       "the port), quadratic (3.11 everywhere), sharp (3.3, linear with overlap/underlap)", "seed eq. 3.3, 3.11",
-       kind="text", choices=("smooth", "quadratic", "sharp")),
+       "the port), quadratic (3.11 everywhere), sharp (3.3, linear with overlap/underlap), table (opening_table)",
+       "seed eq. 3.3, 3.11", kind="text", choices=("smooth", "quadratic", "sharp", "table")),
+    _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[|u_v| V, opening as a fraction "
+       "of the full opening], …] to u_v,max, linear between points from (0, 0), both sides of null alike",
+       "valve data sheet (flow against command) or a calibration", kind="table"),
     _k("valve.command_range_V", "hydraulics.u_v_max", "V", "valve setpoint at full spool stroke u_v,max", _SEED),
     _k("valve.spool_stroke_m", "hydraulics.x_v_max", "m", "spool travel at u_v,max x_v,max", _SEED),
     _k("valve.spool_diameter_m", "hydraulics.spool_diameter", "m", "spool diameter d: port width pi d of the "
@@ -223,7 +226,7 @@ class Machine:
 
 def _json_value(value):
     if isinstance(value, tuple):
-        return [float(v) for v in value]
+        return [_json_value(v) if isinstance(v, tuple) else float(v) for v in value]
     return value
 
 
@@ -391,6 +394,11 @@ def _checked(key: Key, value, where: str):
         if not isinstance(value, bool):
             raise InputError(f"{at}: expected true or false, got {value!r}")
         return value
+    if key.kind == "table":
+        if not (isinstance(value, list) and all(isinstance(p, list) and len(p) == 2 and all(_is_number(v) for v in p)
+                                                for p in value)):
+            raise InputError(f"{at}: expected [[u_V, opening], …] (numbers), got {value!r}")
+        return tuple((float(u), float(f)) for u, f in value)
     if key.kind == "vector":
         if not (isinstance(value, list) and len(value) == 3 and all(_is_number(v) for v in value)):
             raise InputError(f"{at}: expected [x, y, z] in {key.unit}, got {value!r}")

@@ -19,7 +19,9 @@ import numpy as np
 
 from hexsim.errors import InputError
 
-FlowArea = Literal["smooth", "quadratic", "sharp"]
+FlowArea = Literal["smooth", "quadratic", "sharp", "table"]
+#: Most points an opening table may have (besides the origin): the compiled leg step holds them as fields.
+MAX_TABLE_POINTS = 7
 ValveType = Literal["3-way", "4-way"]
 
 
@@ -74,8 +76,13 @@ class HydraulicParams:
     spool_diameter: float = 1e-2  # d [m], seed app. A
     smooth_area_gain: float = 300.0  # [m^2/m^2 -> 1/m]: a = 300 x_v^2, seed eq. (3.11)
     # "smooth": seed eq. (3.11) blended C^1 onto the port's opening (3.3) above 0.78 V (smooth_blend);
-    # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "sharp": (3.3)
+    # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "sharp": (3.3); "table": the
+    # opening against the command as a data sheet or a measurement gives it (opening_table)
     flow_area: FlowArea = "smooth"
+    # (|u_v| [V], opening as a fraction of the full port opening pi d x_v,max) points, commands increasing to
+    # u_v,max, openings non-decreasing, linear in between from (0, 0); the same on both sides of null (the
+    # overlap is in the table: zero opening up to it). Used with flow_area "table" only.
+    opening_table: tuple[tuple[float, float], ...] = ()
     # Lowest pressure the bottom chamber's oil holds [Pa, gauge]: 0.1 bar absolute, where dissolved air comes
     # out of mineral oil and the oil cavitates (air-release pressures 0.1–0.3 bar abs.; the vapour pressure is
     # lower still; Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), 2011). Not in the seed, whose
@@ -159,14 +166,40 @@ class HydraulicParams:
                 f"HydraulicParams.tank_pressure ({self.tank_pressure} Pa) must be below supply_pressure "
                 f"({self.supply_pressure} Pa)"
             )
-        if self.flow_area not in ("smooth", "quadratic", "sharp"):
-            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic' or 'sharp', got {self.flow_area!r}")
+        if self.flow_area not in ("smooth", "quadratic", "sharp", "table"):
+            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic', 'sharp' or 'table', got "
+                             f"{self.flow_area!r}")
+        self._check_table()
         limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
         if self.flow_area == "smooth" and self.overlap >= limit:
             raise InputError(
                 f"HydraulicParams.overlap ({self.overlap} m) must be below pi d / (4 k_a) = {limit:.3g} m for the "
                 f"smooth flow area: above it k_a x_v^2 (eq. 3.11, k_a = smooth_area_gain) never meets the port's "
                 f"opening pi d (x_v - O_l) (eq. 3.3) and cannot be blended onto it")
+
+    def _check_table(self) -> None:
+        """InputError unless the opening table suits the flow area (module doc of the field)."""
+        table = self.opening_table
+        if self.flow_area != "table":
+            if table:
+                raise InputError(f"HydraulicParams.opening_table is given but flow_area is {self.flow_area!r}: set "
+                                 f"flow_area to 'table' to use it")
+            return
+        if not (1 <= len(table) <= MAX_TABLE_POINTS):
+            raise InputError(f"HydraulicParams.opening_table needs 1…{MAX_TABLE_POINTS} points (|u_v| V, opening "
+                             f"fraction) for flow_area 'table', got {len(table)}")
+        prev_u, prev_f = 0.0, 0.0
+        for i, point in enumerate(table):
+            if not (len(point) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in point)):
+                raise InputError(f"HydraulicParams.opening_table point {i + 1} must be two finite numbers, got {point!r}")
+            u, f = point
+            if u <= prev_u or f < prev_f or f > 2.0:
+                raise InputError(
+                    f"HydraulicParams.opening_table point {i + 1} ({u:g} V, {f:g}): commands must increase from 0 and "
+                    f"openings must not decrease (fractions of the full opening, at most 2)")
+            prev_u, prev_f = u, f
+        if abs(prev_u - self.u_v_max) > 1e-9 * self.u_v_max:
+            raise InputError(f"HydraulicParams.opening_table must end at u_v_max ({self.u_v_max:g} V), ends at {prev_u:g} V")
 
     # Derived constants, computed once per parameter set (the dataclass is frozen).
     @functools.cached_property
