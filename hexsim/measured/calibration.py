@@ -35,6 +35,7 @@ fitted; with three or more fitted logs each is also predicted by a fit on the ot
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import pathlib
@@ -254,13 +255,7 @@ def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
     doc = json.loads(json.dumps(machine.document()))
     for p, v in zip(params, values):
         _set(doc, p.key, v)
-    return _replace_path(machine_from_document(doc, machine.label), machine)
-
-
-def _replace_path(new: Machine, old: Machine) -> Machine:
-    import dataclasses
-
-    return dataclasses.replace(new, path=old.path)
+    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 
 @dataclass
@@ -414,8 +409,6 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
             earlier = sources.get(key, "") if index else ""
             sources[key] = (f"{earlier}; {text}" if earlier.startswith("hexsim calibrate") else
                             f"hexsim calibrate from {len(logs)} log(s): {text}")
-    import dataclasses
-
     calibrated = dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),
                                      description=(calibrated.description + " Calibrated by hexsim calibrate.").strip())
     return calibrated, report
