@@ -642,7 +642,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 #: Options a sweep grid may vary (argparse dest names).
-GRID_OPTIONS = ("scenario", "duration", "amplitude", "frequency", "seed", "kp", "flow_area", "sensor_noise", "engine", "model",
+GRID_OPTIONS = ("scenario", "machine", "duration", "amplitude", "frequency", "seed", "kp", "flow_area", "sensor_noise", "engine", "model",
                 "timestep", "warm_up", "compensator", "buffer_time", "velocity_band", "q_threshold", "iterative_gain",
                 "held_maximum", "fade_time", "velocity_cutoff")
 

@@ -116,3 +116,14 @@ def test_unknown_machine_name_lists_the_builtins():
 def test_docs_list_every_key_as_the_code_declares_it():
     doc = (ROOT / "docs" / "machine-file.md").read_text()
     assert reference_markdown() in doc, "docs/machine-file.md: regenerate the key table (hexsim.plant.machine.reference_markdown)"
+
+
+def test_a_sweep_varies_the_machine(tmp_path, capsys):
+    rig = tmp_path / "four_way.json"
+    assert main(["machine", "set", str(rig), "valve.type=4-way"]) == 0
+    out = tmp_path / "sweep.json"
+    assert main(["sweep", "actuator", "--duration", "6", "--frequency", "1", "--jobs", "1", "--quiet",
+                 "--grid", f"machine=micro_motion_system,{rig}", "--json", str(out)]) == 0
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["machine"] for r in rows] == ["micro_motion_system", str(rig)]
+    assert rows[0]["max_tracking_error_mm"] != rows[1]["max_tracking_error_mm"]  # the 4-way valve is another plant

@@ -217,8 +217,8 @@ class Machine:
 
     def _value(self, key: Key):
         section, name = key.target
-        if section == "machine":
-            return getattr(self, {"rated_flow": "rated_flow", "rated_dp": "rated_dp", "control": "control"}[name])
+        if section == "machine":  # rated_flow, rated_dp, control: the Machine's own fields
+            return getattr(self, name)
         if key.path == "valve.spool_diameter_m" and self.rated_flow is not None:
             return None
         return getattr(getattr(self, section), name)
