@@ -191,6 +191,8 @@ def _add_calibrate(sub) -> None:
                     help="logs predicted, not fitted (their error before and after is reported)")
     ca.add_argument("--no-cross-validation", action="store_true",
                     help="skip the leave-one-log-out refits (one per log)")
+    ca.add_argument("--report", type=pathlib.Path, metavar="DIR",
+                    help="write report.md and features.png (measured against predicted) here")
     ca.add_argument("--json", type=pathlib.Path, help="write the report as JSON; - for stdout")
 
 
@@ -357,6 +359,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"--out {args.out}: expected a .json machine file name")
     if not args.out.parent.exists():
         raise InputError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    if args.report is not None and args.report.exists() and not args.report.is_dir():
+        raise InputError(f"--report {args.report}: exists and is not a folder")
     machine = load_machine(args.machine)
     logs = [read_log(path, machine=machine) for path in args.logs]
     held = [read_log(path, machine=machine) for path in args.hold_out]
@@ -367,6 +371,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     machine_from_document(doc, str(args.out))  # checked as any machine file before it is written
     write_atomic(args.out, lambda tmp: tmp.write_text(dump(doc), encoding="utf-8"))
     print(f"wrote {args.out}")
+    if args.report is not None:
+        from hexsim.measured.calibration import markdown, plot_features
+
+        args.report.mkdir(parents=True, exist_ok=True)
+        plot_features(report, args.report / "features.png")
+        write_atomic(args.report / "report.md", lambda tmp: tmp.write_text(markdown(report, "features.png"),
+                                                                            encoding="utf-8"))
+        print(f"wrote {args.report}")
     if args.json:
         write_json(args.json, report)
         print(f"wrote {args.json}")

@@ -112,8 +112,11 @@ def test_real_cylinder_calibrated_on_one_repeat_predicts_the_other(tmp_path, cap
     held = sorted(str(p) for p in DATA.glob("cyl_*V_s2_p*.csv"))
     out, rep = tmp_path / "cal.json", tmp_path / "report.json"
     assert main(["calibrate", *fit, "--machine", "servo_cylinder", "--hold-out", *held, "--out", str(out),
-                 "--json", str(rep), "--no-cross-validation"]) == 0
+                 "--json", str(rep), "--no-cross-validation", "--report", str(tmp_path / "report")]) == 0
     report = json.loads(rep.read_text())
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "| `valve.edge_gain_PB` |" in md and "held-out logs" in md
+    assert (tmp_path / "report" / "features.png").read_bytes()[:4] == b"\x89PNG"
     before, after = report["held_out"]["before"], report["held_out"]["after"]
     assert after["pressure_error_max_Pa"] < 1e5 and after["speed_error_mean"] < 0.03
     assert after["speed_error_mean"] < 0.5 * before["speed_error_mean"]

@@ -510,3 +510,50 @@ def nominal_check(log: MeasurementLog) -> dict | None:
                        f"first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine"
                        + (f"; a calibration on this log alone moves {changes}" if changes else "") + ".")
     return out
+
+
+def markdown(report: dict, figure: str | None = None) -> str:
+    """report.md of a calibration: the machine and logs, the parameters (prior, value, standard error,
+    bounds and their source, status and why), the errors before and after, held out and left out."""
+    lines = [f"# Calibration of {report['machine']}", "", f"Method: {report['method']}; weights: speed "
+             f"{report['weights']['speed']}, pressure {report['weights']['pressure_Pa'] / 1e5:g} bar.", "",
+             "Logs fitted: " + ", ".join(f"`{pathlib.Path(p).name}`" for p in report["logs"]), ""]
+    if "held_out" in report:
+        lines += ["Logs held out: " + ", ".join(f"`{pathlib.Path(p).name}`" for p in report["held_out"]["logs"]), ""]
+    lines += ["| key | unit | prior | calibrated | ± s.e. | bounds | bounds from | status |", "|---|---|---|---|---|---|---|---|"]
+    for r in report["parameters"]:
+        status = r["status"] + (f": {r['why']}" if "why" in r else "")
+        if r["status"] == "held at its prior":
+            status += f"; identify it with {r['experiment']}"
+        lines.append(f"| `{r['key']}` | {r['unit']} | {r['prior']:.5g} | {r['value']:.5g} | {r['std_error']:.2g} | "
+                     f"{r['lower']:.4g} … {r['upper']:.4g} | {r['bounds_source']} | {status} |")
+    lines += ["", "```", table(report).split("\n", len(report["parameters"]) + 1)[-1], "```", ""]
+    if figure:
+        lines += [f"![measured against predicted features]({figure})", ""]
+    return "\n".join(lines)
+
+
+def plot_features(report: dict, path) -> None:
+    """Each fitted feature's error, before (the machine file) and after calibration, against its measured
+    value: speeds as relative errors [%], pressures in bar; written atomically (.png, .pdf or .svg)."""
+    from matplotlib.figure import Figure  # no pyplot: the user's backend is never switched
+
+    from hexsim.outputs.plotting import save_figure
+
+    rows = report["rows"]
+    fig = Figure(figsize=(11, 4.5), layout="constrained")
+    speed_ax, press_ax = fig.subplots(1, 2)
+    panels = ((speed_ax, lambda r: r["quantity"] == "velocity", "steady speeds", "measured speed [mm/s]",
+               "predicted / measured − 1 [%]", lambda r, k: 100.0 * (r[k] / r["measured"] - 1.0), 1e3),
+              (press_ax, lambda r: r["quantity"] != "velocity", "chamber pressures (steady, end stops)",
+               "measured pressure [bar]", "predicted − measured [bar]", lambda r, k: (r[k] - r["measured"]) / 1e5, 1e-5))
+    for ax, pick, title, xlabel, ylabel, error, scale in panels:
+        sel = [r for r in rows if pick(r)]
+        x = np.array([r["measured"] for r in sel]) * scale
+        for key, marker, label in (("before", "x", "the machine file"), ("after", "o", "calibrated")):
+            ax.plot(x, [error(r, key) for r in sel], marker, ms=5, ls="none", label=label)
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.set(title=title, xlabel=xlabel, ylabel=ylabel)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"hexsim calibrate: {report['machine']}, fitted features")
+    save_figure(fig, path, dpi=90)
