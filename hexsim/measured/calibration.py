@@ -79,6 +79,12 @@ class Parameter:
     source: str
     experiment: str
     limit: str = ""  # the lower bound is a physical limit, not a bracket (what it is: "the tank at atmosphere")
+    null_value: float | None = None  # what the key's null stands for (load.mass_kg null: the model's mass)
+
+    def prior(self, doc: dict) -> float:
+        """The parameter's value in the machine-file document ``doc`` (its null's meaning when null)."""
+        value = _get(doc, self.key)
+        return float(self.null_value if value is None else value)
 
     @property
     def unit(self) -> str:
@@ -130,8 +136,8 @@ def default_parameters(machine: Machine) -> list[Parameter]:
     if eff.inclination_deg is None or eff.inclination_deg < 80.0:
         mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
         params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
-                                "guess (not weighed)", "both directions at the same command (the weight adds to one, "
-                                "subtracts from the other)"))
+                                "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at speed "
+                                "the weight trades against the Coulomb friction), or weighing it", null_value=mass))
     return [p for p in params if p.upper > p.lower]
 
 
@@ -190,17 +196,24 @@ def features(log: MeasurementLog) -> list[Feature]:
     return out
 
 
-def load_force(log: MeasurementLog, machine: Machine) -> float:
-    """The external force along the axis [N] that the piston lifts: M g cos(inclination), from the log's
-    declared mass and inclination (the machine's where it declares none)."""
-    mass = machine.effects.mass_kg or log.mass_kg or moving_mass()
-    incl = machine.effects.inclination_deg if machine.effects.inclination_deg is not None else log.inclination_deg
-    return mass * gravity() * math.cos(math.radians(incl))
+def axis_load(log: MeasurementLog) -> tuple[float | None, float]:
+    """(the moving mass the log's sidecar declares [kg] or None, g cos(inclination) along its axis
+    [m/s^2]): what :func:`predict` needs of a log to compute the weight the piston lifts."""
+    declared = log.mass_kg if "mass_kg" in log.sidecar else None
+    return declared, gravity() * math.cos(math.radians(log.inclination_deg))
+
+
+def _load_force(machine: Machine, load: tuple[float | None, float]) -> float:
+    """M g cos(inclination) [N] with M the mass the log declares (that experiment's stated condition),
+    else the machine's (the one being calibrated), else the model's."""
+    declared, g_axis = load
+    mass = declared if declared is not None else machine.effects.mass_kg
+    return (mass if mass is not None else moving_mass()) * g_axis
 
 
 def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> np.ndarray:
-    """The model's value of each feature (same order, same units) on ``machine``; ``loads``: the load
-    force of each log [N] (:func:`load_force`). A stretch the valve cannot move against its load predicts
+    """The model's value of each feature (same order, same units) on ``machine``; ``loads``: each log's
+    :func:`axis_load` (the weight along the axis is the machine's mass on it). A stretch the valve cannot move against its load predicts
     no motion (velocity 0, pressures at their limits)."""
     hyd, eff = machine.hydraulics, machine.effects
     cache: dict[tuple[str, float], hydraulics.SteadyState | None] = {}
@@ -218,7 +231,7 @@ def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> 
         key = (f.log, f.u_V)
         if key not in cache:
             try:
-                cache[key] = hydraulics.steady_state(f.u_V, loads[f.log], hyd, eff=eff)
+                cache[key] = hydraulics.steady_state(f.u_V, _load_force(machine, loads[f.log]), hyd, eff=eff)
             except ValueError:
                 cache[key] = None
         s = cache[key]
@@ -278,7 +291,8 @@ def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> F
     held = dict(held or {})
     measured = np.array([f.measured for f in feats])
     sigma = np.array([f.sigma for f in feats])
-    prior = np.array([_get(machine.document(), p.key) for p in params], dtype=float)
+    doc = machine.document()
+    prior = np.array([p.prior(doc) for p in params], dtype=float)
     lo = np.array([p.lower for p in params])
     span = np.array([p.upper - p.lower for p in params])
     for i, p in enumerate(params):  # a parameter no feature sees across its whole bracket (a table point beyond
@@ -368,7 +382,7 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     and the feature rows. Raises InputError for a log that is not a calibration experiment."""
     params = list(params if params is not None else default_parameters(machine))
     feats = [f for log in logs for f in features(log)]
-    loads = {log.path.name: load_force(log, machine) for log in (*logs, *held_out)}
+    loads = {log.path.name: axis_load(log) for log in (*logs, *held_out)}
     if len(loads) < len(logs) + len(held_out):
         raise InputError("two logs of the same file name: calibration names features by their log's file name")
     before = predict(feats, machine, loads)
@@ -383,7 +397,7 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
               "correlation": {"keys": [p.key for p in params if p.key not in fit.held],
                               "matrix": _free_block(fit).round(4).tolist()},
               "fit": {"before": _errors(feats, before), "after": _errors(feats, after)}}
-    _add_priors(report, machine)
+    _add_priors(report, machine, params)
     if held_out:
         out_feats = [f for log in held_out for f in features(log)]
         report["held_out"] = {"logs": [str(log.path) for log in held_out],
@@ -438,11 +452,11 @@ def _parameter_rows(fit: Fit) -> list[dict]:
     return rows
 
 
-def _add_priors(report: dict, machine: Machine) -> None:
+def _add_priors(report: dict, machine: Machine, params: list[Parameter]) -> None:
     """Each parameter row's prior (the machine's value before calibration), in place."""
     doc = machine.document()
-    for row in report["parameters"]:
-        row["prior"] = float(_get(doc, row["key"]))
+    for row, p in zip(report["parameters"], params):
+        row["prior"] = p.prior(doc)
 
 
 def table(report: dict) -> str:
@@ -489,7 +503,7 @@ def nominal_check(log: MeasurementLog) -> dict | None:
         feats = features(log)
     except InputError:
         return None
-    loads = {log.path.name: load_force(log, log.machine)}
+    loads = {log.path.name: axis_load(log)}
     err = _errors(feats, predict(feats, log.machine, loads))
     off = (err["speed_error_max"] or 0.0) > OFF_SPEED or (err["pressure_error_max_Pa"] or 0.0) > OFF_PRESSURE
     out = {"off": bool(off), **err}
