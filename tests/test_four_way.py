@@ -214,3 +214,26 @@ def test_a_hexapod_runs_on_4_way_valves_and_records_both_chambers():
          - hydraulics.friction_force(result.ydot[after], hyd))
     assert f.mean(axis=0) == pytest.approx(np.full(6, 1246.79), rel=0.02)
     assert np.max(np.abs(result.y - result.y_ref)) < 0.01
+
+
+def test_an_open_loop_hexapod_run_from_six_valve_columns(tmp_path, capsys):
+    """valve:PATH with leg1…leg6_valve_cmd_V drives the hexapod open loop (no platform setpoint, no pose
+    reference); its log has no setpoint columns and says controller none; validate, whose hexapod replay
+    is closed loop, refuses it in one line and says what to run instead."""
+    t = np.arange(0, 3, 1e-3)
+    u = np.where(t < 0.5, 0.0, np.where(t < 1.5, 0.3, -0.3))
+    path = tmp_path / "valves.csv"
+    np.savetxt(path, np.column_stack([t] + [u] * 6), delimiter=",", comments="",
+               header="time_s," + ",".join(f"leg{i}_valve_cmd_V" for i in range(1, 7)))
+    log = tmp_path / "run.csv"
+    assert main(["run", f"valve:{path}", "--log", str(log), "--json", str(tmp_path / "report.json")]) == 0
+    report = json.loads((tmp_path / "report.json").read_text())
+    speeds = [leg["steady"][0]["velocity_mps"] for leg in report["legs"]]
+    assert report["open_loop"] and len(speeds) == 6 and min(speeds) > 0.005  # every leg extends at +0.3 V
+    header = log.read_text().splitlines()[0]
+    assert "leg1_valve_cmd_V" in header and "ref_m" not in header and "dof_ref" not in header
+    assert json.loads(log.with_suffix(".json").read_text())["controller"] == {"type": "none"}
+    capsys.readouterr()
+    assert main(["validate", str(log)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "open-loop hexapod log" in err[0] and "hexsim run valve:" in err[0]

@@ -101,8 +101,9 @@ class Scenario:
     def poses(self, t: np.ndarray) -> np.ndarray:
         """Platform setpoints (N, 6) [m, rad] relative to the neutral pose at times t (N,) [s] (hexapod)."""
         t = np.asarray(t, dtype=float)
-        if self.legs is not None:
-            raise ValueError(f"scenario {self.name} gives piston setpoints, not platform poses")
+        if self.legs is not None or self.valve is not None:
+            raise ValueError(f"scenario {self.name} gives {'piston' if self.legs is not None else 'valve'} setpoints, "
+                             f"not platform poses")
         if self._table is not None:
             times, values = self._table
             return np.stack([np.interp(t, times, values[:, k]) for k in range(6)], axis=1)

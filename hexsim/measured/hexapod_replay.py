@@ -53,9 +53,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     :func:`hexsim.simulation.runner.simulate`."""
     if log.system != "hexapod":
         raise InputError(f"{log.path}: closed-loop hexapod replay needs a hexapod log (this is {log.system})")
-    if log.open_loop:
-        raise InputError(f"{log.path}: an open-loop hexapod log (controller type none): the hexapod replay is closed "
-                         f"loop; replay it as a run instead: hexsim run valve:{log.path}")
+    _check_closed_loop(log)
     c = log.columns
     need = [f"leg{i}_{k}" for i in range(1, N_LEGS + 1) for k in ("ref_m", "valve_cmd_V", "pos_m")]
     missing = [name for name in need if name not in c]
@@ -77,6 +75,13 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
                        effects=effects or log.machine.effects, feedforward=feedforward, timestep=timestep,
                        leg_changes=tuple(leg_changes), model=model)
     return simulate(config)
+
+
+def _check_closed_loop(log: MeasurementLog) -> None:
+    """InputError for an open-loop hexapod log: the hexapod replay is closed loop."""
+    if log.open_loop:
+        raise InputError(f"{log.path}: an open-loop hexapod log (controller type none): the hexapod replay is closed "
+                         f"loop; replay it as a run instead: hexsim run valve:{log.path}")
 
 
 #: [s] Window of the zero-phase smoothing (Savitzky–Golay, cubic) of the logged positions in the
@@ -102,6 +107,7 @@ class HexapodProblem:
         from hexsim.measured.replay import nominal_plant
 
         check_formulation(model)
+        _check_closed_loop(log)
         self.log, self.model = log, model
         fs = log.sample_rate_hz
         t = log.time - log.time[0]

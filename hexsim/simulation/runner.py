@@ -372,7 +372,8 @@ class Simulator:
             geom = HexapodGeometry.from_model(self.model)
             rpy = Rotation.from_quat(rec["platform_quat"][:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
             pose = np.concatenate([rec["platform_pos"] - geom.neutral_position, rpy], axis=1)
-            pose_ref = cfg.scenario.poses(t) if cfg.scenario.legs is None else None
+            given = cfg.scenario.legs is not None or cfg.scenario.open_loop  # no platform setpoint then
+            pose_ref = None if given else cfg.scenario.poses(t)
         return SimulationResult(
             config=cfg, t=t, **{k: rec[k] for k in _LEG_CHANNELS}, p_s=rec["p_s"], acc=rec["acc"],
             gyro=rec.get("platform_gyro"), angacc=rec.get("platform_angacc"), pose=pose, pose_ref=pose_ref,
