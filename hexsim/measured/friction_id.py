@@ -247,6 +247,7 @@ def identify_friction(logs: MeasurementLog | list) -> dict:
         row["fitted_N"] = float(stribeck(np.array([row["velocity_mps"]]), x, hyd)[0])
     out["steady"] = steady
     out["_samples"] = (vel, ff)
+    out["_hydraulics"] = hyd  # the friction curve's arctan gain and scale, for the plot
     return out
 
 
@@ -264,9 +265,11 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
     for side, sgn in (("positive", 1), ("negative", -1)):
         x = np.array([result[side]["parameters"][p]["value"] for p in PARAMS])
         v = sgn * np.linspace(V_MIN, max(np.abs(vel).max(), 2 * V_MIN), 200)
-        ax.plot(v, stribeck(v, x), color="C0" if sgn > 0 else "C3", label=f"Stribeck fit, {side} (seed eq. 3.9)")
+        ax.plot(v, stribeck(v, x, result.get("_hydraulics")), color="C0" if sgn > 0 else "C3",
+                label=f"Stribeck fit, {side} (seed eq. 3.9)")
     ax.set_xlabel("velocity [m/s]")
     ax.set_ylabel("friction force [N]")
-    ax.set_title(f"friction-velocity map: {pathlib.Path(result['log']).name}")
+    names = [pathlib.Path(part).name for part in result["log"].split(", ")]
+    ax.set_title("friction-velocity map: " + (names[0] if len(names) == 1 else f"{len(names)} experiments"))
     ax.legend(fontsize=8, markerscale=20)
     save_figure(fig, path, dpi=100)
