@@ -319,39 +319,8 @@ def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> F
         z0 = np.clip((prior[free] - lo[free]) / span[free], 0.0, 1.0)
         sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0)
         x[free] = lo[free] + sol.x * span[free]
-        n, k = len(sol.fun), len(free)
-        s2 = float(sol.fun @ sol.fun) / max(n - k, 1)
-        # a parameter the fit pins at a bound is reported as at a bound and has no standard error; scipy's
-        # trf also returns its Jacobian column zeroed (the modified Jacobian of an active bound): statistics
-        # of the parameters inside their bounds only
-        inside = (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
-        jac = sol.jac[:, inside]
-        se_z, corr = np.zeros(k), np.eye(k)
-        if inside.any():
-            cov = np.linalg.pinv(jac.T @ jac) * s2
-            se_in = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-            se_z[inside] = se_in
-            unit = np.where(se_in > 0, se_in, 1.0)
-            corr[np.ix_(inside, inside)] = cov / np.outer(unit, unit)
-        norms = np.linalg.norm(sol.jac, axis=0)
-        blind = inside & (norms < 1e-9 * max(float(norms.max()), 1e-300))
-        worst, why = None, ""
-        for j in range(k):
-            if blind[j]:
-                worst, why = j, "the features do not depend on it"
-                break
-        if worst is None and inside.any():
-            j = int(np.argmax(se_z))  # the standard error as a share of the bound range
-            if se_z[j] > MAX_SE_SHARE:
-                worst, why = j, f"its standard error is {se_z[j]:.0%} of its bound range"
-        if worst is None and inside.sum() > 1:
-            c = np.abs(corr - np.eye(k))
-            a, b = np.unravel_index(int(np.argmax(c)), c.shape)
-            if c[a, b] > MAX_CORRELATION:
-                worst = a if se_z[a] >= se_z[b] else b
-                other = b if worst == a else a
-                why = (f"it trades against {params[free[other]].key} (correlation {corr[a, b]:+.3f}): the features "
-                       f"cannot separate the two")
+        se_z, corr = _statistics(sol)
+        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free])
         if worst is None:
             se = np.zeros(len(params))
             se[free] = se_z * span[free]
@@ -359,6 +328,55 @@ def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> F
             full[np.ix_(free, free)] = corr
             return Fit(params, x, se, full, sol.fun, held)
         held[params[free[worst]].key] = why
+
+
+def _statistics(sol) -> tuple[np.ndarray, np.ndarray]:
+    """(standard errors (k,) as shares of each bound range, correlations (k, k)) of a least-squares
+    solution in bracket-normalised coordinates: s^2 (J^T J)^-1, s^2 the residual variance. A parameter the
+    fit pins at a bound is reported as at a bound and has no standard error (0); scipy's trf also returns
+    its Jacobian column zeroed (the modified Jacobian of an active bound): statistics of the parameters
+    inside their bounds only."""
+    n, k = len(sol.fun), len(sol.x)
+    s2 = float(sol.fun @ sol.fun) / max(n - k, 1)
+    inside = _inside(sol)
+    jac = sol.jac[:, inside]
+    se_z, corr = np.zeros(k), np.eye(k)
+    if inside.any():
+        cov = np.linalg.pinv(jac.T @ jac) * s2
+        se_in = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        se_z[inside] = se_in
+        unit = np.where(se_in > 0, se_in, 1.0)
+        corr[np.ix_(inside, inside)] = cov / np.outer(unit, unit)
+    return se_z, corr
+
+
+def _inside(sol) -> np.ndarray:
+    """(k,) bool: the parameters the fit left inside their bounds (normalised coordinates)."""
+    return (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
+
+
+def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str]) -> tuple[int | None, str]:
+    """The free parameter the features cannot identify, and why (module doc: no sensitivity, a standard
+    error above MAX_SE_SHARE of its bracket, or a correlation beyond MAX_CORRELATION, the worse known of
+    the two); (None, "") if every one is identified. ``keys``: the free parameters' keys."""
+    inside = _inside(sol)
+    norms = np.linalg.norm(sol.jac, axis=0)
+    blind = inside & (norms < 1e-9 * max(float(norms.max()), 1e-300))
+    if blind.any():
+        return int(np.argmax(blind)), "the features do not depend on it"
+    if inside.any():
+        j = int(np.argmax(se_z))  # the standard error as a share of the bound range
+        if se_z[j] > MAX_SE_SHARE:
+            return j, f"its standard error is {se_z[j]:.0%} of its bound range"
+    if inside.sum() > 1:
+        c = np.abs(corr - np.eye(len(keys)))
+        a, b = np.unravel_index(int(np.argmax(c)), c.shape)
+        if c[a, b] > MAX_CORRELATION:
+            worst = a if se_z[a] >= se_z[b] else b
+            other = b if worst == a else a
+            return worst, (f"it trades against {keys[other]} (correlation {corr[a, b]:+.3f}): the features cannot "
+                           f"separate the two")
+    return None, ""
 
 
 def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:

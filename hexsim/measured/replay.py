@@ -245,17 +245,17 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
     else:
         p_s0 = np.full(k, hyd.supply_pressure)
     p1_0, p2_0 = hydraulics.rest_pressures(mass * g_axis * np.ones(k), hyd, p_s0)
-    # a 4-way log with one chamber's pressure: the other from the piston's balance at the window start,
-    # P1 A1 - P2 A2 = F_f(ydot) + M g (the acceleration left out), not the at-rest split
-    v0 = d.qvel[idx.dof_adr]
-    balance = hydraulics.friction_force(v0, hyd) + mass * g_axis
     if "p1_Pa" in c:
         p1_0 = c["p1_Pa"][s0]
-        if hyd.four_way and "p2_Pa" not in c:
-            p2_0 = np.clip((p1_0 * hyd.area_bottom - balance) / hyd.area_rod, hyd.cavitation_pressure, p_s0)
     if hyd.four_way and "p2_Pa" in c:
         p2_0 = c["p2_Pa"][s0]
-        if "p1_Pa" not in c:
+    if hyd.four_way and ("p1_Pa" in c) != ("p2_Pa" in c):
+        # one chamber logged: the other from the piston's balance at the window start, P1 A1 - P2 A2 =
+        # F_f(ydot) + M g (the acceleration left out), not the at-rest split
+        balance = hydraulics.friction_force(d.qvel[idx.dof_adr], hyd) + mass * g_axis
+        if "p1_Pa" in c:
+            p2_0 = np.clip((p1_0 * hyd.area_bottom - balance) / hyd.area_rod, hyd.cavitation_pressure, p_s0)
+        else:
             p1_0 = np.clip((p2_0 * hyd.area_rod + balance) / hyd.area_bottom, hyd.cavitation_pressure, p_s0)
     u_b, x_v, v_v = spool_history(u_log, log.sample_rate_hz, hyd, eff, s0)
     return PlantState.at_rest(p1_0, u_log[s0], hyd, p_s0, p2_0)._replace(u_b=u_b, x_v=x_v, v_v=v_v), y0

@@ -178,11 +178,13 @@ class SimulationResult:
 
 class ControlSchedule(NamedTuple):
     """What the P controller reads at its samples: setpoints and sensor noise, each (n_ticks, n_legs) [m],
-    and ``ctrl_div``, the physics steps per controller sample."""
+    and ``ctrl_div``, the physics steps per controller sample; ``valve`` (n_ticks, n_legs) [V]: the valve
+    setpoints of an open-loop run, which replace the controller (None: the P controller runs)."""
 
     setpoints: np.ndarray
     noise: np.ndarray
     ctrl_div: int
+    valve: np.ndarray | None = None
 
 
 class HydraulicCoupling:
@@ -200,13 +202,11 @@ class HydraulicCoupling:
 
     def __init__(self, idx: PlantIndex, config: RunConfig, controller: PController, schedule: ControlSchedule,
                  p1_initial: np.ndarray, plant: PlantTruth | None = None, faults: FaultInjector | None = None,
-                 p2_initial: np.ndarray | None = None, valve: np.ndarray | None = None,
-                 start_y: np.ndarray | None = None) -> None:
+                 p2_initial: np.ndarray | None = None) -> None:
         """``config`` gives the plant (hydraulics, effects, leg changes, warm-up); ``schedule`` the
-        controller's setpoints and sensor noise; ``p1_initial``, ``p2_initial`` (n_legs,) [Pa] the start
-        pressures (P2 default: P_s, the 3-way valve's); ``valve`` (n_ticks, n_legs) [V]: the valve setpoints
-        of an open-loop run, one per controller sample (None: the P controller); ``start_y`` (n_legs,) [m]
-        the pistons' start (None: the neutral pose);
+        controller's setpoints and sensor noise (or an open-loop run's valve setpoints); ``p1_initial``,
+        ``p2_initial`` (n_legs,) [Pa] the start pressures (P2 default: P_s, the 3-way valve's); the pistons start
+        at the scenario's ``start`` (None: the neutral pose);
         ``plant`` the truth an oracle compensator reads (updated as the oil warms)."""
         hyd, warm_up = config.hydraulics, config.warm_up
         self.idx = idx
@@ -216,7 +216,7 @@ class HydraulicCoupling:
         self.plant = plant
         self.temperature = float(warm_up.temperature(0.0)) if warm_up else 35.0
         self.controller = controller
-        self.setpoints, self.noise, self.ctrl_div = schedule
+        self.setpoints, self.noise, self.ctrl_div, self.valve = schedule
         self.dt = idx.dt
         self.effects = config.effects
         self.faults = faults
@@ -225,9 +225,8 @@ class HydraulicCoupling:
         n = idx.n_legs
         self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd, p2=p2_initial)
         delay_steps = int(round(self.effects.sensor_delay / self.dt))
-        start = idx.neutral_y if start_y is None else start_y
+        start = idx.neutral_y if config.scenario.start is None else config.scenario.start
         self._y_history = np.tile(np.asarray(start, dtype=float), (delay_steps + 1, 1))
-        self.valve = valve
         self.y_measured = self._y_history[0].copy()
         self.u_v = np.zeros(n)
         self.u_c = np.zeros(n)

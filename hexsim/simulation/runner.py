@@ -132,19 +132,20 @@ class Simulator:
         else:
             check_timestep(mobility, setpoints.min(axis=0), hyd, self.dt, setpoints.max(axis=0))
         p1_0, p2_0 = hydraulics.rest_pressures(static_leg_forces(m, d, idx), hyd)
-        for i, (p, name) in enumerate([(p, "P1") for p in p1_0] + [(p, "P2") for p in p2_0]):
-            if hyd.four_way or name == "P1":
+        chambers = (("P1", p1_0), ("P2", p2_0)) if hyd.four_way else (("P1", p1_0),)
+        for name, pressures in chambers:
+            for i, p in enumerate(pressures):
                 if not hyd.tank_pressure < p < hyd.supply_pressure:
                     raise PhysicsError(
-                        f"leg{i % idx.n_legs + 1} needs {name} = {p / 1e5:.1f} bar to hold the neutral pose, outside "
+                        f"leg{i + 1} needs {name} = {p / 1e5:.1f} bar to hold the neutral pose, outside "
                         f"tank…supply ({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)")
         self.p1_initial, self.p2_initial = p1_0, p2_0
         plant = PlantTruth(params=hyd, p1_static=p1_0.copy(), flow_curve=hydraulics.static_velocity)
         self.compensator = _make_compensator(cfg, idx.n_legs, plant)
         controller = PController(cp, hyd.u_v_max, self.compensator)
         injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
-        self.coupling = HydraulicCoupling(idx, cfg, controller, ControlSchedule(setpoints, noise, self.ctrl_div), p1_0,
-                                          plant, injector, p2_0, valve, sc.start)
+        self.coupling = HydraulicCoupling(idx, cfg, controller, ControlSchedule(setpoints, noise, self.ctrl_div, valve),
+                                          p1_0, plant, injector, p2_0)
 
     def _setup_recording(self) -> None:
         cfg, n = self.config, self.idx.n_legs
