@@ -437,10 +437,11 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     _machine_option(p)
     p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default: the machine's, {ControllerParams.kp:g} built in); "
                    "this and the options below override the machine file")
-    p.add_argument("--flow-area", choices=("smooth", "quadratic", "sharp"),
+    p.add_argument("--flow-area", choices=("smooth", "quadratic", "port", "sharp"),
                    help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) blended onto the port's "
-                        "opening above 0.78 V (default), quadratic (3.11 at every opening, as the seed simulated) or "
-                        "sharp-edged with overlap (eq. 3.3)")
+                        "opening above 0.78 V (default), quadratic (3.11 at every opening, as the seed simulated), "
+                        "port (3.11 until the port's opening is smaller, a kink at 0.90 V) or sharp-edged with "
+                        "overlap (eq. 3.3)")
     p.add_argument("--sensor-noise", type=_number,
                    help=f"rms noise on the measured piston position [m] (default {ControllerParams.position_noise:g})")
     p.add_argument("--fault", action="append", default=[], metavar="KIND:key=value,…",

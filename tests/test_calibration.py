@@ -95,12 +95,16 @@ def test_default_parameters_know_their_key_unit_bounds_and_source():
         assert p.lower < p.upper and p.unit and p.source and p.experiment
 
 
-def test_a_closed_loop_sine_log_is_no_calibration_experiment(tmp_path, capsys):
-    assert main(["run", "actuator", "--duration", "6", "--frequency", "1", "--log", str(tmp_path / "sine.csv")]) == 0
+def test_a_log_too_short_for_either_kind_of_evidence_is_refused(tmp_path, capsys):
+    """A closed-loop log is evidence from its transients (tests/test_calibration_transients.py); one
+    shorter than four replay windows is neither a constant-command experiment nor that: one line, no file."""
+    assert main(["run", "actuator", "--duration", "3", "--frequency", "1", "--log", str(tmp_path / "sine.csv")]) == 0
     capsys.readouterr()
+    rows = (tmp_path / "sine.csv").read_text().splitlines()
+    (tmp_path / "sine.csv").write_text("\n".join(rows[:901]) + "\n")  # 0.9 s: three 0.3 s windows
     assert main(["calibrate", str(tmp_path / "sine.csv"), "--out", str(tmp_path / "cal.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "calibration needs open-loop runs at constant commands" in err[0]
+    assert len(err) == 1 and "shorter than four replay windows" in err[0]
     assert not (tmp_path / "cal.json").exists()
 
 

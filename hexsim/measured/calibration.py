@@ -39,12 +39,13 @@ import dataclasses
 import json
 import math
 import pathlib
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from hexsim.errors import InputError
+from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import KEYS, Machine, machine_from_document
@@ -91,11 +92,14 @@ class Parameter:
         return _UNITS[self.key.split("[")[0]]
 
 
-def default_parameters(machine: Machine) -> list[Parameter]:
+def default_parameters(machine: Machine, dynamics: bool = False) -> list[Parameter]:
     """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
     flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
     valve k_PB, k_BT: k_PA is the reference the flow gain carries), the supply and tank pressures, the Coulomb
-    friction per direction and, on an axis with weight along it, the moving mass."""
+    friction per direction and, on an axis with weight along it, the moving mass. ``dynamics`` (evidence from
+    transients, :mod:`hexsim.measured.dynamics`): also the smooth area's gain k_a (3.11) beside the port, the
+    overlap of the port-limited area, the bulk modulus and dead volumes (3.7), the viscous and static friction
+    per direction (3.9) and the moving mass on any axis (its inertia, 3.8)."""
     hyd, eff = machine.hydraulics, machine.effects
     doc = machine.document()
 
@@ -108,14 +112,27 @@ def default_parameters(machine: Machine) -> list[Parameter]:
     if hyd.flow_area == "table":  # each point's opening (the port's width only scales them all: not fitted)
         params = [Parameter(f"valve.opening_table[{i}]", 0.7 * f, 1.3 * f, "the data sheet's flow curve within ±30 %",
                             f"commands near {u:g} V in both directions") for i, (u, f) in enumerate(hyd.opening_table)]
-    else:
+    elif not dynamics:
         params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7,
                       1.3, "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
+    else:  # the flow gain in the supply edge (the port's size the reference the shape is told against)
+        params = [Parameter("valve.edge_gain_PA", 0.7 * eff.edge_gain_pa, 1.3 * eff.edge_gain_pa,
+                            "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
     x_max = hyd.x_v_max
+    transients = "transients: reversals and steps of a closed loop, or the switches of an open-loop experiment"
+    if dynamics and hyd.flow_area in ("smooth", "port"):  # the shape: where (3.11) meets the port
+        params.append(rel("valve.smooth_area_gain", 0.7, 1.3, "the flow curve's gain at small openings (3.11) "
+                          "within ±30 % of the port's (data sheets state ±10 % flow tolerance)",
+                          f"reversals and commands beyond 1 V ({transients})"))
     if hyd.flow_area == "sharp":
         params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
                                 "−3 % (underlap) to +10 % of the spool stroke (servo valves ±0.5 %, proportional "
                                 "valves up to 10 %)", small))
+    elif dynamics and hyd.flow_area == "port":  # its dead band; the smooth area must still meet the port
+        limit = math.pi * hyd.spool_diameter / (4.0 * hyd.smooth_area_gain * 1.3)
+        params.append(Parameter("valve.overlap_m", 0.0, min(0.10 * x_max, 0.9 * limit),
+                                "0 to 10 % of the spool stroke (proportional valves up to 10 %), below where (3.11) "
+                                "no longer meets the port", f"reversals ({transients})"))
     params.append(Parameter("valve.null_offset_V", -0.03 * hyd.u_v_max, 0.03 * hyd.u_v_max,
                             "±3 % of the command range (servo-valve data sheets: ≤ 2–3 %)", small))
     edges = ("AT", "PB", "BT") if hyd.four_way else ("AT",)
@@ -133,7 +150,20 @@ def default_parameters(machine: Machine) -> list[Parameter]:
     for side in ("positive", "negative"):
         params.append(rel(f"friction.{side}.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess (wear, "
                           "temperature, seal type)", speeds))
-    if eff.inclination_deg is None or eff.inclination_deg < 80.0:
+    if dynamics:
+        for side in ("positive", "negative"):
+            params.append(rel(f"friction.{side}.viscous_Nspm", 0.5, 2.0, "viscous seal friction half to twice the "
+                              "guess (oil viscosity with temperature, seal type)", f"a range of speeds ({transients})"))
+            params.append(rel(f"friction.{side}.static_N", 0.5, 2.0, "static (Stribeck) level half to twice the "
+                              "guess", f"slow reversals ({transients})"))
+        params.append(rel("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to "
+                          "less than half with hoses and undissolved air (Merritt §2.5)",
+                          f"the oil spring's ringing and P1's rise ({transients})"))
+        for side in ("cap", "rod") if hyd.four_way else ("cap",):
+            params.append(rel(f"cylinder.dead_volume_{side}_m3", 0.5, 4.0, "hoses, manifold bores and the valve's "
+                              "own volume, half to four times the drawing's", "the oil spring at both ends of the "
+                              "stroke (it trades against the bulk modulus in mid-stroke)"))
+    if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
         mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
         params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
                                 "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at speed "
@@ -263,6 +293,11 @@ def _set(doc: dict, key: str, value: float) -> None:
         node[leaf] = float(value)
 
 
+def parameter_of(row: dict) -> Parameter:
+    """The :class:`Parameter` of a row of a calibration report (its key, bounds, their source, experiment)."""
+    return Parameter(row["key"], row["lower"], row["upper"], row.get("bounds_source", ""), row.get("experiment", ""))
+
+
 def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
     """``machine`` with each parameter's key set to its value (the machine file edited, checked again)."""
     doc = json.loads(json.dumps(machine.document()))
@@ -284,17 +319,42 @@ class Fit:
     held: dict[str, str]
 
 
-def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> Fit:
-    """Bounded least squares of the free parameters (those not in ``held``) in normalised coordinates
-    z = (x - lower) / (upper - lower); then the held-at-prior rule of the module doc, refitting until no
-    free parameter breaks it."""
-    held = dict(held or {})
+def steady_residual(feats: list[Feature], loads: dict) -> Callable[[Machine], np.ndarray]:
+    """The weighted residual (predicted - measured) / sigma of the steady ``feats`` as a function of the machine."""
     measured = np.array([f.measured for f in feats])
     sigma = np.array([f.sigma for f in feats])
+    return lambda m: (predict(feats, m, loads) - measured) / sigma
+
+
+def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params: list[Parameter],
+         held: dict[str, str] | None = None, independent_share: Callable[[Machine], float] | None = None,
+         diff_step: float = 1e-4, x_scale=1.0, warm: bool = False, initial: Machine | None = None,
+         notify=lambda text: None) -> Fit:
+    """Bounded least squares of the free parameters (those not in ``held``) in normalised coordinates
+    z = (x - lower) / (upper - lower) on the weighted residual ``residual_of(machine)``; then the
+    held-at-prior rule of the module doc, refitting until no free parameter breaks it.
+    ``independent_share``: independent samples per residual at a machine (replay residuals are not white;
+    default all). ``warm``: after a parameter is held, refit from the values the others reached (the replay's
+    cost is not convex: from the prior again it can fall into another valley), else from the prior.
+    ``initial``: a machine whose values of ``params`` the search starts from (inside the brackets), instead
+    of the prior's.
+    A machine the residual cannot be computed for (a physics error, an invalid file) costs
+    as a residual of 1e3 per entry."""
+    held = dict(held or {})
+    n_res = len(residual_of(machine))
+
+    def safe(m_values):
+        try:
+            return residual_of(with_values(machine, params, m_values))
+        except (InputError, PhysicsError, FloatingPointError, ValueError):
+            return np.full(n_res, 1e3)
+
     doc = machine.document()
     prior = np.array([p.prior(doc) for p in params], dtype=float)
     lo = np.array([p.lower for p in params])
     span = np.array([p.upper - p.lower for p in params])
+    start = prior.copy() if initial is None else np.clip(
+        [p.prior(initial.document()) for p in params], lo, lo + span)
     for i, p in enumerate(params):  # a parameter no feature sees across its whole bracket (a table point beyond
         if p.key in held:  # every command of the experiments, the mass of a horizontal axis) is not fitted
             continue
@@ -302,42 +362,48 @@ def _fit(feats, machine, params, loads, held: dict[str, str] | None = None) -> F
         for value in (p.lower, p.upper):
             x = prior.copy()
             x[i] = value
-            ends.append(predict(feats, with_values(machine, params, x), loads) / sigma)
+            ends.append(safe(x))
         if np.max(np.abs(ends[1] - ends[0])) < 1e-3:
             held[p.key] = "the features do not depend on it across its bracket"
     while True:
         free = [i for i, p in enumerate(params) if p.key not in held]
         x = prior.copy()
         if not free:
-            residual = (predict(feats, machine, loads) - measured) / sigma
-            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), residual, held)
+            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), residual_of(machine), held)
 
         def residual(z, free=free):
             x[free] = lo[free] + z * span[free]
-            return (predict(feats, with_values(machine, params, x), loads) - measured) / sigma
+            return safe(x)
 
-        z0 = np.clip((prior[free] - lo[free]) / span[free], 0.0, 1.0)
-        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0)
+        # from the previous fit's values (the prior the first time): holding one parameter should not throw
+        # away where the others went
+        z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
+        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=diff_step, x_scale=x_scale)
         x[free] = lo[free] + sol.x * span[free]
-        se_z, corr = _statistics(sol)
-        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free])
+        if warm:
+            start = x.copy()
+        share = 1.0 if independent_share is None else independent_share(with_values(machine, params, x))
+        se_z, corr = _statistics(sol, share)
+        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], 0.01 if warm else 0.0)
         if worst is None:
             se = np.zeros(len(params))
             se[free] = se_z * span[free]
             full = np.eye(len(params))
             full[np.ix_(free, free)] = corr
             return Fit(params, x, se, full, sol.fun, held)
+        notify(f"held at its prior: {params[free[worst]].key} ({why})")
         held[params[free[worst]].key] = why
 
 
-def _statistics(sol) -> tuple[np.ndarray, np.ndarray]:
+def _statistics(sol, independent_share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """(standard errors (k,) as shares of each bound range, correlations (k, k)) of a least-squares
-    solution in bracket-normalised coordinates: s^2 (J^T J)^-1, s^2 the residual variance. A parameter the
+    solution in bracket-normalised coordinates: s^2 (J^T J)^-1, s^2 the residual variance per independent
+    residual (``independent_share`` of the residuals are independent: s^2 = SSR / (share n - k)). A parameter the
     fit pins at a bound is reported as at a bound and has no standard error (0); scipy's trf also returns
     its Jacobian column zeroed (the modified Jacobian of an active bound): statistics of the parameters
     inside their bounds only."""
     n, k = len(sol.fun), len(sol.x)
-    s2 = float(sol.fun @ sol.fun) / max(n - k, 1)
+    s2 = float(sol.fun @ sol.fun) / max(independent_share * n - k, 1)
     inside = _inside(sol)
     jac = sol.jac[:, inside]
     se_z, corr = np.zeros(k), np.eye(k)
@@ -355,10 +421,13 @@ def _inside(sol) -> np.ndarray:
     return (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
 
 
-def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str]) -> tuple[int | None, str]:
+def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str],
+                  correlated_se: float = 0.0) -> tuple[int | None, str]:
     """The free parameter the features cannot identify, and why (module doc: no sensitivity, a standard
     error above MAX_SE_SHARE of its bracket, or a correlation beyond MAX_CORRELATION, the worse known of
-    the two); (None, "") if every one is identified. ``keys``: the free parameters' keys."""
+    the two, if its standard error is above ``correlated_se`` of its bracket: thousands of replayed samples
+    separate two parameters correlated at 0.997 to 1e-4 of their brackets); (None, "") if every one is
+    identified. ``keys``: the free parameters' keys."""
     inside = _inside(sol)
     norms = np.linalg.norm(sol.jac, axis=0)
     blind = inside & (norms < 1e-9 * max(float(norms.max()), 1e-300))
@@ -371,7 +440,7 @@ def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str]) -> t
     if inside.sum() > 1:
         c = np.abs(corr - np.eye(len(keys)))
         a, b = np.unravel_index(int(np.argmax(c)), c.shape)
-        if c[a, b] > MAX_CORRELATION:
+        if c[a, b] > MAX_CORRELATION and max(se_z[a], se_z[b]) > correlated_se:
             worst = a if se_z[a] >= se_z[b] else b
             other = b if worst == a else a
             return worst, (f"it trades against {keys[other]} (correlation {corr[a, b]:+.3f}): the features cannot "
@@ -389,50 +458,147 @@ def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
             "pressure_error_max_Pa": float(np.max(press)) if press else None}
 
 
+#: The flow-area forms of seed eq. (3.11) and (3.3) a calibration from transients tries for a valve of that
+#: family (the seed's 300 x_v^2 and its port), keeping the one that predicts the held-out windows best.
+SEED_FORMS = ("smooth", "port", "quadratic", "sharp")
+DYNAMICS = ("auto", "always", "never")
+
+
+def _is_steady(log: MeasurementLog) -> bool:
+    """An open-loop constant-command experiment (:func:`features` finds a steady motion in it)."""
+    if not log.open_loop:
+        return False
+    try:
+        features(log)
+    except InputError:
+        return False
+    return True
+
+
+def _forms(machine: Machine, flow_areas: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The flow-area forms to calibrate: those asked for, else the machine's own and, for a valve of the
+    seed's (3.11) family, the others of :data:`SEED_FORMS`."""
+    own = machine.hydraulics.flow_area
+    if flow_areas:
+        return tuple(flow_areas)
+    if own in SEED_FORMS[:3]:
+        return (own, *(f for f in SEED_FORMS if f != own))
+    return (own,)
+
+
+def with_flow_area(machine: Machine, form: str) -> Machine:
+    """``machine`` with its valve's flow-area form set to ``form`` (checked as any machine file: an underlap
+    needs the sharp area). Raises InputError for a form the machine's valve cannot take."""
+    doc = json.loads(json.dumps(machine.document()))
+    doc["valve"]["flow_area"] = form
+    if form != "table":
+        doc["valve"]["opening_table"] = []
+    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
+
+
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
-              params: list[Parameter] | None = None, cross_validate: bool = True) -> tuple[Machine, dict]:
-    """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the features of ``logs``
-    (module doc); predict ``held_out``. Returns the calibrated machine (its ``calibration`` the report
-    without the feature rows) and the report: per parameter prior, value, standard error, bounds and
-    their source, status (fitted, at a bound, held at its prior: why, and the experiment that would
-    identify it), the correlations of the fitted ones, the errors before/after on the fitted features,
-    on each held-out log and (``cross_validate``, three or more logs) on each log left out of a refit,
-    and the feature rows. Raises InputError for a log that is not a calibration experiment."""
-    params = list(params if params is not None else default_parameters(machine))
-    feats = [f for log in logs for f in features(log)]
+              params: list[Parameter] | None = None, cross_validate: bool = True, dynamics: str = "auto",
+              flow_areas: tuple[str, ...] | None = None, notify=None) -> tuple[Machine, dict]:
+    """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
+    doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
+    the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
+    closed-loop motions, steps); ``dynamics`` "always" adds the transients of the constant-command
+    experiments too, "never" reads steady features only. With transients the valve's flow-area form is
+    chosen among ``flow_areas`` (default :func:`_forms`) by the held-out windows' cost, each form calibrated.
+
+    Returns the calibrated machine (its ``calibration`` the report without the feature rows) and the
+    report: per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
+    held at its prior: why, and the experiment that would identify it), the correlations of the fitted ones,
+    the errors before/after on the fitted features and held-out windows, on each held-out log and
+    (``cross_validate``, three or more steady logs) on each log left out of a refit, and the feature rows.
+    Raises InputError for a log that is not evidence of either kind, or an unknown ``dynamics``."""
+    from hexsim.measured.dynamics import ReplayEvidence
+
+    if dynamics not in DYNAMICS:
+        raise InputError(f"dynamics {dynamics!r}: expected one of {', '.join(DYNAMICS)}")
+    notify = notify or (lambda text: None)
+    steady = list(logs) if dynamics == "never" else [log for log in logs if _is_steady(log)]
+    moving = [] if dynamics == "never" else list(logs) if dynamics == "always" else [
+        log for log in logs if log not in steady]
+    feats = [f for log in steady for f in features(log)]
     loads = {log.path.name: axis_load(log) for log in (*logs, *held_out)}
     if len(loads) < len(logs) + len(held_out):
         raise InputError("two logs of the same file name: calibration names features by their log's file name")
-    before = predict(feats, machine, loads)
-    fit = _fit(feats, machine, params, loads)
-    calibrated = with_values(machine, params, fit.values)
-    after = predict(feats, calibrated, loads)
+    evidence = [ReplayEvidence.of(log, machine) for log in moving]
+    steady_of = steady_residual(feats, loads)
+
+    def residual_of(m: Machine) -> np.ndarray:
+        return np.concatenate([steady_of(m), *(ev.residual(m) for ev in evidence)])
+
+    def independent_share(m: Machine) -> float:
+        sizes = [len(feats)] + [len(ev.residual(m)) for ev in evidence]
+        shares = [1.0] + [ev.effective_share(m) for ev in evidence]
+        return float(np.dot(sizes, shares) / max(sum(sizes), 1))
+
+    forms = _forms(machine, flow_areas) if evidence else (machine.hydraulics.flow_area,)
+    tried: list[dict] = []
+    for form in forms:
+        try:
+            start = machine if form == machine.hydraulics.flow_area else with_flow_area(machine, form)
+        except InputError as exc:
+            tried.append({"flow_area": form, "refused": str(exc)})
+            continue
+        form_params = list(params if params is not None else default_parameters(start, dynamics=bool(evidence)))
+        notify(f"calibrating {len(form_params)} parameters with the {form} flow area")
+        first = next((t["machine"] for t in tried if "machine" in t), None)  # the other forms start where it ended
+        fit = _fit(residual_of, start, form_params, independent_share=independent_share if evidence else None,
+                   initial=None if first is None else with_flow_area(first, form),
+                   diff_step=1e-3 if evidence else 1e-4, x_scale="jac" if evidence else 1.0, warm=bool(evidence), notify=notify)
+        result = with_values(start, form_params, fit.values)
+        cost = sum(ev.errors(result)["held_out_cost"] for ev in evidence)
+        tried.append({"flow_area": form, "held_out_cost": cost, "start": start, "params": form_params, "fit": fit,
+                      "machine": result})
+    usable = [t for t in tried if "fit" in t]
+    if not usable:
+        raise InputError(f"{machine.label}: no flow-area form could be calibrated ({tried[0]['refused']})")
+    best = min(usable, key=lambda t: t["held_out_cost"])
+    start, params, fit, calibrated = best["start"], best["params"], best["fit"], best["machine"]
+    methods = []
+    if feats:
+        methods.append("steady motions and end-stop pressures")
+    if evidence:
+        methods.append("transients (windowed valve replay, hexsim.measured.dynamics)")
     report = {"machine": machine.label, "logs": [str(log.path) for log in logs],
-              "method": "bounded least squares of steady motions and end-stop pressures (hexsim.measured.calibration)",
+              "method": "bounded least squares of " + " and ".join(methods) + " (hexsim.measured.calibration)",
               "weights": {"speed": f"{SPEED_SIGMA_REL:.0%} + {SPEED_SIGMA_ABS * 1e3:g} mm/s",
-                          "pressure_Pa": PRESSURE_SIGMA},
+                          "pressure_Pa": PRESSURE_SIGMA, "transients": "each channel's noise budget"},
               "parameters": _parameter_rows(fit),
               "correlation": {"keys": [p.key for p in params if p.key not in fit.held],
-                              "matrix": _free_block(fit).round(4).tolist()},
-              "fit": {"before": _errors(feats, before), "after": _errors(feats, after)}}
-    _add_priors(report, machine, params)
+                              "matrix": _free_block(fit).round(4).tolist()}}
+    if evidence:
+        report["flow_area"] = {"chosen": best["flow_area"], "prior": machine.hydraulics.flow_area,
+                               "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
+                                         if "fit" in t else {"refused": t["refused"]})} for t in tried]}
+        report["transients"] = [{"before": ev.errors(machine), "after": ev.errors(calibrated)} for ev in evidence]
+    _add_priors(report, start, params)
+    if feats:
+        before, after = predict(feats, machine, loads), predict(feats, calibrated, loads)
+        report["fit"] = {"before": _errors(feats, before), "after": _errors(feats, after)}
     if held_out:
-        out_feats = [f for log in held_out for f in features(log)]
-        report["held_out"] = {"logs": [str(log.path) for log in held_out],
-                              "before": _errors(out_feats, predict(out_feats, machine, loads)),
-                              "after": _errors(out_feats, predict(out_feats, calibrated, loads))}
-    if cross_validate and len(logs) >= 3:
+        report["held_out"] = _held_out(held_out, machine, calibrated, loads)
+    steady_names = {log.path.name for log in steady}
+    if cross_validate and len(steady) >= 3 and not evidence:
         rows = []
-        for log in logs:
+        for log in steady:
             rest = [f for f in feats if f.log != log.path.name]
             mine = [f for f in feats if f.log == log.path.name]
-            refit = _fit(rest, calibrated, params, loads, fit.held)
+            refit = _fit(steady_residual(rest, loads), calibrated, params, fit.held)
             rows.append({"log": str(log.path), **_errors(mine, predict(mine, with_values(calibrated, params,
                                                                                            refit.values), loads))})
         report["leave_one_log_out"] = rows
-    report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)} for f, b, a in zip(feats, before, after)]
+    if feats:
+        report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
+                          for f, b, a in zip(feats, before, after) if f.log in steady_names]
     provenance = {k: v for k, v in report.items() if k != "rows"}
     sources = dict(calibrated.sources)
+    if evidence and best["flow_area"] != machine.hydraulics.flow_area:
+        sources["valve.flow_area"] = (f"hexsim calibrate from {len(logs)} log(s): {best['flow_area']} predicts the "
+                                      f"held-out windows best (prior {machine.hydraulics.flow_area})")
     for row in report["parameters"]:
         if row["status"] != "held at its prior":
             key, _, index = row["key"].partition("[")  # a table point's source is its table's
@@ -444,6 +610,24 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     calibrated = dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),
                                      description=(calibrated.description + " Calibrated by hexsim calibrate.").strip())
     return calibrated, report
+
+
+def _held_out(logs: list[MeasurementLog], prior: Machine, calibrated: Machine, loads: dict) -> dict:
+    """Held-out logs predicted by the prior and the calibrated machine: the steady features of the
+    constant-command experiments (``before``/``after``), every window of the others
+    (``transients``: held-out RMS in budgets)."""
+    from hexsim.measured.dynamics import ReplayEvidence
+
+    steady = [log for log in logs if _is_steady(log)]
+    out: dict = {"logs": [str(log.path) for log in logs]}
+    if steady:
+        out_feats = [f for log in steady for f in features(log)]
+        out["before"] = _errors(out_feats, predict(out_feats, prior, loads))
+        out["after"] = _errors(out_feats, predict(out_feats, calibrated, loads))
+    moving = [ReplayEvidence.of(log, prior, every_window=True) for log in logs if log not in steady]
+    if moving:
+        out["transients"] = [{"before": ev.errors(prior), "after": ev.errors(calibrated)} for ev in moving]
+    return out
 
 
 def _free_block(fit: Fit) -> np.ndarray:
@@ -494,11 +678,29 @@ def table(report: dict) -> str:
                   f"{e['pressure_error_max_Pa'] / 1e5:.2f} bar worst ({e['pressures']})")
         return s
 
-    lines.append(f"fitted features  before: {errs(report['fit']['before'])}")
-    lines.append(f"                 after:  {errs(report['fit']['after'])}")
-    if "held_out" in report:
-        lines.append(f"held-out logs    before: {errs(report['held_out']['before'])}")
-        lines.append(f"                 after:  {errs(report['held_out']['after'])}")
+    def budgets(e: dict) -> str:
+        return ", ".join(f"{ch} {v:.3g}" for ch, v in e["held_out_rms_in_budgets"].items() if ch != "p_s")
+
+    if "flow_area" in report:
+        fa = report["flow_area"]
+        lines.append(f"flow area        {fa['chosen']} (prior {fa['prior']}); held-out cost of each form: " + ", ".join(
+            f"{t['flow_area']} {t['held_out_cost']:.4g}" if "held_out_cost" in t else f"{t['flow_area']} refused"
+            for t in fa["tried"]))
+    if "fit" in report:
+        lines.append(f"fitted features  before: {errs(report['fit']['before'])}")
+        lines.append(f"                 after:  {errs(report['fit']['after'])}")
+    for row in report.get("transients", []):
+        name = pathlib.Path(row["before"]["log"]).name
+        lines.append(f"held-out windows of {name} (RMS / budget) before: {budgets(row['before'])}")
+        lines.append(f"{'':>{21 + len(name)}s}after:  {budgets(row['after'])}")
+    held = report.get("held_out", {})
+    if "before" in held:
+        lines.append(f"held-out logs    before: {errs(held['before'])}")
+        lines.append(f"                 after:  {errs(held['after'])}")
+    for row in held.get("transients", []):
+        name = pathlib.Path(row["before"]["log"]).name
+        lines.append(f"held-out log {name} (RMS / budget) before: {budgets(row['before'])}")
+        lines.append(f"{'':>{13 + len(name)}s}after:  {budgets(row['after'])}")
     for row in report.get("leave_one_log_out", []):
         lines.append(f"left out {pathlib.Path(row['log']).name:22s} {errs(row)}")
     return "\n".join(lines)

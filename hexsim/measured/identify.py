@@ -36,6 +36,7 @@ window (segment) and second the sample.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
@@ -193,10 +194,13 @@ class Problem:
 
 @dataclass(frozen=True)
 class Budget:
-    """Per channel [SI]: sensor noise sigma_c, numerical tolerance tau_c, budget b_c = sqrt(sigma^2 + tau^2)."""
+    """Per channel [SI]: sensor noise sigma_c, the model's tolerance tau_c, budget b_c = sqrt(sigma^2 + tau^2).
+    tau_c holds the replay's numerical error and, on a calibrated machine, what the calibration left
+    uncertain (``calibration``, already inside tau_c, :func:`calibration_uncertainty`), in quadrature."""
 
     noise: dict[str, float]
     tolerance: dict[str, float]
+    calibration: dict[str, float] = field(default_factory=dict)
 
     @property
     def total(self) -> dict[str, float]:
@@ -204,7 +208,7 @@ class Budget:
 
     def as_dict(self, units: dict[str, str]) -> dict:
         return {ch: {"noise": self.noise[ch], "tolerance": self.tolerance[ch], "budget": self.total[ch],
-                     "unit": units[ch]} for ch in self.noise}
+                     "calibration": self.calibration.get(ch, 0.0), "unit": units[ch]} for ch in self.noise}
 
 
 def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
@@ -213,7 +217,40 @@ def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
     s = problem.settle
     noise = {ch: min(problem.log_noise[ch], noise_of((nominal_sim[ch] - problem.measured[ch])[:, s:], ch))
              for ch in problem.channels}
-    return Budget(noise, numerical_tolerance(problem, problem.nominal, nominal_sim))
+    numerical = numerical_tolerance(problem, problem.nominal, nominal_sim)
+    cal = calibration_uncertainty(problem, nominal_sim)
+    return Budget(noise, {ch: math.hypot(numerical[ch], cal.get(ch, 0.0)) for ch in problem.channels}, cal)
+
+
+def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict[str, float]:
+    """Per channel [SI], what the calibration of the log's machine leaves uncertain in the replay: with the
+    fitted parameters' standard errors s_i and correlations C_ij (the machine file's ``calibration`` block,
+    :func:`hexsim.measured.calibration.calibrate`), the replay's change d_i when parameter i moves by s_i,
+    and the RMS over the scored samples of sqrt(sum_ij d_i C_ij d_j) (first-order propagation of the
+    covariance). Empty for a machine that was not calibrated (nothing fitted, or no standard errors)."""
+    from hexsim.measured.calibration import parameter_of, with_values
+    from hexsim.measured.replay import nominal_plant
+
+    block = problem.log.machine.calibration or {}
+    keys = block.get("correlation", {}).get("keys", [])
+    rows = {r["key"]: r for r in block.get("parameters", [])}
+    moved = [k for k in keys if k in rows and rows[k].get("status") == "fitted" and rows[k].get("std_error", 0) > 0]
+    if not moved:
+        return {}
+    corr = np.array(block["correlation"]["matrix"], dtype=float)[np.ix_(*[[keys.index(k) for k in moved]] * 2)]
+    machine, s = problem.log.machine, problem.settle
+    deltas = []
+    for key in moved:
+        r = rows[key]
+        shifted = with_values(machine, [parameter_of(r)], [r["value"] + r["std_error"]])
+        sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
+        deltas.append({ch: (sim[ch] - nominal_sim[ch])[:, s:] for ch in problem.channels})
+    out = {}
+    for ch in problem.channels:
+        d = np.stack([dl[ch].ravel() for dl in deltas])  # (parameters, samples)
+        var = np.einsum("is,ij,js->s", d, corr, d)
+        out[ch] = float(np.sqrt(max(float(np.mean(var)), 0.0)))
+    return out
 
 
 def numerical_tolerance(problem, model: PlantModel, fine: dict[str, np.ndarray]) -> dict[str, float]:
@@ -233,7 +270,8 @@ def with_model_tolerance(problem, model: PlantModel, budget: Budget) -> Budget:
     (:func:`numerical_tolerance`): a model with effects (a heavier platform, a sagging supply) has its
     own discretisation error, which the nominal's does not measure."""
     own = numerical_tolerance(problem, model, problem.simulate(model))
-    return Budget(budget.noise, {ch: max(budget.tolerance[ch], own[ch]) for ch in problem.channels})
+    return Budget(budget.noise, {ch: max(budget.tolerance[ch], math.hypot(own[ch], budget.calibration.get(ch, 0.0)))
+                                 for ch in problem.channels}, budget.calibration)
 
 
 def _lstsq1(x: np.ndarray, y: np.ndarray) -> float:
@@ -302,8 +340,7 @@ def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
     res, cal = calibrate(problem, sim, problem.fit_rows)
     b = budget.total
     s0 = problem.settle
-    k = len(problem.fit_rows) + len(problem.test_rows)
-    cost = np.zeros(k)
+    cost = np.zeros(len(next(iter(res.values()))))  # per window (segment), fitted, held out or left out
     held, signals = {}, {}
     for ch in problem.channels:
         r = res[ch][:, s0:]

@@ -369,11 +369,13 @@ def markdown(doc: dict, png_names: list[str]) -> str:
     for e in doc["added_effects"]:
         lines.append(f"`{effect_label(e)}`: " + _md(", ".join(f"{k} = {plus_minus(v)}" for k, v in e["parameters"].items())))
     lines += ["", f"Replay: {doc['replay']} (model: {doc.get('model', 'platform')})", "", "## Error per channel", "",
-              "| channel | NRMSE before | NRMSE after | budget (noise, tolerance) |", "|---|---|---|---|"]
+              "| channel | NRMSE before | NRMSE after | budget (noise, tolerance; of it the calibration's) |",
+              "|---|---|---|---|"]
     for ch, before in doc["error_before"].items():
         b, u = doc["budget"][ch], doc["units"][ch]
+        cal = f"; {_fmt(b['calibration'], u)}" if b.get("calibration") else ""
         lines.append(f"| {ch} | {before:.4g} | {doc['error_after'][ch]:.4g} | {_fmt(b['budget'], u)} "
-                     f"({_fmt(b['noise'], u)}, {_fmt(b['tolerance'], u)}) |")
+                     f"({_fmt(b['noise'], u)}, {_fmt(b['tolerance'], u)}{cal}) |")
     multi = {ch: v for ch, v in doc["held_out_rms_per_signal"].items() if len(v) > 1}
     if multi:
         lines += ["", "## Held-out RMS per leg / axis", "", "| channel | signal | before | after |", "|---|---|---|---|"]

@@ -111,7 +111,9 @@ def flow_areas(x_v, p: HydraulicParams):
     the port's full-perimeter opening pi d (|x_v| - O_l), 10.5× at full stroke. So it is blended C^1
     onto that line between x_a = 86 µm and x_b = 119 µm (0.78–1.08 V) and follows the line beyond
     (:attr:`~hexsim.plant.params.HydraulicParams.smooth_blend`). ``p.flow_area == "quadratic"``: (3.11) at every
-    opening, as the seed simulated.
+    opening, as the seed simulated. ``p.flow_area == "port"``: the smaller of (3.11) and the port's opening
+    (3.3), a kink where they cross (0.90 V with the seed's values) and the overlap
+    a dead band (a real spool).
 
     Returns two arrays shaped like ``x_v`` (:func:`hexsim.plant.legs.flow_areas`, elementwise).
     """

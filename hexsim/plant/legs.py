@@ -59,7 +59,7 @@ class LegParams(NamedTuple):
     smooth_gain: float  # area gain of eq. 3.11 [m^2/m^2]
     blend_start: float  # x_a [m]: the smooth area holds up to here (HydraulicParams.smooth_blend; inf: "quadratic")
     blend_end: float  # x_b [m]: the port's sharp-edged opening from here on
-    sharp: float  # 1.0: sharp-edged area (eq. 3.3); 0.0: smooth (eq. 3.11)
+    sharp: float  # 1.0: sharp-edged area (eq. 3.3); 2.0: port, min of (3.11) and (3.3); 0.0: smooth (eq. 3.11)
     arctan_gain: float  # k of eq. 3.9 [s/m]
     arctan_scale: float  # 2/pi if the arctan is normalised to ±1, else 1
     sigma_neg: float  # viscous friction for ydot < 0 [N s/m]
@@ -113,12 +113,18 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         hyd.supply_pressure, hyd.tank_pressure, hyd.orifice_constant, hyd.area_bottom, hyd.area_rod,
         hyd.bulk_modulus, hyd.pipeline_volume, hyd.u_v_max, hyd.x_v_max, hyd.overlap, hyd.null_offset,
         math.pi * hyd.spool_diameter, hyd.smooth_area_gain,
-        *(hyd.smooth_blend if hyd.flow_area == "smooth" else (math.inf, math.inf)), float(hyd.flow_area == "sharp"), hyd.arctan_gain,
+        *_blend(hyd), {"sharp": 1.0, "port": 2.0}.get(hyd.flow_area, 0.0), hyd.arctan_gain,
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
         eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure,
         float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke, eff.edge_gain_pb, eff.edge_gain_bt,
         *_table_fields(hyd))
+
+
+def _blend(hyd: HydraulicParams) -> tuple[float, float]:
+    """(blend_start, blend_end) of :class:`LegParams`: the smooth area's C^1 blend onto the port, or
+    infinity ((3.11) at every opening; unused by the sharp, port and table areas)."""
+    return hyd.smooth_blend if hyd.flow_area == "smooth" else (math.inf, math.inf)
 
 
 def _table_fields(hyd: HydraulicParams) -> tuple[float, ...]:
@@ -195,11 +201,17 @@ def flow_areas(x_v, P):
     """Openings (a1 P→A, a2 A→T) [m^2] at spool position x_v [m]: sharp edges with overlap (seed eq.
     3.3), or on the side x_v opens the smooth 300 x_v^2 (eq. 3.11) up to |x_v| = x_a, blended C^1 onto
     the sharp-edged port's pi d (|x_v| - O_l) at x_b and that line beyond, the geometric limit
-    (:attr:`hexsim.plant.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); or
+    (:attr:`hexsim.plant.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); or the
+    smaller of (3.11) and the port's opening, a kink where they cross (``flow_area="port"``: a real spool, its
+    overlap a dead band); or
     the opening table's fraction of the full opening pi d x_v,max at the command |x_v| u_v,max / x_v,max
     (:func:`table_opening`); edge gains not applied."""
     if P.tab_n > 0.5:
         a = P.port_width * P.x_v_max * table_opening(abs(x_v) * (P.u_v_max / P.x_v_max), P)
+        a1 = a if x_v > 0.0 else 0.0
+        return a1, a - a1
+    if P.sharp > 1.5:  # port: the smaller of (3.11) and the port's opening (3.3), a kink where they cross
+        a = min(P.smooth_gain * x_v * x_v, P.port_width * max(abs(x_v) - P.overlap, 0.0))
         a1 = a if x_v > 0.0 else 0.0
         return a1, a - a1
     if P.sharp > 0.5:

@@ -74,8 +74,9 @@ KEYS: tuple[Key, ...] = (
     _k("valve.type", "hydraulics.valve_type", "-", "3-way (rod side at supply, the seed's) or 4-way (both chambers "
        "fed by the valve)", "seed Fig. 3.1 (3-way)", kind="text", choices=("3-way", "4-way")),
     _k("valve.flow_area", "hydraulics.flow_area", "-", "opening against spool position: smooth (3.11 blended onto "
-       "the port), quadratic (3.11 everywhere), sharp (3.3, linear with overlap/underlap), table (opening_table)",
-       "seed eq. 3.3, 3.11", kind="text", choices=("smooth", "quadratic", "sharp", "table")),
+       "the port), quadratic (3.11 everywhere), port ((3.11) until the port's opening is smaller, the port beyond: a kink, a real spool), "
+       "sharp (3.3, linear with overlap/underlap), table (opening_table)",
+       "seed eq. 3.3, 3.11", kind="text", choices=("smooth", "quadratic", "port", "sharp", "table")),
     _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[|u_v| V, opening as a fraction "
        "of the full opening], …] to u_v,max, linear between points from (0, 0), both sides of null alike",
        "valve data sheet (flow against command) or a calibration", kind="table"),

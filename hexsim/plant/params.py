@@ -19,7 +19,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 
-FlowArea = Literal["smooth", "quadratic", "sharp", "table"]
+FlowArea = Literal["smooth", "quadratic", "port", "sharp", "table"]
 #: Most points an opening table may have (besides the origin): the compiled leg step holds them as fields.
 MAX_TABLE_POINTS = 7
 ValveType = Literal["3-way", "4-way"]
@@ -76,8 +76,10 @@ class HydraulicParams:
     spool_diameter: float = 1e-2  # d [m], seed app. A
     smooth_area_gain: float = 300.0  # [m^2/m^2 -> 1/m]: a = 300 x_v^2, seed eq. (3.11)
     # "smooth": seed eq. (3.11) blended C^1 onto the port's opening (3.3) above 0.78 V (smooth_blend);
-    # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "sharp": (3.3); "table": the
-    # opening against the command as a data sheet or a measurement gives it (opening_table)
+    # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "port": the smaller of (3.11) and
+    # the port's opening (3.3), a kink where they cross (0.90 V) and the overlap a dead band (a real spool, no
+    # blend); "sharp": (3.3); "table": the opening against the command as a data sheet or a
+    # measurement gives it (opening_table)
     flow_area: FlowArea = "smooth"
     # (|u_v| [V], opening as a fraction of the full port opening pi d x_v,max) points, commands increasing to
     # u_v,max, openings non-decreasing, linear in between from (0, 0); the same on both sides of null (the
@@ -166,12 +168,12 @@ class HydraulicParams:
                 f"HydraulicParams.tank_pressure ({self.tank_pressure} Pa) must be below supply_pressure "
                 f"({self.supply_pressure} Pa)"
             )
-        if self.flow_area not in ("smooth", "quadratic", "sharp", "table"):
-            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic', 'sharp' or 'table', got "
+        if self.flow_area not in ("smooth", "quadratic", "port", "sharp", "table"):
+            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic', 'port', 'sharp' or 'table', got "
                              f"{self.flow_area!r}")
         self._check_table()
         limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
-        if self.flow_area == "smooth" and self.overlap >= limit:
+        if self.flow_area in ("smooth", "port") and self.overlap >= limit:
             raise InputError(
                 f"HydraulicParams.overlap ({self.overlap} m) must be below pi d / (4 k_a) = {limit:.3g} m for the "
                 f"smooth flow area: above it k_a x_v^2 (eq. 3.11, k_a = smooth_area_gain) never meets the port's "

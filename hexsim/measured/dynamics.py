@@ -1,0 +1,130 @@
+"""Calibration evidence from transients: the windowed valve replay of a single-actuator log.
+
+Constant-command experiments calibrate what acts in a steady motion (:mod:`hexsim.measured.calibration`:
+the valve's flow gain, the supply, the Coulomb friction). What acts while the motion changes, the oil's
+bulk modulus with the dead volumes (seed eq. 3.7), the moving mass (3.8), the viscous and static friction
+(3.9) and the valve's flow characteristic at small openings (3.3/3.11) where a closed loop spends its
+reversals, is seen in the transients of any log: a closed-loop sine as the seed's (3.10), a step, a chirp,
+or the switches of an open-loop experiment.
+
+:class:`ReplayEvidence` is one log as the identifier replays it (:class:`hexsim.measured.identify.Problem`:
+0.3 s windows, each started from the measured state and driven by the logged valve setpoints u_v, the
+sensors' offsets and scales fitted as nuisance): the even windows are fitted, the odd ones held out. A
+window in which the piston comes within :data:`STOP_MARGIN_M` of an end the log reaches (an end stop, whose
+stiffness and the transducer's offset there are not the nominal's business) is left out. Residuals are
+divided by the log's noise budget (sensor noise and the replay's numerical tolerance, measured once on the
+prior machine), so a fit is judged in the same units ``hexsim validate`` judges a log in.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from hexsim.errors import InputError
+from hexsim.measured.identify import Budget, Problem, measure_budget, residual_vector, score, within_budget
+from hexsim.measured.identify import calibrate as sensor_calibration
+from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.replay import PlantModel, Windows, nominal_plant
+from hexsim.measured.residuals import effective_n
+from hexsim.plant.machine import Machine
+
+#: [m] A window whose measured position comes this close to an end of travel the log reaches is left out.
+STOP_MARGIN_M = 3e-3
+#: [m] An extreme of the log's travel within this of the stroke's end (0 or L_s) is an end stop it reached.
+STOP_REACHED_M = 1e-2
+
+
+def away_from_stops(log: MeasurementLog, problem: Problem, stroke: float) -> np.ndarray:
+    """(windows,) bool: the windows whose measured position stays :data:`STOP_MARGIN_M` inside each end of
+    travel the log reaches (its lowest or highest position within :data:`STOP_REACHED_M` of 0 or ``stroke``)."""
+    pos = problem.windows.take(log.columns["pos_m"])
+    lo, hi = float(np.min(log.columns["pos_m"])), float(np.max(log.columns["pos_m"]))
+    keep = np.ones(len(pos), dtype=bool)
+    if lo < STOP_REACHED_M:
+        keep &= pos.min(axis=1) > lo + STOP_MARGIN_M
+    if hi > stroke - STOP_REACHED_M:
+        keep &= pos.max(axis=1) < hi - STOP_MARGIN_M
+    return keep
+
+
+def _only(problem: Problem, rows: np.ndarray) -> Problem:
+    """A copy of ``problem`` whose windows are its windows ``rows`` alone, all of them fit windows."""
+    out = copy.copy(problem)
+    out.windows = Windows(problem.windows.starts[rows], problem.windows.length)
+    out.measured = {ch: m[rows] for ch, m in problem.measured.items()}
+    out.fit_rows, out.test_rows = np.arange(len(rows)), np.arange(0)
+    return out
+
+
+@dataclass
+class ReplayEvidence:
+    """One single-actuator log as calibration evidence (module doc): its replay problem with the fit and
+    held-out windows away from the stops, and the noise budget measured on the prior machine."""
+
+    log: MeasurementLog
+    problem: Problem
+    budget: Budget
+    fitted: Problem  # the fit windows alone: a residual replays only them
+
+
+    @classmethod
+    def of(cls, log: MeasurementLog, machine: Machine, every_window: bool = False) -> "ReplayEvidence":
+        """The evidence of ``log`` judged against ``machine`` (``every_window``: all windows away from the stops
+        held out, for a log that is predicted, not fitted). Raises InputError for a hexapod log, a log
+        without the valve command or position, or one with fewer than three replay windows away from the
+        stops."""
+        if log.system != "single-actuator":
+            raise InputError(f"{log.path}: calibration from transients reads single-actuator logs (this is "
+                             f"{log.system})")
+        missing = [c for c in ("valve_cmd_V", "pos_m") if c not in log.columns]
+        if missing:
+            raise InputError(f"{log.path}: calibration from transients needs the column(s) {', '.join(missing)}")
+        log = dataclasses.replace(log, machine=machine)
+        problem = Problem(log)
+        keep = away_from_stops(log, problem, machine.hydraulics.stroke)
+        problem.fit_rows = problem.fit_rows[keep[problem.fit_rows]]
+        problem.test_rows = problem.test_rows[keep[problem.test_rows]]
+        if every_window:
+            problem.test_rows = np.sort(np.concatenate([problem.fit_rows, problem.test_rows]))
+        if len(problem.fit_rows) < 2 or len(problem.test_rows) < 1:
+            raise InputError(f"{log.path}: fewer than three 0.3 s replay windows keep {STOP_MARGIN_M * 1e3:g} mm "
+                             f"away from the end stops; calibration from transients needs motion in mid-stroke")
+        budget = measure_budget(problem, problem.simulate(problem.nominal))
+        return cls(log, problem, budget, _only(problem, problem.fit_rows))
+
+    @property
+    def name(self) -> str:
+        return self.log.path.name
+
+    def model(self, machine: Machine) -> PlantModel:
+        """The replay model of ``machine`` for this log (the log's declared mass, inclination and supply kept)."""
+        return nominal_plant(dataclasses.replace(self.log, machine=machine))
+
+    def residual(self, machine: Machine, held_out: bool = False) -> np.ndarray:
+        """The replay's calibrated residuals over the budget, one vector, on the fit (or held-out) windows.
+        Raises PhysicsError where the machine cannot run this log."""
+        p = _only(self.problem, self.problem.test_rows) if held_out else self.fitted
+        return residual_vector(p, p.simulate(self.model(machine)), self.budget, p.fit_rows)
+
+    def effective_share(self, machine: Machine) -> float:
+        """Independent samples per residual of the fit windows (:func:`hexsim.measured.residuals.effective_n`):
+        the replay's residuals are not white, and a standard error from all samples would be too small."""
+        p = self.fitted
+        res, _ = sensor_calibration(p, p.simulate(self.model(machine)), p.fit_rows)
+        n = sum(res[ch][:, p.settle:].size for ch in p.channels)
+        n_eff = sum(effective_n(res[ch][:, p.settle:]) for ch in p.channels)
+        return n_eff / n if n else 1.0
+
+    def errors(self, machine: Machine) -> dict:
+        """Held-out RMS per channel in budgets (the windows not fitted) and each channel's budget."""
+        p = self.problem
+        scored = score(p, p.simulate(self.model(machine)), self.budget)
+        return {"log": str(self.log.path), "windows_fitted": int(len(p.fit_rows)),
+                "windows_held_out": int(len(p.test_rows)),
+                "held_out_rms_in_budgets": {ch: float(np.sqrt(v)) for ch, v in within_budget(scored, self.budget).items()},
+                "held_out_cost": float(np.sum(scored.window_cost[p.test_rows])),
+                "budget": {ch: float(b) for ch, b in self.budget.total.items()}}

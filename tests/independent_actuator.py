@@ -1,0 +1,157 @@
+"""The seed's single actuator written independently of hexsim (no hexsim import): the "real machine" of the
+calibrate-then-validate tests on the 3-way valve. Its own equations, integrated by classical Runge-Kutta
+at 2 µs (numba):
+
+- spool x_v = (u - u_0) / u_max * x_max (ideal, seed eq. 3.2); the opening of each edge by ``area``:
+  "sharp" pi d max(|x_v| - O_l, 0) (3.3), "quadratic" k_a x_v^2 (3.11 everywhere, as the seed's own
+  simulations), "port" min(k_a x_v^2, pi d max(|x_v| - O_l, 0)) (a real spool: the smooth opening until
+  the port limits it, with a kink where hexsim blends C¹);
+- each edge q = k C_d a sqrt(2 / rho) dp / sqrt(|dp| + 2 kPa) (turbulent; laminar below ~2 kPa, another
+  regularisation than hexsim's); a leak C_l (P_s - P1) across the piston into the cap side;
+- dP1/dt = E / (A1 y + V_pl) (phi_1 + leak - A1 ydot) (3.7), P1 kept above -0.9 bar;
+- M yddot = P1 A1 - P_s A2 - F_f(ydot) - M g (3.8) with the Stribeck curve (3.9, arctan as published),
+  stiff end stops outside 0 … L;
+- a P controller at 500 Hz on the noisy position (valve saturated at ±10 V), the seed's faded-in sine (3.10)
+  as the reference; logged at 1 kHz: position, P1, P_s (constant), the accelerometer as the mean specific
+  force over each sample interval (Δv/Δt + g), with noise.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, replace
+
+import numba
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Actuator:
+    bore: float = 0.04
+    rod: float = 0.03
+    stroke: float = 0.2
+    supply: float = 70e5
+    tank: float = 0.0
+    x_max: float = 1.1e-3
+    u_max: float = 10.0
+    spool_d: float = 0.01
+    area_gain: float = 300.0
+    overlap: float = 5e-6
+    null_offset: float = 0.0
+    area: str = "port"  # "sharp" | "quadratic" | "port"
+    flow_gain: float = 1.0  # both edges
+    k_at: float = 1.0  # the return edge relative to the supply edge
+    cd: float = 0.611
+    rho: float = 860.0
+    bulk: float = 1.5e9
+    v_pl: float = 5e-7
+    leak: float = 0.0
+    mass: float = 40.0
+    viscous: tuple[float, float] = (2200.0, 1800.0)
+    coulomb: tuple[float, float] = (65.0, 60.0)
+    static: tuple[float, float] = (30.0, 30.0)
+    c_s: tuple[float, float] = (0.005, 0.005)
+    arctan_k: float = 100.0
+    kp: float = 200.0
+
+    def replace(self, **kw) -> "Actuator":
+        return replace(self, **kw)
+
+    def opening(self, x: float) -> float:
+        port = math.pi * self.spool_d * max(abs(x) - self.overlap, 0.0)
+        if self.area == "sharp":
+            return port
+        smooth = self.area_gain * x * x
+        return smooth if self.area == "quadratic" else min(smooth, port)
+
+
+def _pack(s: Actuator) -> np.ndarray:
+    a1 = math.pi / 4 * s.bore**2
+    return np.array([a1, a1 - math.pi / 4 * s.rod**2, s.stroke, s.supply, s.tank, s.x_max, s.u_max, s.spool_d,
+                     s.area_gain, s.overlap, s.null_offset, {"sharp": 0.0, "quadratic": 1.0, "port": 2.0}[s.area],
+                     s.flow_gain, s.k_at, s.cd, s.rho, s.bulk, s.v_pl, s.leak, s.mass, *s.viscous, *s.coulomb,
+                     *s.static, *s.c_s, s.arctan_k])
+
+
+@numba.njit(cache=True)
+def _rhs(z, u, c):
+    a1, a2, stroke, ps, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
+    y, v, p1 = z[0], z[1], z[2]
+    x = (u - u0) / u_max * x_max
+    port = math.pi * d * max(abs(x) - ol, 0.0)
+    smooth = ka * x * x
+    a = port if form == 0.0 else (smooth if form == 1.0 else min(smooth, port))
+    orifice = cd * a * math.sqrt(2.0 / rho)
+    if x > 0:
+        dp = ps - p1
+        phi = kq * orifice * dp / math.sqrt(abs(dp) + 2e3)
+    else:
+        dp = p1 - pt
+        phi = -kq * kat * orifice * dp / math.sqrt(abs(dp) + 2e3)
+    dp1 = bulk / (a1 * max(y, 0.0) + vpl) * (phi + leak * (ps - p1) - a1 * v)
+    if p1 < -0.9e5 and dp1 < 0:
+        dp1 = 0.0
+    i = 0 if v >= 0 else 1
+    friction = c[20 + i] * v + math.atan(c[28] * v) * (c[22 + i] + c[24 + i] * math.exp(-abs(v) / c[26 + i]))
+    stop = 0.0
+    if y < 0:
+        stop = -2e8 * y - 2e4 * v
+    elif y > stroke:
+        stop = -2e8 * (y - stroke) - 2e4 * v
+    return np.array([v, (p1 * a1 - ps * a2 - friction - m * 9.81 + stop) / m, dp1])
+
+
+@numba.njit(cache=True)
+def _advance(z, u, c, h, n):
+    """n classical Runge-Kutta steps of h [s] with the valve setpoint u held."""
+    for _ in range(n):
+        k1 = _rhs(z, u, c)
+        k2 = _rhs(z + 0.5 * h * k1, u, c)
+        k3 = _rhs(z + 0.5 * h * k2, u, c)
+        k4 = _rhs(z + h * k3, u, c)
+        z = z + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return z
+
+
+def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng: np.random.Generator,
+           noise: tuple[float, float, float] = (2e-6, 2e3, 0.02)) -> dict[str, np.ndarray]:
+    """A closed-loop run of ``duration`` s tracking amplitude sin(2 pi f t) faded in over one period around
+    mid-stroke (seed eq. 3.10): the log's columns at 1 kHz, noise (position m, pressure Pa, acceleration
+    m/s^2) on the measured channels (the controller sees the noisy position). Integrated by RK4 at 2 µs."""
+    c = _pack(s)
+    a1, a2 = c[0], c[1]
+    g = 9.81
+    dt = 1e-3
+    t = np.arange(0.0, duration, dt)
+    period = 1.0 / frequency
+    ref = s.stroke / 2 + amplitude * np.sin(2 * np.pi * frequency * t) * np.clip(t / period, 0.0, 1.0)
+    z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g) / a1])
+    out = {k: np.empty(len(t)) for k in ("pos", "p1", "u", "acc")}
+    y_meas = rng.normal(0.0, noise[0], len(t))
+    u = 0.0
+    v_prev = 0.0
+    for j in range(len(t)):
+        y_meas[j] += z[0]
+        if j % 2 == 0:  # the 500 Hz controller on the measured position
+            u = float(np.clip(s.kp * (ref[j] - y_meas[j]), -s.u_max, s.u_max))
+        out["pos"][j], out["p1"][j], out["u"][j] = z[0], z[2], u
+        out["acc"][j] = (z[1] - v_prev) / dt + g if j else g
+        v_prev = z[1]
+        z = _advance(z, u, c, 2e-6, 500)
+        assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
+    return {"time_s": t, "ref_m": ref, "valve_cmd_V": out["u"], "pos_m": y_meas,
+            "p1_Pa": out["p1"] + rng.normal(0.0, noise[1], len(t)), "ps_Pa": np.full(len(t), s.supply),
+            "acc_mps2": out["acc"] + rng.normal(0.0, noise[2], len(t))}
+
+
+def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0) -> pathlib.Path:
+    """The measurement-log CSV + sidecar (docs/measurement-log.md) of ``columns``, written by numpy."""
+    names = list(columns)
+    np.savetxt(path, np.column_stack([columns[k] for k in names]), delimiter=",", header=",".join(names),
+               comments="", fmt="%.10g")
+    path.with_suffix(".json").write_text(json.dumps({
+        "system": "single-actuator", "sample_rate_hz": 1000.0,
+        "controller": {"type": "P", "kp_V_per_m": kp, "rate_hz": 500.0}, "description": description}))
+    return path
