@@ -172,6 +172,15 @@ def _add_friction(sub) -> None:
     fr.add_argument("--json", type=pathlib.Path, help="write the fitted parameters as JSON; - for stdout")
 
 
+def _flow_areas(text: str) -> tuple[str, ...]:
+    forms = tuple(f.strip() for f in text.split(",") if f.strip())
+    bad = [f for f in forms if f not in ("smooth", "port", "quadratic", "sharp", "table")]
+    if not forms or bad:
+        raise argparse.ArgumentTypeError(f"unknown flow-area form {', '.join(bad) or repr(text)} "
+                                         f"(smooth, port, quadratic, sharp, table)")
+    return forms
+
+
 def _add_calibrate(sub) -> None:
     """The ``calibrate`` command's options."""
     ca = sub.add_parser(
@@ -189,6 +198,13 @@ def _add_calibrate(sub) -> None:
                     help="write the calibrated machine file here")
     ca.add_argument("--hold-out", type=pathlib.Path, nargs="+", default=[], metavar="LOG",
                     help="logs predicted, not fitted (their error before and after is reported)")
+    ca.add_argument("--dynamics", choices=("auto", "always", "never"), default="auto",
+                    help="evidence from transients (the windowed valve replay): auto (default) for every log that is "
+                         "not an open-loop constant-command experiment, always (those too), never (steady features only)")
+    ca.add_argument("--flow-area", type=_flow_areas, metavar="FORM[,FORM…]",
+                    help="with transients, the valve flow-area forms to calibrate and choose among by the held-out "
+                         "windows (smooth, port, quadratic, sharp, table; default the machine's own and, for the "
+                         "seed's (3.11) family, the others)")
     ca.add_argument("--no-cross-validation", action="store_true",
                     help="skip the leave-one-log-out refits (one per log)")
     ca.add_argument("--report", type=pathlib.Path, metavar="DIR",
@@ -365,7 +381,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     logs = [read_log(path, machine=machine) for path in args.logs]
     held = [read_log(path, machine=machine) for path in args.hold_out]
     print(f"machine: {machine.label}; calibrating on {len(logs)} log(s), {len(held)} held out", flush=True)
-    calibrated, report = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation)
+    calibrated, report = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation,
+                                   dynamics=args.dynamics, flow_areas=args.flow_area,
+                                   notify=lambda text: print(text, file=sys.stderr, flush=True))
     print(table(report))
     doc = calibrated.document()
     machine_from_document(doc, str(args.out))  # checked as any machine file before it is written

@@ -2,7 +2,7 @@
 calibrate-then-validate tests on the 3-way valve. Its own equations, integrated by classical Runge-Kutta
 at 2 µs (numba):
 
-- spool x_v = (u - u_0) / u_max * x_max (ideal, seed eq. 3.2); the opening of each edge by ``area``:
+- spool x_v = (u - u_0) / u_max * x_max (ideal, seed eq. 3.2), or following it as a second-order loop; the opening of each edge by ``area``:
   "sharp" pi d max(|x_v| - O_l, 0) (3.3), "quadratic" k_a x_v^2 (3.11 everywhere, as the seed's own
   simulations), "port" min(k_a x_v^2, pi d max(|x_v| - O_l, 0)) (a real spool: the smooth opening until
   the port limits it, with a kink where hexsim blends C¹);
@@ -13,7 +13,7 @@ at 2 µs (numba):
   stiff end stops outside 0 … L;
 - a P controller at 500 Hz on the noisy position (valve saturated at ±10 V), the seed's faded-in sine (3.10)
   as the reference; logged at 1 kHz: position, P1, P_s (constant), the accelerometer as the mean specific
-  force over each sample interval (Δv/Δt + g), with noise.
+  force over each sample interval (Δv/Δt + g), with noise; the position transducer may lag (y(t - delay)).
 """
 
 from __future__ import annotations
@@ -55,16 +55,12 @@ class Actuator:
     c_s: tuple[float, float] = (0.005, 0.005)
     arctan_k: float = 100.0
     kp: float = 200.0
+    spool_hz: float = 0.0  # natural frequency of the spool's position loop (0: ideal, eq. 3.2)
+    spool_zeta: float = 0.7
+    sensor_delay: float = 0.0  # [s] the position transducer shows y(t - delay)
 
     def replace(self, **kw) -> "Actuator":
         return replace(self, **kw)
-
-    def opening(self, x: float) -> float:
-        port = math.pi * self.spool_d * max(abs(x) - self.overlap, 0.0)
-        if self.area == "sharp":
-            return port
-        smooth = self.area_gain * x * x
-        return smooth if self.area == "quadratic" else min(smooth, port)
 
 
 def _pack(s: Actuator) -> np.ndarray:
@@ -72,14 +68,19 @@ def _pack(s: Actuator) -> np.ndarray:
     return np.array([a1, a1 - math.pi / 4 * s.rod**2, s.stroke, s.supply, s.tank, s.x_max, s.u_max, s.spool_d,
                      s.area_gain, s.overlap, s.null_offset, {"sharp": 0.0, "quadratic": 1.0, "port": 2.0}[s.area],
                      s.flow_gain, s.k_at, s.cd, s.rho, s.bulk, s.v_pl, s.leak, s.mass, *s.viscous, *s.coulomb,
-                     *s.static, *s.c_s, s.arctan_k])
+                     *s.static, *s.c_s, s.arctan_k, 2 * math.pi * s.spool_hz, s.spool_zeta])
 
 
 @numba.njit(cache=True)
 def _rhs(z, u, c):
     a1, a2, stroke, ps, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
-    y, v, p1 = z[0], z[1], z[2]
-    x = (u - u0) / u_max * x_max
+    y, v, p1, xv, vv = z[0], z[1], z[2], z[3], z[4]
+    x_set = (u - u0) / u_max * x_max
+    w = c[29]
+    if w > 0:  # second-order spool loop
+        x, dxv, dvv = xv, vv, w * w * (x_set - xv) - 2.0 * c[30] * w * vv
+    else:
+        x, dxv, dvv = x_set, 0.0, 0.0
     port = math.pi * d * max(abs(x) - ol, 0.0)
     smooth = ka * x * x
     a = port if form == 0.0 else (smooth if form == 1.0 else min(smooth, port))
@@ -100,7 +101,7 @@ def _rhs(z, u, c):
         stop = -2e8 * y - 2e4 * v
     elif y > stroke:
         stop = -2e8 * (y - stroke) - 2e4 * v
-    return np.array([v, (p1 * a1 - ps * a2 - friction - m * 9.81 + stop) / m, dp1])
+    return np.array([v, (p1 * a1 - ps * a2 - friction - m * 9.81 + stop) / m, dp1, dxv, dvv])
 
 
 @numba.njit(cache=True)
@@ -127,16 +128,17 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
     t = np.arange(0.0, duration, dt)
     period = 1.0 / frequency
     ref = s.stroke / 2 + amplitude * np.sin(2 * np.pi * frequency * t) * np.clip(t / period, 0.0, 1.0)
-    z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g) / a1])
+    z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g) / a1, -s.null_offset / s.u_max * s.x_max, 0.0])
     out = {k: np.empty(len(t)) for k in ("pos", "p1", "u", "acc")}
     y_meas = rng.normal(0.0, noise[0], len(t))
     u = 0.0
     v_prev = 0.0
     for j in range(len(t)):
-        y_meas[j] += z[0]
+        out["pos"][j] = z[0]
+        y_meas[j] += float(np.interp(t[j] - s.sensor_delay, t[:j + 1], out["pos"][:j + 1])) if s.sensor_delay else z[0]
         if j % 2 == 0:  # the 500 Hz controller on the measured position
             u = float(np.clip(s.kp * (ref[j] - y_meas[j]), -s.u_max, s.u_max))
-        out["pos"][j], out["p1"][j], out["u"][j] = z[0], z[2], u
+        out["p1"][j], out["u"][j] = z[2], u
         out["acc"][j] = (z[1] - v_prev) / dt + g if j else g
         v_prev = z[1]
         z = _advance(z, u, c, 2e-6, 500)

@@ -329,6 +329,7 @@ def steady_residual(feats: list[Feature], loads: dict) -> Callable[[Machine], np
 def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params: list[Parameter],
          held: dict[str, str] | None = None, independent_share: Callable[[Machine], float] | None = None,
          diff_step: float = 1e-4, x_scale=1.0, warm: bool = False, initial: Machine | None = None,
+         max_nfev: int | None = None, rule: bool = True, correlated_se: float = 0.0,
          notify=lambda text: None) -> Fit:
     """Bounded least squares of the free parameters (those not in ``held``) in normalised coordinates
     z = (x - lower) / (upper - lower) on the weighted residual ``residual_of(machine)``; then the
@@ -337,7 +338,10 @@ def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params:
     default all). ``warm``: after a parameter is held, refit from the values the others reached (the replay's
     cost is not convex: from the prior again it can fall into another valley), else from the prior.
     ``initial``: a machine whose values of ``params`` the search starts from (inside the brackets), instead
-    of the prior's.
+    of the prior's. ``max_nfev``: the most evaluations of one least-squares run (scipy's default without).
+    ``rule`` False: one least-squares run of every parameter, no statistics and nothing held (a screening).
+    ``correlated_se``: two parameters correlated beyond MAX_CORRELATION are both kept while the worse known
+    has a standard error within this share of its bracket (:func:`_unidentified`).
     A machine the residual cannot be computed for (a physics error, an invalid file) costs
     as a residual of 1e3 per entry."""
     held = dict(held or {})
@@ -356,7 +360,7 @@ def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params:
     start = prior.copy() if initial is None else np.clip(
         [p.prior(initial.document()) for p in params], lo, lo + span)
     for i, p in enumerate(params):  # a parameter no feature sees across its whole bracket (a table point beyond
-        if p.key in held:  # every command of the experiments, the mass of a horizontal axis) is not fitted
+        if p.key in held or not rule:  # every command of the experiments, the mass of a horizontal axis) is not fitted
             continue
         ends = []
         for value in (p.lower, p.upper):
@@ -378,13 +382,17 @@ def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params:
         # from the previous fit's values (the prior the first time): holding one parameter should not throw
         # away where the others went
         z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
-        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=diff_step, x_scale=x_scale)
+        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=diff_step, x_scale=x_scale,
+                            max_nfev=max_nfev)
+        notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
         x[free] = lo[free] + sol.x * span[free]
         if warm:
             start = x.copy()
+        if not rule:
+            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), sol.fun, held)
         share = 1.0 if independent_share is None else independent_share(with_values(machine, params, x))
         se_z, corr = _statistics(sol, share)
-        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], 0.01 if warm else 0.0)
+        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], correlated_se)
         if worst is None:
             se = np.zeros(len(params))
             se[free] = se_z * span[free]
@@ -458,6 +466,10 @@ def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
             "pressure_error_max_Pa": float(np.max(press)) if press else None}
 
 
+#: Evaluations of one least-squares run on transients (each a replay of the fit windows and a Jacobian of as
+#: many replays as parameters): a full calibration, and the screening of a flow-area form (enough to rank
+#: the forms by their held-out windows: the right one is within a few % of its optimum by then).
+FIT_NFEV, SCREEN_NFEV = 40, 10
 #: The flow-area forms of seed eq. (3.11) and (3.3) a calibration from transients tries for a valve of that
 #: family (the seed's 300 x_v^2 and its port), keeping the one that predicts the held-out windows best.
 SEED_FORMS = ("smooth", "port", "quadratic", "sharp")
@@ -536,19 +548,20 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         return float(np.dot(sizes, shares) / max(sum(sizes), 1))
 
     forms = _forms(machine, flow_areas) if evidence else (machine.hydraulics.flow_area,)
+    replay = dict(independent_share=independent_share, diff_step=1e-3, x_scale="jac", warm=True,
+                  max_nfev=FIT_NFEV, correlated_se=0.01, notify=notify) if evidence else {"notify": notify}
+    screen = len(forms) > 1
     tried: list[dict] = []
-    for form in forms:
+    for form in forms:  # each form from the prior: a form's calibrated values are another form's far valley
         try:
             start = machine if form == machine.hydraulics.flow_area else with_flow_area(machine, form)
         except InputError as exc:
             tried.append({"flow_area": form, "refused": str(exc)})
             continue
         form_params = list(params if params is not None else default_parameters(start, dynamics=bool(evidence)))
-        notify(f"calibrating {len(form_params)} parameters with the {form} flow area")
-        first = next((t["machine"] for t in tried if "machine" in t), None)  # the other forms start where it ended
-        fit = _fit(residual_of, start, form_params, independent_share=independent_share if evidence else None,
-                   initial=None if first is None else with_flow_area(first, form),
-                   diff_step=1e-3 if evidence else 1e-4, x_scale="jac" if evidence else 1.0, warm=bool(evidence), notify=notify)
+        notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
+        fit = _fit(residual_of, start, form_params, **(replay | ({"max_nfev": SCREEN_NFEV, "rule": False} if screen
+                                                                else {})))
         result = with_values(start, form_params, fit.values)
         cost = sum(ev.errors(result)["held_out_cost"] for ev in evidence)
         tried.append({"flow_area": form, "held_out_cost": cost, "start": start, "params": form_params, "fit": fit,
@@ -558,6 +571,10 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         raise InputError(f"{machine.label}: no flow-area form could be calibrated ({tried[0]['refused']})")
     best = min(usable, key=lambda t: t["held_out_cost"])
     start, params, fit, calibrated = best["start"], best["params"], best["fit"], best["machine"]
+    if screen:  # the chosen form calibrated in full from where its screening ended
+        notify(f"calibrating {len(params)} parameters with the {best['flow_area']} flow area")
+        fit = _fit(residual_of, start, params, initial=calibrated, **replay)
+        calibrated = with_values(start, params, fit.values)
     methods = []
     if feats:
         methods.append("steady motions and end-stop pressures")
@@ -572,6 +589,7 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
                               "matrix": _free_block(fit).round(4).tolist()}}
     if evidence:
         report["flow_area"] = {"chosen": best["flow_area"], "prior": machine.hydraulics.flow_area,
+                               "held_out_cost": sum(ev.errors(calibrated)["held_out_cost"] for ev in evidence),
                                "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
                                          if "fit" in t else {"refused": t["refused"]})} for t in tried]}
         report["transients"] = [{"before": ev.errors(machine), "after": ev.errors(calibrated)} for ev in evidence]
@@ -683,7 +701,8 @@ def table(report: dict) -> str:
 
     if "flow_area" in report:
         fa = report["flow_area"]
-        lines.append(f"flow area        {fa['chosen']} (prior {fa['prior']}); held-out cost of each form: " + ", ".join(
+        lines.append(f"flow area        {fa['chosen']} (prior {fa['prior']}; held-out cost {fa['held_out_cost']:.4g}); "
+                     f"{'screened' if len(fa['tried']) > 1 else 'held-out cost'}: " + ", ".join(
             f"{t['flow_area']} {t['held_out_cost']:.4g}" if "held_out_cost" in t else f"{t['flow_area']} refused"
             for t in fa["tried"]))
     if "fit" in report:
@@ -729,21 +748,57 @@ def nominal_check(log: MeasurementLog) -> dict | None:
     out = {"off": bool(off), **err}
     if not off:
         return out
-    _, report = calibrate([log], log.machine, cross_validate=False)
-    moved = [r for r in report["parameters"] if r["status"] != "held at its prior"
-             and abs(r["value"] - r["prior"]) > max(2.0 * r["std_error"], 0.05 * (r["upper"] - r["lower"]))]
-    out["moved"] = [{k: r[k] for k in ("key", "prior", "value", "std_error", "unit", "status")} for r in moved]
+    _, report = calibrate([log], log.machine, cross_validate=False, dynamics="never")
+    moved = _moved(report)
+    out["moved"] = moved
     what = []
     if err["speed_error_max"]:
         what.append(f"speeds up to {err['speed_error_max']:.1%} off")
     if err["pressure_error_max_Pa"]:
         what.append(f"pressures up to {err['pressure_error_max_Pa'] / 1e5:.2f} bar off")
-    changes = ", ".join(f"{r['key']} {r['prior']:.4g} → {r['value']:.4g} {r['unit']}"
-                        + (" (at a bound)" if r["status"] == "at a bound" else "") for r in moved)
+    changes = _changes(moved)
     out["sentence"] = (f"The machine's nominal is visibly off this log's steady motions ({', '.join(what)}): calibrate "
                        f"first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine"
                        + (f"; a calibration on this log alone moves {changes}" if changes else "") + ".")
     return out
+
+
+def _moved(report: dict) -> list[dict]:
+    """The parameters a calibration moved beyond two standard errors and 5 % of their bracket."""
+    return [{k: r[k] for k in ("key", "prior", "value", "std_error", "unit", "status")} for r in report["parameters"]
+            if r["status"] != "held at its prior"
+            and abs(r["value"] - r["prior"]) > max(2.0 * r["std_error"], 0.05 * (r["upper"] - r["lower"]))]
+
+
+def _changes(moved: list[dict]) -> str:
+    return ", ".join(f"{r['key']} {r['prior']:.4g} → {r['value']:.4g} {r['unit']}"
+                     + (" (at a bound)" if r["status"] == "at a bound" else "") for r in moved)
+
+
+def transient_check(log: MeasurementLog) -> dict | None:
+    """For a log that is no constant-command experiment, judged against a machine that was never calibrated:
+    what a calibration from this log's own transients (:mod:`hexsim.measured.dynamics`, the machine's own
+    flow-area form) moves and how far it brings the held-out windows, as the ``sentence`` ``hexsim
+    validate`` puts first when its verdict is not ``none``: the nominal may be what is off, not an effect.
+    None for a calibrated machine, a hexapod log, or a log the replay cannot use."""
+    if log.machine.calibration is not None or log.system != "single-actuator":
+        return None
+    try:
+        _, report = calibrate([log], log.machine, flow_areas=(log.machine.hydraulics.flow_area,),
+                              cross_validate=False, dynamics="always")
+    except InputError:
+        return None
+    before = report["transients"][0]["before"]["held_out_rms_in_budgets"]
+    after = report["transients"][0]["after"]["held_out_rms_in_budgets"]
+    moved = _moved(report)
+    worst = max(before, key=lambda ch: before[ch])
+    sentence = (f"This machine was never calibrated, and a calibration of its nominal from this log's own transients "
+                f"brings the held-out {worst} from {before[worst]:.3g} to {after[worst]:.3g} budgets"
+                + (f", moving {_changes(moved)}" if moved else "") + ": calibrate on calibration experiments of the "
+                "machine first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine; "
+                "an effect found on the uncalibrated file may be the nominal's error.")
+    return {"off": bool(moved), "moved": moved, "held_out_rms_in_budgets": {"before": before, "after": after},
+            "sentence": sentence}
 
 
 def markdown(report: dict, figure: str | None = None) -> str:

@@ -34,6 +34,9 @@ from hexsim.plant.machine import Machine
 
 #: [m] A window whose measured position comes this close to an end of travel the log reaches is left out.
 STOP_MARGIN_M = 3e-3
+#: Fit windows replayed per log at most (spread over the log): a fit's cost stays bounded for long logs;
+#: the held-out windows are all scored.
+MAX_FIT_WINDOWS = 16
 #: [m] An extreme of the log's travel within this of the stroke's end (0 or L_s) is an end stop it reached.
 STOP_REACHED_M = 1e-2
 
@@ -94,7 +97,8 @@ class ReplayEvidence:
             raise InputError(f"{log.path}: fewer than three 0.3 s replay windows keep {STOP_MARGIN_M * 1e3:g} mm "
                              f"away from the end stops; calibration from transients needs motion in mid-stroke")
         budget = measure_budget(problem, problem.simulate(problem.nominal))
-        return cls(log, problem, budget, _only(problem, problem.fit_rows))
+        fitted = problem.fit_rows[np.unique(np.linspace(0, len(problem.fit_rows) - 1, MAX_FIT_WINDOWS).round().astype(int))]
+        return cls(log, problem, budget, _only(problem, fitted))
 
     @property
     def name(self) -> str:

@@ -227,7 +227,9 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
     fitted parameters' standard errors s_i and correlations C_ij (the machine file's ``calibration`` block,
     :func:`hexsim.measured.calibration.calibrate`), the replay's change d_i when parameter i moves by s_i,
     and the RMS over the scored samples of sqrt(sum_ij d_i C_ij d_j) (first-order propagation of the
-    covariance). Empty for a machine that was not calibrated (nothing fitted, or no standard errors)."""
+    covariance). The changes are taken after the sensors' calibration (:func:`calibrate`): what an offset or a
+    scale takes up of a parameter's change (the position scale of a flow gain) is no uncertainty of the
+    replay. Empty for a machine that was not calibrated (nothing fitted, or no standard errors)."""
     from hexsim.measured.calibration import parameter_of, with_values
     from hexsim.measured.replay import nominal_plant
 
@@ -239,12 +241,14 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
         return {}
     corr = np.array(block["correlation"]["matrix"], dtype=float)[np.ix_(*[[keys.index(k) for k in moved]] * 2)]
     machine, s = problem.log.machine, problem.settle
+    base = calibrate(problem, nominal_sim, problem.fit_rows)[0]
     deltas = []
     for key in moved:
         r = rows[key]
         shifted = with_values(machine, [parameter_of(r)], [r["value"] + r["std_error"]])
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
-        deltas.append({ch: (sim[ch] - nominal_sim[ch])[:, s:] for ch in problem.channels})
+        moved = calibrate(problem, sim, problem.fit_rows)[0]
+        deltas.append({ch: (moved[ch] - base[ch])[:, s:] for ch in problem.channels})
     out = {}
     for ch in problem.channels:
         d = np.stack([dl[ch].ravel() for dl in deltas])  # (parameters, samples)
