@@ -99,3 +99,18 @@ def test_windows_at_the_end_stops_are_not_evidence(tmp_path):
     mid = {"time_s": t, "valve_cmd_V": np.zeros(t.size), "pos_m": 0.1 + 0.03 * np.sin(2 * np.pi * t)}
     log = read_log(write(mid, tmp_path / "mid.csv", "mid-stroke"))
     assert away_from_stops(log, Problem(log), 0.2).all()
+
+
+def test_the_command_writes_the_machine_and_a_report_of_the_transients(calibrated, tmp_path, capsys):
+    """``hexsim calibrate`` on a closed-loop log with --report: the machine file, report.md with the flow-area
+    line and the held-out windows, features.png with the transients' panel (there are no steady features)."""
+    _, _, folder = calibrated
+    out, rep = tmp_path / "cal.json", tmp_path / "report"
+    assert main(["calibrate", str(folder / "calibration.csv"), "--flow-area", "port", "--out", str(out),
+                 "--report", str(rep)]) == 0
+    captured = capsys.readouterr()
+    assert "fitted" in captured.err  # the fit's progress on stderr
+    md = (rep / "report.md").read_text()
+    assert "flow area        port" in md and "held-out windows of calibration.csv" in md
+    assert (rep / "features.png").read_bytes()[:4] == b"\x89PNG"
+    assert load_machine(out).hydraulics.flow_area == "port"

@@ -824,14 +824,39 @@ def markdown(report: dict, figure: str | None = None) -> str:
 
 def plot_features(report: dict, path) -> None:
     """Each fitted feature's error, before (the machine file) and after calibration, against its measured
-    value: speeds as relative errors [%], pressures in bar; written atomically (.png, .pdf or .svg)."""
+    value: speeds as relative errors [%], pressures in bar; and, with transients, each log's held-out
+    windows' RMS per channel in budgets before and after; written atomically (.png, .pdf or .svg)."""
     from matplotlib.figure import Figure  # no pyplot: the user's backend is never switched
 
     from hexsim.outputs.plotting import save_figure
 
-    rows = report["rows"]
-    fig = Figure(figsize=(11, 4.5), layout="constrained")
-    speed_ax, press_ax = fig.subplots(1, 2)
+    rows = report.get("rows", [])
+    transients = report.get("transients", [])
+    fig = Figure(figsize=(5.5 * (2 * bool(rows) + bool(transients)), 4.5), layout="constrained")
+    axes = list(fig.subplots(1, 2 * bool(rows) + bool(transients), squeeze=False)[0])
+    if transients:
+        ax = axes.pop()
+        labels, before, after = [], [], []
+        for row in transients:
+            name = pathlib.Path(row["before"]["log"]).stem
+            for ch, v in row["before"]["held_out_rms_in_budgets"].items():
+                if ch != "p_s":
+                    labels.append(f"{name}\n{ch}")
+                    before.append(v)
+                    after.append(row["after"]["held_out_rms_in_budgets"][ch])
+        x = np.arange(len(labels))
+        ax.bar(x - 0.2, before, 0.4, label="the machine file")
+        ax.bar(x + 0.2, after, 0.4, label="calibrated")
+        ax.axhline(math.sqrt(2.0), color="k", lw=0.6, ls="--")
+        ax.set_yscale("log")
+        ax.set_xticks(x, labels, fontsize=7, rotation=60)
+        ax.set(title="transients: held-out windows", ylabel="RMS / budget (dashed: √2)")
+        ax.legend(fontsize=8)
+    if not rows:
+        fig.suptitle(f"hexsim calibrate: {report['machine']}")
+        save_figure(fig, path, dpi=90)
+        return
+    speed_ax, press_ax = axes
     panels = ((speed_ax, lambda r: r["quantity"] == "velocity", "steady speeds", "measured speed [mm/s]",
                "predicted / measured − 1 [%]", lambda r, k: 100.0 * (r[k] / r["measured"] - 1.0), 1e3),
               (press_ax, lambda r: r["quantity"] != "velocity", "chamber pressures (steady, end stops)",
