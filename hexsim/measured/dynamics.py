@@ -73,7 +73,6 @@ class ReplayEvidence:
     budget: Budget
     fitted: Problem  # the fit windows alone: a residual replays only them
 
-
     @classmethod
     def of(cls, log: MeasurementLog, machine: Machine, every_window: bool = False) -> "ReplayEvidence":
         """The evidence of ``log`` judged against ``machine`` (``every_window``: all windows away from the stops
@@ -100,18 +99,14 @@ class ReplayEvidence:
         fitted = problem.fit_rows[np.unique(np.linspace(0, len(problem.fit_rows) - 1, MAX_FIT_WINDOWS).round().astype(int))]
         return cls(log, problem, budget, _only(problem, fitted))
 
-    @property
-    def name(self) -> str:
-        return self.log.path.name
-
     def model(self, machine: Machine) -> PlantModel:
         """The replay model of ``machine`` for this log (the log's declared mass, inclination and supply kept)."""
         return nominal_plant(dataclasses.replace(self.log, machine=machine))
 
-    def residual(self, machine: Machine, held_out: bool = False) -> np.ndarray:
-        """The replay's calibrated residuals over the budget, one vector, on the fit (or held-out) windows.
-        Raises PhysicsError where the machine cannot run this log."""
-        p = _only(self.problem, self.problem.test_rows) if held_out else self.fitted
+    def residual(self, machine: Machine) -> np.ndarray:
+        """The replay's calibrated residuals over the budget, one vector, on the fit windows (at most
+        :data:`MAX_FIT_WINDOWS`). Raises PhysicsError where the machine cannot run this log."""
+        p = self.fitted
         return residual_vector(p, p.simulate(self.model(machine)), self.budget, p.fit_rows)
 
     def effective_share(self, machine: Machine) -> float:
