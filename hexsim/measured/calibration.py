@@ -48,7 +48,7 @@ from scipy.optimize import least_squares
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics
-from hexsim.plant.machine import KEYS, Machine, machine_from_document
+from hexsim.plant.machine import KEYS, Machine, machine_from_document, with_keys
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.simulation.metrics import steady_segments
 
@@ -281,29 +281,9 @@ def _get(doc: dict, key: str):
     return node[int(index[:-1])][1] if index else node
 
 
-def _set(doc: dict, key: str, value: float) -> None:
-    path, _, index = key.partition("[")
-    *sections, leaf = path.split(".")
-    node = doc
-    for part in sections:
-        node = node.setdefault(part, {})
-    if index:
-        node[leaf][int(index[:-1])][1] = float(value)
-    else:
-        node[leaf] = float(value)
-
-
-def parameter_of(row: dict) -> Parameter:
-    """The :class:`Parameter` of a row of a calibration report (its key, bounds, their source, experiment)."""
-    return Parameter(row["key"], row["lower"], row["upper"], row.get("bounds_source", ""), row.get("experiment", ""))
-
-
 def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
-    """``machine`` with each parameter's key set to its value (the machine file edited, checked again)."""
-    doc = json.loads(json.dumps(machine.document()))
-    for p, v in zip(params, values):
-        _set(doc, p.key, v)
-    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
+    """``machine`` with each parameter's key set to its value (:func:`hexsim.plant.machine.with_keys`)."""
+    return with_keys(machine, {p.key: float(v) for p, v in zip(params, values)})
 
 
 @dataclass

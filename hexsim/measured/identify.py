@@ -69,6 +69,7 @@ from hexsim.measured.replay import (
 )
 from hexsim.measured.residuals import effective_n, noise_of
 from hexsim.plant.effects import EFFECT_NAMES
+from hexsim.plant.machine import with_keys
 from hexsim.signals import near_reversals
 from hexsim.simulation.workers import in_workers, worker_pool
 
@@ -230,8 +231,6 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
     covariance). The changes are taken after the sensors' calibration (:func:`calibrate`): what an offset or a
     scale takes up of a parameter's change (the position scale of a flow gain) is no uncertainty of the
     replay. Empty for a machine that was not calibrated (nothing fitted, or no standard errors)."""
-    from hexsim.measured.calibration import parameter_of, with_values
-    from hexsim.measured.replay import nominal_plant
 
     block = problem.log.machine.calibration or {}
     keys = block.get("correlation", {}).get("keys", [])
@@ -245,7 +244,7 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
     deltas = []
     for key in moved:
         r = rows[key]
-        shifted = with_values(machine, [parameter_of(r)], [r["value"] + r["std_error"]])
+        shifted = with_keys(machine, {key: r["value"] + r["std_error"]})
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
         moved = calibrate(problem, sim, problem.fit_rows)[0]
         deltas.append({ch: (moved[ch] - base[ch])[:, s:] for ch in problem.channels})

@@ -432,6 +432,23 @@ def parse_assignment(text: str) -> tuple[str, object]:
     return key, value
 
 
+def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
+    """``machine`` with each dotted key of ``values`` set to its number (``valve.opening_table[i]``: the opening
+    of point i), the file checked again as any machine file (InputError names the key and value)."""
+    doc = json.loads(json.dumps(machine.document()))
+    for key, value in values.items():
+        path, _, index = key.partition("[")
+        *sections, leaf = path.split(".")
+        node = doc
+        for part in sections:
+            node = node.setdefault(part, {})
+        if index:
+            node[leaf][int(index[:-1])][1] = float(value)
+        else:
+            node[leaf] = float(value)
+    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
+
+
 def set_keys(doc: dict, assignments: list[tuple[str, object]]) -> dict:
     """A copy of the machine-file ``doc`` with the dotted keys of ``assignments`` set (sections created
     where missing)."""
