@@ -569,11 +569,12 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
               "correlation": {"keys": [p.key for p in params if p.key not in fit.held],
                               "matrix": _free_block(fit).round(4).tolist()}}
     if evidence:
+        after = [ev.errors(calibrated) for ev in evidence]  # each log replayed once for the report
         report["flow_area"] = {"chosen": best["flow_area"], "prior": machine.hydraulics.flow_area,
-                               "held_out_cost": sum(ev.errors(calibrated)["held_out_cost"] for ev in evidence),
+                               "held_out_cost": sum(e["held_out_cost"] for e in after),
                                "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
                                          if "fit" in t else {"refused": t["refused"]})} for t in tried]}
-        report["transients"] = [{"before": ev.errors(machine), "after": ev.errors(calibrated)} for ev in evidence]
+        report["transients"] = [{"before": ev.errors(machine), "after": a} for ev, a in zip(evidence, after)]
     _add_priors(report, start, params)
     if feats:
         before, after = predict(feats, machine, loads), predict(feats, calibrated, loads)
