@@ -416,7 +416,7 @@ def cmd_modes(args: argparse.Namespace) -> int:
         kg, at = args.payload
         effects = effects.replace(payload_kg=kg, payload_at_m=at)
         payload = f"600 kg platform with {kg:g} kg at ({', '.join(f'{v:g}' for v in at)}) m"
-    modes = oil_spring_modes(machine.hydraulics, effects=effects)
+    modes = oil_spring_modes(machine.hydraulics, effects=effects, geometry=machine.geometry)
     print(modes_table(modes, payload))
     if args.json:
         data = {"configuration": payload, "pose": "neutral",
@@ -534,6 +534,7 @@ def _run_config(args: argparse.Namespace, compensator: str):
 
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      machine=machine.name if machine.path is None else str(machine.path),
+                     geometry=machine.geometry if machine.system == "hexapod" else None,
                      compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())

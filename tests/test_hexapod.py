@@ -195,8 +195,8 @@ def test_island_discovery_off_changes_nothing(monkeypatch):
     from hexsim.plant import model
     from hexsim.simulation import runner
 
-    def discovering(name, formulation="full", effects=None):
-        m = model.load_model(name, formulation, effects)
+    def discovering(name, formulation="full", effects=None, geometry=None):
+        m = model.load_model(name, formulation, effects, geometry)
         m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         return m
 

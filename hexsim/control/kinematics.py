@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from hexsim.control.scenario import DOF_NAMES
 from hexsim.errors import WorkspaceError
-from hexsim.plant.model import PlantIndex, reset_neutral
+from hexsim.plant.model import PlantIndex, base_pivots, reset_neutral
 
 
 def rotation_matrices(rpy: np.ndarray) -> np.ndarray:
@@ -50,7 +50,7 @@ class HexapodGeometry:
         if idx.platform_only:  # the platform-only model carries its legs' geometry (hexsim.plant.platform)
             return cls(base=idx.legs.base.copy(), platform=idx.legs.anchor.copy(), neutral_position=d.xpos[plat].copy(),
                        l_min=idx.legs.l_min.copy(), stroke=idx.stroke)
-        base = np.array([d.xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"cylinder{i + 1}")] for i in range(6)])
+        base = base_pivots(m, d, idx.n_legs)
         sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"platform_anchor{i + 1}") for i in range(6)]
         anchors_local = m.site_pos[sites].copy()
         lengths = np.linalg.norm(d.site_xpos[sites] - base, axis=1)

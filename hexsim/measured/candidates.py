@@ -160,12 +160,12 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
 
     hyd = supply_from_log(log, log.machine.hydraulics)
     rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0), hydraulics=hyd,
-                               effects=log.machine.effects)).p1_initial
+                               effects=log.machine.effects, geometry=log.machine.geometry)).p1_initial
     first = log.time - log.time[0] <= 0.1
     if ref is not None:
         first &= np.cumsum(np.any(np.abs(ref - ref[0]) > REST_TOLERANCE_M, axis=1)) == 0
     first[:3] = True
-    found = payload_from_statics(p1[first].mean(axis=0) - rest, hyd)
+    found = payload_from_statics(p1[first].mean(axis=0) - rest, hyd, log.machine.geometry)
     if found["inconsistency"] > 0.1:
         return None
     return found["mass_kg"], found["x_m"], found["y_m"]

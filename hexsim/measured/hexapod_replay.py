@@ -73,7 +73,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
     config = RunConfig(scenario, hydraulics=hydraulics or log.machine.hydraulics, controller=controller,
                        effects=effects or log.machine.effects, feedforward=feedforward, timestep=timestep,
-                       leg_changes=tuple(leg_changes), model=model)
+                       leg_changes=tuple(leg_changes), model=model, geometry=log.machine.geometry)
     return simulate(config)
 
 
@@ -218,7 +218,7 @@ class HexapodProblem:
         return self.log.time[self.rows].reshape(self.shape)
 
 
-def payload_from_statics(p1_offsets: np.ndarray, hydraulics: HydraulicParams | None = None) -> dict:
+def payload_from_statics(p1_offsets: np.ndarray, hydraulics: HydraulicParams | None = None, geometry=None) -> dict:
     """The payload change that explains a constant P1 difference per leg, by the statics of the platform
     at its neutral pose: leg forces dF_i = dP1_i A1 along the unit leg vectors n_i must carry the weight
     dm g of a mass at (x, y) in the platform frame: sum dF_i n_i = (0, 0, dm g) and
@@ -227,12 +227,13 @@ def payload_from_statics(p1_offsets: np.ndarray, hydraulics: HydraulicParams | N
     ``p1_offsets`` (6,) [Pa]: measured minus replayed P1 of each leg (the calibration offsets of the
     nominal model). Returns mass_kg, x_m, y_m and ``inconsistency``: the part of the legs' wrench that no
     payload produces (horizontal force, yaw torque, as a fraction of the vertical force); a small value
-    says the six offsets are one load, not six sensor offsets. Geometry and gravity from the MJCF."""
+    says the six offsets are one load, not six sensor offsets. Geometry and gravity from the MJCF of
+    ``geometry`` (a machine file's hexapod section; None: the Micro Motion System)."""
     from hexsim.control.kinematics import HexapodGeometry
     from hexsim.plant.model import load_model
 
     hyd = hydraulics or HydraulicParams()
-    m = load_model("hexapod")
+    m = load_model("hexapod", geometry=geometry)
     geom = HexapodGeometry.from_model(m)
     legs = geom.leg_vectors(np.zeros(6))[0]
     n = legs / np.linalg.norm(legs, axis=1, keepdims=True)

@@ -50,7 +50,8 @@ def hexapod_payload(ident: Identification) -> dict | None:
         return None
     from hexsim.measured.hexapod_replay import payload_from_statics
 
-    found = payload_from_statics(np.array(ident.final.calibration["p1"]["offset"]))
+    found = payload_from_statics(np.array(ident.final.calibration["p1"]["offset"]),
+                                 geometry=ident.problem.log.machine.geometry)
     if abs(found["mass_kg"]) >= PAYLOAD_MIN_KG and found["inconsistency"] <= PAYLOAD_INCONSISTENCY:
         return found
     return None

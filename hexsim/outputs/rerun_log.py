@@ -21,7 +21,7 @@ import rerun.blueprint as rrb
 from scipy.spatial.transform import Rotation
 
 from hexsim.control.kinematics import HexapodGeometry, rotation_matrices
-from hexsim.plant.model import load_model
+from hexsim.plant.model import leg_bodies, load_model
 from hexsim.simulation.config import SimulationResult
 from hexsim.simulation.metrics import Smoothness
 from hexsim.tables import write_atomic
@@ -35,7 +35,13 @@ HEXAPOD_EYE = rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=[2.3, -2.3,
                                 eye_up=[0.0, 0.0, 1.0])
 
 
-def _blueprint(compensated: bool, analysis: str, system: str = "hexapod") -> rrb.Blueprint:
+def _eye(scale: float) -> rrb.EyeControls3D:
+    """:data:`HEXAPOD_EYE` for a hexapod ``scale`` times the Micro Motion System's size."""
+    return rrb.EyeControls3D(kind=rrb.Eye3DKind.Orbital, position=[2.3 * scale, -2.3 * scale, 1.7 * scale],
+                             look_target=[0.0, 0.0, 0.45 * scale], eye_up=[0.0, 0.0, 1.0])
+
+
+def _blueprint(compensated: bool, analysis: str, system: str = "hexapod", scale: float = 1.0) -> rrb.Blueprint:
     """Time series beside the 3D view: the reversal bump (signal minus its fundamental fit) on its own
     axis, then the signal with its fit, positions, valve, pressures and, for a compensated run only,
     the compensator's parameters. The hexapod's 3D view starts at :data:`HEXAPOD_EYE`."""
@@ -50,7 +56,8 @@ def _blueprint(compensated: bool, analysis: str, system: str = "hexapod") -> rrb
         panels.append(rrb.TimeSeriesView(origin="/compensator", name="compensator parameters a, b, c, s"))
     return rrb.Blueprint(
         rrb.Horizontal(rrb.Spatial3DView(origin="/world", name=system if system == "hexapod" else "single actuator",
-                                         eye_controls=HEXAPOD_EYE if system == "hexapod" else None),
+                                         eye_controls=(HEXAPOD_EYE if scale == 1.0 else _eye(scale))
+                                         if system == "hexapod" else None),
                        rrb.Vertical(*panels),
                        column_shares=[2, 3]),
         collapse_panels=True,
@@ -71,9 +78,8 @@ def _scalars(rec: rr.RecordingStream, path: str, times: rr.TimeColumn, values: n
 def scene_qpos(m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray) -> np.ndarray:
     """(len(rows), nq) joint positions of the model at the recorded rows ``rows``: each leg's slide at its
     recorded piston position y [m]; on the hexapod the platform's free joint at its recorded pose and
-    each leg's universal joint (hinges about the barrel's x, then y axis) turned so that the barrel points
-    from its base joint to the platform anchor: with d the unit leg direction in the barrel's rest frame,
-    R_x(a) R_y(b) e_z = d gives b = asin(d_x), a = atan2(-d_y, d_z)."""
+    each leg's base joint turned so that the barrel points from its base joint to the platform anchor
+    (:func:`_base_joints`)."""
     qpos = np.tile(m.qpos0, (len(rows), 1))
     for i in range(result.n_legs):
         qpos[:, m.joint(f"leg{i + 1}").qposadr[0]] = result.y[rows, i]
@@ -81,25 +87,60 @@ def scene_qpos(m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray) ->
         return qpos
     pose = result.pose[rows]
     rot = rotation_matrices(pose[:, 3:])
-    free = m.joint("platform").qposadr[0]
+    free = m.jnt_qposadr[m.body_jntadr[m.body("platform").id]]
     qpos[:, free:free + 3] = HexapodGeometry.from_model(m).neutral_position + pose[:, :3]
     qpos[:, free + 3:free + 7] = Rotation.from_matrix(rot).as_quat()[:, [3, 0, 1, 2]]  # w, x, y, z
-    for i in range(result.n_legs):
-        anchor = m.site(f"platform_anchor{i + 1}").pos
-        barrel = m.body(f"cylinder{i + 1}")
-        rest = Rotation.from_quat(np.roll(barrel.quat, -1)).as_matrix()
-        direction = qpos[:, free:free + 3] + rot @ anchor - barrel.pos
-        d = direction @ rest  # in the barrel's rest frame
-        d /= np.linalg.norm(d, axis=1, keepdims=True)
-        qpos[:, m.joint(f"leg{i + 1}_u1").qposadr[0]] = np.arctan2(-d[:, 1], d[:, 2])
-        qpos[:, m.joint(f"leg{i + 1}_u2").qposadr[0]] = np.arcsin(np.clip(d[:, 0], -1.0, 1.0))
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)  # the reference pose: the barrels' rest frames and base joints
+    slides, rods, barrels = leg_bodies(m, result.n_legs)
+    for i, (slide, rod, barrel) in enumerate(zip(slides, rods, barrels)):
+        parent = Rotation.from_quat(np.roll(d.xquat[m.body_parentid[barrel]], -1))
+        rest = (parent * Rotation.from_quat(np.roll(m.body_quat[barrel], -1))).as_matrix()
+        axis = Rotation.from_quat(np.roll(m.body_quat[rod], -1)).apply(m.jnt_axis[slide])  # in the barrel frame
+        first = m.body_jntadr[barrel]
+        direction = qpos[:, free:free + 3] + rot @ m.site(f"platform_anchor{i + 1}").pos - d.xanchor[first]
+        target = direction @ rest  # in the barrel's rest frame
+        target /= np.linalg.norm(target, axis=1, keepdims=True)
+        _base_joints(m, qpos, first, m.body_jntnum[barrel], axis, target)
     return qpos
 
 
-def _log_scene(rec: rr.RecordingStream, result: SimulationResult, rows: np.ndarray, times: rr.TimeColumn) -> None:
-    """The model's visual geoms (MJCF group 2: boxes, cylinders, spheres, capsules, ellipsoids) under
+def _base_joints(m: mujoco.MjModel, qpos: np.ndarray, first: int, count: int, axis: np.ndarray,
+                 target: np.ndarray) -> None:
+    """Write into ``qpos`` (rows, nq) the base joint(s) of a leg (joint ``first``: a ball, or two hinges
+    h1 then h2) that turn the slide's axis ``axis`` (3,) onto ``target`` (rows, 3), both unit vectors in
+    the barrel's rest frame: a ball takes the shortest rotation; two hinges R(h1, a) R(h2, b) axis =
+    target, solved by Gauss-Newton from zero (exact in a few steps for a universal joint)."""
+    adr = m.jnt_qposadr[first]
+    if count == 1:
+        cross = np.cross(axis, target)
+        angle = np.arctan2(np.linalg.norm(cross, axis=1), target @ axis)
+        unit = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-15)
+        qpos[:, adr:adr + 4] = Rotation.from_rotvec(unit * angle[:, None]).as_quat()[:, [3, 0, 1, 2]]
+        return
+    h1, h2 = m.jnt_axis[first], m.jnt_axis[first + 1]
+    a, b = np.zeros(len(target)), np.zeros(len(target))
+    for _ in range(8):
+        r1, r2 = Rotation.from_rotvec(a[:, None] * h1), Rotation.from_rotvec(b[:, None] * h2)
+        inner = r2.apply(axis)
+        v = r1.apply(inner)
+        jac = np.stack([np.cross(h1, v), r1.apply(np.cross(h2, inner))], axis=2)  # (rows, 3, 2)
+        step = np.linalg.solve(np.einsum("nij,nik->njk", jac, jac), np.einsum("nij,ni->nj", jac, target - v)[..., None])[..., 0]
+        a, b = a + step[:, 0], b + step[:, 1]
+    qpos[:, adr] = m.qpos0[adr] + a
+    qpos[:, m.jnt_qposadr[first + 1]] = m.qpos0[m.jnt_qposadr[first + 1]] + b
+
+
+def _scene_model(result: SimulationResult) -> mujoco.MjModel:
+    """The full model the run was made on (its machine's hexapod, or the single actuator)."""
+    hexapod = result.config.scenario.system == "hexapod"
+    return load_model("hexapod" if hexapod else "actuator", geometry=result.config.geometry if hexapod else None)
+
+
+def _log_scene(rec: rr.RecordingStream, m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray,
+               times: rr.TimeColumn) -> None:
+    """The model's visual geoms (MJCF groups 0–2: boxes, cylinders, spheres, capsules, ellipsoids) under
     ``/world/<body>``, each body's world pose over time from :func:`scene_qpos` and ``mj_kinematics``."""
-    m = load_model("hexapod" if result.config.scenario.system == "hexapod" else "actuator")
     d = mujoco.MjData(m)
     qpos = scene_qpos(m, result, rows)
     xpos, xquat = np.empty((len(rows), m.nbody, 3)), np.empty((len(rows), m.nbody, 4))
@@ -108,7 +149,7 @@ def _log_scene(rec: rr.RecordingStream, result: SimulationResult, rows: np.ndarr
         mujoco.mj_kinematics(m, d)
         xpos[k], xquat[k] = d.xpos, d.xquat
     for body in range(m.nbody):
-        geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_group[g] == 2]
+        geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_group[g] <= 2]
         if not geoms:
             continue
         path = f"/world/{m.body(body).name or 'world'}"
@@ -152,8 +193,9 @@ def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness 
 
 def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None) -> None:
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
+    m = _scene_model(result)
     rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal if sm else "acceleration",
-                                               result.config.scenario.system))
+                                               result.config.scenario.system, float(m.stat.extent) / 1.6))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     cfg = result.config
     rec.log("/run", rr.TextDocument(f"scenario {cfg.scenario.name}, machine {cfg.machine_label} "
@@ -195,6 +237,6 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None) -
 
     step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
     rows = np.arange(0, len(result.t), step)
-    _log_scene(rec, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
+    _log_scene(rec, m, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
     rec.flush()
     rec.disconnect()

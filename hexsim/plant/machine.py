@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 from hexsim.errors import InputError
 from hexsim.plant.effects import Effects
+from hexsim.plant.geometry import Geometry
 from hexsim.plant.params import ControllerParams, HydraulicParams
 
 FORMAT = "hexsim-machine"
@@ -47,6 +48,13 @@ SYSTEMS = ("hexapod", "single-actuator")
 CONTROL_TYPES = ("P", "none")
 DEFAULT_NAME = "micro_motion_system"
 _SEED = "seed app. A"
+_MMS = "Micro Motion System (models/hexapod.py)"
+#: keys of a built hexapod's numbers (not written, and refused, when hexapod.mjcf names the model)
+_BUILT = ("base_radius_m", "base_height_m", "base_angles_deg", "platform_radius_m", "platform_angles_deg",
+          "base_joints_m", "platform_joints_m", "retracted_length_m", "neutral_piston_m", "platform_mass_kg",
+          "platform_inertia_kgm2", "platform_com_m", "platform_size_m", "barrel_mass_kg", "barrel_inertia_kgm2",
+          "barrel_com_m", "barrel_length_m", "rod_mass_kg", "rod_inertia_kgm2", "rod_com_m", "rod_length_m",
+          "base_plate_m", "sensor_at_m")
 
 
 @dataclass(frozen=True)
@@ -111,7 +119,7 @@ KEYS: tuple[Key, ...] = (
        "a matched spool (1)"),
     _k("cylinder.bore_m", "hydraulics.bore_diameter", "m", "piston (bore) diameter D: A1 = pi/4 D^2", _SEED),
     _k("cylinder.rod_m", "hydraulics.rod_diameter", "m", "rod diameter d_r: A2 = pi/4 (D^2 - d_r^2)", _SEED),
-    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; "
+    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; the hexapod's leg stroke; "
        "must match the model's joint range)", _SEED),
     _k("cylinder.dead_volume_cap_m3", "hydraulics.pipeline_volume", "m^3", "cap side dead volume (hoses, "
        "pipeline) V_pl", "seed app. A, eq. 3.1"),
@@ -156,6 +164,48 @@ KEYS: tuple[Key, ...] = (
        "command is given)", "seed §2.2.4", kind="text", choices=CONTROL_TYPES),
     _k("controller.kp_VPm", "controller.kp", "V/m", "P gain K_p", "hexsim (seed §3.3 tuned by hand)"),
     _k("controller.rate_hz", "controller.rate_hz", "Hz", "controller (or command output) rate", "seed §2.2.4"),
+    *(_k(f"hexapod.{name}", f"geometry.{name}", unit, meaning, source, **kw) for name, unit, meaning, source, kw in (
+        ("base_radius_m", "m", "radius of the base joints' circle", _MMS, {}),
+        ("base_height_m", "m", "height of the base joints above the floor (world z)", _MMS, {}),
+        ("base_angles_deg", "deg", "angle of each base joint on its circle, legs 1…6 (world x axis 0)", _MMS,
+         {"kind": "angles"}),
+        ("platform_radius_m", "m", "radius of the platform joints' circle", _MMS, {}),
+        ("platform_angles_deg", "deg", "angle of each platform joint on its circle, legs 1…6", _MMS, {"kind": "angles"}),
+        ("base_joints_m", "m", "base joints as [[x, y, z], …] (world) instead of the circle (null: the circle)",
+         "a drawing", {"kind": "points", "nullable": True}),
+        ("platform_joints_m", "m", "platform joints as [[x, y, z], …] (platform frame: origin the upper joint "
+         "plane's centre) instead of the circle (null: the circle)", "a drawing", {"kind": "points", "nullable": True}),
+        ("retracted_length_m", "m", "leg length joint to joint at y = 0 (piston retracted) L_min", _MMS, {}),
+        ("neutral_piston_m", "m", "piston position y at the neutral pose (null: mid-stroke); the stroke is "
+         "cylinder.stroke_m", _MMS, {"nullable": True}),
+        ("platform_mass_kg", "kg", "platform (frame and payload) mass", "seed §2.2.1 (about 600 kg)", {}),
+        ("platform_inertia_kgm2", "kg m^2", "platform principal inertia about its centre of mass",
+         "a uniform 1.2 x 1.2 x 0.4 m box", {"kind": "vector"}),
+        ("platform_com_m", "m", "platform centre of mass, platform frame", "the box's centre", {"kind": "vector"}),
+        ("platform_size_m", "m", "the platform's box as drawn (drawing only)", _MMS, {"kind": "vector"}),
+        ("barrel_mass_kg", "kg", "cylinder barrel mass", "a Ø60 mm steel tube, 0.4 m", {}),
+        ("barrel_inertia_kgm2", "kg m^2", "barrel principal inertia about its centre of mass (axial last)",
+         "the tube", {"kind": "vector"}),
+        ("barrel_com_m", "m", "barrel centre of mass from the base joint along the leg", "the tube", {}),
+        ("barrel_length_m", "m", "barrel length as drawn (drawing only)", _MMS, {}),
+        ("rod_mass_kg", "kg", "rod and piston mass", "a Ø30 mm chromed rod, 0.4 m, and piston", {}),
+        ("rod_inertia_kgm2", "kg m^2", "rod principal inertia about its centre of mass (axial last)", "the rod",
+         {"kind": "vector"}),
+        ("rod_com_m", "m", "rod centre of mass from the platform joint back along the rod", "the rod", {}),
+        ("rod_length_m", "m", "rod length as drawn (drawing only)", _MMS, {}),
+        ("base_plate_m", "m", "radius of the base plate as drawn (null: 0.1 m beyond the joints; drawing only)",
+         _MMS, {"nullable": True}),
+        ("sensor_at_m", "m", "accelerometer and gyro (site platform_centre), platform frame", "seed §2.2",
+         {"kind": "vector"}),
+        ("mjcf", "-", "a user's own MJCF of the hexapod (path, relative to this file) instead of the numbers "
+         "above (docs/your-hexapod.md)", "the user", {"kind": "text", "nullable": True}),
+        ("mjcf_legs", "-", "its six leg slide joints, legs 1…6 (null: joints leg1…leg6, or its only six slide "
+         "joints)", "the user", {"kind": "names", "nullable": True}),
+        ("mjcf_platform", "-", "its platform body (null: body 'platform', or its only free body)", "the user",
+         {"kind": "text", "nullable": True}),
+        ("mjcf_sensor_site", "-", "site where the accelerometer and gyro sit (null: the platform body's origin)",
+         "the user", {"kind": "text", "nullable": True}),
+    )),
 )
 _BY_PATH = {k.path: k for k in KEYS}
 _META = ("format", "version", "name", "description", "system", "sources", "calibration")
@@ -176,6 +226,7 @@ class Machine:
     hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
     controller: ControllerParams = field(default_factory=ControllerParams)
     effects: Effects = field(default_factory=Effects)
+    geometry: Geometry = field(default_factory=Geometry)  # the hexapod's (unused by a single actuator)
     control: str = "P"
     rated_flow: float | None = None
     rated_dp: float = 3.5e6
@@ -209,12 +260,32 @@ class Machine:
         if self.calibration is not None:
             doc["calibration"] = self.calibration
         for key in KEYS:
+            if self._omitted(key):
+                continue
             node = doc
             *sections, leaf = key.path.split(".")
             for s in sections:
                 node = node.setdefault(s, {})
             node[leaf] = _json_value(self._value(key))
         return doc
+
+    def _omitted(self, key: Key) -> bool:
+        """Keys a complete file leaves out: the hexapod section on a single actuator; the built hexapod's
+        numbers when an MJCF is the hexapod, the MJCF's names when it is not; a circle replaced by points."""
+        if key.target[0] != "geometry":
+            return False
+        g, name = self.geometry, key.target[1]
+        if self.system != "hexapod":
+            return True
+        if name.startswith("mjcf"):
+            return not g.is_mjcf and name != "mjcf"
+        if g.is_mjcf:
+            return True
+        if name in ("base_radius_m", "base_height_m", "base_angles_deg"):
+            return g.base_joints_m is not None
+        if name in ("platform_radius_m", "platform_angles_deg"):
+            return g.platform_joints_m is not None
+        return False
 
     def _value(self, key: Key):
         section, name = key.target
@@ -227,7 +298,7 @@ class Machine:
 
 def _json_value(value):
     if isinstance(value, tuple):
-        return [_json_value(v) if isinstance(v, tuple) else float(v) for v in value]
+        return [_json_value(v) if isinstance(v, (tuple, str)) else float(v) for v in value]
     return value
 
 
@@ -279,6 +350,10 @@ def read_machine(path: str | os.PathLike, *, builtin: bool = False) -> Machine:
     except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: {exc}") from None
     machine = machine_from_document(doc, str(path))
+    mjcf = machine.geometry.mjcf
+    if mjcf is not None and not pathlib.Path(mjcf).is_absolute():  # relative to the machine file
+        geometry = dataclasses.replace(machine.geometry, mjcf=str((path.parent / mjcf).resolve()))
+        machine = dataclasses.replace(machine, geometry=geometry)
     return dataclasses.replace(machine, path=None if builtin else path)
 
 
@@ -332,7 +407,7 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
             hint = f"; known in {section}: {', '.join(known)}" if known else \
                 f"; sections: {', '.join(sorted({k.path.split('.')[0] for k in KEYS}))}"
             raise InputError(f"{where}: unknown key {key!r}{hint}")
-    values = {"hydraulics": {}, "controller": {}, "effects": {}, "machine": {}}
+    values = {"hydraulics": {}, "controller": {}, "effects": {}, "machine": {}, "geometry": {}}
     for path, value in flat.items():
         key = _BY_PATH[path]
         values[key.target[0]][key.target[1]] = _checked(key, value, where)
@@ -353,12 +428,41 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
         effects = Effects(**values["effects"])
     except InputError as exc:
         raise InputError(f"{where}: {_key_names(str(exc))}") from None
+    name = meta.get("name", pathlib.Path(where).stem)
+    geometry = _geometry(values["geometry"], system, hyd.stroke, name, where)
     control = m.get("control", "P")
-    defaulted = tuple(k.path for k in KEYS if k.path not in flat)
-    return Machine(name=meta.get("name", pathlib.Path(where).stem), description=meta.get("description", ""),
-                   system=system, hydraulics=hyd, controller=controller, effects=effects, control=control,
-                   rated_flow=rated_flow, rated_dp=rated_dp, defaulted=defaulted, sources=tuple(sources.items()),
+    machine = Machine(name=name, description=meta.get("description", ""),
+                   system=system, hydraulics=hyd, controller=controller, effects=effects, geometry=geometry,
+                   control=control,
+                   rated_flow=rated_flow, rated_dp=rated_dp, sources=tuple(sources.items()),
                    calibration=calibration)
+    defaulted = tuple(k.path for k in KEYS if k.path not in flat and not machine._omitted(k))
+    return dataclasses.replace(machine, defaulted=defaulted)
+
+
+def _geometry(values: dict, system: str, stroke: float, name: str, where: str) -> Geometry:
+    """The hexapod's :class:`~hexsim.plant.geometry.Geometry` from the file's ``hexapod`` keys, its stroke the
+    cylinder's. Raises InputError for hexapod keys on a single actuator, a built hexapod's numbers beside
+    ``hexapod.mjcf``, joints given both as a circle and as points, and what Geometry refuses."""
+    if values and system != "hexapod":
+        raise InputError(f"{where}: hexapod.{next(iter(values))} describes a hexapod; this machine is a {system}")
+    if values.get("mjcf") is not None:
+        built = [name for name in values if name in _BUILT]
+        if built:
+            raise InputError(f"{where}: hexapod.mjcf names the hexapod's model; hexapod.{built[0]} describes one "
+                             f"hexsim builds: give one or the other")
+    elif any(values.get(name) is not None for name in ("mjcf_legs", "mjcf_platform", "mjcf_sensor_site")):
+        raise InputError(f"{where}: hexapod.mjcf_* name parts of a user's MJCF, but hexapod.mjcf is not given")
+    for points, circle in (("base_joints_m", ("base_radius_m", "base_angles_deg", "base_height_m")),
+                           ("platform_joints_m", ("platform_radius_m", "platform_angles_deg"))):
+        both = [name for name in circle if name in values]
+        if values.get(points) is not None and both:
+            raise InputError(f"{where}: hexapod.{points} and hexapod.{both[0]} both set: give the joints as "
+                             f"points or as a circle")
+    try:
+        return Geometry(**{**values, "stroke_m": stroke, "name": name})
+    except InputError as exc:
+        raise InputError(f"{where}: {_key_names(str(exc))}") from None
 
 
 def _build_hydraulics(values: dict, rated_flow: float | None, rated_dp: float) -> HydraulicParams:
@@ -375,7 +479,8 @@ def _key_names(message: str) -> str:
     """A dataclass's error with its field names replaced by the machine file's keys."""
     for key in sorted(KEYS, key=lambda k: -len(k.target[1])):  # longest first: pipeline_volume_rod before pipeline_volume
         section, name = key.target
-        cls = {"hydraulics": "HydraulicParams", "controller": "ControllerParams", "effects": "Effects"}.get(section)
+        cls = {"hydraulics": "HydraulicParams", "controller": "ControllerParams", "effects": "Effects",
+               "geometry": "Geometry"}.get(section)
         if cls:
             message = message.replace(f"{cls}.{name} ", f"{key.path} ").replace(f"{cls}.{name}", key.path)
     return message
@@ -389,7 +494,8 @@ def _checked(key: Key, value, where: str):
         raise InputError(f"{at}: null is not allowed here ({key.meaning})")
     if key.kind == "text":
         if not isinstance(value, str) or (key.choices and value not in key.choices):
-            raise InputError(f"{at}: expected one of {', '.join(key.choices)}, got {value!r}")
+            expected = f"one of {', '.join(key.choices)}" if key.choices else "a text"
+            raise InputError(f"{at}: expected {expected}, got {value!r}")
         return value
     if key.kind == "flag":
         if not isinstance(value, bool):
@@ -400,6 +506,19 @@ def _checked(key: Key, value, where: str):
                                                 for p in value)):
             raise InputError(f"{at}: expected [[u_V, opening], …] (numbers), got {value!r}")
         return tuple((float(u), float(f)) for u, f in value)
+    if key.kind == "angles":
+        if not (isinstance(value, list) and len(value) == 6 and all(_is_number(v) for v in value)):
+            raise InputError(f"{at}: expected six angles [deg] (legs 1…6), got {value!r}")
+        return tuple(float(v) for v in value)
+    if key.kind == "points":
+        if not (isinstance(value, list) and len(value) == 6 and all(
+                isinstance(p, list) and len(p) == 3 and all(_is_number(v) for v in p) for p in value)):
+            raise InputError(f"{at}: expected six points [[x, y, z], …] in m (legs 1…6), got {value!r}")
+        return tuple(tuple(float(v) for v in p) for p in value)
+    if key.kind == "names":
+        if not (isinstance(value, list) and len(value) == 6 and all(isinstance(v, str) and v for v in value)):
+            raise InputError(f"{at}: expected six joint names (legs 1…6), got {value!r}")
+        return tuple(value)
     if key.kind == "vector":
         if not (isinstance(value, list) and len(value) == 3 and all(_is_number(v) for v in value)):
             raise InputError(f"{at}: expected [x, y, z] in {key.unit}, got {value!r}")

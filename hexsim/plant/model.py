@@ -74,16 +74,25 @@ def check_formulation(model: str) -> None:
         raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {model!r}")
 
 
-def model_spec(name: str, formulation: str = "full", effects=None) -> mujoco.MjSpec:
-    """The ``MjSpec`` of a built-in model (``"hexapod"`` or ``"actuator"``) with the load of ``effects``
-    (:func:`apply_load`; None: none). The hexapod is its builder's spec in its scene
-    (:func:`hexsim.models.hexapod.build`, to the full precision of its numbers; ``scene.xml`` is the same
-    model for viewers); ``formulation="platform"`` edits it into the platform-only model
-    (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one formulation. Raises
-    InputError for an unknown name or formulation, or a load the model cannot take."""
+def model_spec(name: str, formulation: str = "full", effects=None, geometry=None) -> mujoco.MjSpec:
+    """The ``MjSpec`` of a model (``"hexapod"`` or ``"actuator"``) with the load of ``effects``
+    (:func:`apply_load`; None: none). The hexapod is the one ``geometry`` describes
+    (:class:`hexsim.plant.geometry.Geometry`, a machine file's ``hexapod`` section; None: the built-in
+    Micro Motion System): built by :func:`hexsim.models.hexapod.build` in its scene, to the full precision
+    of its numbers (``scene.xml`` is the Micro Motion System for viewers), or a user's MJCF adapted by
+    :func:`hexsim.plant.user_model.user_spec`; ``formulation="platform"`` edits it into the platform-only
+    model (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one formulation. Raises
+    InputError for an unknown name or formulation, a user MJCF hexsim cannot drive, or a load the model
+    cannot take."""
     check_formulation(formulation)
     if name == "hexapod":
-        spec = hexapod.scene(hexapod.build())
+        if geometry is not None and geometry.is_mjcf:
+            from hexsim.plant.user_model import user_spec
+
+            spec = user_spec(geometry)
+        else:
+            geometry = geometry or hexapod.MICRO_MOTION_SYSTEM
+            spec = hexapod.scene(hexapod.build(geometry), geometry.scale)
         if formulation == "platform":
             platform_spec(spec)
     else:
@@ -93,10 +102,10 @@ def model_spec(name: str, formulation: str = "full", effects=None) -> mujoco.MjS
     return spec
 
 
-def load_model(name: str, formulation: str = "full", effects=None) -> mujoco.MjModel:
+def load_model(name: str, formulation: str = "full", effects=None, geometry=None) -> mujoco.MjModel:
     """Compile :func:`model_spec` (the same arguments and errors), with island discovery off
     (:func:`no_islands`)."""
-    return no_islands(model_spec(name, formulation, effects).compile())
+    return no_islands(model_spec(name, formulation, effects, geometry).compile())
 
 
 @functools.cache
@@ -207,6 +216,22 @@ def _sensors(m: mujoco.MjModel) -> dict[str, slice]:
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
         sensors[name] = slice(int(m.sensor_adr[s]), int(m.sensor_adr[s] + m.sensor_dim[s]))
     return sensors
+
+
+def leg_bodies(m: mujoco.MjModel, n_legs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slide joints ``leg1`` … ``leg{n_legs}``, their rods (the bodies the slides move) and barrels (the
+    rods' parents), as (n_legs,) id arrays of a model with slide-joint legs."""
+    slides = np.array([_id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{i + 1}") for i in range(n_legs)])
+    rods = m.jnt_bodyid[slides]
+    return slides, rods, m.body_parentid[rods]
+
+
+def base_pivots(m: mujoco.MjModel, d: mujoco.MjData, n_legs: int) -> np.ndarray:
+    """(n_legs, 3) world positions [m] of the legs' base joints in the state of ``d`` (after
+    ``mj_kinematics``): the anchor of each barrel's first joint (the universal joint's hinges or a ball
+    sit at one point: :mod:`hexsim.plant.user_model` checks it)."""
+    _, _, barrels = leg_bodies(m, n_legs)
+    return d.xanchor[m.body_jntadr[barrels]].copy()
 
 
 def reset_neutral(m: mujoco.MjModel, d: mujoco.MjData) -> None:

@@ -141,29 +141,27 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     mujoco.mj_resetDataKeyframe(compiled, d, mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_KEY, "neutral"))
     mujoco.mj_forward(compiled, d)
     n = 0
-    while mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_BODY, f"cylinder{n + 1}") >= 0:
+    while mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_JOINT, f"leg{n + 1}") >= 0:
         n += 1
     if n == 0:
-        raise InputError("the full model has no body cylinder1")
-    body = functools.partial(mujoco.mj_name2id, compiled, mujoco.mjtObj.mjOBJ_BODY)
-    barrel = [body(f"cylinder{i + 1}") for i in range(n)]
-    rod = [body(f"rod{i + 1}") for i in range(n)]
-    slide = [mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_JOINT, f"leg{i + 1}") for i in range(n)]
+        raise InputError("the full model has no slide joint leg1")
+    slide, rod, barrel = _legs(compiled, n)
     anchor_ids = [mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_SITE, f"platform_anchor{i + 1}") for i in range(n)]
-    base = d.xpos[barrel].copy()
+    base = d.xanchor[compiled.body_jntadr[barrel]].copy()
     y0 = d.qpos[compiled.jnt_qposadr[slide]]
     l_min = np.linalg.norm(d.site_xpos[anchor_ids] - base, axis=1) - y0
-    legs_alike = [(compiled.body_mass[b], compiled.body_ipos[b, 2], compiled.body_mass[r], compiled.body_ipos[r, 2],
-                   *compiled.jnt_range[j], *compiled.jnt_solref[j]) for b, r, j in zip(barrel, rod, slide)]
+    r_c, r_r = _along_legs(compiled, slide, rod, barrel)
+    legs_alike = [(compiled.body_mass[b], rc, compiled.body_mass[r], rr, *compiled.jnt_range[j], *compiled.jnt_solref[j])
+                  for b, r, j, rc, rr in zip(barrel, rod, slide, r_c, r_r)]
     if any(not np.allclose(leg, legs_alike[0], rtol=1e-12) for leg in legs_alike):
         raise InputError("the platform-only model takes legs alike (masses, centres of mass, stroke, end stops)")
     m_r = float(compiled.body_mass[rod[0]])
     # first moment about the base pivot along the leg: barrel m_c r_c + rod m_r (r_r,ref + y - ref)
-    s0 = float(compiled.body_mass[barrel[0]] * compiled.body_ipos[barrel[0], 2]
-               + m_r * (compiled.body_ipos[rod[0], 2] - compiled.qpos0[compiled.jnt_qposadr[slide[0]]]))
+    s0 = float(compiled.body_mass[barrel[0]] * r_c[0] + m_r * (r_r[0] - compiled.qpos0[compiled.jnt_qposadr[slide[0]]]))
     stroke = compiled.jnt_range[slide[0]].copy()
     tau, zeta = compiled.jnt_solref[slide[0]]
     anchors = compiled.site_pos[anchor_ids].copy()
+    body = functools.partial(mujoco.mj_name2id, compiled, mujoco.mjtObj.mjOBJ_BODY)
 
     _strip_legs(full, n)
     add_point_masses(full.body("platform"), m_r, anchors, "a rod")
@@ -174,23 +172,47 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     key = full.key("neutral")
     plat = compiled.jnt_qposadr[compiled.body_jntadr[body("platform")]]
     key.qpos = list(d.qpos[plat:plat + 7])
-    full.modelname = "micro_motion_system_platform"
+    full.modelname = full.modelname.removesuffix(" scene") + "_platform"
     full.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)  # ~10 % of a step, to the bit
     return full
 
 
+def _legs(m: mujoco.MjModel, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slide joints ``leg1`` … ``leg{n}``, their rods and barrels (ids, (n,) each)."""
+    slides = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{i + 1}") for i in range(n)])
+    rods = m.jnt_bodyid[slides]
+    return slides, rods, m.body_parentid[rods]
+
+
+def _along_legs(m: mujoco.MjModel, slide: np.ndarray, rod: np.ndarray, barrel: np.ndarray):
+    """(n,) each: the barrels' and the rods' centres of mass along their legs from the base pivot [m], the
+    rods at the slide's reference position (``qpos0``), computed in the barrels' frames (where hexsim's
+    builder makes them its numbers exactly)."""
+    r_c, r_r = np.empty(len(slide)), np.empty(len(slide))
+    axis, ipos = np.empty(3), np.empty(3)
+    for i, (j, r, b) in enumerate(zip(slide, rod, barrel)):
+        mujoco.mju_rotVecQuat(axis, m.jnt_axis[j], m.body_quat[r])  # the slide's axis in the barrel frame
+        mujoco.mju_rotVecQuat(ipos, m.body_ipos[r], m.body_quat[r])
+        pivot = m.jnt_pos[m.body_jntadr[b]]
+        r_c[i] = (m.body_ipos[b] - pivot) @ axis
+        r_r[i] = (m.body_pos[r] + ipos - pivot) @ axis
+    return r_c, r_r
+
+
 def _strip_legs(full: mujoco.MjSpec, n: int) -> None:
-    """Delete from ``full`` the ``n`` legs' bodies, connects, motors and joint sensors, and every geom,
-    light, site (but ``platform_centre``) and static body left empty (each costs time every step)."""
-    for e in list(full.equalities):
-        full.delete(e)
-    for a in list(full.actuators):
-        full.delete(a)
+    """Delete from ``full`` the ``n`` legs' bodies, connects, motors and every sensor but the platform's,
+    tendons, contact pairs and exclusions, and every geom, light, site (but ``platform_centre``) and
+    static body left empty (each costs time every step)."""
+    from hexsim.models.hexapod import PLATFORM_SENSORS
+
+    keep = {name for name, _ in PLATFORM_SENSORS}
+    for element in [*full.equalities, *full.actuators, *full.tendons, *full.pairs, *full.excludes]:
+        full.delete(element)
     for s in list(full.sensors):
-        if s.name.startswith("leg"):
+        if s.name not in keep:
             full.delete(s)
     for i in range(n):
-        full.delete(full.body(f"cylinder{i + 1}"))
+        full.delete(full.joint(f"leg{i + 1}").parent.parent)
     for element in [*full.geoms, *full.lights, *(s for s in full.sites if s.name != "platform_centre")]:
         full.delete(element)
     for static in [b for b in full.worldbody.bodies if b.name != "platform" and not b.bodies and not b.sites]:

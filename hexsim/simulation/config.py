@@ -23,6 +23,7 @@ from hexsim.plant import hydraulics
 from hexsim.plant.effects import Effects, LegChange
 from hexsim.plant.faults import Fault, FaultInjector
 from hexsim.plant.legs import PlantState, advance_legs, leg_table
+from hexsim.plant.geometry import Geometry
 from hexsim.plant.model import PlantIndex, check_formulation
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.plant.platform import leg_jacobian, leg_wrench
@@ -70,6 +71,9 @@ class RunConfig:
     # the machine the parameters came from, as hexsim.plant.machine.load_machine reads it back (a built-in's
     # name or a machine file's path; Machine.spec); outputs name it. None: parameters given in Python
     machine: str | None = None
+    # the hexapod's geometry and masses or its user MJCF (hexsim.plant.geometry.Geometry, a machine file's
+    # hexapod section); None: the built-in Micro Motion System
+    geometry: Geometry | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.scenario, str):
@@ -99,8 +103,9 @@ class RunConfig:
         from hexsim.plant.machine import Machine, load_machine
 
         m = machine if isinstance(machine, Machine) else load_machine(machine)
+        geometry = m.geometry if m.system == "hexapod" else None
         return cls(scenario, hydraulics=m.hydraulics, controller=m.controller, effects=m.effects, machine=m.spec,
-                   **options)
+                   geometry=geometry, **options)
 
     @property
     def machine_label(self) -> str:

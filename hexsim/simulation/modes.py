@@ -24,6 +24,7 @@ from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import DOF_NAMES
 from hexsim.errors import InputError
 from hexsim.plant.effects import Effects
+from hexsim.plant.geometry import Geometry
 from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 from hexsim.plant.params import HydraulicParams
 from hexsim.simulation.config import leg_mobility
@@ -44,12 +45,15 @@ class Mode:
     shape: np.ndarray
 
 
-def oil_spring_modes(hyd: HydraulicParams | None = None, effects: Effects | None = None) -> list[Mode]:
+def oil_spring_modes(hyd: HydraulicParams | None = None, effects: Effects | None = None,
+                     geometry: Geometry | None = None) -> list[Mode]:
     """The hexapod's oil-spring modes at the neutral pose, lowest first (six of them), with the payload of
     ``effects`` (:func:`hexsim.plant.model.apply_load`) and the bulk modulus, areas and pipeline volume of
-    ``hyd`` (default the seed's, app. A; with a 4-way valve the rod side's column in parallel). Raises InputError for a payload the platform cannot take."""
+    ``hyd`` (default the seed's, app. A; with a 4-way valve the rod side's column in parallel), on the
+    hexapod of ``geometry`` (a machine file's hexapod section; None: the Micro Motion System). Raises
+    InputError for a payload the platform cannot take or a hexapod hexsim cannot build."""
     hyd = hyd or HydraulicParams()
-    m = load_model("hexapod", effects=effects or Effects())
+    m = load_model("hexapod", effects=effects or Effects(), geometry=geometry)
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
     mujoco.set_mjcb_control(None)

@@ -83,7 +83,7 @@ class Simulator:
     # ------------------------------------------------------------------ set-up
     def _setup_model(self) -> None:
         cfg = self.config
-        m = load_model(cfg.scenario.system, cfg.model, cfg.effects)
+        m = load_model(cfg.scenario.system, cfg.model, cfg.effects, cfg.geometry)
         if cfg.timestep is not None:
             m.opt.timestep = cfg.timestep
         self.model, self.data = m, mujoco.MjData(m)
