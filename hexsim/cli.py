@@ -246,7 +246,7 @@ def _add_modes(sub) -> None:
         "of freedom that holds most of each mode's kinetic energy.",
     )
     mo.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
-                    help="a payload of KG kg added to the 600 kg platform at X,Y,Z m (platform frame), as for run")
+                    help="a payload of KG kg added to the platform (600 kg built in) at X,Y,Z m (platform frame), as for run")
     mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON; - for stdout")
     _machine_option(mo)
 
@@ -411,11 +411,14 @@ def cmd_modes(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     if machine.system != "hexapod":
         raise InputError(f"--machine {machine.label}: modes are the hexapod's; this machine is a {machine.system}")
-    effects, payload = machine.effects, f"machine {machine.label}, 600 kg platform"
+    from hexsim.plant.model import load_model
+
+    mass = float(load_model("hexapod", geometry=machine.geometry).body("platform").mass[0])
+    effects, payload = machine.effects, f"machine {machine.label}, {mass:g} kg platform"
     if args.payload is not None:
         kg, at = args.payload
         effects = effects.replace(payload_kg=kg, payload_at_m=at)
-        payload = f"600 kg platform with {kg:g} kg at ({', '.join(f'{v:g}' for v in at)}) m"
+        payload = f"{mass:g} kg platform with {kg:g} kg at ({', '.join(f'{v:g}' for v in at)}) m"
     modes = oil_spring_modes(machine.hydraulics, effects=effects, geometry=machine.geometry)
     print(modes_table(modes, payload))
     if args.json:
@@ -467,7 +470,7 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                         "sensor_frozen:leg=N,t=S | sensor_dropout:leg=N,t=S | end_stop:leg=N,t=S[,value=M] "
                         "(see hexsim/plant/faults.py)")
     p.add_argument("--payload", type=_payload, metavar="KG[@X,Y[,Z]]",
-                   help="hexapod: a payload of KG kg added to the 600 kg platform, its centre of gravity at X,Y,Z m "
+                   help="hexapod: a payload of KG kg added to the platform (600 kg built in), its centre of gravity at X,Y,Z m "
                         "in the platform frame (default its centre; Z default 0); negative KG: a lighter platform")
     p.add_argument("--keep-last", type=_number, metavar="SECONDS",
                    help="keep only the last SECONDS of the 1 kHz recording (long runs: memory stays flat; the "

@@ -21,8 +21,8 @@ sensors, equalities and exclusions follow); sites ``platform_anchor{i}`` at the 
 ``platform_centre`` at ``hexapod.mjcf_sensor_site`` (or the platform's origin); the force motors
 ``leg{i}_force`` (a user's actuators on the slides are removed: the hydraulics drive them) and hexsim's
 sensors (:func:`hexsim.models.hexapod.add_instruments`); the keyframe ``neutral`` (the user's, or the
-model's reference pose ``qpos0``). It stiffens the closing connects to the built hexapod's 0.5 ms
-(:data:`CLOSURE_SOLREF`), switches contacts off (a hexapod has no intended contacts) and shortens the physics step to the seed's 1e-4 s where the file's is longer (the oil column is stiff).
+model's reference pose ``qpos0``). It makes the closing connects site to site (``rod{i}_tip`` to
+``platform_anchor{i}``) and as stiff as the built hexapod's, 0.5 ms (:data:`CLOSURE_SOLREF`), switches contacts off (a hexapod has no intended contacts) and shortens the physics step to the seed's 1e-4 s where the file's is longer (the oil column is stiff).
 
 Each thing it cannot use is refused with one :class:`~hexsim.errors.InputError` line naming the file,
 the leg and what is wrong.
@@ -73,14 +73,14 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     if key >= 0:
         mujoco.mj_resetDataKeyframe(m, d, key)
     mujoco.mj_forward(m, d)
-    anchors, closures = [], []
+    anchors, tips, closures, rods = [], [], [], []
     for i, joint in enumerate(legs, 1):
         rod = _check_leg(m, d, i, joint, g.stroke_m, where)
-        eq, anchor = _closure(m, d, i, rod, platform, where)
+        eq, anchor, tip = _closure(m, d, i, rod, platform, where)
         anchors.append(anchor)
+        tips.append(tip)
         closures.append(eq)
-    for eq in closures:  # as stiff as the built hexapod's (models/hexapod.py): MuJoCo's default is 20 ms
-        spec.equalities[eq].solref, spec.equalities[eq].solimp = CLOSURE_SOLREF, CLOSURE_SOLIMP
+        rods.append(rod)
     sensor_at = _sensor_site(m, g.mjcf_sensor_site, platform, where)
     _check_names(m, legs, platform, where)
     names = [mujoco.mj_id2name(m, _J, j) for j in legs]
@@ -93,7 +93,20 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     body.mass, body.ipos, body.iquat = float(m.body_mass[platform]), m.body_ipos[platform], m.body_iquat[platform]
     body.inertia, body.explicitinertial = m.body_inertia[platform], True
     _add(spec, anchors, sensor_at, None if key >= 0 else m.qpos0)
+    for i, (eq, rod, tip) in enumerate(zip(closures, rods, tips), 1):
+        # each closure between sites, as the built hexapod's (the native kernels read them so), and as stiff:
+        # MuJoCo's default 20 ms would make the closed loop a spring softer than the oil column
+        site = _body(spec, m, rod).add_site(name=f"rod{i}_tip", pos=list(tip), size=[0.02, 0.005, 0.005])
+        e = spec.equalities[eq]
+        e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, site.name, f"platform_anchor{i}"
+        e.solref, e.solimp = CLOSURE_SOLREF, CLOSURE_SOLIMP
     return spec
+
+
+def _body(spec: mujoco.MjSpec, m: mujoco.MjModel, body: int) -> mujoco.MjsBody:
+    """The spec's body of compiled body ``body`` (named, or found by its place among the spec's bodies)."""
+    name = mujoco.mj_id2name(m, _B, body)
+    return spec.body(name) if name else spec.bodies[body]
 
 
 def _legs(m: mujoco.MjModel, names, where: str) -> list[int]:
@@ -174,8 +187,10 @@ def _point(m: mujoco.MjModel, d: mujoco.MjData, eq: int, side: int) -> tuple[int
     return int(obj), d.xpos[obj] + d.xmat[obj].reshape(3, 3) @ local
 
 
-def _closure(m: mujoco.MjModel, d: mujoco.MjData, i: int, rod: int, platform: int, where: str) -> tuple[int, np.ndarray]:
-    """The connect that closes leg ``i``'s loop and the leg's ball on the platform (3,) [m, platform frame]."""
+def _closure(m: mujoco.MjModel, d: mujoco.MjData, i: int, rod: int, platform: int,
+             where: str) -> tuple[int, np.ndarray, np.ndarray]:
+    """The connect that closes leg ``i``'s loop and the leg's ball (3,) [m] in the platform's and in the
+    rod's frame."""
     leg = f"{where}: leg{i}"
     for eq in range(m.neq):
         if m.eq_type[eq] != mujoco.mjtEq.mjEQ_CONNECT or not m.eq_active0[eq]:
@@ -200,8 +215,9 @@ def _closure(m: mujoco.MjModel, d: mujoco.MjData, i: int, rod: int, platform: in
         y = d.qpos[m.jnt_qposadr[slide]]
         if not 0.0 < y < m.jnt_range[slide, 1]:
             raise InputError(f"{leg}: its piston sits at {y:g} m at the neutral pose, not inside its stroke")
-        rot = d.xmat[platform].reshape(3, 3)
-        return eq, rot.T @ (ball - d.xpos[platform])
+        on_platform = d.xmat[platform].reshape(3, 3).T @ (ball - d.xpos[platform])
+        on_rod = d.xmat[rod].reshape(3, 3).T @ (sides[bodies.index(rod)][1] - d.xpos[rod])
+        return eq, on_platform, on_rod
     raise InputError(f"{leg}: no active <connect> ties its rod to the platform; hexsim needs each leg's loop closed "
                      f"(the platform-side ball joint)")
 
@@ -225,7 +241,8 @@ def _check_names(m: mujoco.MjModel, legs: list[int], platform: int, where: str) 
     taken = {
         _J: {f"leg{i}": legs[i - 1] for i in range(1, 7)},
         _B: {"platform": platform},
-        mujoco.mjtObj.mjOBJ_SITE: {n: None for n in ["platform_centre", *(f"platform_anchor{i}" for i in range(1, 7))]},
+        mujoco.mjtObj.mjOBJ_SITE: {n: None for n in ["platform_centre", *(f"platform_anchor{i}" for i in range(1, 7)),
+                                                     *(f"rod{i}_tip" for i in range(1, 7))]},
         mujoco.mjtObj.mjOBJ_SENSOR: {n: None for n in [*(s for s, _ in PLATFORM_SENSORS),
                                                        *(f"leg{i}_{q}" for i in range(1, 7) for q in ("pos", "vel"))]},
     }

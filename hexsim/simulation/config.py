@@ -348,8 +348,8 @@ def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> n
     connects' Jacobian (difference of the two sites' translational Jacobians, ``mj_jacSite``). For the
     hexapod this is Jᵀf = m g with the legs' own weight (40.55 bar per leg at rest). Zeroing the slide
     accelerations through MuJoCo's soft constraints instead (:func:`leg_mobility`) gives forces 0.4 %
-    apart from leg to leg and jolts the platform at t = 0. Raises InputError for a connect between bodies
-    (sites expected) and PhysicsError if the balance has no exact solution."""
+    apart from leg to leg and jolts the platform at t = 0. Connects between sites or between bodies (at
+    their anchors). Raises PhysicsError if the balance has no exact solution."""
     from hexsim.errors import PhysicsError
 
     d.qvel[:] = 0.0
@@ -369,10 +369,13 @@ def static_leg_forces(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> n
     rows = []
     jac1, jac2 = np.empty((3, m.nv)), np.empty((3, m.nv))
     for e in np.flatnonzero((m.eq_type == mujoco.mjtEq.mjEQ_CONNECT) & (m.eq_active0 != 0)):
-        if m.eq_objtype[e] != mujoco.mjtObj.mjOBJ_SITE:
-            raise InputError("rigid statics needs connect constraints between sites")
-        mujoco.mj_jacSite(m, d, jac1, None, int(m.eq_obj1id[e]))
-        mujoco.mj_jacSite(m, d, jac2, None, int(m.eq_obj2id[e]))
+        if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
+            mujoco.mj_jacSite(m, d, jac1, None, int(m.eq_obj1id[e]))
+            mujoco.mj_jacSite(m, d, jac2, None, int(m.eq_obj2id[e]))
+        else:  # between bodies: each at its anchor (eq_data, body frames), the user MJCF's usual form
+            for jac, body, local in ((jac1, m.eq_obj1id[e], m.eq_data[e, :3]), (jac2, m.eq_obj2id[e], m.eq_data[e, 3:6])):
+                point = d.xpos[body] + d.xmat[body].reshape(3, 3) @ local
+                mujoco.mj_jac(m, d, jac, None, point, int(body))
         rows.append(jac1 - jac2)
     a = np.hstack([moment] + [r.T for r in rows])
     rhs = d.qfrc_bias - d.qfrc_passive
