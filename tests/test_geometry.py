@@ -275,7 +275,9 @@ def test_geometry_as_points_builds_the_same_hexapod_as_its_circle():
 # --------------------------------------------------------------------------------- the docs' example
 def test_the_docs_user_mjcf_example_runs_as_written(tmp_path):
     """docs/your-hexapod.md's bench-top MJCF and machine file, copied as a user would: ``hexsim run heave``
-    and ``hexsim modes`` on it print what the page shows (summary lines but the wall-clock ones)."""
+    and ``hexsim modes`` on it print what the page shows (summary lines but the wall-clock ones); a heave
+    logged on it and validated against it is explained by the nominal (verdict none); from a folder
+    without the files, one line and exit 2."""
     text = (ROOT / "docs" / "your-hexapod.md").read_text()
     (tmp_path / "bench_top.xml").write_text(re.search(r"```xml\n(.*?)```", text, re.S).group(1))
     (tmp_path / "bench_top.json").write_text(re.search(r"```json\n(.*?)```", text, re.S).group(1))
@@ -287,6 +289,13 @@ def test_the_docs_user_mjcf_example_runs_as_written(tmp_path):
         for line in out.stdout.replace("-0.00", "+0.00").splitlines():
             if not line.startswith(("realtime_factor", "wrote")):  # a mode's number: equal modes in either order
                 assert re.sub(r"^\s+\d\s+", "", line) in shown, line
+    hexsim = [sys.executable, "-m", "hexsim"]
+    logged = subprocess.run([*hexsim, "run", "heave", "--duration", "8", "--machine", "bench_top.json", "--log",
+                             "heave.csv", "--quiet"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert logged.returncode == 0, logged.stderr
+    judged = subprocess.run([*hexsim, "validate", "heave.csv", "--machine", "bench_top.json"], cwd=tmp_path,
+                            capture_output=True, text=True, timeout=600)
+    assert judged.returncode == 0 and "verdict: none" in judged.stdout, judged.stdout + judged.stderr
     bad = subprocess.run([sys.executable, "-m", "hexsim", "modes", "--machine", "bench_top.json"], cwd=ROOT,
                          capture_output=True, text=True, timeout=600)  # run from elsewhere: the file is not there
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1

@@ -109,7 +109,7 @@ def test_builtin_servo_cylinder_is_a_4_way_single_actuator_without_controller():
 
 
 def test_unknown_machine_name_lists_the_builtins():
-    with pytest.raises(InputError, match="built-in machines: micro_motion_system, servo_cylinder"):
+    with pytest.raises(InputError, match="built-in machines: large_motion_base, micro_motion_system, servo_cylinder"):
         load_machine("no_such_rig")
 
 
