@@ -49,12 +49,6 @@ CONTROL_TYPES = ("P", "none")
 DEFAULT_NAME = "micro_motion_system"
 _SEED = "seed app. A"
 _MMS = "Micro Motion System (models/hexapod.py)"
-#: keys of a built hexapod's numbers (not written, and refused, when hexapod.mjcf names the model)
-_BUILT = ("base_radius_m", "base_height_m", "base_angles_deg", "platform_radius_m", "platform_angles_deg",
-          "base_joints_m", "platform_joints_m", "retracted_length_m", "neutral_piston_m", "platform_mass_kg",
-          "platform_inertia_kgm2", "platform_com_m", "platform_size_m", "barrel_mass_kg", "barrel_inertia_kgm2",
-          "barrel_com_m", "barrel_length_m", "rod_mass_kg", "rod_inertia_kgm2", "rod_com_m", "rod_length_m",
-          "base_plate_m", "sensor_at_m")
 
 
 @dataclass(frozen=True)
@@ -119,8 +113,8 @@ KEYS: tuple[Key, ...] = (
        "a matched spool (1)"),
     _k("cylinder.bore_m", "hydraulics.bore_diameter", "m", "piston (bore) diameter D: A1 = pi/4 D^2", _SEED),
     _k("cylinder.rod_m", "hydraulics.rod_diameter", "m", "rod diameter d_r: A2 = pi/4 (D^2 - d_r^2)", _SEED),
-    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; the hexapod's leg stroke; "
-       "must match the model's joint range)", _SEED),
+    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; "
+       "the hexapod's leg stroke: a user MJCF's slide range must be 0 to it)", _SEED),
     _k("cylinder.dead_volume_cap_m3", "hydraulics.pipeline_volume", "m^3", "cap side dead volume (hoses, "
        "pipeline) V_pl", "seed app. A, eq. 3.1"),
     _k("cylinder.dead_volume_rod_m3", "hydraulics.pipeline_volume_rod", "m^3", "rod side dead volume V_pl,B "
@@ -447,7 +441,7 @@ def _geometry(values: dict, system: str, stroke: float, name: str, where: str) -
     if values and system != "hexapod":
         raise InputError(f"{where}: hexapod.{next(iter(values))} describes a hexapod; this machine is a {system}")
     if values.get("mjcf") is not None:
-        built = [name for name in values if name in _BUILT]
+        built = [name for name in values if not name.startswith("mjcf")]  # a built hexapod's numbers
         if built:
             raise InputError(f"{where}: hexapod.mjcf names the hexapod's model; hexapod.{built[0]} describes one "
                              f"hexsim builds: give one or the other")

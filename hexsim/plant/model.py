@@ -44,6 +44,7 @@ from hexsim.plant.platform import (  # noqa: E402
     add_point_masses,
     is_platform_model,
     joint_legs,
+    leg_bodies,
     leg_geometry,
     platform_spec,
     read_legs,
@@ -216,14 +217,6 @@ def _sensors(m: mujoco.MjModel) -> dict[str, slice]:
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SENSOR, s)
         sensors[name] = slice(int(m.sensor_adr[s]), int(m.sensor_adr[s] + m.sensor_dim[s]))
     return sensors
-
-
-def leg_bodies(m: mujoco.MjModel, n_legs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Slide joints ``leg1`` … ``leg{n_legs}``, their rods (the bodies the slides move) and barrels (the
-    rods' parents), as (n_legs,) id arrays of a model with slide-joint legs."""
-    slides = np.array([_id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{i + 1}") for i in range(n_legs)])
-    rods = m.jnt_bodyid[slides]
-    return slides, rods, m.body_parentid[rods]
 
 
 def base_pivots(m: mujoco.MjModel, d: mujoco.MjData, n_legs: int) -> np.ndarray:

@@ -145,7 +145,7 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
         n += 1
     if n == 0:
         raise InputError("the full model has no slide joint leg1")
-    slide, rod, barrel = _legs(compiled, n)
+    slide, rod, barrel = leg_bodies(compiled, n)
     anchor_ids = [mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_SITE, f"platform_anchor{i + 1}") for i in range(n)]
     base = d.xanchor[compiled.body_jntadr[barrel]].copy()
     y0 = d.qpos[compiled.jnt_qposadr[slide]]
@@ -177,9 +177,13 @@ def platform_spec(full: mujoco.MjSpec) -> mujoco.MjSpec:
     return full
 
 
-def _legs(m: mujoco.MjModel, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Slide joints ``leg1`` … ``leg{n}``, their rods and barrels (ids, (n,) each)."""
-    slides = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{i + 1}") for i in range(n)])
+def leg_bodies(m: mujoco.MjModel, n_legs: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Slide joints ``leg1`` … ``leg{n_legs}``, their rods (the bodies the slides move) and barrels (the
+    rods' parents), as (n_legs,) id arrays of a model with slide-joint legs. Raises InputError for a
+    missing slide."""
+    slides = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"leg{i + 1}") for i in range(n_legs)])
+    if np.any(slides < 0):
+        raise InputError(f"model has no slide joint leg{int(np.argmin(slides)) + 1}")
     rods = m.jnt_bodyid[slides]
     return slides, rods, m.body_parentid[rods]
 
