@@ -377,6 +377,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"--out {args.out}: folder {args.out.parent} does not exist")
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(f"--report {args.report}: exists and is not a folder")
+    for path in (*args.logs, *args.hold_out):
+        if path.with_suffix(".json").resolve() == args.out.resolve():
+            raise InputError(f"--out {args.out} is the sidecar of the log {path}: name the calibrated machine file "
+                             f"otherwise")
     machine = load_machine(args.machine)
     logs = [read_log(path, machine=machine) for path in args.logs]
     held = [read_log(path, machine=machine) for path in args.hold_out]
@@ -538,7 +542,7 @@ def _run_config(args: argparse.Namespace, compensator: str):
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      machine=machine.name if machine.path is None else str(machine.path),
                      geometry=machine.geometry if machine.system == "hexapod" else None,
-                     compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
+                     leg_changes=machine.leg_changes, compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 

@@ -81,6 +81,15 @@ def _rhs(z, u, c):
         x, dxv, dvv = xv, vv, w * w * (x_set - xv) - 2.0 * c[30] * w * vv
     else:
         x, dxv, dvv = x_set, 0.0, 0.0
+    dp1, force = leg(c, y, v, p1, x)
+    return np.array([v, (force - m * 9.81) / m, dp1, dxv, dvv])
+
+
+@numba.njit(cache=True)
+def leg(c, y, v, p1, x):
+    """(dP1/dt [Pa/s], the force on the load [N]: pressures, friction and end stops) of one cylinder ``c``
+    (:func:`_pack`) at piston position y, velocity v, cap pressure p1 and spool position x."""
+    a1, a2, stroke, ps, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
     port = math.pi * d * max(abs(x) - ol, 0.0)
     smooth = ka * x * x
     a = port if form == 0.0 else (smooth if form == 1.0 else min(smooth, port))
@@ -101,7 +110,7 @@ def _rhs(z, u, c):
         stop = -2e8 * y - 2e4 * v
     elif y > stroke:
         stop = -2e8 * (y - stroke) - 2e4 * v
-    return np.array([v, (p1 * a1 - ps * a2 - friction - m * 9.81 + stop) / m, dp1, dxv, dvv])
+    return dp1, p1 * a1 - ps * a2 - friction + stop
 
 
 @numba.njit(cache=True)

@@ -68,6 +68,12 @@ END_SHARE, END_SPEED, END_MARGIN_M = 0.4, 1e-3, 2e-3
 _UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}
 
 
+def _unit_of(key: str) -> str:
+    """The unit of a parameter's key (a leg's own key: the shared key's; an element: its vector's)."""
+    path = key.split("[")[0]
+    return _UNITS[path.split(".", 2)[2] if path.startswith("legs.") else path]
+
+
 @dataclass(frozen=True)
 class Parameter:
     """One fitted quantity: its machine-file ``key`` (which sets its field and unit, and edits the model),
@@ -89,17 +95,20 @@ class Parameter:
 
     @property
     def unit(self) -> str:
-        return _UNITS[self.key.split("[")[0]]
+        return _unit_of(self.key)
 
 
-def default_parameters(machine: Machine, dynamics: bool = False) -> list[Parameter]:
+def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool = False) -> list[Parameter]:
     """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
     flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
     valve k_PB, k_BT: k_PA is the reference the flow gain carries), the supply and tank pressures, the Coulomb
     friction per direction and, on an axis with weight along it, the moving mass. ``dynamics`` (evidence from
     transients, :mod:`hexsim.measured.dynamics`): also the smooth area's gain k_a (3.11) beside the port, the
     overlap of the port-limited area, the bulk modulus and dead volumes (3.7), the viscous and static friction
-    per direction (3.9) and the moving mass on any axis (its inertia, 3.8)."""
+    per direction (3.9) and the moving mass on any axis (its inertia, 3.8). ``hexapod`` (the logs are a
+    hexapod's): :func:`hexapod_parameters` instead."""
+    if hexapod:
+        return hexapod_parameters(machine)
     hyd, eff = machine.hydraulics, machine.effects
     doc = machine.document()
 
@@ -169,6 +178,62 @@ def default_parameters(machine: Machine, dynamics: bool = False) -> list[Paramet
                                 "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at speed "
                                 "the weight trades against the Coulomb friction), or weighing it", null_value=mass))
     return [p for p in params if p.upper > p.lower]
+
+
+def hexapod_parameters(machine: Machine) -> list[Parameter]:
+    """What a hexapod's closed-loop log identifies, for the hexapod ``machine``: each leg's valve, its supply
+    and return edges' flow gains (k_PA, k_AT of that leg, the ``legs`` section: six valves are six data
+    sheets' tolerances), the oil's bulk modulus, the legs' Coulomb friction per direction (one seal type),
+    the payload (mass and centre of gravity in the platform's plane) and the supply pressure (a log with
+    ``ps_Pa`` states it: then not fitted)."""
+    doc = machine.document()
+    motion = "closed-loop motion of every leg in both directions (heave, roll, pitch, …)"
+    params = []
+    for leg in range(1, 7):
+        for edge, what in (("PA", "supply edge P→A"), ("AT", "return edge A→T")):
+            key = f"legs.leg{leg}.valve.edge_gain_{edge}"
+            value = float(_get(doc, key))
+            params.append(Parameter(key, 0.6 * value, 1.5 * value, f"leg {leg}'s valve, its {what}: flow gain within "
+                                    f"±30 % of the guess, edges matched within ±20 % (data sheets: ±10 %)",
+                                    f"{motion}: leg {leg} extending and retracting"))
+    for key, lo, hi, source, experiment in (
+            ("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to less than "
+             "half with hoses and undissolved air (Merritt §2.5)", f"reversals ({motion}): the oil spring's ringing"),
+            ("friction.positive.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion),
+            ("friction.negative.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion)):
+        value = float(_get(doc, key))
+        params.append(Parameter(key, lo * value, hi * value, source, experiment))
+    platform = _platform_mass(machine)
+    payload = machine.effects.payload_kg
+    params.append(Parameter("load.payload_kg", payload - 0.3 * platform, payload + platform,
+                            f"the platform's mass ({platform:.0f} kg in the model) −30 % to +100 % (not weighed, "
+                            f"a payload on it)", "the platform at rest at the neutral pose (each leg's P1)"))
+    radius = max(0.25, float(np.max(np.linalg.norm(np.asarray(_platform_joints(machine))[:, :2], axis=1))))
+    for i, axis in enumerate("xy"):
+        params.append(Parameter(f"load.payload_at_m[{i}]", -radius, radius, "within the platform joints' circle",
+                                "the platform at rest (P1 of each leg), and a roll and a pitch"))
+    params.append(Parameter("load.payload_at_m[2]", -0.2, 0.6, "0.2 m below to 0.6 m above the platform frame's "
+                            "origin (a seat, a cockpit)", "surge and sway (the payload's height tilts the legs' "
+                            "forces as the platform accelerates)"))
+    params.append(Parameter("supply.pressure_Pa", 0.9 * machine.hydraulics.supply_pressure,
+                            1.1 * machine.hydraulics.supply_pressure, "±10 % of the set pressure (relief valve, gauge)",
+                            "ps_Pa logged"))
+    return params
+
+
+def _platform_mass(machine: Machine) -> float:
+    """[kg] The platform's mass in the hexapod's model (the built geometry's, or the user's MJCF's)."""
+    from hexsim.plant.model import load_model
+
+    return float(load_model("hexapod", geometry=machine.geometry).body("platform").mass[0])
+
+
+def _platform_joints(machine: Machine) -> np.ndarray:
+    """(6, 3) [m] the platform joints in the platform frame, from the hexapod's model."""
+    from hexsim.control.kinematics import HexapodGeometry
+    from hexsim.plant.model import load_model
+
+    return HexapodGeometry.from_model(load_model("hexapod", geometry=machine.geometry)).platform
 
 
 @dataclass(frozen=True)
@@ -273,12 +338,21 @@ def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> 
 
 
 def _get(doc: dict, key: str):
-    """The value of ``key`` in a machine-file document; ``valve.opening_table[i]``: the opening of point i."""
+    """The value of ``key`` in a machine-file document; ``valve.opening_table[i]``: the opening of point i;
+    ``load.payload_at_m[i]``: element i; ``legs.legN.KEY``: leg N's own value, else the shared KEY's."""
     path, _, index = key.partition("[")
+    if path.startswith("legs."):
+        _, leg, own = path.split(".", 2)
+        node = doc.get("legs", {}).get(leg, {})
+        for part in own.split("."):
+            node = node.get(part, {}) if isinstance(node, dict) else node
+        return node if not isinstance(node, dict) else _get(doc, own)
     node = doc
     for part in path.split("."):
         node = node[part]
-    return node[int(index[:-1])][1] if index else node
+    if not index:
+        return node
+    return node[int(index[:-1])][1] if isinstance(node[0], list) else node[int(index[:-1])]
 
 
 def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
@@ -342,12 +416,17 @@ def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params:
     for i, p in enumerate(params):  # a parameter no feature sees across its whole bracket (a table point beyond
         if p.key in held or not rule:  # every command of the experiments, the mass of a horizontal axis) is not fitted
             continue
-        ends = []
-        for value in (p.lower, p.upper):
-            x = prior.copy()
-            x[i] = value
-            ends.append(safe(x))
-        if np.max(np.abs(ends[1] - ends[0])) < 1e-3:
+        # at the prior, and with the others at three quarters of their brackets (a payload's centre of gravity
+        # moves nothing while its mass is the prior's 0)
+        for others in (prior, lo + 0.75 * span):
+            ends = []
+            for value in (p.lower, p.upper):
+                x = others.copy()
+                x[i] = value
+                ends.append(safe(x))
+            if np.max(np.abs(ends[1] - ends[0])) >= 1e-3:
+                break
+        else:
             held[p.key] = "the features do not depend on it across its bracket"
     while True:
         free = [i for i, p in enumerate(params) if p.key not in held]
@@ -451,6 +530,13 @@ def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
 #: optimum, but it ranked the forms right on every machine measured, docs/calibration.md; the chosen form
 #: then goes on from there).
 FIT_NFEV, SCREEN_NFEV = 40, 10
+#: Evaluations of one least-squares run on hexapod logs: each is a closed-loop replay of the whole log (0.8 s
+#: for 20 s of the Micro Motion System) and a Jacobian of as many replays as parameters (19); the fit is
+#: nearly linear in the legs' flow gains and converges in a few steps (docs/calibration.md).
+HEXAPOD_NFEV = 8
+#: A hexapod's flow-area forms are screened on the first this many segments of each log (0.25 s each, after
+#: the first 0.5 s), with at most this many evaluations each.
+HEXAPOD_SCREEN_SEGMENTS, HEXAPOD_SCREEN_NFEV = 24, 3
 #: The flow-area forms of seed eq. (3.11) and (3.3) a calibration from transients tries for a valve of that
 #: family (the seed's 300 x_v^2 and its port), keeping the one that predicts the held-out windows best.
 SEED_FORMS = ("smooth", "port", "quadratic", "sharp")
@@ -510,6 +596,13 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     if dynamics not in DYNAMICS:
         raise InputError(f"dynamics {dynamics!r}: expected one of {', '.join(DYNAMICS)}")
     notify = notify or (lambda text: None)
+    systems = {log.system for log in (*logs, *held_out)}
+    if len(systems) > 1:
+        raise InputError("hexapod and single-actuator logs together: a calibration reads the logs of one machine")
+    hexapod = systems == {"hexapod"}
+    if hexapod and dynamics == "never":
+        raise InputError("a hexapod is calibrated from its logs' transients (its closed-loop replay); dynamics "
+                         "'never' reads only single-actuator constant-command experiments")
     steady = list(logs) if dynamics == "never" else [log for log in logs if _is_steady(log)]
     moving = [] if dynamics == "never" else list(logs) if dynamics == "always" else [
         log for log in logs if log not in steady]
@@ -529,8 +622,16 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         return float(np.dot(sizes, shares) / max(sum(sizes), 1))
 
     forms = _forms(machine, flow_areas) if evidence else (machine.hydraulics.flow_area,)
+    # a hexapod's forms are screened on the first segments of its logs (each replay is the whole log's)
+    screened = [ev.prefix(HEXAPOD_SCREEN_SEGMENTS) for ev in evidence] if hexapod else evidence
+
+    def screen_residual(m: Machine) -> np.ndarray:
+        return np.concatenate([steady_of(m), *(ev.residual(m) for ev in screened)])
+
+    screen_nfev = HEXAPOD_SCREEN_NFEV if hexapod else SCREEN_NFEV
     replay = dict(independent_share=independent_share, diff_step=1e-3, x_scale="jac", warm=True,
-                  max_nfev=FIT_NFEV, correlated_se=0.01, notify=notify) if evidence else {"notify": notify}
+                  max_nfev=HEXAPOD_NFEV if hexapod else FIT_NFEV, correlated_se=0.01,
+                  notify=notify) if evidence else {"notify": notify}
     screen = len(forms) > 1
     tried: list[dict] = []
     for form in forms:  # each form from the prior: a form's calibrated values are another form's far valley
@@ -539,12 +640,15 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         except InputError as exc:
             tried.append({"flow_area": form, "refused": str(exc)})
             continue
-        form_params = list(params if params is not None else default_parameters(start, dynamics=bool(evidence)))
+        form_params = list(params if params is not None else default_parameters(start, dynamics=bool(evidence),
+                                                                                     hexapod=hexapod))
         notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
-        fit = _fit(residual_of, start, form_params, **(replay | ({"max_nfev": SCREEN_NFEV, "rule": False} if screen
-                                                                else {})))
+        if screen:
+            fit = _fit(screen_residual, start, form_params, **(replay | {"max_nfev": screen_nfev, "rule": False}))
+        else:
+            fit = _fit(residual_of, start, form_params, **replay)
         result = with_values(start, form_params, fit.values)
-        cost = sum(ev.errors(result)["held_out_cost"] for ev in evidence)
+        cost = sum(ev.errors(result)["held_out_cost"] for ev in (screened if screen else evidence))
         tried.append({"flow_area": form, "held_out_cost": cost, "start": start, "params": form_params, "fit": fit,
                       "machine": result})
     usable = [t for t in tried if "fit" in t]
@@ -780,6 +884,18 @@ def transient_check(log: MeasurementLog) -> dict | None:
                 "an effect found on the uncalibrated file may be the nominal's error.")
     return {"off": bool(moved), "moved": moved, "held_out_rms_in_budgets": {"before": before, "after": after},
             "sentence": sentence}
+
+
+def hexapod_hint(log: MeasurementLog) -> dict:
+    """For a hexapod log judged against a machine that was never calibrated: the sentence ``hexsim validate``
+    puts first when its verdict is not ``none``. Not measured (a hexapod's calibration takes minutes,
+    :func:`calibrate`): six valves each within their data sheet's tolerance, a payload and the oil are
+    the first suspects of a replay that misses on every leg."""
+    return {"off": True, "moved": {}, "sentence": (
+        f"The machine {log.machine.label} was never calibrated: each leg's valve (its edges' flow gains within a "
+        f"data sheet's ±10 %), the oil's bulk modulus, the seals' friction and the payload may be what is off, not an "
+        f"effect. Calibrate it first on a closed-loop log of the machine (hexsim calibrate LOG --out CAL.json, "
+        f"docs/calibration.md), then judge effects with --machine CAL.json.")}
 
 
 def markdown(report: dict, figure: str | None = None) -> str:

@@ -76,12 +76,12 @@ class ReplayEvidence:
     @classmethod
     def of(cls, log: MeasurementLog, machine: Machine, every_window: bool = False) -> "ReplayEvidence":
         """The evidence of ``log`` judged against ``machine`` (``every_window``: all windows away from the stops
-        held out, for a log that is predicted, not fitted). Raises InputError for a hexapod log, a log
-        without the valve command or position, or one with fewer than three replay windows away from the
-        stops."""
-        if log.system != "single-actuator":
-            raise InputError(f"{log.path}: calibration from transients reads single-actuator logs (this is "
-                             f"{log.system})")
+        held out, for a log that is predicted, not fitted). A hexapod log is replayed in closed loop as
+        ``hexsim validate`` replays it (:meth:`_hexapod`). Raises InputError for a single-actuator log without
+        the valve command or position, or one with fewer than three replay windows away from the stops; for
+        a hexapod log as :class:`hexsim.measured.hexapod_replay.HexapodProblem`."""
+        if log.system == "hexapod":
+            return cls._hexapod(log, machine, every_window)
         missing = [c for c in ("valve_cmd_V", "pos_m") if c not in log.columns]
         if missing:
             raise InputError(f"{log.path}: calibration from transients needs the column(s) {', '.join(missing)}")
@@ -98,6 +98,27 @@ class ReplayEvidence:
         budget = measure_budget(problem, problem.simulate(problem.nominal))
         fitted = problem.fit_rows[np.unique(np.linspace(0, len(problem.fit_rows) - 1, MAX_FIT_WINDOWS).round().astype(int))]
         return cls(log, problem, budget, _only(problem, fitted))
+
+    @classmethod
+    def _hexapod(cls, log: MeasurementLog, machine: Machine, every_window: bool) -> "ReplayEvidence":
+        """A hexapod log's evidence: its closed-loop replay (:class:`hexsim.measured.hexapod_replay.HexapodProblem`,
+        one run of the whole log: the even segments fitted, the odd held out; ``every_window``: all held out)."""
+        from hexsim.measured.hexapod_replay import HexapodProblem
+
+        log = dataclasses.replace(log, machine=machine)
+        problem = HexapodProblem(log)
+        if every_window:
+            problem.test_rows = np.arange(problem.segments)
+        budget = measure_budget(problem, problem.simulate(problem.nominal))
+        return cls(log, problem, budget, problem)
+
+    def prefix(self, segments: int) -> "ReplayEvidence":
+        """A hexapod log's evidence on its first ``segments`` segments only (the replay cut short there: a
+        cheaper residual to screen on); a single actuator's is its own (its windows are replayed alone)."""
+        if self.log.system != "hexapod" or segments >= self.problem.segments:
+            return self
+        short = self.problem.prefix(segments)
+        return ReplayEvidence(self.log, short, self.budget, short)
 
     def model(self, machine: Machine) -> PlantModel:
         """The replay model of ``machine`` for this log (the log's declared mass, inclination and supply kept)."""

@@ -28,7 +28,7 @@ from hexsim.measured.identify import (
     signal_labels,
     within_budget,
 )
-from hexsim.measured.calibration import nominal_check, transient_check
+from hexsim.measured.calibration import hexapod_hint, nominal_check, transient_check
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.residuals import analyse
 from hexsim.tables import StdoutTarget, write_atomic, write_json
@@ -496,10 +496,13 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     doc = summary(ident) | {"left_out": list(without),
                             "model": model if log.system == "hexapod" else "single actuator"}
     check = nominal_check(log)  # an uncalibrated machine visibly off a constant-command log: calibrate first
-    if check is None and ident.verdict in ("partial", "unexplained"):
-        if notify:
-            notify("the machine was never calibrated: calibrating its nominal on this log's transients")
-        check = transient_check(log)  # ... or off any other single-actuator log
+    if check is None and ident.verdict in ("partial", "unexplained") and log.machine.calibration is None:
+        if log.system == "hexapod":
+            check = hexapod_hint(log)
+        else:
+            if notify:
+                notify("the machine was never calibrated: calibrating its nominal on this log's transients")
+            check = transient_check(log)  # ... or off any other single-actuator log
     if check is not None:
         doc["nominal_check"] = check
         if check["off"] and ident.verdict != "none":

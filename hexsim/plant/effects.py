@@ -134,3 +134,12 @@ class LegChange:
         own = {f.name for f in fields(Effects)}
         return (hyd.replace(**{k: v for k, v in self.values if k not in own}),
                 eff.replace(**{k: v for k, v in self.values if k in own}))
+
+
+def merge_leg_changes(first: tuple[LegChange, ...], then: tuple[LegChange, ...]) -> tuple[LegChange, ...]:
+    """One change per leg: the values of ``first`` (a machine file's legs) with those of ``then`` (a run's or a
+    candidate's) on top, the same field of the same leg taken from ``then``."""
+    merged: dict[int, dict[str, float]] = {}
+    for change in (*first, *then):
+        merged.setdefault(change.leg, {}).update(change.values)
+    return tuple(LegChange.of(leg, **values) for leg, values in sorted(merged.items()))

@@ -38,7 +38,7 @@ import pathlib
 from dataclasses import dataclass, field
 
 from hexsim.errors import InputError
-from hexsim.plant.effects import Effects
+from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.params import ControllerParams, HydraulicParams
 
@@ -202,7 +202,24 @@ KEYS: tuple[Key, ...] = (
     )),
 )
 _BY_PATH = {k.path: k for k in KEYS}
-_META = ("format", "version", "name", "description", "system", "sources", "calibration")
+_META = ("format", "version", "name", "description", "system", "sources", "calibration", "legs")
+#: Legs of a hexapod machine file's ``legs`` section: ``leg1`` … ``leg6``.
+LEG_NAMES = tuple(f"leg{i}" for i in range(1, 7))
+
+
+def _is_leg_path(path: str) -> bool:
+    """``legs.legN.KEY`` with N a leg and KEY a key a leg may have of its own (:func:`leg_key`)."""
+    head, leg, own = (path.split(".", 2) + ["", ""])[:3]
+    return head == "legs" and leg in LEG_NAMES and leg_key(own)
+
+
+def leg_key(key: str) -> bool:
+    """Whether ``key`` (a machine-file key) may differ between a hexapod's legs (``legs.legN.KEY``): a number of
+    the hydraulics or effects that is not shared by every leg (the supply, the load, the sensors' delay and
+    the command range are one for the machine: :data:`hexsim.plant.effects.SHARED_FIELDS`)."""
+    k = _BY_PATH.get(key)
+    return (k is not None and k.kind == "number" and k.target[0] in ("hydraulics", "effects")
+            and k.target[1] not in SHARED_FIELDS)
 
 
 @dataclass(frozen=True)
@@ -230,6 +247,14 @@ class Machine:
     # what `hexsim calibrate` wrote: the logs, each fitted key's prior, bounds, value, standard error,
     # the correlations and the held-out errors (hexsim.measured.calibration); None: not calibrated
     calibration: dict | None = field(default=None, compare=False)
+    # the hexapod's legs whose valve, cylinder, oil or friction differ from the shared keys: (leg 1…6,
+    # ((machine-file key, value), …)), as the file's ``legs`` section states them (a calibration's per-leg values)
+    legs: tuple[tuple[int, tuple[tuple[str, float], ...]], ...] = ()
+
+    @property
+    def leg_changes(self) -> tuple[LegChange, ...]:
+        """The ``legs`` section as :class:`~hexsim.plant.effects.LegChange` (dataclass fields, SI units)."""
+        return tuple(LegChange.of(leg, **{_BY_PATH[k].target[1]: v for k, v in values}) for leg, values in self.legs)
 
     @property
     def label(self) -> str:
@@ -253,6 +278,13 @@ class Machine:
             doc["sources"] = dict(self.sources)
         if self.calibration is not None:
             doc["calibration"] = self.calibration
+        if self.legs:
+            doc["legs"] = {}
+            for leg, values in self.legs:
+                node = doc["legs"].setdefault(f"leg{leg}", {})
+                for key, value in values:
+                    section, leaf = key.split(".", 1)
+                    node.setdefault(section, {})[leaf] = value
         for key in KEYS:
             if self._omitted(key):
                 continue
@@ -385,7 +417,7 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
     if not isinstance(sources, dict) or not all(isinstance(v, str) for v in sources.values()):
         raise InputError(f"{where}: key 'sources' must be an object of key: text (where each value comes from)")
     for key in sources:
-        if key not in _BY_PATH:
+        if key not in _BY_PATH and not _is_leg_path(key):
             raise InputError(f"{where}: sources names {key!r}, which is not a machine-file key")
     calibration = meta.get("calibration")
     if calibration is not None and not isinstance(calibration, dict):
@@ -425,13 +457,48 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
     name = meta.get("name", pathlib.Path(where).stem)
     geometry = _geometry(values["geometry"], system, hyd.stroke, name, where)
     control = m.get("control", "P")
+    legs = _legs(meta.get("legs", {}), system, hyd, effects, where)
     machine = Machine(name=name, description=meta.get("description", ""),
                    system=system, hydraulics=hyd, controller=controller, effects=effects, geometry=geometry,
                    control=control,
                    rated_flow=rated_flow, rated_dp=rated_dp, sources=tuple(sources.items()),
-                   calibration=calibration)
+                   calibration=calibration, legs=legs)
     defaulted = tuple(k.path for k in KEYS if k.path not in flat and not machine._omitted(k))
     return dataclasses.replace(machine, defaulted=defaulted)
+
+
+def _legs(section: object, system: str, hyd: HydraulicParams, effects: Effects,
+          where: str) -> tuple[tuple[int, tuple[tuple[str, float], ...]], ...]:
+    """The ``legs`` section: ``{"leg3": {"valve": {"edge_gain_PA": 1.04}}, …}``, each leg's keys (numbers of
+    :func:`leg_key`) replacing the shared ones for that leg. Raises InputError for a single actuator, an unknown
+    leg, a key a leg cannot have on its own, or a value the parameter dataclasses refuse."""
+    if not isinstance(section, dict):
+        raise InputError(f"{where}: key 'legs' must be an object (leg1 … leg6: keys that leg has on its own)")
+    if section and system != "hexapod":
+        raise InputError(f"{where}: legs.{next(iter(section))}: a {system} has no legs of its own; set the keys "
+                         f"themselves")
+    out = []
+    for name, keys in section.items():
+        if name not in LEG_NAMES:
+            raise InputError(f"{where}: legs.{name}: expected one of {', '.join(LEG_NAMES)}")
+        if not isinstance(keys, dict):
+            raise InputError(f"{where}: legs.{name} must be an object of keys (e.g. {{\"valve\": {{\"edge_gain_PA\": "
+                             f"1.04}}}})")
+        values = []
+        for key, value in _flatten(keys, f"{where}: legs.{name}").items():
+            if not leg_key(key):
+                why = "not a machine-file key" if key not in _BY_PATH else "shared by every leg (or not a number)"
+                raise InputError(f"{where}: legs.{name}.{key}: {why}; a leg can have its own numbers of the "
+                                 f"valve, cylinder, oil and friction")
+            values.append((key, _checked(_BY_PATH[key], value, f"{where}: legs.{name}")))
+        change = LegChange.of(int(name[3:]), **{_BY_PATH[k].target[1]: v for k, v in values})
+        try:
+            change.apply(hyd, effects)
+        except InputError as exc:
+            raise InputError(f"{where}: legs.{name}: {_key_names(str(exc))}") from None
+        if values:
+            out.append((change.leg, tuple(sorted(values))))
+    return tuple(sorted(out))
 
 
 def _geometry(values: dict, system: str, stroke: float, name: str, where: str) -> Geometry:
@@ -536,7 +603,10 @@ def parse_assignment(text: str) -> tuple[str, object]:
     if "=" not in text:
         raise InputError(f"{text!r}: expected key=value (e.g. cylinder.bore_m=0.016)")
     key, raw = (s.strip() for s in text.split("=", 1))
-    if key not in _BY_PATH and key not in ("name", "description", "system"):
+    if key.startswith("legs.") and not _is_leg_path(key):
+        raise InputError(f"{key!r}: a leg's own key is legs.leg1 … legs.leg6 followed by a number of the valve, "
+                         f"cylinder, oil or friction (e.g. legs.leg3.valve.edge_gain_PA=1.04)")
+    if key not in _BY_PATH and key not in ("name", "description", "system") and not key.startswith("legs."):
         raise InputError(f"{key!r} is not a machine-file key; `hexsim machine show` lists them")
     try:
         value = json.loads(raw, parse_constant=_no_constant)
@@ -547,16 +617,20 @@ def parse_assignment(text: str) -> tuple[str, object]:
 
 def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
     """``machine`` with each dotted key of ``values`` set to its number (``valve.opening_table[i]``: the opening
-    of point i), the file checked again as any machine file (InputError names the key and value)."""
+    of point i; ``load.payload_at_m[i]``: element i of a vector; ``legs.legN.KEY``: leg N's own value of KEY,
+    the ``legs`` section), the file checked again as any machine file (InputError names the key and value)."""
     doc = json.loads(json.dumps(machine.document()))
     for key, value in values.items():
         path, _, index = key.partition("[")
+        own = path.split(".", 2)[2] if path.startswith("legs.") else path  # the key's kind: the shared key's
         *sections, leaf = path.split(".")
         node = doc
         for part in sections:
             node = node.setdefault(part, {})
-        if index:
+        if index and _BY_PATH[own].kind == "table":
             node[leaf][int(index[:-1])][1] = float(value)
+        elif index:  # a vector's element
+            node[leaf][int(index[:-1])] = float(value)
         else:
             node[leaf] = float(value)
     return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)

@@ -20,7 +20,7 @@ from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import Scenario, make_scenario
 from hexsim.errors import InputError, WorkspaceError
 from hexsim.plant import hydraulics
-from hexsim.plant.effects import Effects, LegChange
+from hexsim.plant.effects import Effects, LegChange, merge_leg_changes
 from hexsim.plant.faults import Fault, FaultInjector
 from hexsim.plant.legs import PlantState, advance_legs, leg_table
 from hexsim.plant.geometry import Geometry
@@ -97,13 +97,14 @@ class RunConfig:
     @classmethod
     def from_machine(cls, machine, scenario: Scenario | str, **options) -> "RunConfig":
         """A run of ``scenario`` on ``machine`` (a :class:`hexsim.plant.machine.Machine`, a machine file or a
-        built-in's name): its hydraulics, controller and effects, named in the outputs; ``options`` are the
+        built-in's name): its hydraulics, controller, effects and legs' own values, named in the outputs; ``options`` are the
         other fields (compensator, seed, timestep, …). Raises InputError for a machine file that is not
         valid."""
         from hexsim.plant.machine import Machine, load_machine
 
         m = machine if isinstance(machine, Machine) else load_machine(machine)
         geometry = m.geometry if m.system == "hexapod" else None
+        options["leg_changes"] = merge_leg_changes(m.leg_changes, tuple(options.get("leg_changes", ())))
         return cls(scenario, hydraulics=m.hydraulics, controller=m.controller, effects=m.effects, machine=m.spec,
                    geometry=geometry, **options)
 

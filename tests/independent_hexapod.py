@@ -1,0 +1,202 @@
+"""A hexapod written independently of hexsim (no hexsim import): the "real machine" of the hexapod's
+calibrate-then-validate tests. Its own equations, integrated by classical Runge-Kutta at 10 µs (numba):
+
+- six legs of :mod:`tests.independent_actuator` (its valve, orifice, cap chamber, Stribeck friction and end
+  stops, :func:`tests.independent_actuator.leg`), each with its own parameters (six valves, six data sheets);
+- a rigid platform (mass, principal inertia about its centre of mass) moved by the legs' forces along the
+  leg axes, Newton–Euler about the centre of mass in the world frame; the legs are massless but for each
+  piston rod, whose mass moves along its leg (added to the mass matrix as m_r J_i^T J_i, its weight along the
+  axis on the piston; the barrels' and the rods' rotation are left out, as a real machine differs from any
+  model);
+- orientation as a unit quaternion; leg i joins base joint a_i (world) to platform joint b_i (platform frame);
+  piston y_i = |p + R b_i - a_i| - L_min;
+- a P controller per leg at 500 Hz on the noisy leg positions (valves saturated at ±10 V), tracking the legs'
+  lengths of a platform motion (inverse kinematics written here);
+- logged at 1 kHz: each leg's setpoint, valve command, position and P1, the supply, and the accelerometer at the
+  platform frame's origin, in the platform frame, as the mean specific force over each sample interval.
+
+The geometry's numbers are the Micro Motion System's (a drawing's data, not hexsim's code).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from independent_actuator import Actuator, _pack, leg
+
+G = 9.81
+
+
+@dataclass(frozen=True)
+class Hexapod:
+    base_radius: float = 0.6
+    base_height: float = 0.15
+    base_angles: tuple[float, ...] = (-12.0, 12.0, 108.0, 132.0, 228.0, 252.0)
+    platform_radius: float = 0.4
+    platform_angles: tuple[float, ...] = (-48.0, 48.0, 72.0, 168.0, 192.0, 288.0)
+    l_min: float = 0.52
+    stroke: float = 0.2
+    mass: float = 600.0
+    inertia: tuple[float, float, float] = (80.0, 80.0, 144.0)
+    com: tuple[float, float, float] = (0.0, 0.0, 0.2)  # platform frame
+    rod_mass: float = 2.5
+    legs: tuple[Actuator, ...] = field(default_factory=lambda: (Actuator(),) * 6)
+    kp: float = 200.0
+
+    def joints(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """(base joints (6, 3) world, platform joints (6, 3) platform frame, the platform frame's height at the
+        neutral pose, every piston at mid-stroke)."""
+        ab = np.radians(self.base_angles)
+        ap = np.radians(self.platform_angles)
+        a = np.stack([self.base_radius * np.cos(ab), self.base_radius * np.sin(ab), np.full(6, self.base_height)], 1)
+        b = np.stack([self.platform_radius * np.cos(ap), self.platform_radius * np.sin(ap), np.zeros(6)], 1)
+        planar = np.linalg.norm(b[0, :2] - a[0, :2])
+        return a, b, self.base_height + math.sqrt((self.l_min + self.stroke / 2) ** 2 - planar**2)
+
+
+def rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+@numba.njit(cache=True)
+def _quat_matrix(q):
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+@numba.njit(cache=True)
+def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min):
+    """State z: centre of mass (3), quaternion (4), its velocity (3), angular velocity (3, world), P1 (6)."""
+    q = z[3:7] / np.sqrt(np.sum(z[3:7] ** 2))
+    rot = _quat_matrix(q)
+    v, w = z[7:10], z[10:13]
+    iw = rot @ np.diag(inertia) @ rot.T
+    mm = np.zeros((6, 6))
+    mm[0, 0] = mm[1, 1] = mm[2, 2] = mass
+    mm[3:, 3:] = iw
+    f = np.zeros(6)
+    f[2] = -mass * G
+    f[3:] = -np.cross(w, iw @ w)
+    out = np.zeros(19)
+    for i in range(6):
+        r = rot @ b[i]
+        vec = z[0:3] + r - a[i]
+        length = np.sqrt(np.sum(vec**2))
+        n = vec / length
+        jac = np.concatenate((n, np.cross(r, n)))
+        yd = np.dot(n, v + np.cross(w, r))
+        c = legs[i]
+        x = (u[i] - c[10]) / c[6] * c[5]  # ideal spool (seed eq. 3.2)
+        dp1, force = leg(c, length - l_min, yd, z[13 + i], x)
+        f += jac * (force - rod_mass * G * n[2])
+        mm += rod_mass * np.outer(jac, jac)
+        out[13 + i] = dp1
+    acc = np.linalg.solve(mm, f)
+    out[0:3] = v
+    wq = np.array([0.0, w[0], w[1], w[2]])  # dq/dt = 1/2 (0, w) (x) q, w in the world frame
+    out[3] = 0.5 * (wq[0] * q[0] - wq[1] * q[1] - wq[2] * q[2] - wq[3] * q[3])
+    out[4] = 0.5 * (wq[0] * q[1] + wq[1] * q[0] + wq[2] * q[3] - wq[3] * q[2])
+    out[5] = 0.5 * (wq[0] * q[2] - wq[1] * q[3] + wq[2] * q[0] + wq[3] * q[1])
+    out[6] = 0.5 * (wq[0] * q[3] + wq[1] * q[2] - wq[2] * q[1] + wq[3] * q[0])
+    out[7:13] = acc
+    return out
+
+
+@numba.njit(cache=True)
+def _advance(z, u, legs, a, b, mass, inertia, rod_mass, l_min, h, n):
+    for _ in range(n):
+        k1 = _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min)
+        k2 = _rhs(z + 0.5 * h * k1, u, legs, a, b, mass, inertia, rod_mass, l_min)
+        k3 = _rhs(z + 0.5 * h * k2, u, legs, a, b, mass, inertia, rod_mass, l_min)
+        k4 = _rhs(z + h * k3, u, legs, a, b, mass, inertia, rod_mass, l_min)
+        z = z + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        z[3:7] /= np.sqrt(np.sum(z[3:7] ** 2))
+    return z
+
+
+def motion(s: Hexapod, duration: float, poses, rng: np.random.Generator, step: float = 1e-5,
+           noise: tuple[float, float, float] = (2e-6, 2e3, 0.02)) -> dict[str, np.ndarray]:
+    """A closed-loop run of ``duration`` s tracking ``poses(t)`` -> (6,) (x, y, z [m], roll, pitch, yaw [rad]
+    relative to the neutral pose): the log's columns at 1 kHz with noise (position m, pressure Pa,
+    acceleration m/s^2) on the measured channels; the controller sees the noisy positions."""
+    a, b_frame, height = s.joints()
+    com = np.asarray(s.com)
+    b = b_frame - com  # platform joints from the centre of mass, platform frame
+    legs = np.stack([_pack(leg_) for leg_ in s.legs])
+    a1, a2, ps = legs[:, 0], legs[:, 1], legs[:, 3]
+    origin = np.array([0.0, 0.0, height])
+    dt = 1e-3
+    t = np.arange(0.0, duration, dt)
+
+    def lengths(pose):
+        rot = rotation(*pose[3:])
+        return np.linalg.norm(origin + pose[:3] + b_frame @ rot.T - a, axis=1) - s.l_min
+
+    ref = np.array([lengths(poses(tj)) for tj in t])
+    # at rest at the neutral pose: the legs' forces carry the weights (J^T F = weight wrench)
+    c0 = origin + com
+    r = b
+    vec = c0 + r - a
+    n = vec / np.linalg.norm(vec, axis=1, keepdims=True)
+    jac = np.concatenate([n, np.cross(r, n)], axis=1)  # (6 legs, 6)
+    force = np.linalg.solve(jac.T, np.array([0.0, 0.0, s.mass * G, 0.0, 0.0, 0.0])) + s.rod_mass * G * n[:, 2]
+    p1 = (force + ps * a2) / a1
+    z = np.concatenate([c0, [1.0, 0.0, 0.0, 0.0], np.zeros(6), p1])
+    inertia = np.asarray(s.inertia, dtype=float)
+    sensor = -com  # the platform frame's origin from the centre of mass, platform frame
+    cols = {k: np.empty((len(t), 6)) for k in ("pos", "p1", "u")}
+    acc = np.empty((len(t), 3))
+    u = np.zeros(6)
+    substeps = int(round(dt / step))
+
+    def sensor_velocity(z):
+        rot = _quat_matrix(z[3:7])
+        return z[7:10] + np.cross(z[10:13], rot @ sensor), rot
+
+    v_prev, _ = sensor_velocity(z)
+    for j in range(len(t)):
+        rot = _quat_matrix(z[3:7])
+        cols["pos"][j] = np.linalg.norm(z[0:3] + b @ rot.T - a, axis=1) - s.l_min
+        measured = cols["pos"][j] + rng.normal(0.0, noise[0], 6)
+        if j % 2 == 0:
+            u = np.clip(s.kp * (ref[j] - measured), -10.0, 10.0)
+        cols["p1"][j], cols["u"][j] = z[13:19], u
+        cols["pos"][j] = measured
+        z = _advance(z, u, legs, a, b, s.mass, inertia, s.rod_mass, s.l_min, step, substeps)
+        assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
+        v_now, rot = sensor_velocity(z)
+        acc[j] = rot.T @ ((v_now - v_prev) / dt + np.array([0.0, 0.0, G]))  # the interval j … j+1
+        v_prev = v_now
+    acc = np.vstack([[rot.T @ np.array([0.0, 0.0, G])], acc[:-1]])  # row j: the mean over the interval before it
+    out = {"time_s": t}
+    for i in range(6):
+        out |= {f"leg{i + 1}_ref_m": ref[:, i], f"leg{i + 1}_valve_cmd_V": cols["u"][:, i],
+                f"leg{i + 1}_pos_m": cols["pos"][:, i],
+                f"leg{i + 1}_p1_Pa": cols["p1"][:, i] + rng.normal(0.0, noise[1], len(t))}
+    out["ps_Pa"] = np.full(len(t), float(ps[0]))
+    for k, axis in enumerate("xyz"):
+        out[f"platform_acc_{axis}_mps2"] = acc[:, k] + rng.normal(0.0, noise[2], len(t))
+    return out
+
+
+def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0) -> pathlib.Path:
+    """The measurement-log CSV + sidecar (docs/measurement-log.md) of ``columns``, written by numpy."""
+    names = list(columns)
+    np.savetxt(path, np.column_stack([columns[k] for k in names]), delimiter=",", header=",".join(names),
+               comments="", fmt="%.10g")
+    path.with_suffix(".json").write_text(json.dumps({
+        "system": "hexapod", "sample_rate_hz": 1000.0,
+        "controller": {"type": "P", "kp_V_per_m": kp, "rate_hz": 500.0}, "description": description}))
+    return path
