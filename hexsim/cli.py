@@ -264,7 +264,8 @@ def _add_bench(sub) -> None:
     be.add_argument("--repeats", type=int, default=3, help="repeats per case, median reported (default 3)")
     be.add_argument("--json", type=pathlib.Path, help="write the timings as JSON; - for stdout")
     be.add_argument("--calibrate", action="store_true", help="also time hexsim calibrate on two 20 s open-loop logs "
-                    "of the built-in servo_cylinder (against bare mj_step over their 40 s)")
+                    "of the built-in servo_cylinder, two 20 s closed-loop logs of the seed's actuator (against bare "
+                    "mj_step over their 40 s) and one 20 s hexapod log (against bare mj_step of the hexapod over 20 s)")
     be.add_argument("--sweep", action="store_true", help="also time an 8-run sweep with 1 worker, 2 forked and 2 spawned workers "
                     "(about 75 s per repeat)")
 

@@ -230,14 +230,17 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
     and the RMS over the scored samples of sqrt(sum_ij d_i C_ij d_j) (first-order propagation of the
     covariance). The changes are taken after the sensors' calibration (:func:`calibrate`): what an offset or a
     scale takes up of a parameter's change (the position scale of a flow gain) is no uncertainty of the
-    replay. Empty for a machine that was not calibrated (nothing fitted, or no standard errors)."""
+    replay. Added in quadrature: the calibrated model's own held-out misfit on its calibration logs
+    (:func:`model_floor`). Empty for a machine that was not calibrated (nothing fitted, or no standard
+    errors, and no transients)."""
 
     block = problem.log.machine.calibration or {}
+    floor = model_floor(block, problem.channels)
     keys = block.get("correlation", {}).get("keys", [])
     rows = {r["key"]: r for r in block.get("parameters", [])}
     moved = [k for k in keys if k in rows and rows[k].get("status") == "fitted" and rows[k].get("std_error", 0) > 0]
     if not moved:
-        return {}
+        return floor
     corr = np.array(block["correlation"]["matrix"], dtype=float)[np.ix_(*[[keys.index(k) for k in moved]] * 2)]
     machine, s = problem.log.machine, problem.settle
     base = calibrate(problem, nominal_sim, problem.fit_rows)[0]
@@ -252,7 +255,24 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
     for ch in problem.channels:
         d = np.stack([dl[ch].ravel() for dl in deltas])  # (parameters, samples)
         var = np.einsum("is,ij,js->s", d, corr, d)
-        out[ch] = float(np.sqrt(max(float(np.mean(var)), 0.0)))
+        out[ch] = float(math.hypot(np.sqrt(max(float(np.mean(var)), 0.0)), floor.get(ch, 0.0)))
+    return out
+
+
+def model_floor(block: dict, channels) -> dict[str, float]:
+    """Per channel [SI], what the calibrated model could not reproduce of its own calibration logs' held-out
+    windows beyond their budget: b sqrt(max(r^2 - 1, 0)) with r the held-out RMS in budgets b after the
+    calibration (the ``transients`` of the machine file's ``calibration`` block), the root mean square over
+    those logs. A model cannot be held to a closer fit on a new log than on the held-out part of the logs it
+    was calibrated on (model-form uncertainty, e.g. Kennedy & O'Hagan 2001; ASME V&V 20): a part of the
+    calibration's uncertainty. Empty without transients (a steady calibration is judged on its features)."""
+    rows = [t["after"] for t in block.get("transients", []) if "after" in t]
+    out = {}
+    for ch in channels:
+        excess = [r["budget"][ch] ** 2 * max(r["held_out_rms_in_budgets"][ch] ** 2 - 1.0, 0.0) for r in rows
+                  if ch in r.get("held_out_rms_in_budgets", {}) and ch in r.get("budget", {})]
+        if excess:
+            out[ch] = float(math.sqrt(np.mean(excess)))
     return out
 
 
