@@ -185,12 +185,14 @@ def _add_calibrate(sub) -> None:
     """The ``calibrate`` command's options."""
     ca = sub.add_parser(
         "calibrate",
-        help="fit a machine file's nominal parameters to calibration experiments (open-loop constant commands)",
+        help="fit a machine file's nominal parameters to calibration experiments (open-loop constant commands, "
+             "closed-loop motions; a hexapod's closed-loop logs: each leg's valve, the payload)",
         description="Grey-box calibration (docs/calibration.md): the valve's flow gain, overlap, null offset and "
         "edge matching, the supply and tank pressures and the friction per direction are fitted, each inside its "
         "data-sheet bracket, to the steady motions and end-stop pressures of open-loop constant-command logs; "
         "standard errors, correlations, what the logs cannot separate and which experiment would; held-out logs "
-        "predicted. Writes the calibrated machine file.",
+        "predicted. A hexapod's closed-loop logs calibrate each leg's valve edges (the legs section), the bulk "
+        "modulus, the friction and the payload. Writes the calibrated machine file.",
     )
     ca.add_argument("logs", nargs="+", type=pathlib.Path, metavar="LOG", help="the calibration experiments' CSV files")
     _machine_option(ca)

@@ -184,8 +184,8 @@ def hexapod_parameters(machine: Machine) -> list[Parameter]:
     """What a hexapod's closed-loop log identifies, for the hexapod ``machine``: each leg's valve, its supply
     and return edges' flow gains (k_PA, k_AT of that leg, the ``legs`` section: six valves are six data
     sheets' tolerances), the oil's bulk modulus, the legs' Coulomb friction per direction (one seal type),
-    the payload (mass and centre of gravity in the platform's plane) and the supply pressure (a log with
-    ``ps_Pa`` states it: then not fitted)."""
+    the payload (mass, and centre of gravity x, y, z in the platform frame) and the supply pressure (a log
+    with ``ps_Pa`` states it: then not fitted)."""
     doc = machine.document()
     motion = "closed-loop motion of every leg in both directions (heave, roll, pitch, …)"
     params = []
@@ -209,7 +209,7 @@ def hexapod_parameters(machine: Machine) -> list[Parameter]:
                             f"the platform's mass ({platform:.0f} kg in the model) −30 % to +100 % (not weighed, "
                             f"a payload on it)", "the platform at rest at the neutral pose (each leg's P1)"))
     radius = max(0.25, float(np.max(np.linalg.norm(np.asarray(_platform_joints(machine))[:, :2], axis=1))))
-    for i, axis in enumerate("xy"):
+    for i in range(2):
         params.append(Parameter(f"load.payload_at_m[{i}]", -radius, radius, "within the platform joints' circle",
                                 "the platform at rest (P1 of each leg), and a roll and a pitch"))
     params.append(Parameter("load.payload_at_m[2]", -0.2, 0.6, "0.2 m below to 0.6 m above the platform frame's "
@@ -531,7 +531,7 @@ def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
 #: then goes on from there).
 FIT_NFEV, SCREEN_NFEV = 40, 10
 #: Evaluations of one least-squares run on hexapod logs: each is a closed-loop replay of the whole log (0.8 s
-#: for 20 s of the Micro Motion System) and a Jacobian of as many replays as parameters (19); the fit is
+#: for 20 s of the Micro Motion System) and a Jacobian of as many replays as parameters (20); the fit is
 #: nearly linear in the legs' flow gains and converges in a few steps (docs/calibration.md).
 HEXAPOD_NFEV = 8
 #: A hexapod's flow-area forms are screened on the first this many segments of each log (0.25 s each, after
