@@ -157,12 +157,13 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
             "acc_mps2": out["acc"] + rng.normal(0.0, noise[2], len(t))}
 
 
-def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0) -> pathlib.Path:
+def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0,
+          system: str = "single-actuator") -> pathlib.Path:
     """The measurement-log CSV + sidecar (docs/measurement-log.md) of ``columns``, written by numpy."""
     names = list(columns)
     np.savetxt(path, np.column_stack([columns[k] for k in names]), delimiter=",", header=",".join(names),
                comments="", fmt="%.10g")
     path.with_suffix(".json").write_text(json.dumps({
-        "system": "single-actuator", "sample_rate_hz": 1000.0,
+        "system": system, "sample_rate_hz": 1000.0,
         "controller": {"type": "P", "kp_V_per_m": kp, "rate_hz": 500.0}, "description": description}))
     return path

@@ -20,7 +20,6 @@ The geometry's numbers are the Micro Motion System's (a drawing's data, not hexs
 
 from __future__ import annotations
 
-import json
 import math
 import pathlib
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ import numba
 import numpy as np
 
 from independent_actuator import Actuator, _pack, leg
+from independent_actuator import write as write_log
 
 G = 9.81
 
@@ -192,11 +192,5 @@ def motion(s: Hexapod, duration: float, poses, rng: np.random.Generator, step: f
 
 
 def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0) -> pathlib.Path:
-    """The measurement-log CSV + sidecar (docs/measurement-log.md) of ``columns``, written by numpy."""
-    names = list(columns)
-    np.savetxt(path, np.column_stack([columns[k] for k in names]), delimiter=",", header=",".join(names),
-               comments="", fmt="%.10g")
-    path.with_suffix(".json").write_text(json.dumps({
-        "system": "hexapod", "sample_rate_hz": 1000.0,
-        "controller": {"type": "P", "kp_V_per_m": kp, "rate_hz": 500.0}, "description": description}))
-    return path
+    """The measurement-log CSV + sidecar of a hexapod's ``columns`` (:func:`independent_actuator.write`)."""
+    return write_log(columns, path, description, kp, system="hexapod")
