@@ -11,8 +11,7 @@ import pytest
 import hexsim
 from hexsim.cli import main
 from hexsim.errors import InputError
-from hexsim.measured.calibration import _get
-from hexsim.plant.machine import Machine, dump, machine_from_document, with_keys
+from hexsim.plant.machine import Machine, dump, get_key, machine_from_document, with_keys
 
 LEGS = {"leg3": {"valve": {"edge_gain_PA": 1.05, "edge_gain_AT": 0.97}}, "leg5": {"cylinder": {"leakage_m3psPa": 2e-12}}}
 
@@ -60,9 +59,9 @@ def test_keys_edit_a_legs_value_and_read_it_back_else_the_shared_one():
     doc = machine.document()
     assert machine.leg_changes == (hexsim.LegChange.of(4, edge_gain_pa=0.93),)
     assert machine.effects.payload_at_m == (0.0, -0.2, 0.0)
-    assert _get(doc, "legs.leg4.valve.edge_gain_PA") == 0.93
-    assert _get(doc, "legs.leg2.valve.edge_gain_PA") == 1.0  # not its own: the shared key's
-    assert _get(doc, "load.payload_at_m[1]") == -0.2
+    assert get_key(doc, "legs.leg4.valve.edge_gain_PA") == 0.93
+    assert get_key(doc, "legs.leg2.valve.edge_gain_PA") == 1.0  # not its own: the shared key's
+    assert get_key(doc, "load.payload_at_m[1]") == -0.2
 
 
 def test_a_run_on_a_machine_with_legs_is_the_run_with_those_leg_changes(tmp_path):

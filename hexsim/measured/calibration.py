@@ -48,7 +48,7 @@ from scipy.optimize import least_squares
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics
-from hexsim.plant.machine import KEYS, Machine, machine_from_document, with_keys
+from hexsim.plant.machine import KEYS, Machine, get_key, machine_from_document, shared_path, with_keys
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.simulation.metrics import steady_segments
 
@@ -70,8 +70,7 @@ _UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}
 
 def _unit_of(key: str) -> str:
     """The unit of a parameter's key (a leg's own key: the shared key's; an element: its vector's)."""
-    path = key.split("[")[0]
-    return _UNITS[path.split(".", 2)[2] if path.startswith("legs.") else path]
+    return _UNITS[shared_path(key.split("[")[0])]
 
 
 @dataclass(frozen=True)
@@ -90,7 +89,7 @@ class Parameter:
 
     def prior(self, doc: dict) -> float:
         """The parameter's value in the machine-file document ``doc`` (its null's meaning when null)."""
-        value = _get(doc, self.key)
+        value = get_key(doc, self.key)
         return float(self.null_value if value is None else value)
 
     @property
@@ -113,7 +112,7 @@ def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool =
     doc = machine.document()
 
     def rel(key: str, lo: float, hi: float, source: str, experiment: str) -> Parameter:
-        value = _get(doc, key)
+        value = get_key(doc, key)
         return Parameter(key, lo * value, hi * value, source, experiment)
 
     big = "large commands in both directions (beyond half the range)"
@@ -192,7 +191,7 @@ def hexapod_parameters(machine: Machine) -> list[Parameter]:
     for leg in range(1, 7):
         for edge, what in (("PA", "supply edge P→A"), ("AT", "return edge A→T")):
             key = f"legs.leg{leg}.valve.edge_gain_{edge}"
-            value = float(_get(doc, key))
+            value = float(get_key(doc, key))
             params.append(Parameter(key, 0.6 * value, 1.5 * value, f"leg {leg}'s valve, its {what}: flow gain within "
                                     f"±30 % of the guess, edges matched within ±20 % (data sheets: ±10 %)",
                                     f"{motion}: leg {leg} extending and retracting"))
@@ -201,14 +200,14 @@ def hexapod_parameters(machine: Machine) -> list[Parameter]:
              "half with hoses and undissolved air (Merritt §2.5)", f"reversals ({motion}): the oil spring's ringing"),
             ("friction.positive.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion),
             ("friction.negative.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion)):
-        value = float(_get(doc, key))
+        value = float(get_key(doc, key))
         params.append(Parameter(key, lo * value, hi * value, source, experiment))
-    platform = _platform_mass(machine)
+    platform, joints = _platform(machine)
     payload = machine.effects.payload_kg
     params.append(Parameter("load.payload_kg", payload - 0.3 * platform, payload + platform,
                             f"the platform's mass ({platform:.0f} kg in the model) −30 % to +100 % (not weighed, "
                             f"a payload on it)", "the platform at rest at the neutral pose (each leg's P1)"))
-    radius = max(0.25, float(np.max(np.linalg.norm(np.asarray(_platform_joints(machine))[:, :2], axis=1))))
+    radius = max(0.25, float(np.max(np.linalg.norm(joints[:, :2], axis=1))))
     for i in range(2):
         params.append(Parameter(f"load.payload_at_m[{i}]", -radius, radius, "within the platform joints' circle",
                                 "the platform at rest (P1 of each leg), and a roll and a pitch"))
@@ -221,19 +220,14 @@ def hexapod_parameters(machine: Machine) -> list[Parameter]:
     return params
 
 
-def _platform_mass(machine: Machine) -> float:
-    """[kg] The platform's mass in the hexapod's model (the built geometry's, or the user's MJCF's)."""
-    from hexsim.plant.model import load_model
-
-    return float(load_model("hexapod", geometry=machine.geometry).body("platform").mass[0])
-
-
-def _platform_joints(machine: Machine) -> np.ndarray:
-    """(6, 3) [m] the platform joints in the platform frame, from the hexapod's model."""
+def _platform(machine: Machine) -> tuple[float, np.ndarray]:
+    """(the platform's mass [kg], its joints (6, 3) [m] in the platform frame) in the hexapod's model (the
+    built geometry's, or the user's MJCF's)."""
     from hexsim.control.kinematics import HexapodGeometry
     from hexsim.plant.model import load_model
 
-    return HexapodGeometry.from_model(load_model("hexapod", geometry=machine.geometry)).platform
+    model = load_model("hexapod", geometry=machine.geometry)
+    return float(model.body("platform").mass[0]), HexapodGeometry.from_model(model).platform
 
 
 @dataclass(frozen=True)
@@ -335,24 +329,6 @@ def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> 
         else:
             out[i] = {"velocity": s.velocity, "p1": s.p1, "p2": s.p2, "ps": hyd.supply_pressure}[f.quantity]
     return out
-
-
-def _get(doc: dict, key: str):
-    """The value of ``key`` in a machine-file document; ``valve.opening_table[i]``: the opening of point i;
-    ``load.payload_at_m[i]``: element i; ``legs.legN.KEY``: leg N's own value, else the shared KEY's."""
-    path, _, index = key.partition("[")
-    if path.startswith("legs."):
-        _, leg, own = path.split(".", 2)
-        node = doc.get("legs", {}).get(leg, {})
-        for part in own.split("."):
-            node = node.get(part, {}) if isinstance(node, dict) else node
-        return node if not isinstance(node, dict) else _get(doc, own)
-    node = doc
-    for part in path.split("."):
-        node = node[part]
-    if not index:
-        return node
-    return node[int(index[:-1])][1] if isinstance(node[0], list) else node[int(index[:-1])]
 
 
 def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
@@ -613,21 +589,19 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     evidence = [ReplayEvidence.of(log, machine) for log in moving]
     steady_of = steady_residual(feats, loads)
 
-    def residual_of(m: Machine) -> np.ndarray:
-        return np.concatenate([steady_of(m), *(ev.residual(m) for ev in evidence)])
+    def residual_over(evs: list[ReplayEvidence]) -> Callable[[Machine], np.ndarray]:
+        return lambda m: np.concatenate([steady_of(m), *(ev.residual(m) for ev in evs)])
+
+    residual_of = residual_over(evidence)
 
     def independent_share(m: Machine) -> float:
-        sizes = [len(feats)] + [len(ev.residual(m)) for ev in evidence]
+        sizes = [len(feats)] + [ev.residual_size for ev in evidence]
         shares = [1.0] + [ev.effective_share(m) for ev in evidence]
         return float(np.dot(sizes, shares) / max(sum(sizes), 1))
 
     forms = _forms(machine, flow_areas) if evidence else (machine.hydraulics.flow_area,)
     # a hexapod's forms are screened on the first segments of its logs (each replay is the whole log's)
     screened = [ev.prefix(HEXAPOD_SCREEN_SEGMENTS) for ev in evidence] if hexapod else evidence
-
-    def screen_residual(m: Machine) -> np.ndarray:
-        return np.concatenate([steady_of(m), *(ev.residual(m) for ev in screened)])
-
     screen_nfev = HEXAPOD_SCREEN_NFEV if hexapod else SCREEN_NFEV
     replay = dict(independent_share=independent_share, diff_step=1e-3, x_scale="jac", warm=True,
                   max_nfev=HEXAPOD_NFEV if hexapod else FIT_NFEV, correlated_se=0.01,
@@ -643,12 +617,11 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         form_params = list(params if params is not None else default_parameters(start, dynamics=bool(evidence),
                                                                                      hexapod=hexapod))
         notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
-        if screen:
-            fit = _fit(screen_residual, start, form_params, **(replay | {"max_nfev": screen_nfev, "rule": False}))
-        else:
-            fit = _fit(residual_of, start, form_params, **replay)
+        judged = screened if screen else evidence
+        fit = _fit(residual_over(judged), start, form_params,
+                   **(replay | ({"max_nfev": screen_nfev, "rule": False} if screen else {})))
         result = with_values(start, form_params, fit.values)
-        cost = sum(ev.errors(result)["held_out_cost"] for ev in (screened if screen else evidence))
+        cost = sum(ev.errors(result)["held_out_cost"] for ev in judged)
         tried.append({"flow_area": form, "held_out_cost": cost, "start": start, "params": form_params, "fit": fit,
                       "machine": result})
     usable = [t for t in tried if "fit" in t]

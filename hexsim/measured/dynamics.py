@@ -130,6 +130,12 @@ class ReplayEvidence:
         p = self.fitted
         return residual_vector(p, p.simulate(self.model(machine)), self.budget, p.fit_rows)
 
+    @property
+    def residual_size(self) -> int:
+        """Entries of :meth:`residual` (every channel's scored samples of the fit windows), without a replay."""
+        p = self.fitted
+        return sum(p.measured[ch][p.fit_rows, p.settle:].size for ch in p.channels)
+
     def effective_share(self, machine: Machine) -> float:
         """Independent samples per residual of the fit windows (:func:`hexsim.measured.residuals.effective_n`):
         the replay's residuals are not white, and a standard error from all samples would be too small."""

@@ -249,8 +249,8 @@ def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict
         r = rows[key]
         shifted = with_keys(machine, {key: r["value"] + r["std_error"]})
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
-        moved = calibrate(problem, sim, problem.fit_rows)[0]
-        deltas.append({ch: (moved[ch] - base[ch])[:, s:] for ch in problem.channels})
+        after = calibrate(problem, sim, problem.fit_rows)[0]
+        deltas.append({ch: (after[ch] - base[ch])[:, s:] for ch in problem.channels})
     out = {}
     for ch in problem.channels:
         d = np.stack([dl[ch].ravel() for dl in deltas])  # (parameters, samples)

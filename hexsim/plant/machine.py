@@ -615,6 +615,30 @@ def parse_assignment(text: str) -> tuple[str, object]:
     return key, value
 
 
+def shared_path(path: str) -> str:
+    """The shared key a path names: ``legs.legN.KEY`` -> ``KEY``; any other key itself."""
+    return path.split(".", 2)[2] if path.startswith("legs.") else path
+
+
+def get_key(doc: dict, key: str):
+    """The value of ``key`` in a machine-file document ``doc`` (:meth:`Machine.document`), the keys as
+    :func:`with_keys` sets them; ``valve.opening_table[i]``: the opening of point i;
+    ``load.payload_at_m[i]``: element i; ``legs.legN.KEY``: leg N's own value, else the shared KEY's."""
+    path, _, index = key.partition("[")
+    if path.startswith("legs."):
+        _, leg, own = path.split(".", 2)
+        node = doc.get("legs", {}).get(leg, {})
+        for part in own.split("."):
+            node = node.get(part, {}) if isinstance(node, dict) else node
+        return node if not isinstance(node, dict) else get_key(doc, own)
+    node = doc
+    for part in path.split("."):
+        node = node[part]
+    if not index:
+        return node
+    return node[int(index[:-1])][1] if isinstance(node[0], list) else node[int(index[:-1])]
+
+
 def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
     """``machine`` with each dotted key of ``values`` set to its number (``valve.opening_table[i]``: the opening
     of point i; ``load.payload_at_m[i]``: element i of a vector; ``legs.legN.KEY``: leg N's own value of KEY,
@@ -622,7 +646,7 @@ def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
     doc = json.loads(json.dumps(machine.document()))
     for key, value in values.items():
         path, _, index = key.partition("[")
-        own = path.split(".", 2)[2] if path.startswith("legs.") else path  # the key's kind: the shared key's
+        own = shared_path(path)  # the key's kind: the shared key's
         *sections, leaf = path.split(".")
         node = doc
         for part in sections:
