@@ -76,6 +76,7 @@ def calibrated(tmp_path_factory):
 def test_each_legs_valve_edges_the_bulk_modulus_and_the_payload_are_recovered(calibrated):
     _, machine, report = calibrated
     assert report["flow_area"]["chosen"] == "port"
+    assert "closed-loop replay" in report["method"]  # the report says how a hexapod's evidence was replayed
     values = {r["key"]: r["value"] for r in report["parameters"]}
     for leg, (gain, ret) in enumerate(zip(GAINS, RETURN), start=1):
         assert values[f"legs.leg{leg}.valve.edge_gain_PA"] == pytest.approx(gain, rel=0.01)

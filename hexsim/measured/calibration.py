@@ -637,7 +637,8 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     if feats:
         methods.append("steady motions and end-stop pressures")
     if evidence:
-        methods.append("transients (windowed valve replay, hexsim.measured.dynamics)")
+        methods.append("transients (closed-loop replay of the whole log, hexsim.measured.hexapod_replay)" if hexapod
+                       else "transients (windowed valve replay, hexsim.measured.dynamics)")
     report = {"machine": machine.label, "logs": [str(log.path) for log in logs],
               "method": "bounded least squares of " + " and ".join(methods) + " (hexsim.measured.calibration)",
               "weights": {"speed": f"{SPEED_SIGMA_REL:.0%} + {SPEED_SIGMA_ABS * 1e3:g} mm/s",
