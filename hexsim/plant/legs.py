@@ -37,7 +37,10 @@ _DP_TR2 = TRANSITION_DP * TRANSITION_DP
 
 _jit = numba.njit(cache=True, fastmath=False)
 # the scalar equations are inlined into the loops that call them (numba IR inlining): a call per equation
-# would pass the parameter record by value each time
+# would pass the parameter record by value each time. The chamber steps (_chambers, pressure_step,
+# rod_pressure_step) are compiled functions of their own: inlined into step_legs as well (three copies of
+# every equation) the leg step took 107 s to compile on a cold cache (the first run after an install, and
+# each CI worker), 16 s now, for 0-5 % of the run's speed (20 s heave, 30-34x real time either way).
 _inline = numba.njit(cache=True, fastmath=False, inline="always")
 
 
@@ -322,7 +325,7 @@ def chamber_step(p, v_c, net, dnet, volume, dt, P):
     return p_new, 0.0
 
 
-@_inline
+@_jit
 def pressure_step(p1, v_c, x_v, p_s, y, ydot, dt, P, p_rod):
     """(P1 [Pa], cavity volume v_c [m^3]) after a step dt [s] of the bottom (cap-side) chamber; ydot is
     the piston velocity at the start of the step, ``p_rod`` [Pa] the rod side's pressure the internal
@@ -353,7 +356,7 @@ def orifice_rod(x_v, p2, p_s, P):
     return q_in - q_out, -dq_in - dq_out
 
 
-@_inline
+@_jit
 def rod_pressure_step(p2, v_c2, x_v, p_s, p1, y, ydot, dt, P):
     """(P2 [Pa], cavity volume [m^3]) of the rod-side chamber after a step dt [s] (4-way valve): eq. (3.7)
     for chamber B, dP2/dt = E / ((L_s - y) A2 + V_pl,B) (phi_2 - C_l (P2 - P1) + ydot A2), by
@@ -466,7 +469,7 @@ def step_legs(P, dt, u, y, ydot, S, force, groups, supply_flow):
             force[i] = leg_force(p1[i], p_s[i], ydot[i], P[i])
 
 
-@_inline
+@_jit
 def _chambers(i, x_v, y, ydot, dt, S, P):
     """Leg i's chamber pressures over dt [s] at spool position x_v [m], in place in the state S: P1
     (:func:`pressure_step`) and, with a 4-way valve, P2 (:func:`rod_pressure_step`), both from the
