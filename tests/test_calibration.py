@@ -14,7 +14,8 @@ import pytest
 from independent_cylinder import Rig, experiment
 
 from hexsim.cli import main
-from hexsim.measured.calibration import calibrate, default_parameters, features
+from hexsim.measured.calibration import calibrate, features
+from hexsim.measured.parameters import default_parameters
 from hexsim.measured.measurement import read_log
 from hexsim.plant.machine import load_machine, read_machine
 

@@ -19,6 +19,7 @@ from hexsim.measured.calibration import calibrate
 from hexsim.measured.dynamics import STOP_MARGIN_M, away_from_stops
 from hexsim.measured.identify import Problem
 from hexsim.measured.measurement import read_log
+from hexsim.measured.replay import ReplayProblem
 from hexsim.plant.machine import dump, load_machine
 from independent_actuator import Actuator, motion, write
 
@@ -93,6 +94,7 @@ def test_windows_at_the_end_stops_are_not_evidence(tmp_path):
     cols = {"time_s": t, "valve_cmd_V": np.full(t.size, 1.0), "pos_m": y}
     log = read_log(write(cols, tmp_path / "stop.csv", "ramp to the stop"))
     problem = Problem(log)
+    assert isinstance(problem, ReplayProblem)  # every member the identifier and discovery read
     keep = away_from_stops(log, problem, 0.2)
     reach = problem.windows.take(y).max(axis=1)
     assert np.array_equal(keep, reach < 0.2 - STOP_MARGIN_M) and keep.any() and not keep.all()

@@ -138,10 +138,12 @@ def test_discovery_points_at_the_one_leg_with_a_flow_effect(tmp_path):
     from hexsim.measured.discovery import discover
     from hexsim.measured.hexapod_replay import HexapodProblem
     from hexsim.measured.measurement import read_log
+    from hexsim.measured.replay import ReplayProblem
 
     found = {}
     for name, u0 in (("nominal", 0.0), ("leg3_offset", 0.15)):
         problem = HexapodProblem(read_log(_hexapod_log(tmp_path, name, u0)))
+        assert isinstance(problem, ReplayProblem)  # every member the identifier and discovery read
         found[name] = discover(problem, problem.nominal, None, None)["terms"]
     assert found["nominal"] == []
     legs = {t["leg"] for t in found["leg3_offset"]}

@@ -19,18 +19,19 @@ along the axis (:func:`hexsim.plant.hydraulics.steady_state`: flow continuity in
 3.4/3.7 with dP/dt = 0, and the piston's force balance, eq. 3.8 with the friction of eq. 3.9); at an
 end stop P_s and P_t.
 
-**Parameters** (:class:`Parameter`, :func:`default_parameters`): machine-file keys, each with bounds, the
-bounds' source and the experiment that identifies it. A value edits the machine file by its key, so a
-calibrated nominal is a machine file like any other.
+**Parameters** (:mod:`hexsim.measured.parameters`: :class:`ParameterSet`, :func:`default_parameters`):
+machine-file keys, each with bounds, the bounds' source and the experiment that identifies it. A value
+edits the machine file by its key, so a calibrated nominal is a machine file like any other.
 
-**Fit** (:func:`calibrate`): bounded least squares (``scipy.optimize.least_squares``) on the features,
-weighted by :data:`SPEED_SIGMA_REL` / :data:`SPEED_SIGMA_ABS` and :data:`PRESSURE_SIGMA`; standard
-errors and correlations from the Jacobian, s^2 (J^T J)^-1 with s^2 the residual variance. A parameter
-the data cannot separate (a standard error above :data:`MAX_SE_SHARE` of its bound range, or a
-correlation beyond :data:`MAX_CORRELATION` with another, whichever has the larger relative error) is held
-at its prior and the rest refitted; the report says why and which experiment would identify it. A fit
-at a bound is reported as such: a hint that the model lacks something. Held-out logs are predicted, not
-fitted; with three or more fitted logs each is also predicted by a fit on the others (leave one log out).
+**Fit** (:func:`calibrate`, the optimizer :mod:`hexsim.measured.fitting`): bounded least squares
+(``scipy.optimize.least_squares``) on the features, weighted by :data:`SPEED_SIGMA_REL` /
+:data:`SPEED_SIGMA_ABS` and :data:`PRESSURE_SIGMA`; standard errors and correlations from the Jacobian,
+s^2 (J^T J)^-1 with s^2 the residual variance (:mod:`hexsim.measured.statistics`). A parameter the data
+cannot separate (a standard error above a quarter of its bound range, or a correlation beyond 0.98 with
+another, whichever has the larger relative error) is held at its prior and the rest refitted; the report
+says why and which experiment would identify it. A fit at a bound is reported as such: a hint that the
+model lacks something. Held-out logs are predicted, not fitted; with three or more fitted logs each is
+also predicted by a fit on the others (leave one log out).
 """
 
 from __future__ import annotations
@@ -40,15 +41,16 @@ import json
 import math
 import pathlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.parameters import ParameterSet, default_parameters
 from hexsim.plant import hydraulics
-from hexsim.plant.machine import KEYS, Machine, get_key, machine_from_document, shared_path, with_keys
+from hexsim.plant.machine import Machine, machine_from_document
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.simulation.metrics import steady_segments
 
@@ -58,178 +60,9 @@ SPEED_SIGMA_REL = 0.01
 SPEED_SIGMA_ABS = 5e-4
 #: Weight of a median pressure [Pa]: 0.3 bar (the real rig's transducer noise; offsets of that size are common).
 PRESSURE_SIGMA = 3e4
-#: A parameter whose standard error exceeds this share of its bound range is not identified by the data.
-MAX_SE_SHARE = 0.25
-#: Two parameters this correlated trade against each other: the one known worse is held at its prior.
-MAX_CORRELATION = 0.98
 #: End-stop plateau: the last share of a stretch, slower than END_SPEED [m/s], its median within END_MARGIN_M
 #: [m] of the observed end of the travel.
 END_SHARE, END_SPEED, END_MARGIN_M = 0.4, 1e-3, 2e-3
-_UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}
-
-
-def _unit_of(key: str) -> str:
-    """The unit of a parameter's key (a leg's own key: the shared key's; an element: its vector's)."""
-    return _UNITS[shared_path(key.split("[")[0])]
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """One fitted quantity: its machine-file ``key`` (which sets its field and unit, and edits the model),
-    the bounds [lower, upper] in that unit, where the bounds come from, and the experiment that
-    identifies it."""
-
-    key: str
-    lower: float
-    upper: float
-    source: str
-    experiment: str
-    limit: str = ""  # the lower bound is a physical limit, not a bracket (what it is: "the tank at atmosphere")
-    null_value: float | None = None  # what the key's null stands for (load.mass_kg null: the model's mass)
-
-    def prior(self, doc: dict) -> float:
-        """The parameter's value in the machine-file document ``doc`` (its null's meaning when null)."""
-        value = get_key(doc, self.key)
-        return float(self.null_value if value is None else value)
-
-    @property
-    def unit(self) -> str:
-        return _unit_of(self.key)
-
-
-def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool = False) -> list[Parameter]:
-    """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
-    flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
-    valve k_PB, k_BT: k_PA is the reference the flow gain carries), the supply and tank pressures, the Coulomb
-    friction per direction and, on an axis with weight along it, the moving mass. ``dynamics`` (evidence from
-    transients, :mod:`hexsim.measured.dynamics`): also the smooth area's gain k_a (3.11) beside the port, the
-    overlap of the port-limited area, the bulk modulus and dead volumes (3.7), the viscous and static friction
-    per direction (3.9) and the moving mass on any axis (its inertia, 3.8). ``hexapod`` (the logs are a
-    hexapod's): :func:`hexapod_parameters` instead."""
-    if hexapod:
-        return hexapod_parameters(machine)
-    hyd, eff = machine.hydraulics, machine.effects
-    doc = machine.document()
-
-    def rel(key: str, lo: float, hi: float, source: str, experiment: str) -> Parameter:
-        value = get_key(doc, key)
-        return Parameter(key, lo * value, hi * value, source, experiment)
-
-    big = "large commands in both directions (beyond half the range)"
-    small = "small commands (a few % of the range) in both directions"
-    if hyd.flow_area == "table":  # each point's opening (the port's width only scales them all: not fitted)
-        params = [Parameter(f"valve.opening_table[{i}]", 0.7 * f, 1.3 * f, "the data sheet's flow curve within ±30 %",
-                            f"commands near {u:g} V in both directions") for i, (u, f) in enumerate(hyd.opening_table)]
-    elif not dynamics:
-        params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7,
-                      1.3, "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
-    else:  # the flow gain in the supply edge (the port's size the reference the shape is told against)
-        params = [Parameter("valve.edge_gain_PA", 0.7 * eff.edge_gain_pa, 1.3 * eff.edge_gain_pa,
-                            "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
-    x_max = hyd.x_v_max
-    transients = "transients: reversals and steps of a closed loop, or the switches of an open-loop experiment"
-    if dynamics and hyd.flow_area in ("smooth", "port"):  # the shape: where (3.11) meets the port
-        params.append(rel("valve.smooth_area_gain", 0.7, 1.3, "the flow curve's gain at small openings (3.11) "
-                          "within ±30 % of the port's (data sheets state ±10 % flow tolerance)",
-                          f"reversals and commands beyond 1 V ({transients})"))
-    if hyd.flow_area == "sharp":
-        params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
-                                "−3 % (underlap) to +10 % of the spool stroke (servo valves ±0.5 %, proportional "
-                                "valves up to 10 %)", small))
-    elif dynamics and hyd.flow_area == "port":  # its dead band; the smooth area must still meet the port
-        limit = math.pi * hyd.spool_diameter / (4.0 * hyd.smooth_area_gain * 1.3)
-        params.append(Parameter("valve.overlap_m", 0.0, min(0.10 * x_max, 0.9 * limit),
-                                "0 to 10 % of the spool stroke (proportional valves up to 10 %), below where (3.11) "
-                                "no longer meets the port", f"reversals ({transients})"))
-    params.append(Parameter("valve.null_offset_V", -0.03 * hyd.u_v_max, 0.03 * hyd.u_v_max,
-                            "±3 % of the command range (servo-valve data sheets: ≤ 2–3 %)", small))
-    edges = ("AT", "PB", "BT") if hyd.four_way else ("AT",)
-    both = "both directions at several commands, with every chamber pressure logged"
-    for edge in edges:
-        params.append(Parameter(f"valve.edge_gain_{edge}", 0.8, 1.25,
-                                "control edges matched within ±20 % (grinding tolerance, wear)", both))
-    params.append(rel("supply.pressure_Pa", 0.9, 1.1, "±10 % of the set pressure (relief valve, gauge)",
-                      "the piston held against an end stop with the valve open (that chamber reads P_s), or ps_Pa "
-                      "logged"))
-    params.append(Parameter("supply.tank_pressure_Pa", 0.0, 3e5, "return-line back pressure 0–3 bar (filter, "
-                            "cooler, lines)", "the piston held against an end stop (the other chamber reads the "
-                            "tank)", limit="the tank at atmospheric pressure"))
-    speeds = "several speeds in each direction"
-    for side in ("positive", "negative"):
-        params.append(rel(f"friction.{side}.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess (wear, "
-                          "temperature, seal type)", speeds))
-    if dynamics:
-        for side in ("positive", "negative"):
-            params.append(rel(f"friction.{side}.viscous_Nspm", 0.5, 2.0, "viscous seal friction half to twice the "
-                              "guess (oil viscosity with temperature, seal type)", f"a range of speeds ({transients})"))
-            params.append(rel(f"friction.{side}.static_N", 0.5, 2.0, "static (Stribeck) level half to twice the "
-                              "guess", f"slow reversals ({transients})"))
-        params.append(rel("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to "
-                          "less than half with hoses and undissolved air (Merritt §2.5)",
-                          f"the oil spring's ringing and P1's rise ({transients})"))
-        for side in ("cap", "rod") if hyd.four_way else ("cap",):
-            params.append(rel(f"cylinder.dead_volume_{side}_m3", 0.5, 4.0, "hoses, manifold bores and the valve's "
-                              "own volume, half to four times the drawing's", "the oil spring at both ends of the "
-                              "stroke (it trades against the bulk modulus in mid-stroke)"))
-    if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
-        mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
-        params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
-                                "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at speed "
-                                "the weight trades against the Coulomb friction), or weighing it", null_value=mass))
-    return [p for p in params if p.upper > p.lower]
-
-
-def hexapod_parameters(machine: Machine) -> list[Parameter]:
-    """What a hexapod's closed-loop log identifies, for the hexapod ``machine``: each leg's valve, its supply
-    and return edges' flow gains (k_PA, k_AT of that leg, the ``legs`` section: six valves are six data
-    sheets' tolerances), the oil's bulk modulus, the legs' Coulomb friction per direction (one seal type),
-    the payload (mass, and centre of gravity x, y, z in the platform frame) and the supply pressure (a log
-    with ``ps_Pa`` states it: then not fitted)."""
-    doc = machine.document()
-    motion = "closed-loop motion of every leg in both directions (heave, roll, pitch, …)"
-    params = []
-    for leg in range(1, 7):
-        for edge, what in (("PA", "supply edge P→A"), ("AT", "return edge A→T")):
-            key = f"legs.leg{leg}.valve.edge_gain_{edge}"
-            value = float(get_key(doc, key))
-            params.append(Parameter(key, 0.6 * value, 1.5 * value, f"leg {leg}'s valve, its {what}: flow gain within "
-                                    f"±30 % of the guess, edges matched within ±20 % (data sheets: ±10 %)",
-                                    f"{motion}: leg {leg} extending and retracting"))
-    for key, lo, hi, source, experiment in (
-            ("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to less than "
-             "half with hoses and undissolved air (Merritt §2.5)", f"reversals ({motion}): the oil spring's ringing"),
-            ("friction.positive.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion),
-            ("friction.negative.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion)):
-        value = float(get_key(doc, key))
-        params.append(Parameter(key, lo * value, hi * value, source, experiment))
-    platform, joints = _platform(machine)
-    payload = machine.effects.payload_kg
-    params.append(Parameter("load.payload_kg", payload - 0.3 * platform, payload + platform,
-                            f"the platform's mass ({platform:.0f} kg in the model) −30 % to +100 % (not weighed, "
-                            f"a payload on it)", "the platform at rest at the neutral pose (each leg's P1)"))
-    radius = max(0.25, float(np.max(np.linalg.norm(joints[:, :2], axis=1))))
-    for i in range(2):
-        params.append(Parameter(f"load.payload_at_m[{i}]", -radius, radius, "within the platform joints' circle",
-                                "the platform at rest (P1 of each leg), and a roll and a pitch"))
-    params.append(Parameter("load.payload_at_m[2]", -0.2, 0.6, "0.2 m below to 0.6 m above the platform frame's "
-                            "origin (a seat, a cockpit)", "surge and sway (the payload's height tilts the legs' "
-                            "forces as the platform accelerates)"))
-    params.append(Parameter("supply.pressure_Pa", 0.9 * machine.hydraulics.supply_pressure,
-                            1.1 * machine.hydraulics.supply_pressure, "±10 % of the set pressure (relief valve, gauge)",
-                            "ps_Pa logged"))
-    return params
-
-
-def _platform(machine: Machine) -> tuple[float, np.ndarray]:
-    """(the platform's mass [kg], its joints (6, 3) [m] in the platform frame) in the hexapod's model (the
-    built geometry's, or the user's MJCF's)."""
-    from hexsim.control.kinematics import HexapodGeometry
-    from hexsim.plant.model import load_model
-
-    model = load_model("hexapod", geometry=machine.geometry)
-    return float(model.body("platform").mass[0]), HexapodGeometry.from_model(model).platform
-
-
 @dataclass(frozen=True)
 class Feature:
     """One measured quantity of a calibration experiment: which log, the stretch's command u_V [V] and
@@ -331,164 +164,11 @@ def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> 
     return out
 
 
-def with_values(machine: Machine, params: list[Parameter], values) -> Machine:
-    """``machine`` with each parameter's key set to its value (:func:`hexsim.plant.machine.with_keys`)."""
-    return with_keys(machine, {p.key: float(v) for p, v in zip(params, values)})
-
-
-@dataclass
-class Fit:
-    """The outcome of one least-squares fit: values (len(params),) in the keys' units, standard errors,
-    correlation matrix, weighted residuals, and the parameters held at their prior with the reason."""
-
-    params: list[Parameter]
-    values: np.ndarray
-    std_errors: np.ndarray
-    correlation: np.ndarray
-    residuals: np.ndarray
-    held: dict[str, str]
-
-
 def steady_residual(feats: list[Feature], loads: dict) -> Callable[[Machine], np.ndarray]:
     """The weighted residual (predicted - measured) / sigma of the steady ``feats`` as a function of the machine."""
     measured = np.array([f.measured for f in feats])
     sigma = np.array([f.sigma for f in feats])
     return lambda m: (predict(feats, m, loads) - measured) / sigma
-
-
-def _fit(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params: list[Parameter],
-         held: dict[str, str] | None = None, independent_share: Callable[[Machine], float] | None = None,
-         diff_step: float = 1e-4, x_scale=1.0, warm: bool = False, initial: Machine | None = None,
-         max_nfev: int | None = None, rule: bool = True, correlated_se: float = 0.0,
-         notify=lambda text: None) -> Fit:
-    """Bounded least squares of the free parameters (those not in ``held``) in normalised coordinates
-    z = (x - lower) / (upper - lower) on the weighted residual ``residual_of(machine)``; then the
-    held-at-prior rule of the module doc, refitting until no free parameter breaks it.
-    ``independent_share``: independent samples per residual at a machine (replay residuals are not white;
-    default all). ``warm``: after a parameter is held, refit from the values the others reached (the replay's
-    cost is not convex: from the prior again it can fall into another valley), else from the prior.
-    ``initial``: a machine whose values of ``params`` the search starts from (inside the brackets), instead
-    of the prior's. ``max_nfev``: the most evaluations of one least-squares run (scipy's default without).
-    ``rule`` False: one least-squares run of every parameter, no statistics and nothing held (a screening).
-    ``correlated_se``: two parameters correlated beyond MAX_CORRELATION are both kept while the worse known
-    has a standard error within this share of its bracket (:func:`_unidentified`).
-    A machine the residual cannot be computed for (a physics error, an invalid file) costs
-    as a residual of 1e3 per entry."""
-    held = dict(held or {})
-    n_res = len(residual_of(machine))
-
-    def safe(m_values):
-        try:
-            return residual_of(with_values(machine, params, m_values))
-        except (InputError, PhysicsError, FloatingPointError, ValueError):
-            return np.full(n_res, 1e3)
-
-    doc = machine.document()
-    prior = np.array([p.prior(doc) for p in params], dtype=float)
-    lo = np.array([p.lower for p in params])
-    span = np.array([p.upper - p.lower for p in params])
-    start = prior.copy() if initial is None else np.clip(
-        [p.prior(initial.document()) for p in params], lo, lo + span)
-    for i, p in enumerate(params):  # a parameter no feature sees across its whole bracket (a table point beyond
-        if p.key in held or not rule:  # every command of the experiments, the mass of a horizontal axis) is not fitted
-            continue
-        # at the prior, and with the others at three quarters of their brackets (a payload's centre of gravity
-        # moves nothing while its mass is the prior's 0)
-        for others in (prior, lo + 0.75 * span):
-            ends = []
-            for value in (p.lower, p.upper):
-                x = others.copy()
-                x[i] = value
-                ends.append(safe(x))
-            if np.max(np.abs(ends[1] - ends[0])) >= 1e-3:
-                break
-        else:
-            held[p.key] = "the features do not depend on it across its bracket"
-    while True:
-        free = [i for i, p in enumerate(params) if p.key not in held]
-        x = prior.copy()
-        if not free:
-            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), residual_of(machine), held)
-
-        def residual(z, free=free):
-            x[free] = lo[free] + z * span[free]
-            return safe(x)
-
-        # from the previous fit's values (the prior the first time): holding one parameter should not throw
-        # away where the others went
-        z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
-        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=diff_step, x_scale=x_scale,
-                            max_nfev=max_nfev)
-        notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
-        x[free] = lo[free] + sol.x * span[free]
-        if warm:
-            start = x.copy()
-        if not rule:
-            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), sol.fun, held)
-        share = 1.0 if independent_share is None else independent_share(with_values(machine, params, x))
-        se_z, corr = _statistics(sol, share)
-        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], correlated_se)
-        if worst is None:
-            se = np.zeros(len(params))
-            se[free] = se_z * span[free]
-            full = np.eye(len(params))
-            full[np.ix_(free, free)] = corr
-            return Fit(params, x, se, full, sol.fun, held)
-        notify(f"held at its prior: {params[free[worst]].key} ({why})")
-        held[params[free[worst]].key] = why
-
-
-def _statistics(sol, independent_share: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """(standard errors (k,) as shares of each bound range, correlations (k, k)) of a least-squares
-    solution in bracket-normalised coordinates: s^2 (J^T J)^-1, s^2 the residual variance per independent
-    residual (``independent_share`` of the residuals are independent: s^2 = SSR / (share n - k)). A parameter the
-    fit pins at a bound is reported as at a bound and has no standard error (0); scipy's trf also returns
-    its Jacobian column zeroed (the modified Jacobian of an active bound): statistics of the parameters
-    inside their bounds only."""
-    n, k = len(sol.fun), len(sol.x)
-    s2 = float(sol.fun @ sol.fun) / max(independent_share * n - k, 1)
-    inside = _inside(sol)
-    jac = sol.jac[:, inside]
-    se_z, corr = np.zeros(k), np.eye(k)
-    if inside.any():
-        cov = np.linalg.pinv(jac.T @ jac) * s2
-        se_in = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        se_z[inside] = se_in
-        unit = np.where(se_in > 0, se_in, 1.0)
-        corr[np.ix_(inside, inside)] = cov / np.outer(unit, unit)
-    return se_z, corr
-
-
-def _inside(sol) -> np.ndarray:
-    """(k,) bool: the parameters the fit left inside their bounds (normalised coordinates)."""
-    return (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
-
-
-def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str],
-                  correlated_se: float = 0.0) -> tuple[int | None, str]:
-    """The free parameter the features cannot identify, and why (module doc: no sensitivity, a standard
-    error above MAX_SE_SHARE of its bracket, or a correlation beyond MAX_CORRELATION, the worse known of
-    the two, if its standard error is above ``correlated_se`` of its bracket: thousands of replayed samples
-    separate two parameters correlated at 0.997 to 1e-4 of their brackets); (None, "") if every one is
-    identified. ``keys``: the free parameters' keys."""
-    inside = _inside(sol)
-    norms = np.linalg.norm(sol.jac, axis=0)
-    blind = inside & (norms < 1e-9 * max(float(norms.max()), 1e-300))
-    if blind.any():
-        return int(np.argmax(blind)), "the features do not depend on it"
-    if inside.any():
-        j = int(np.argmax(se_z))  # the standard error as a share of the bound range
-        if se_z[j] > MAX_SE_SHARE:
-            return j, f"its standard error is {se_z[j]:.0%} of its bound range"
-    if inside.sum() > 1:
-        c = np.abs(corr - np.eye(len(keys)))
-        a, b = np.unravel_index(int(np.argmax(c)), c.shape)
-        if c[a, b] > MAX_CORRELATION and max(se_z[a], se_z[b]) > correlated_se:
-            worst = a if se_z[a] >= se_z[b] else b
-            other = b if worst == a else a
-            return worst, (f"it trades against {keys[other]} (correlation {corr[a, b]:+.3f}): the features cannot "
-                           f"separate the two")
-    return None, ""
 
 
 def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
@@ -552,7 +232,7 @@ def with_flow_area(machine: Machine, form: str) -> Machine:
 
 
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
-              params: list[Parameter] | None = None, cross_validate: bool = True, dynamics: str = "auto",
+              params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
               flow_areas: tuple[str, ...] | None = None, notify=None) -> tuple[Machine, dict]:
     """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
     doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
@@ -603,9 +283,9 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     # a hexapod's forms are screened on the first segments of its logs (each replay is the whole log's)
     screened = [ev.prefix(HEXAPOD_SCREEN_SEGMENTS) for ev in evidence] if hexapod else evidence
     screen_nfev = HEXAPOD_SCREEN_NFEV if hexapod else SCREEN_NFEV
-    replay = dict(independent_share=independent_share, diff_step=1e-3, x_scale="jac", warm=True,
-                  max_nfev=HEXAPOD_NFEV if hexapod else FIT_NFEV, correlated_se=0.01,
-                  notify=notify) if evidence else {"notify": notify}
+    options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, max_nfev=HEXAPOD_NFEV if hexapod else FIT_NFEV,
+                         correlated_se=0.01) if evidence else FitOptions()
+    share = independent_share if evidence else None
     screen = len(forms) > 1
     tried: list[dict] = []
     for form in forms:  # each form from the prior: a form's calibrated values are another form's far valley
@@ -614,13 +294,13 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         except InputError as exc:
             tried.append({"flow_area": form, "refused": str(exc)})
             continue
-        form_params = list(params if params is not None else default_parameters(start, dynamics=bool(evidence),
-                                                                                     hexapod=hexapod))
+        form_params = (ParameterSet(params) if params is not None else
+                       default_parameters(start, dynamics=bool(evidence), hexapod=hexapod))
         notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
         judged = screened if screen else evidence
-        fit = _fit(residual_over(judged), start, form_params,
-                   **(replay | ({"max_nfev": screen_nfev, "rule": False} if screen else {})))
-        result = with_values(start, form_params, fit.values)
+        fit = fit_parameters(residual_over(judged), start, form_params, independent_share=share, notify=notify,
+                             options=replace(options, max_nfev=screen_nfev, rule=False) if screen else options)
+        result = form_params.apply(start, fit.values)
         cost = sum(ev.errors(result)["held_out_cost"] for ev in judged)
         tried.append({"flow_area": form, "held_out_cost": cost, "start": start, "params": form_params, "fit": fit,
                       "machine": result})
@@ -631,8 +311,9 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     start, params, fit, calibrated = best["start"], best["params"], best["fit"], best["machine"]
     if screen:  # the chosen form calibrated in full from where its screening ended
         notify(f"calibrating {len(params)} parameters with the {best['flow_area']} flow area")
-        fit = _fit(residual_of, start, params, initial=calibrated, **replay)
-        calibrated = with_values(start, params, fit.values)
+        fit = fit_parameters(residual_of, start, params, independent_share=share, initial=calibrated, options=options,
+                             notify=notify)
+        calibrated = params.apply(start, fit.values)
     methods = []
     if feats:
         methods.append("steady motions and end-stop pressures")
@@ -665,9 +346,9 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         for log in steady:
             rest = [f for f in feats if f.log != log.path.name]
             mine = [f for f in feats if f.log == log.path.name]
-            refit = _fit(steady_residual(rest, loads), calibrated, params, fit.held)
-            rows.append({"log": str(log.path), **_errors(mine, predict(mine, with_values(calibrated, params,
-                                                                                           refit.values), loads))})
+            refit = fit_parameters(steady_residual(rest, loads), calibrated, params, fit.held)
+            predicted = predict(mine, params.apply(calibrated, refit.values), loads)
+            rows.append({"log": str(log.path), **_errors(mine, predicted)})
         report["leave_one_log_out"] = rows
     if feats:
         report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
@@ -732,11 +413,10 @@ def _parameter_rows(fit: Fit) -> list[dict]:
     return rows
 
 
-def _add_priors(report: dict, machine: Machine, params: list[Parameter]) -> None:
+def _add_priors(report: dict, machine: Machine, params: ParameterSet) -> None:
     """Each parameter row's prior (the machine's value before calibration), in place."""
-    doc = machine.document()
-    for row, p in zip(report["parameters"], params):
-        row["prior"] = p.prior(doc)
+    for row, value in zip(report["parameters"], params.priors(machine)):
+        row["prior"] = float(value)
 
 
 def table(report: dict) -> str:

@@ -31,8 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_filter
 
-from hexsim.measured.replay import PlantModel
+from hexsim.measured.replay import PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n
+from hexsim.measured.statistics import fit_statistics
 from hexsim.plant import hydraulics
 from hexsim.plant.model import gravity, moving_mass
 
@@ -164,7 +165,7 @@ def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[li
     return terms, found, False
 
 
-def _discover_legs(problem, base: PlantModel, base_scored, budget, score) -> dict:
+def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget, score) -> dict:
     """The flow equation of each hexapod leg on its own logged signals (with that leg's own parameters):
     a leg-level flow effect (leakage, a null offset, an edge) shows in that leg's equation error only.
     The terms that map onto a parameter are added to their leg (:class:`hexsim.plant.effects.LegChange`), the
@@ -261,8 +262,7 @@ def sparse_fit(target: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarra
         xs = x[:, support]
         theta, *_ = np.linalg.lstsq(xs, target, rcond=None)
         r = target - xs @ theta
-        s2 = float(r @ r) / max(effective_n(r[None, :]) - support.size, 1.0)  # per independent residual
-        err = np.sqrt(np.clip(np.diag(np.linalg.pinv(xs.T @ xs)) * s2, 0, None))
+        err = fit_statistics(xs, r, n_independent=effective_n(r[None, :])).std_errors  # per independent residual
         weak = np.abs(theta) < MIN_T * err
         if not np.any(weak):
             coef[support], se[support] = theta, err
@@ -306,7 +306,7 @@ def apply_terms(model: PlantModel, found: dict[str, float], mean_dp: float = 0.0
     return model.replace(hydraulics=hyd, effects=eff), applied
 
 
-def discover(problem, base: PlantModel, base_scored, budget, score=None) -> dict:
+def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, score=None) -> dict:
     """Fit the sparse correction on the fit windows' samples, add what maps onto the model, replay and
     compare on the held-out windows (see the module doc). ``base``/``base_scored``: the model the verdict
     stands on and its :class:`hexsim.measured.identify.Scored`; ``score(problem, sim, budget)`` scores a replay the

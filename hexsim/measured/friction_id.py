@@ -29,6 +29,7 @@ from scipy.optimize import least_squares
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.residuals import effective_n
+from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.plant.params import HydraulicParams
 from hexsim.signals import savgol, savgol_length
@@ -164,10 +165,9 @@ def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = ()) -> 
     unidentifiable ones' reasons; standard errors) of a fit ``sol`` (x, fun, jac) within bounds (lo, hi);
     parameters in ``fixed`` were not fitted (their entries are left for the caller)."""
     free = [i for i, p in enumerate(PARAMS) if p not in fixed]
-    s2 = float(sol.fun @ sol.fun) / max(effective_n(sol.fun[None, :]) - len(free), 1.0)  # filtered: correlated
-    jac = sol.jac[:, free]
-    se = np.zeros(len(PARAMS))
-    se[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac)) * s2, 0, None))
+    is_free = np.isin(np.arange(len(PARAMS)), free)
+    se = fit_statistics(sol.jac, sol.fun, free=is_free, n_parameters=len(free),  # filtered: correlated
+                        n_independent=effective_n(sol.fun[None, :])).std_errors
     # the residual's sensitivity to each parameter over its typical size: a direction the data does not
     # see at all has a zero column, which the pseudo-inverse answers with a standard error of 0
     sensitivity = np.linalg.norm(sol.jac, axis=0) * np.array(X_SCALE)

@@ -62,12 +62,14 @@ from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import (
     CHANNELS,
     PlantModel,
+    ReplayProblem,
     Windows,
     measured_velocity,
     replay,
     nominal_plant,
 )
 from hexsim.measured.residuals import effective_n, noise_of
+from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.effects import EFFECT_NAMES
 from hexsim.plant.machine import with_keys
 from hexsim.signals import near_reversals
@@ -212,7 +214,7 @@ class Budget:
                      "calibration": self.calibration.get(ch, 0.0), "unit": units[ch]} for ch in self.noise}
 
 
-def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
+def measure_budget(problem: ReplayProblem, nominal_sim: dict[str, np.ndarray]) -> Budget:
     """The noise budget of :data:`problem` (see the module doc, step 1); ``nominal_sim`` is the nominal
     model's replay at :data:`REPLAY_DT`."""
     s = problem.settle
@@ -223,7 +225,7 @@ def measure_budget(problem, nominal_sim: dict[str, np.ndarray]) -> Budget:
     return Budget(noise, {ch: math.hypot(numerical[ch], cal.get(ch, 0.0)) for ch in problem.channels}, cal)
 
 
-def calibration_uncertainty(problem, nominal_sim: dict[str, np.ndarray]) -> dict[str, float]:
+def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.ndarray]) -> dict[str, float]:
     """Per channel [SI], what the calibration of the log's machine leaves uncertain in the replay: with the
     fitted parameters' standard errors s_i and correlations C_ij (the machine file's ``calibration`` block,
     :func:`hexsim.measured.calibration.calibrate`), the replay's change d_i when parameter i moves by s_i,
@@ -276,7 +278,7 @@ def model_floor(block: dict, channels) -> dict[str, float]:
     return out
 
 
-def numerical_tolerance(problem, model: PlantModel, fine: dict[str, np.ndarray]) -> dict[str, float]:
+def numerical_tolerance(problem: ReplayProblem, model: PlantModel, fine: dict[str, np.ndarray]) -> dict[str, float]:
     """Per channel [SI], the replay's numerical error for ``model`` (its replay ``fine`` at
     :data:`REPLAY_DT`): the step's, RMS of the replay at 2h minus that at h (Richardson: the error itself
     for a first-order scheme, three times it for a second-order one), and the replay's own
@@ -288,7 +290,7 @@ def numerical_tolerance(problem, model: PlantModel, fine: dict[str, np.ndarray])
             for ch in problem.channels}
 
 
-def with_model_tolerance(problem, model: PlantModel, budget: Budget) -> Budget:
+def with_model_tolerance(problem: ReplayProblem, model: PlantModel, budget: Budget) -> Budget:
     """``budget`` with each channel's numerical tolerance the larger of its own and ``model``'s
     (:func:`numerical_tolerance`): a model with effects (a heavier platform, a sagging supply) has its
     own discretisation error, which the nominal's does not measure."""
@@ -306,7 +308,8 @@ def _bounded(beta: float, channel: str) -> float:
     return float(np.clip(beta, -SCALE_LIMIT[channel], SCALE_LIMIT[channel]))
 
 
-def calibrate(problem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
+def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[dict[str, np.ndarray],
+              dict]:
     """Residuals with the sensor calibration fitted on ``rows`` (least squares, scored samples):
     measured ≈ offset + scale · simulated, the scale for :data:`SCALED` channels only. For windowed
     replays the position starts each window at the measured value, so only its scale is fitted, on the
@@ -359,7 +362,7 @@ class Scored:
     held_out_rms_signals: dict[str, list[float]]  # channel -> RMS per signal (hexapod: per leg / axis) [SI]
 
 
-def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
+def score(problem: ReplayProblem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
     res, cal = calibrate(problem, sim, problem.fit_rows)
     b = budget.total
     s0 = problem.settle
@@ -373,22 +376,22 @@ def score(problem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
     return Scored(res, cal, cost, held, signals)
 
 
-def residual_vector(problem, sim: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
+def residual_vector(problem: ReplayProblem, sim: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
     """Calibrated residuals of ``rows`` (scored samples) divided by the budget, as one vector."""
     return _as_vector(problem, calibrate(problem, sim, rows)[0], budget, rows)
 
 
-def _as_vector(problem, res: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
+def _as_vector(problem: ReplayProblem, res: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
     b = budget.total
     return np.concatenate([(res[ch][rows, problem.settle:] / b[ch]).ravel() for ch in problem.channels])
 
 
-def window_samples(problem, channel: str) -> int:
+def window_samples(problem: ReplayProblem, channel: str) -> int:
     """Scored samples of one window of ``channel``, all its signals together."""
     return problem.measured[channel][0, problem.settle:].size
 
 
-def tolerance_cost(problem, budget: Budget) -> float:
+def tolerance_cost(problem: ReplayProblem, budget: Budget) -> float:
     """Cost per window that the numerical tolerance alone accounts for: sum over channels of
     (scored samples x signals) tau_c^2 / b_c^2."""
     b = budget.total
@@ -423,7 +426,7 @@ class FitResult:
                 "calibration": self.scored.calibration, "function_evaluations": self.nfev}
 
 
-def fit_candidate(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...] = (),
+def fit_candidate(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...] = (),
                   starts=None) -> FitResult:
     """Fit one candidate (a :func:`hexsim.measured.candidates.candidate_key`: all legs, or one leg) on top of
     ``base`` (its parameters held) on the fit windows of ``problem``; score it on all of them. The search
@@ -440,7 +443,7 @@ def fit_candidate(problem, key: str, base: PlantModel, budget: Budget, on_top_of
                      scored=scored, nfev=nfev, leg=leg)
 
 
-def refit_jointly(problem, fits: list[FitResult], budget: Budget) -> list[FitResult]:
+def refit_jointly(problem: ReplayProblem, fits: list[FitResult], budget: Budget) -> list[FitResult]:
     """All accepted effects refitted together from their values (forward selection refits the whole model
     after each step, so an effect fitted first does not keep what the next one explains). Returns one
     FitResult per effect, each holding the joint model and scores."""
@@ -471,7 +474,7 @@ def refit_jointly(problem, fits: list[FitResult], budget: Budget) -> list[FitRes
     return out
 
 
-def _least_squares(problem, make_model, lower, upper, starts, budget: Budget):
+def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, budget: Budget):
     """least_squares (trf) inside the bounds on the fit windows, from the best of ``starts``. Standard
     errors from the Jacobian at the optimum, s^2 (J^T J)^-1 with s^2 per independent residual (N_eff,
     Bartlett: residuals of a dynamic model are not white); none for a parameter at a bound. A model that
@@ -502,16 +505,12 @@ def _least_squares(problem, make_model, lower, upper, starts, budget: Budget):
     scored = score(problem, sim_at(x), budget)
     fit_vec = _as_vector(problem, scored.residuals, budget, problem.fit_rows)  # calibrated on the fit rows
     n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
-    s2 = float(fit_vec @ fit_vec) / max(n_eff - len(x0), 1.0)  # per independent residual
-    free = (x > lower) & (x < upper)
-    se = np.full(len(x0), np.nan)
-    if np.any(free):
-        jf = sol.jac[:, free]
-        se[free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf) * s2), 0, None))
+    # the calibrated fit rows' residuals (not trf's), per independent residual; NaN: no error at a bound
+    se = fit_statistics(sol.jac, fit_vec, free=(x > lower) & (x < upper), n_independent=n_eff, fill=np.nan).std_errors
     return x, se, scored, int(sol.nfev)
 
 
-def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> None:
+def judge(problem: ReplayProblem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> None:
     """Accept or reject ``fit`` against the model it extends (module doc, step 4); sets its
     held_out_gain, p_value, accepted and reasons."""
     test = problem.test_rows
@@ -550,7 +549,7 @@ def judge(problem, base: Scored, fit: FitResult, budget: Budget, tried: int) -> 
     fit.accepted = not reasons
 
 
-def signal_labels(problem, channel: str) -> list[str]:
+def signal_labels(problem: ReplayProblem, channel: str) -> list[str]:
     """Names of the signals of a channel: ``leg1``…``leg6`` or the accelerometer axes on a hexapod."""
     n = _signals(problem.measured[channel]).shape[2]
     if n == 1:
@@ -599,7 +598,7 @@ LEG_STANDOUT = 3.0
 MAX_LEGS = 2
 
 
-def search_problem(problem):
+def search_problem(problem: ReplayProblem):
     """The problem candidates are searched on: a hexapod log's first :data:`SEARCH_SEGMENTS` segments
     (the problem itself if it is not longer), a single-actuator log's own windows."""
     if getattr(problem, "segments", 0) > SEARCH_SEGMENTS:
@@ -607,7 +606,7 @@ def search_problem(problem):
     return problem
 
 
-def _fit_one(problem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...],
+def _fit_one(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget, on_top_of: tuple[str, ...],
              starts=None) -> FitResult:
     """Fit on the search problem, score on the whole log."""
     search = search_problem(problem)
@@ -622,7 +621,7 @@ def _fit_in_worker(source: tuple, key: str, base: PlantModel, budget: Budget,
     return _fit_one(make_problem(*source), key, base, budget, on_top_of, starts)
 
 
-def start_cost(problem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
+def start_cost(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
     """(best start, its cost on the fit windows of the search problem) of a candidate: one replay per
     start, the candidate's own starts and the linearised one (:func:`linear_start`). A start the model
     cannot run scores infinite."""
@@ -688,7 +687,7 @@ def _start_cost_in_worker(source, key, base, budget):
     return start_cost(make_problem(*source), key, base, budget)
 
 
-def standout_legs(problem, scored: Scored, budget: Budget) -> list[int]:
+def standout_legs(problem: ReplayProblem, scored: Scored, budget: Budget) -> list[int]:
     """Hexapod legs (1-6) whose held-out position or P1 error stands out of the others' (see
     :data:`LEG_STANDOUT`), worst first, at most :data:`MAX_LEGS`; [] for a single actuator."""
     if problem.log.system != "hexapod":
@@ -768,8 +767,8 @@ def _parallel(jobs: int, fn, worker, problem, calls: list[tuple], on_done=None) 
     return results
 
 
-def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, base_cost: float, jobs: int,
-            notify) -> tuple[list[str], dict[str, tuple], list[dict]]:
+def _screen(problem: ReplayProblem, log, keys: list[str], base: PlantModel, budget: Budget, base_cost: float,
+            jobs: int, notify) -> tuple[list[str], dict[str, tuple], list[dict]]:
     """Hexapod: the cost of each candidate's best start on the search segments (:func:`start_cost`); the
     :data:`FIT_PER_ROUND` lowest go on to be fitted from that start. Returns (keys to fit, their start,
     the screening table)."""
@@ -785,7 +784,7 @@ def _screen(problem, log, keys: list[str], base: PlantModel, budget: Budget, bas
     return chosen, {keys[i]: (costs[i][0],) for i in ranked[:FIT_PER_ROUND]}, table
 
 
-def _fit_round(problem, log, keys, base: PlantModel, budget: Budget, on_top_of, jobs, bar, notify,
+def _fit_round(problem: ReplayProblem, log, keys, base: PlantModel, budget: Budget, on_top_of, jobs, bar, notify,
                starts: dict[str, tuple] | None = None) -> list[FitResult]:
     starts = starts or {}
     count = [0]
@@ -801,7 +800,7 @@ def _fit_round(problem, log, keys, base: PlantModel, budget: Budget, on_top_of, 
                      [(k, base, budget, on_top_of, starts.get(k)) for k in keys], done)
 
 
-def _round_keys(problem, candidates, accepted: list[FitResult], legs: list[int]) -> list[str]:
+def _round_keys(problem: ReplayProblem, candidates, accepted: list[FitResult], legs: list[int]) -> list[str]:
     """The candidates of a round: every name not yet accepted on all legs, and on a hexapod the
     leg-level ones on each leg that stands out (:func:`standout_legs`)."""
     taken = {a.key for a in accepted}

@@ -18,6 +18,7 @@ import copy
 import dataclasses
 import functools
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import mujoco
 import numpy as np
@@ -111,6 +112,51 @@ class PlantModel:
     def replace(self, **changes) -> "PlantModel":
         """A copy with ``changes`` (hydraulics, effects, leg_changes) applied; leg changes are kept."""
         return dataclasses.replace(self, **changes)
+
+
+@runtime_checkable
+class ReplayProblem(Protocol):
+    """What the identifier (:mod:`hexsim.measured.identify`), the discovery and ``hexsim validate`` read of a
+    log replayed through a model: :class:`hexsim.measured.identify.Problem` (a single actuator's open-loop
+    valve replay in windows) and :class:`hexsim.measured.hexapod_replay.HexapodProblem` (a hexapod's
+    closed-loop replay of the whole log, cut into segments).
+
+    Channel arrays are (rows, samples[, signals]) in physical units: a row is a window or a segment, the
+    first ``settle`` samples of each not scored; ``fit_rows`` are fitted, ``test_rows`` held out."""
+
+    log: MeasurementLog
+    windowed: bool  # each row starts from the measured state (a position offset is then not seen)
+    replay_mode: str  # how the log drives the model, for reports
+    scored: str  # which samples are scored, for reports
+    fit_rows: np.ndarray
+    test_rows: np.ndarray
+    settle: int
+    channels: list[str]
+    scales: dict[str, float]
+    measured: dict[str, np.ndarray]
+    log_noise: dict[str, float]
+    nominal: PlantModel
+
+    def simulate(self, model: PlantModel, dt: float = ...) -> dict[str, np.ndarray]:
+        """The replayed channels of ``model`` (step ``dt`` [s]), each shaped like :attr:`measured`."""
+
+    def replay_error(self, model: PlantModel) -> dict[str, float]:
+        """The replay's own error per channel beyond the model's step (0 where there is none)."""
+
+    @property
+    def units(self) -> dict[str, str]: ...
+
+    @property
+    def window_doc(self) -> dict: ...
+
+    def analysis_view(self, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Residuals per channel as the residual analysis takes them (scored samples only)."""
+
+    def motion_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(u_v, velocity, position, near a reversal) shaped like :meth:`analysis_view`'s arrays."""
+
+    def sample_times(self) -> np.ndarray:
+        """Log times [s] of the samples of :meth:`analysis_view`."""
 
 
 def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:

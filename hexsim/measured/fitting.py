@@ -1,0 +1,187 @@
+"""The calibration's optimizer: bounded least squares of a :class:`~hexsim.measured.parameters.ParameterSet`
+on a machine's weighted residual, and the rule that holds a parameter the data cannot identify at its prior.
+
+The residual is a function of a machine (:class:`hexsim.plant.machine.Machine`): the steady features'
+(:func:`hexsim.measured.calibration.steady_residual`), a log's replay (:class:`hexsim.measured.dynamics.
+ReplayEvidence`), or both concatenated. The parameters are searched in normalised coordinates
+z = (x − lower) / (upper − lower) ∈ [0, 1] (``scipy.optimize.least_squares``, trf); standard errors and
+correlations from :func:`hexsim.measured.statistics.fit_statistics`.
+
+**Held at its prior** (:func:`_unidentified`): a free parameter the residual does not depend on, one whose
+standard error exceeds :data:`MAX_SE_SHARE` of its bound range, or the worse known of two correlated
+beyond :data:`MAX_CORRELATION`, is held at its prior with the reason, and the rest refitted, until none
+breaks the rule. Before the first fit, a parameter no residual entry sees across its whole bracket (at the
+prior, and with the others at three quarters of theirs) is held.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.parameters import ParameterSet
+from hexsim.measured.statistics import fit_statistics
+from hexsim.plant.machine import Machine
+
+#: A parameter whose standard error exceeds this share of its bound range is not identified by the data.
+MAX_SE_SHARE = 0.25
+#: Two parameters this correlated trade against each other: the one known worse is held at its prior.
+MAX_CORRELATION = 0.98
+#: A machine the residual cannot be computed for (a physics error, an invalid file) costs this per entry.
+FAILED_RESIDUAL = 1e3
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How :func:`fit_parameters` searches.
+
+    ``diff_step``, ``x_scale``, ``max_nfev``: scipy's (on z; ``max_nfev`` None: scipy's default).
+    ``warm``: after a parameter is held, refit from the values the others reached (a replay's cost is not
+    convex: from the prior again it can fall into another valley), else from the prior. ``rule`` False: one
+    least-squares run of every parameter, no statistics and nothing held (a screening). ``correlated_se``: two
+    parameters correlated beyond :data:`MAX_CORRELATION` are both kept while the worse known has a standard
+    error within this share of its bracket (thousands of replayed samples separate two parameters correlated at
+    0.997 to 1e-4 of their brackets)."""
+
+    diff_step: float = 1e-4
+    x_scale: float | str = 1.0
+    max_nfev: int | None = None
+    warm: bool = False
+    rule: bool = True
+    correlated_se: float = 0.0
+
+
+@dataclass
+class Fit:
+    """The outcome of one fit: values (k,) in the keys' units, standard errors (k,) (0 for a parameter held
+    or at a bound), correlation matrix (k, k) (the identity outside the fitted block), the weighted residuals
+    at the optimum, and the parameters held at their prior with the reason."""
+
+    params: ParameterSet
+    values: np.ndarray
+    std_errors: np.ndarray
+    correlation: np.ndarray
+    residuals: np.ndarray
+    held: dict[str, str]
+
+    @property
+    def free(self) -> list[int]:
+        """The indices of the parameters not held at their prior."""
+        return [i for i, p in enumerate(self.params) if p.key not in self.held]
+
+
+def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params: ParameterSet,
+                   held: dict[str, str] | None = None, *, options: FitOptions = FitOptions(),
+                   independent_share: Callable[[Machine], float] | None = None, initial: Machine | None = None,
+                   notify: Callable[[str], None] = lambda text: None) -> Fit:
+    """Fit ``params`` of ``machine`` (the nominal, whose values are the priors) to the weighted residual
+    ``residual_of(machine)`` (n,) under ``options`` (module doc), those in ``held`` (key: why) at their prior.
+    ``independent_share``: independent samples per residual at a machine (replay residuals are not white;
+    default all). ``initial``: a machine whose values of ``params`` the search starts from (clipped into the
+    brackets), instead of the prior's. ``notify``: progress lines."""
+    held = dict(held or {})
+    n_res = len(residual_of(machine))
+
+    def safe(values: np.ndarray) -> np.ndarray:
+        try:
+            return residual_of(params.apply(machine, values))
+        except (InputError, PhysicsError, FloatingPointError, ValueError):
+            return np.full(n_res, FAILED_RESIDUAL)
+
+    prior, lo, span = params.priors(machine), params.lower, params.span
+    start = prior.copy() if initial is None else np.clip(params.priors(initial), lo, lo + span)
+    if options.rule:
+        held |= _blind(safe, params, prior, held)
+    while True:
+        free = [i for i, p in enumerate(params) if p.key not in held]
+        x = prior.copy()
+        if not free:
+            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), residual_of(machine), held)
+
+        def residual(z, free=free):
+            x[free] = lo[free] + z * span[free]
+            return safe(x)
+
+        # from the previous fit's values (the prior the first time): holding one parameter should not throw
+        # away where the others went
+        z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
+        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=options.diff_step, x_scale=options.x_scale,
+                            max_nfev=options.max_nfev)
+        notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
+        x[free] = lo[free] + sol.x * span[free]
+        if options.warm:
+            start = x.copy()
+        if not options.rule:
+            return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), sol.fun, held)
+        share = 1.0 if independent_share is None else independent_share(params.apply(machine, x))
+        stats = fit_statistics(sol.jac, sol.fun, free=_inside(sol), n_independent=share * len(sol.fun))
+        se_z, corr = stats.std_errors, stats.correlation
+        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
+        if worst is None:
+            se = np.zeros(len(params))
+            se[free] = se_z * span[free]
+            full = np.eye(len(params))
+            full[np.ix_(free, free)] = corr
+            return Fit(params, x, se, full, sol.fun, held)
+        notify(f"held at its prior: {params[free[worst]].key} ({why})")
+        held[params[free[worst]].key] = why
+
+
+def _blind(safe: Callable[[np.ndarray], np.ndarray], params: ParameterSet, prior: np.ndarray,
+           held: dict[str, str]) -> dict[str, str]:
+    """The parameters (not already ``held``) no residual entry sees across their whole bracket (a table
+    point beyond every command of the experiments, the mass of a horizontal axis): at the prior, and with the
+    others at three quarters of their brackets (a payload's centre of gravity moves nothing while its mass is
+    the prior's 0). ``safe``: the residual (n,) at values (k,)."""
+    lo, span = params.lower, params.span
+    blind = {}
+    for i, p in enumerate(params):
+        if p.key in held:
+            continue
+        for others in (prior, lo + 0.75 * span):
+            ends = []
+            for value in (p.lower, p.upper):
+                x = others.copy()
+                x[i] = value
+                ends.append(safe(x))
+            if np.max(np.abs(ends[1] - ends[0])) >= 1e-3:
+                break
+        else:
+            blind[p.key] = "the features do not depend on it across its bracket"
+    return blind
+
+
+def _inside(sol) -> np.ndarray:
+    """(k,) bool: the parameters the fit left inside their bounds (normalised coordinates). scipy's trf
+    returns the Jacobian column of a parameter at an active bound zeroed: it is not a free variable there."""
+    return (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
+
+
+def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str],
+                  correlated_se: float = 0.0) -> tuple[int | None, str]:
+    """The free parameter the features cannot identify, and why (module doc: no sensitivity, a standard
+    error above MAX_SE_SHARE of its bracket, or a correlation beyond MAX_CORRELATION, the worse known of
+    the two, if its standard error is above ``correlated_se`` of its bracket); (None, "") if every one is
+    identified. ``se_z`` (f,): standard errors as shares of the brackets; ``keys``: the free parameters'."""
+    inside = _inside(sol)
+    norms = np.linalg.norm(sol.jac, axis=0)
+    blind = inside & (norms < 1e-9 * max(float(norms.max()), 1e-300))
+    if blind.any():
+        return int(np.argmax(blind)), "the features do not depend on it"
+    if inside.any():
+        j = int(np.argmax(se_z))  # the standard error as a share of the bound range
+        if se_z[j] > MAX_SE_SHARE:
+            return j, f"its standard error is {se_z[j]:.0%} of its bound range"
+    if inside.sum() > 1:
+        c = np.abs(corr - np.eye(len(keys)))
+        a, b = np.unravel_index(int(np.argmax(c)), c.shape)
+        if c[a, b] > MAX_CORRELATION and max(se_z[a], se_z[b]) > correlated_se:
+            worst = a if se_z[a] >= se_z[b] else b
+            other = b if worst == a else a
+            return worst, (f"it trades against {keys[other]} (correlation {corr[a, b]:+.3f}): the features cannot "
+                           f"separate the two")
+    return None, ""

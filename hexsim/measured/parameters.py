@@ -1,0 +1,225 @@
+"""The parameters a calibration fits (:mod:`hexsim.measured.calibration`): each a machine-file key with its
+bounds, the bounds' source and the experiment that identifies it; a :class:`ParameterSet` reads their priors
+from a machine (the nominal, :class:`hexsim.plant.machine.Machine`) and writes values into one.
+
+A parameter's key sets its field, its unit (the machine file's, :data:`hexsim.plant.machine.KEYS`) and how it
+edits the model (:func:`hexsim.plant.machine.with_keys`): a calibrated nominal is a machine file like any
+other. :func:`default_parameters` is what a data sheet brackets on one actuator, :func:`hexapod_parameters`
+on a hexapod (docs/calibration.md lists both with their sources).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from hexsim.plant.machine import KEYS, Machine, get_key, shared_path, with_keys
+from hexsim.plant.model import moving_mass
+
+_UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}
+
+
+def _unit_of(key: str) -> str:
+    """The unit of a parameter's key (a leg's own key: the shared key's; an element: its vector's)."""
+    return _UNITS[shared_path(key.split("[")[0])]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One fitted quantity: its machine-file ``key`` (which sets its field and unit, and edits the model),
+    the bounds [lower, upper] in that unit, where the bounds come from, and the experiment that
+    identifies it."""
+
+    key: str
+    lower: float
+    upper: float
+    source: str
+    experiment: str
+    limit: str = ""  # the lower bound is a physical limit, not a bracket (what it is: "the tank at atmosphere")
+    null_value: float | None = None  # what the key's null stands for (load.mass_kg null: the model's mass)
+
+    def prior(self, doc: dict) -> float:
+        """The parameter's value in the machine-file document ``doc`` (its null's meaning when null)."""
+        value = get_key(doc, self.key)
+        return float(self.null_value if value is None else value)
+
+    @property
+    def unit(self) -> str:
+        return _unit_of(self.key)
+
+
+class ParameterSet:
+    """The parameters of one fit, in order: their keys, bounds (k,) in the keys' units, their priors in a
+    machine and the machine a vector of values makes. Raises ValueError for a key given twice."""
+
+    def __init__(self, members: Iterable[Parameter]) -> None:
+        self.members = tuple(members)
+        keys = [p.key for p in self.members]
+        if len(set(keys)) != len(keys):
+            raise ValueError(f"a parameter given twice: {sorted(k for k in set(keys) if keys.count(k) > 1)}")
+        self.lower = np.array([p.lower for p in self.members], dtype=float)
+        self.upper = np.array([p.upper for p in self.members], dtype=float)
+
+    def __iter__(self) -> Iterator[Parameter]:
+        return iter(self.members)
+
+    def __len__(self) -> int:
+        return len(self.members)
+
+    def __getitem__(self, i: int) -> Parameter:
+        return self.members[i]
+
+    @property
+    def keys(self) -> list[str]:
+        return [p.key for p in self.members]
+
+    @property
+    def span(self) -> np.ndarray:
+        """(k,) upper - lower, in the keys' units."""
+        return self.upper - self.lower
+
+    def priors(self, machine: Machine) -> np.ndarray:
+        """(k,) each parameter's value in ``machine`` (its null's meaning where the file says null)."""
+        doc = machine.document()
+        return np.array([p.prior(doc) for p in self.members], dtype=float)
+
+    def apply(self, machine: Machine, values) -> Machine:
+        """``machine`` with each parameter's key set to its value in ``values`` (k,)
+        (:func:`hexsim.plant.machine.with_keys`: the file's own checks apply; InputError if one fails)."""
+        return with_keys(machine, {p.key: float(v) for p, v in zip(self.members, values)})
+
+
+def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool = False) -> ParameterSet:
+    """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
+    flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
+    valve k_PB, k_BT: k_PA is the reference the flow gain carries), the supply and tank pressures, the Coulomb
+    friction per direction and, on an axis with weight along it, the moving mass. ``dynamics`` (evidence from
+    transients, :mod:`hexsim.measured.dynamics`): also the smooth area's gain k_a (3.11) beside the port, the
+    overlap of the port-limited area, the bulk modulus and dead volumes (3.7), the viscous and static friction
+    per direction (3.9) and the moving mass on any axis (its inertia, 3.8). ``hexapod`` (the logs are a
+    hexapod's): :func:`hexapod_parameters` instead."""
+    if hexapod:
+        return hexapod_parameters(machine)
+    hyd, eff = machine.hydraulics, machine.effects
+    doc = machine.document()
+
+    def rel(key: str, lo: float, hi: float, source: str, experiment: str) -> Parameter:
+        value = get_key(doc, key)
+        return Parameter(key, lo * value, hi * value, source, experiment)
+
+    big = "large commands in both directions (beyond half the range)"
+    small = "small commands (a few % of the range) in both directions"
+    if hyd.flow_area == "table":  # each point's opening (the port's width only scales them all: not fitted)
+        params = [Parameter(f"valve.opening_table[{i}]", 0.7 * f, 1.3 * f, "the data sheet's flow curve within ±30 %",
+                            f"commands near {u:g} V in both directions") for i, (u, f) in enumerate(hyd.opening_table)]
+    elif not dynamics:
+        params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7,
+                      1.3, "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
+    else:  # the flow gain in the supply edge (the port's size the reference the shape is told against)
+        params = [Parameter("valve.edge_gain_PA", 0.7 * eff.edge_gain_pa, 1.3 * eff.edge_gain_pa,
+                            "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
+    x_max = hyd.x_v_max
+    transients = "transients: reversals and steps of a closed loop, or the switches of an open-loop experiment"
+    if dynamics and hyd.flow_area in ("smooth", "port"):  # the shape: where (3.11) meets the port
+        params.append(rel("valve.smooth_area_gain", 0.7, 1.3, "the flow curve's gain at small openings (3.11) "
+                          "within ±30 % of the port's (data sheets state ±10 % flow tolerance)",
+                          f"reversals and commands beyond 1 V ({transients})"))
+    if hyd.flow_area == "sharp":
+        params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
+                                "−3 % (underlap) to +10 % of the spool stroke (servo valves ±0.5 %, proportional "
+                                "valves up to 10 %)", small))
+    elif dynamics and hyd.flow_area == "port":  # its dead band; the smooth area must still meet the port
+        limit = math.pi * hyd.spool_diameter / (4.0 * hyd.smooth_area_gain * 1.3)
+        params.append(Parameter("valve.overlap_m", 0.0, min(0.10 * x_max, 0.9 * limit),
+                                "0 to 10 % of the spool stroke (proportional valves up to 10 %), below where (3.11) "
+                                "no longer meets the port", f"reversals ({transients})"))
+    params.append(Parameter("valve.null_offset_V", -0.03 * hyd.u_v_max, 0.03 * hyd.u_v_max,
+                            "±3 % of the command range (servo-valve data sheets: ≤ 2–3 %)", small))
+    edges = ("AT", "PB", "BT") if hyd.four_way else ("AT",)
+    both = "both directions at several commands, with every chamber pressure logged"
+    for edge in edges:
+        params.append(Parameter(f"valve.edge_gain_{edge}", 0.8, 1.25,
+                                "control edges matched within ±20 % (grinding tolerance, wear)", both))
+    params.append(rel("supply.pressure_Pa", 0.9, 1.1, "±10 % of the set pressure (relief valve, gauge)",
+                      "the piston held against an end stop with the valve open (that chamber reads P_s), or ps_Pa "
+                      "logged"))
+    params.append(Parameter("supply.tank_pressure_Pa", 0.0, 3e5, "return-line back pressure 0–3 bar (filter, "
+                            "cooler, lines)", "the piston held against an end stop (the other chamber reads the "
+                            "tank)", limit="the tank at atmospheric pressure"))
+    speeds = "several speeds in each direction"
+    for side in ("positive", "negative"):
+        params.append(rel(f"friction.{side}.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess (wear, "
+                          "temperature, seal type)", speeds))
+    if dynamics:
+        for side in ("positive", "negative"):
+            params.append(rel(f"friction.{side}.viscous_Nspm", 0.5, 2.0, "viscous seal friction half to twice the "
+                              "guess (oil viscosity with temperature, seal type)", f"a range of speeds ({transients})"))
+            params.append(rel(f"friction.{side}.static_N", 0.5, 2.0, "static (Stribeck) level half to twice the "
+                              "guess", f"slow reversals ({transients})"))
+        params.append(rel("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to "
+                          "less than half with hoses and undissolved air (Merritt §2.5)",
+                          f"the oil spring's ringing and P1's rise ({transients})"))
+        for side in ("cap", "rod") if hyd.four_way else ("cap",):
+            params.append(rel(f"cylinder.dead_volume_{side}_m3", 0.5, 4.0, "hoses, manifold bores and the valve's "
+                              "own volume, half to four times the drawing's", "the oil spring at both ends of the "
+                              "stroke (it trades against the bulk modulus in mid-stroke)"))
+    if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
+        mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
+        params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
+                                "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at speed "
+                                "the weight trades against the Coulomb friction), or weighing it", null_value=mass))
+    return ParameterSet(p for p in params if p.upper > p.lower)
+
+
+def hexapod_parameters(machine: Machine) -> ParameterSet:
+    """What a hexapod's closed-loop log identifies, for the hexapod ``machine``: each leg's valve, its supply
+    and return edges' flow gains (k_PA, k_AT of that leg, the ``legs`` section: six valves are six data
+    sheets' tolerances), the oil's bulk modulus, the legs' Coulomb friction per direction (one seal type),
+    the payload (mass, and centre of gravity x, y, z in the platform frame) and the supply pressure (a log
+    with ``ps_Pa`` states it: then not fitted)."""
+    doc = machine.document()
+    motion = "closed-loop motion of every leg in both directions (heave, roll, pitch, …)"
+    params = []
+    for leg in range(1, 7):
+        for edge, what in (("PA", "supply edge P→A"), ("AT", "return edge A→T")):
+            key = f"legs.leg{leg}.valve.edge_gain_{edge}"
+            value = float(get_key(doc, key))
+            params.append(Parameter(key, 0.6 * value, 1.5 * value, f"leg {leg}'s valve, its {what}: flow gain within "
+                                    f"±30 % of the guess, edges matched within ±20 % (data sheets: ±10 %)",
+                                    f"{motion}: leg {leg} extending and retracting"))
+    for key, lo, hi, source, experiment in (
+            ("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to less than "
+             "half with hoses and undissolved air (Merritt §2.5)", f"reversals ({motion}): the oil spring's ringing"),
+            ("friction.positive.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion),
+            ("friction.negative.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion)):
+        value = float(get_key(doc, key))
+        params.append(Parameter(key, lo * value, hi * value, source, experiment))
+    platform, joints = _platform(machine)
+    payload = machine.effects.payload_kg
+    params.append(Parameter("load.payload_kg", payload - 0.3 * platform, payload + platform,
+                            f"the platform's mass ({platform:.0f} kg in the model) −30 % to +100 % (not weighed, "
+                            f"a payload on it)", "the platform at rest at the neutral pose (each leg's P1)"))
+    radius = max(0.25, float(np.max(np.linalg.norm(joints[:, :2], axis=1))))
+    for i in range(2):
+        params.append(Parameter(f"load.payload_at_m[{i}]", -radius, radius, "within the platform joints' circle",
+                                "the platform at rest (P1 of each leg), and a roll and a pitch"))
+    params.append(Parameter("load.payload_at_m[2]", -0.2, 0.6, "0.2 m below to 0.6 m above the platform frame's "
+                            "origin (a seat, a cockpit)", "surge and sway (the payload's height tilts the legs' "
+                            "forces as the platform accelerates)"))
+    params.append(Parameter("supply.pressure_Pa", 0.9 * machine.hydraulics.supply_pressure,
+                            1.1 * machine.hydraulics.supply_pressure, "±10 % of the set pressure (relief valve, gauge)",
+                            "ps_Pa logged"))
+    return ParameterSet(params)
+
+
+def _platform(machine: Machine) -> tuple[float, np.ndarray]:
+    """(the platform's mass [kg], its joints (6, 3) [m] in the platform frame) in the hexapod's model (the
+    built geometry's, or the user's MJCF's)."""
+    from hexsim.control.kinematics import HexapodGeometry
+    from hexsim.plant.model import load_model
+
+    model = load_model("hexapod", geometry=machine.geometry)
+    return float(model.body("platform").mass[0]), HexapodGeometry.from_model(model).platform
