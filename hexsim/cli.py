@@ -295,7 +295,8 @@ def _progress_line(text: str) -> None:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from hexsim.measured.measurement import read_log
-    from hexsim.measured.validation import effect_label, plus_minus, validate
+    from hexsim.measured.reports.validation import effect_label, plus_minus
+    from hexsim.measured.validation import validate
 
     _check_outputs(args)
     if args.jobs < 1:
@@ -339,7 +340,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_friction(args: argparse.Namespace) -> int:
-    from hexsim.measured.friction_id import identify_friction, plot_map
+    from hexsim.measured.friction_id import identify_friction
+    from hexsim.measured.reports.friction import plot_map
     from hexsim.measured.measurement import read_log
 
     _check_outputs(args)
@@ -369,7 +371,8 @@ def cmd_friction(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from hexsim.measured.calibration import calibrate, table
+    from hexsim.measured.calibration import calibrate
+    from hexsim.measured.reports.calibration import table
     from hexsim.measured.measurement import read_log
     from hexsim.plant.machine import dump, load_machine, machine_from_document
 
@@ -397,7 +400,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     write_atomic(args.out, lambda tmp: tmp.write_text(dump(doc), encoding="utf-8"))
     print(f"wrote {args.out}")
     if args.report is not None:
-        from hexsim.measured.calibration import markdown, plot_features
+        from hexsim.measured.reports.calibration import markdown, plot_features
 
         args.report.mkdir(parents=True, exist_ok=True)
         plot_features(report, args.report / "features.png")

@@ -1,0 +1,33 @@
+"""The friction map's figure (:func:`hexsim.measured.friction_id.identify_friction`, ``hexsim friction --plot``)."""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from hexsim.measured.friction_id import PARAMS, V_MIN, stribeck
+
+
+def plot_map(result: dict, path: pathlib.Path) -> None:
+    from matplotlib.figure import (
+        Figure,  # no pyplot: the user's backend is never switched
+    )
+
+    from hexsim.outputs.plotting import save_figure
+
+    vel, ff = result["_samples"]
+    fig = Figure(figsize=(7, 4.5), layout="tight")
+    ax = fig.subplots()
+    ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g cos θ (seed eq. 2.3)")
+    for side, sgn in (("positive", 1), ("negative", -1)):
+        x = np.array([result[side]["parameters"][p]["value"] for p in PARAMS])
+        v = sgn * np.linspace(V_MIN, max(np.abs(vel).max(), 2 * V_MIN), 200)
+        ax.plot(v, stribeck(v, x, result.get("_hydraulics")), color="C0" if sgn > 0 else "C3",
+                label=f"Stribeck fit, {side} (seed eq. 3.9)")
+    ax.set_xlabel("velocity [m/s]")
+    ax.set_ylabel("friction force [N]")
+    names = [pathlib.Path(part).name for part in result["log"].split(", ")]
+    ax.set_title("friction-velocity map: " + (names[0] if len(names) == 1 else f"{len(names)} experiments"))
+    ax.legend(fontsize=8, markerscale=20)
+    save_figure(fig, path, dpi=100)
