@@ -230,27 +230,39 @@ def with_flow_area(machine: Machine, form: str) -> Machine:
     return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 
-def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
-              params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
-              flow_areas: tuple[str, ...] | None = None, notify=None) -> tuple[Machine, dict]:
-    """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
-    doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
-    the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
-    closed-loop motions, steps); ``dynamics`` "always" adds the transients of the constant-command
-    experiments too, "never" reads steady features only. With transients the valve's flow-area form is
-    chosen among ``flow_areas`` (default :func:`_forms`) by the held-out windows' cost, each form calibrated.
+@dataclass
+class _Evidence:
+    """What a calibration fits, read from its logs: the steady features of the constant-command experiments
+    (``feats``, from the ``steady`` logs; ``loads`` per log file name) and the replays of the others
+    (``replays``: :class:`hexsim.measured.dynamics.ReplayEvidence`); ``hexapod`` for hexapod logs."""
 
-    Returns the calibrated machine (its ``calibration`` the report without the feature rows) and the
-    report: per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
-    held at its prior: why, and the experiment that would identify it), the correlations of the fitted ones,
-    the errors before/after on the fitted features and held-out windows, on each held-out log and
-    (``cross_validate``, three or more steady logs) on each log left out of a refit, and the feature rows.
-    Raises InputError for a log that is not evidence of either kind, or an unknown ``dynamics``."""
+    steady: list[MeasurementLog]
+    feats: list[Feature]
+    loads: dict
+    replays: list
+    hexapod: bool
+
+    def residual(self, replays: list | None = None) -> Callable[[Machine], np.ndarray]:
+        """The weighted residual of a machine: the steady features' and each replay's (default all of them;
+        the screening passes their prefixes)."""
+        steady_of = steady_residual(self.feats, self.loads)
+        replays = self.replays if replays is None else replays
+        return lambda m: np.concatenate([steady_of(m), *(ev.residual(m) for ev in replays)])
+
+    def independent_share(self, m: Machine) -> float:
+        """Independent samples per residual entry at machine ``m`` (features: each; replays: their own)."""
+        sizes = [len(self.feats)] + [ev.residual_size for ev in self.replays]
+        shares = [1.0] + [ev.effective_share(m) for ev in self.replays]
+        return float(np.dot(sizes, shares) / max(sum(sizes), 1))
+
+
+def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine: Machine, dynamics: str) -> _Evidence:
+    """The evidence of ``logs`` (see :func:`calibrate`). Raises InputError for an unknown ``dynamics``, logs of a
+    hexapod and a single actuator together, a hexapod with ``dynamics`` "never", or two logs of one file name."""
     from hexsim.measured.dynamics import ReplayEvidence
 
     if dynamics not in DYNAMICS:
         raise InputError(f"dynamics {dynamics!r}: expected one of {', '.join(DYNAMICS)}")
-    notify = notify or (lambda text: None)
     systems = {log.system for log in (*logs, *held_out)}
     if len(systems) > 1:
         raise InputError("hexapod and single-actuator logs together: a calibration reads the logs of one machine")
@@ -261,102 +273,142 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     steady = list(logs) if dynamics == "never" else [log for log in logs if _is_steady(log)]
     moving = [] if dynamics == "never" else list(logs) if dynamics == "always" else [
         log for log in logs if log not in steady]
-    feats = [f for log in steady for f in features(log)]
     loads = {log.path.name: axis_load(log) for log in (*logs, *held_out)}
     if len(loads) < len(logs) + len(held_out):
         raise InputError("two logs of the same file name: calibration names features by their log's file name")
-    evidence = [ReplayEvidence.of(log, machine) for log in moving]
-    steady_of = steady_residual(feats, loads)
+    return _Evidence(steady, [f for log in steady for f in features(log)], loads,
+                     [ReplayEvidence.of(log, machine) for log in moving], hexapod)
 
-    def residual_over(evs: list[ReplayEvidence]) -> Callable[[Machine], np.ndarray]:
-        return lambda m: np.concatenate([steady_of(m), *(ev.residual(m) for ev in evs)])
 
-    residual_of = residual_over(evidence)
-
-    def independent_share(m: Machine) -> float:
-        sizes = [len(feats)] + [ev.residual_size for ev in evidence]
-        shares = [1.0] + [ev.effective_share(m) for ev in evidence]
-        return float(np.dot(sizes, shares) / max(sum(sizes), 1))
-
-    forms = _forms(machine, flow_areas) if evidence else (machine.hydraulics.flow_area,)
-    # a hexapod's forms are screened on the first segments of its logs (each replay is the whole log's)
-    screened = [ev.prefix(HEXAPOD_SCREEN_SEGMENTS) for ev in evidence] if hexapod else evidence
-    screen_nfev = HEXAPOD_SCREEN_NFEV if hexapod else SCREEN_NFEV
-    options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, max_nfev=HEXAPOD_NFEV if hexapod else FIT_NFEV,
-                         correlated_se=0.01) if evidence else FitOptions()
-    share = independent_share if evidence else None
+def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, flow_areas: tuple[str, ...] | None,
+                 notify: Callable[[str], None]) -> tuple[dict, list[dict]]:
+    """Calibrate each flow-area form (default :func:`_forms`; with transients only, else the machine's own),
+    each from the prior (a form's calibrated values are another form's far valley): with more than one, a
+    screening (a few evaluations, no held-at-prior rule; a hexapod's on its logs' first segments, each replay
+    being the whole log's), then the form that predicts the held-out windows best calibrated in full from
+    where its screening ended. Returns (the chosen: ``flow_area``, ``start`` machine, ``params``, ``fit``,
+    ``machine``; every form tried, with its held-out cost or why it was refused). Raises InputError if no
+    form could be calibrated."""
+    forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
+    options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01,
+                         max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV) if ev.replays else FitOptions()
+    share = ev.independent_share if ev.replays else None
     screen = len(forms) > 1
+    judged = ([r.prefix(HEXAPOD_SCREEN_SEGMENTS) for r in ev.replays] if ev.hexapod else ev.replays) if screen \
+        else ev.replays
+    screening = replace(options, max_nfev=HEXAPOD_SCREEN_NFEV if ev.hexapod else SCREEN_NFEV, rule=False)
     tried: list[dict] = []
-    for form in forms:  # each form from the prior: a form's calibrated values are another form's far valley
+    for form in forms:
         try:
             start = machine if form == machine.hydraulics.flow_area else with_flow_area(machine, form)
         except InputError as exc:
             tried.append({"flow_area": form, "refused": str(exc)})
             continue
         form_params = (ParameterSet(params) if params is not None else
-                       default_parameters(start, dynamics=bool(evidence), hexapod=hexapod))
+                       default_parameters(start, dynamics=bool(ev.replays), hexapod=ev.hexapod))
         notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
-        judged = screened if screen else evidence
-        fit = fit_parameters(residual_over(judged), start, form_params, independent_share=share, notify=notify,
-                             options=replace(options, max_nfev=screen_nfev, rule=False) if screen else options)
+        fit = fit_parameters(ev.residual(judged), start, form_params, independent_share=share, notify=notify,
+                             options=screening if screen else options)
         result = form_params.apply(start, fit.values)
-        cost = sum(ev.errors(result)["held_out_cost"] for ev in judged)
-        tried.append({"flow_area": form, "held_out_cost": cost, "start": start, "params": form_params, "fit": fit,
-                      "machine": result})
+        tried.append({"flow_area": form, "held_out_cost": sum(r.errors(result)["held_out_cost"] for r in judged),
+                      "start": start, "params": form_params, "fit": fit, "machine": result})
     usable = [t for t in tried if "fit" in t]
     if not usable:
         raise InputError(f"{machine.label}: no flow-area form could be calibrated ({tried[0]['refused']})")
-    best = min(usable, key=lambda t: t["held_out_cost"])
-    start, params, fit, calibrated = best["start"], best["params"], best["fit"], best["machine"]
-    if screen:  # the chosen form calibrated in full from where its screening ended
-        notify(f"calibrating {len(params)} parameters with the {best['flow_area']} flow area")
-        fit = fit_parameters(residual_of, start, params, independent_share=share, initial=calibrated, options=options,
-                             notify=notify)
-        calibrated = params.apply(start, fit.values)
+    best = dict(min(usable, key=lambda t: t["held_out_cost"]))
+    if screen:
+        notify(f"calibrating {len(best['params'])} parameters with the {best['flow_area']} flow area")
+        best["fit"] = fit_parameters(ev.residual(), best["start"], best["params"], independent_share=share,
+                                     initial=best["machine"], options=options, notify=notify)
+        best["machine"] = best["params"].apply(best["start"], best["fit"].values)
+    return best, tried
+
+
+def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
+              params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
+              flow_areas: tuple[str, ...] | None = None, notify=None) -> tuple[Machine, dict]:
+    """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
+    doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
+    the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
+    closed-loop motions, steps), or of hexapod logs (their closed-loop replay); ``dynamics`` "always" adds
+    the transients of the constant-command experiments too, "never" reads steady features only. With
+    transients the valve's flow-area form is chosen among ``flow_areas`` (default :func:`_forms`) by the
+    held-out windows' cost (:func:`_choose_form`).
+
+    Returns the calibrated machine (its ``calibration`` the report without the feature rows) and the
+    report: per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
+    held at its prior: why, and the experiment that would identify it), the correlations of the fitted ones,
+    the errors before/after on the fitted features and held-out windows, on each held-out log and
+    (``cross_validate``, three or more steady logs) on each log left out of a refit, and the feature rows.
+    Raises InputError for a log that is not evidence of either kind, or an unknown ``dynamics``."""
+    notify = notify or (lambda text: None)
+    ev = _gather(logs, held_out, machine, dynamics)
+    best, tried = _choose_form(ev, machine, params, flow_areas, notify)
+    report = _report(ev, machine, best, tried, logs)
+    if held_out:
+        report["held_out"] = _held_out(held_out, machine, best["machine"], ev.loads)
+    if cross_validate and len(ev.steady) >= 3 and not ev.replays:
+        report["leave_one_log_out"] = _leave_one_log_out(ev, best)
+    if ev.feats:
+        steady_names = {log.path.name for log in ev.steady}
+        before, after = predict(ev.feats, machine, ev.loads), predict(ev.feats, best["machine"], ev.loads)
+        report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
+                          for f, b, a in zip(ev.feats, before, after) if f.log in steady_names]
+    return _with_provenance(best["machine"], machine, report, best["flow_area"], len(logs)), report
+
+
+def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs: list[MeasurementLog]) -> dict:
+    """The calibration's report without the held-out logs, the leave-one-out refits and the feature rows
+    (:func:`calibrate` adds them)."""
+    fit, calibrated = best["fit"], best["machine"]
     methods = []
-    if feats:
+    if ev.feats:
         methods.append("steady motions and end-stop pressures")
-    if evidence:
-        methods.append("transients (closed-loop replay of the whole log, hexsim.measured.hexapod_replay)" if hexapod
-                       else "transients (windowed valve replay, hexsim.measured.dynamics)")
+    if ev.replays:
+        methods.append("transients (closed-loop replay of the whole log, hexsim.measured.hexapod_replay)"
+                       if ev.hexapod else "transients (windowed valve replay, hexsim.measured.dynamics)")
     report = {"machine": machine.label, "logs": [str(log.path) for log in logs],
               "method": "bounded least squares of " + " and ".join(methods) + " (hexsim.measured.calibration)",
               "weights": {"speed": f"{SPEED_SIGMA_REL:.0%} + {SPEED_SIGMA_ABS * 1e3:g} mm/s",
                           "pressure_Pa": PRESSURE_SIGMA, "transients": "each channel's noise budget"},
               "parameters": _parameter_rows(fit),
-              "correlation": {"keys": [p.key for p in params if p.key not in fit.held],
+              "correlation": {"keys": [fit.params[i].key for i in fit.free],
                               "matrix": _free_block(fit).round(4).tolist()}}
-    if evidence:
-        after = [ev.errors(calibrated) for ev in evidence]  # each log replayed once for the report
+    if ev.replays:
+        after = [r.errors(calibrated) for r in ev.replays]  # each log replayed once for the report
         report["flow_area"] = {"chosen": best["flow_area"], "prior": machine.hydraulics.flow_area,
                                "held_out_cost": sum(e["held_out_cost"] for e in after),
                                "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
                                          if "fit" in t else {"refused": t["refused"]})} for t in tried]}
-        report["transients"] = [{"before": ev.errors(machine), "after": a} for ev, a in zip(evidence, after)]
-    _add_priors(report, start, params)
-    if feats:
-        before, after = predict(feats, machine, loads), predict(feats, calibrated, loads)
-        report["fit"] = {"before": _errors(feats, before), "after": _errors(feats, after)}
-    if held_out:
-        report["held_out"] = _held_out(held_out, machine, calibrated, loads)
-    steady_names = {log.path.name for log in steady}
-    if cross_validate and len(steady) >= 3 and not evidence:
-        rows = []
-        for log in steady:
-            rest = [f for f in feats if f.log != log.path.name]
-            mine = [f for f in feats if f.log == log.path.name]
-            refit = fit_parameters(steady_residual(rest, loads), calibrated, params, fit.held)
-            predicted = predict(mine, params.apply(calibrated, refit.values), loads)
-            rows.append({"log": str(log.path), **_errors(mine, predicted)})
-        report["leave_one_log_out"] = rows
-    if feats:
-        report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
-                          for f, b, a in zip(feats, before, after) if f.log in steady_names]
-    provenance = {k: v for k, v in report.items() if k != "rows"}
+        report["transients"] = [{"before": r.errors(machine), "after": a} for r, a in zip(ev.replays, after)]
+    _add_priors(report, best["start"], best["params"])
+    if ev.feats:
+        report["fit"] = {"before": _errors(ev.feats, predict(ev.feats, machine, ev.loads)),
+                         "after": _errors(ev.feats, predict(ev.feats, calibrated, ev.loads))}
+    return report
+
+
+def _leave_one_log_out(ev: _Evidence, best: dict) -> list[dict]:
+    """Each steady log's features predicted by a refit on the others' (the held parameters held again)."""
+    rows = []
+    params, calibrated = best["params"], best["machine"]
+    for log in ev.steady:
+        rest = [f for f in ev.feats if f.log != log.path.name]
+        mine = [f for f in ev.feats if f.log == log.path.name]
+        refit = fit_parameters(steady_residual(rest, ev.loads), calibrated, params, best["fit"].held)
+        predicted = predict(mine, params.apply(calibrated, refit.values), ev.loads)
+        rows.append({"log": str(log.path), **_errors(mine, predicted)})
+    return rows
+
+
+def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: str, n_logs: int) -> Machine:
+    """The calibrated machine with its provenance: the report (without the feature rows) as its
+    ``calibration``, each fitted key's source (value ± standard error, the prior), the chosen flow-area form's
+    if it changed."""
     sources = dict(calibrated.sources)
-    if evidence and best["flow_area"] != machine.hydraulics.flow_area:
-        sources["valve.flow_area"] = (f"hexsim calibrate from {len(logs)} log(s): {best['flow_area']} predicts the "
-                                      f"held-out windows best (prior {machine.hydraulics.flow_area})")
+    if form != prior.hydraulics.flow_area:
+        sources["valve.flow_area"] = (f"hexsim calibrate from {n_logs} log(s): {form} predicts the held-out windows "
+                                      f"best (prior {prior.hydraulics.flow_area})")
     for row in report["parameters"]:
         if row["status"] != "held at its prior":
             key, _, index = row["key"].partition("[")  # a table point's source is its table's
@@ -364,10 +416,10 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
                     f"{row['unit']} (prior {row['prior']:.6g})")
             earlier = sources.get(key, "") if index else ""
             sources[key] = (f"{earlier}; {text}" if earlier.startswith("hexsim calibrate") else
-                            f"hexsim calibrate from {len(logs)} log(s): {text}")
-    calibrated = dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),
-                                     description=(calibrated.description + " Calibrated by hexsim calibrate.").strip())
-    return calibrated, report
+                            f"hexsim calibrate from {n_logs} log(s): {text}")
+    provenance = {k: v for k, v in report.items() if k != "rows"}
+    return dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),
+                               description=(calibrated.description + " Calibrated by hexsim calibrate.").strip())
 
 
 def _held_out(logs: list[MeasurementLog], prior: Machine, calibrated: Machine, loads: dict) -> dict:
