@@ -86,3 +86,30 @@ def test_machine_set_edits_a_legs_key_and_refuses_a_shared_one(tmp_path, capsys)
     assert main(["machine", "set", str(path), "legs.leg6.supply.pressure_Pa=6e6"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "legs.leg6.supply.pressure_Pa" in err[0]
+
+
+def test_which_effects_act_on_one_leg_is_read_off_each_candidate():
+    """A library effect may be fitted on one leg alone exactly when it changes no field the legs share:
+    each candidate changes something, a leg-level one applied to leg 3 becomes leg 3's own change, and the
+    others' fields are refused in a leg's change."""
+    from hexsim.errors import InputError
+    from hexsim.measured.candidates import CANDIDATES, LEG_LEVEL, applier, touched_fields
+    from hexsim.measured.replay import PlantModel
+    from hexsim.plant.effects import Effects, LegChange
+    from hexsim.plant.params import HydraulicParams
+
+    base = PlantModel(HydraulicParams(), Effects())
+    assert "leakage" in LEG_LEVEL and "supply_pressure" not in LEG_LEVEL and "payload" not in LEG_LEVEL
+    for name, cand in CANDIDATES.items():
+        touched = touched_fields(cand)
+        assert touched, name
+        probe = np.array(cand.lower) + 0.3 * (np.array(cand.upper) - np.array(cand.lower))
+        if name in LEG_LEVEL:
+            model = applier(cand, 3)(base, probe)
+            assert model.hydraulics == base.hydraulics and model.effects == base.effects
+            assert [c.leg for c in model.leg_changes] == [3]
+        else:
+            changed = cand.apply(base, probe)
+            values = {f: getattr(changed.effects, f, getattr(changed.hydraulics, f, None)) for f in touched}
+            with pytest.raises(InputError):
+                LegChange.of(3, **values)

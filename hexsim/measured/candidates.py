@@ -18,8 +18,9 @@ import numpy as np
 
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import PlantModel
-from hexsim.plant.effects import EFFECT_NAMES, LegChange
+from hexsim.plant.effects import EFFECT_NAMES, SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.model import moving_mass
+from hexsim.plant.params import HydraulicParams
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
 #: A fitted value closer than this fraction of its plausible range to a bound is "at the bound".
@@ -310,10 +311,21 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
     return problems
 
 
-#: Candidates that can act on one leg of a hexapod alone; the supply, the sensor delay (the motion
-#: computer's) and the load are shared by the legs (:data:`hexsim.plant.effects.SHARED_FIELDS`).
-LEG_LEVEL = ("spool_dynamics", "null_offset", "hysteresis", "leakage", "friction", "bulk_modulus", "edge_asymmetry",
-             "entrained_air")
+def touched_fields(cand: Candidate) -> frozenset[str]:
+    """The :class:`~hexsim.plant.params.HydraulicParams` and :class:`~hexsim.plant.effects.Effects` fields the
+    candidate's ``apply`` changes, probed on the seed's model at three tenths of its plausible range (not the
+    middle: an edge asymmetry's middle is the seed's 1.0)."""
+    base = PlantModel(HydraulicParams(), Effects())
+    probe = np.array(cand.lower) + 0.3 * (np.array(cand.upper) - np.array(cand.lower))
+    changed = cand.apply(base, probe)
+    return frozenset(f.name for part in ("hydraulics", "effects") for f in fields(getattr(base, part))
+                     if getattr(getattr(changed, part), f.name) != getattr(getattr(base, part), f.name))
+
+
+#: Candidates that can act on one leg of a hexapod alone: those that change no field the legs share (the
+#: supply, the sensor delay (the motion computer's) and the load, :data:`hexsim.plant.effects.SHARED_FIELDS`),
+#: read off each candidate's own declaration, not listed a second time.
+LEG_LEVEL = tuple(name for name, cand in CANDIDATES.items() if not touched_fields(cand) & SHARED_FIELDS)
 
 
 def candidate_key(name: str, leg: int | None = None) -> str:

@@ -115,7 +115,9 @@ class LegChange:
 
     @classmethod
     def of(cls, leg: int, **values: float) -> "LegChange":
-        return cls(int(leg), tuple(sorted((k, float(v)) for k, v in values.items())))
+        # a vector (the payload's position) is left as given: the check below refuses it by name
+        return cls(int(leg), tuple(sorted((k, v if isinstance(v, (tuple, list)) else float(v))
+                                          for k, v in values.items())))
 
     def __post_init__(self) -> None:
         from hexsim.plant.params import HydraulicParams
