@@ -40,7 +40,8 @@ _jit = numba.njit(cache=True, fastmath=False)
 # would pass the parameter record by value each time. The chamber steps (_chambers, pressure_step,
 # rod_pressure_step) are compiled functions of their own: inlined into step_legs as well (three copies of
 # every equation) the leg step took 107 s to compile on a cold cache (the first run after an install, and
-# each CI worker), 16 s now, for 0-5 % of the run's speed (20 s heave, 30-34x real time either way).
+# each CI worker), 16 s now, for 0-5 % of the run's speed (20 s heave, 30-34x real time either way); replay-heavy
+# calibration may have lost more (bench --calibrate, seed actuator closed loop: 94x bare, one repeat, vs 74x).
 _inline = numba.njit(cache=True, fastmath=False, inline="always")
 
 
