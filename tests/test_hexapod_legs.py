@@ -93,7 +93,7 @@ def test_which_effects_act_on_one_leg_is_read_off_each_candidate():
     each candidate changes something, a leg-level one applied to leg 3 becomes leg 3's own change, and the
     others' fields are refused in a leg's change."""
     from hexsim.errors import InputError
-    from hexsim.measured.candidates import CANDIDATES, LEG_LEVEL, applier, touched_fields
+    from hexsim.measured.candidates import CANDIDATES, LEG_LEVEL, applier, changed_values, touched_fields
     from hexsim.measured.replay import PlantModel
     from hexsim.plant.effects import Effects, LegChange
     from hexsim.plant.params import HydraulicParams
@@ -109,7 +109,6 @@ def test_which_effects_act_on_one_leg_is_read_off_each_candidate():
             assert model.hydraulics == base.hydraulics and model.effects == base.effects
             assert [c.leg for c in model.leg_changes] == [3]
         else:
-            changed = cand.apply(base, probe)
-            values = {f: getattr(changed.effects, f, getattr(changed.hydraulics, f, None)) for f in touched}
+            values = changed_values(base, cand.apply(base, probe))
             with pytest.raises(InputError):
                 LegChange.of(3, **values)

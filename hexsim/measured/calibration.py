@@ -441,8 +441,7 @@ def _held_out(logs: list[MeasurementLog], prior: Machine, calibrated: Machine, l
 
 
 def _free_block(fit: Fit) -> np.ndarray:
-    free = [i for i, p in enumerate(fit.params) if p.key not in fit.held]
-    return fit.correlation[np.ix_(free, free)]
+    return fit.correlation[np.ix_(fit.free, fit.free)]
 
 
 def _parameter_rows(fit: Fit) -> list[dict]:

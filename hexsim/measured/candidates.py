@@ -317,9 +317,15 @@ def touched_fields(cand: Candidate) -> frozenset[str]:
     middle: an edge asymmetry's middle is the seed's 1.0)."""
     base = PlantModel(HydraulicParams(), Effects())
     probe = np.array(cand.lower) + 0.3 * (np.array(cand.upper) - np.array(cand.lower))
-    changed = cand.apply(base, probe)
-    return frozenset(f.name for part in ("hydraulics", "effects") for f in fields(getattr(base, part))
-                     if getattr(getattr(changed, part), f.name) != getattr(getattr(base, part), f.name))
+    return frozenset(changed_values(base, cand.apply(base, probe)))
+
+
+def changed_values(model: PlantModel, changed: PlantModel) -> dict:
+    """The :class:`~hexsim.plant.params.HydraulicParams` and :class:`~hexsim.plant.effects.Effects` fields whose
+    value in ``changed`` differs from ``model``'s: name -> ``changed``'s value."""
+    return {f.name: getattr(getattr(changed, part), f.name) for part in ("hydraulics", "effects")
+            for f in fields(getattr(model, part))
+            if getattr(getattr(changed, part), f.name) != getattr(getattr(model, part), f.name)}
 
 
 #: Candidates that can act on one leg of a hexapod alone: those that change no field the legs share (the
@@ -364,8 +370,5 @@ def with_leg(model: PlantModel, leg: int, changed: PlantModel) -> PlantModel:
     """``model`` with leg ``leg`` running ``changed``'s parameters: a :class:`LegChange` holding every value
     that differs from the shared model's (replacing the leg's former change)."""
     others = tuple(c for c in model.leg_changes if c.leg != leg)
-    values = {f.name: getattr(changed.hydraulics, f.name) for f in fields(changed.hydraulics)
-              if getattr(changed.hydraulics, f.name) != getattr(model.hydraulics, f.name)}
-    values |= {f.name: getattr(changed.effects, f.name) for f in fields(changed.effects)
-               if getattr(changed.effects, f.name) != getattr(model.effects, f.name)}
+    values = changed_values(model, changed)
     return model.replace(leg_changes=others + ((LegChange.of(leg, **values),) if values else ()))

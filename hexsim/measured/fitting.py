@@ -71,7 +71,11 @@ class Fit:
     @property
     def free(self) -> list[int]:
         """The indices of the parameters not held at their prior."""
-        return [i for i, p in enumerate(self.params) if p.key not in self.held]
+        return _free(self.params, self.held)
+
+
+def _free(params: ParameterSet, held: dict[str, str]) -> list[int]:
+    return [i for i, p in enumerate(params) if p.key not in held]
 
 
 def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machine, params: ParameterSet,
@@ -97,7 +101,7 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
     if options.rule:
         held |= _blind(safe, params, prior, held)
     while True:
-        free = [i for i, p in enumerate(params) if p.key not in held]
+        free = _free(params, held)
         x = prior.copy()
         if not free:
             return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), residual_of(machine), held)

@@ -92,6 +92,16 @@ class ParameterSet:
         return with_keys(machine, {p.key: float(v) for p, v in zip(self.members, values)})
 
 
+#: The experiments that identify what only transients show.
+_TRANSIENTS = "transients: reversals and steps of a closed loop, or the switches of an open-loop experiment"
+
+
+def _relative(doc: dict, key: str, lo: float, hi: float, source: str, experiment: str) -> Parameter:
+    """The parameter ``key`` bracketed by ``lo`` and ``hi`` times its value in the machine-file document ``doc``."""
+    value = float(get_key(doc, key))
+    return Parameter(key, lo * value, hi * value, source, experiment)
+
+
 def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool = False) -> ParameterSet:
     """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
     flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
@@ -103,30 +113,40 @@ def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool =
     hexapod's): :func:`hexapod_parameters` instead."""
     if hexapod:
         return hexapod_parameters(machine)
-    hyd, eff = machine.hydraulics, machine.effects
     doc = machine.document()
+    params = [*_valve_parameters(machine, doc, dynamics), *_supply_parameters(doc),
+              *_friction_and_oil_parameters(machine, doc, dynamics)]
+    eff = machine.effects
+    if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
+        mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
+        params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
+                                "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at "
+                                "speed the weight trades against the Coulomb friction), or weighing it",
+                                null_value=mass))
+    return ParameterSet(p for p in params if p.upper > p.lower)
 
-    def rel(key: str, lo: float, hi: float, source: str, experiment: str) -> Parameter:
-        value = get_key(doc, key)
-        return Parameter(key, lo * value, hi * value, source, experiment)
 
+def _valve_parameters(machine: Machine, doc: dict, dynamics: bool) -> list[Parameter]:
+    """The valve's part of :func:`default_parameters`: flow gain (or each table point), the smooth area's gain,
+    overlap, null offset, the edges' matching."""
+    hyd, eff = machine.hydraulics, machine.effects
     big = "large commands in both directions (beyond half the range)"
     small = "small commands (a few % of the range) in both directions"
     if hyd.flow_area == "table":  # each point's opening (the port's width only scales them all: not fitted)
         params = [Parameter(f"valve.opening_table[{i}]", 0.7 * f, 1.3 * f, "the data sheet's flow curve within ±30 %",
                             f"commands near {u:g} V in both directions") for i, (u, f) in enumerate(hyd.opening_table)]
     elif not dynamics:
-        params = [rel("valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m", 0.7,
-                      1.3, "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
+        key = "valve.rated_flow_m3ps" if machine.rated_flow is not None else "valve.spool_diameter_m"
+        params = [_relative(doc, key, 0.7, 1.3, "an unknown valve's flow gain within ±30 % of the guess (data sheets "
+                            "state ±10 %)", big)]
     else:  # the flow gain in the supply edge (the port's size the reference the shape is told against)
         params = [Parameter("valve.edge_gain_PA", 0.7 * eff.edge_gain_pa, 1.3 * eff.edge_gain_pa,
                             "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
     x_max = hyd.x_v_max
-    transients = "transients: reversals and steps of a closed loop, or the switches of an open-loop experiment"
     if dynamics and hyd.flow_area in ("smooth", "port"):  # the shape: where (3.11) meets the port
-        params.append(rel("valve.smooth_area_gain", 0.7, 1.3, "the flow curve's gain at small openings (3.11) "
-                          "within ±30 % of the port's (data sheets state ±10 % flow tolerance)",
-                          f"reversals and commands beyond 1 V ({transients})"))
+        params.append(_relative(doc, "valve.smooth_area_gain", 0.7, 1.3, "the flow curve's gain at small openings "
+                                "(3.11) within ±30 % of the port's (data sheets state ±10 % flow tolerance)",
+                                f"reversals and commands beyond 1 V ({_TRANSIENTS})"))
     if hyd.flow_area == "sharp":
         params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
                                 "−3 % (underlap) to +10 % of the spool stroke (servo valves ±0.5 %, proportional "
@@ -135,43 +155,48 @@ def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool =
         limit = math.pi * hyd.spool_diameter / (4.0 * hyd.smooth_area_gain * 1.3)
         params.append(Parameter("valve.overlap_m", 0.0, min(0.10 * x_max, 0.9 * limit),
                                 "0 to 10 % of the spool stroke (proportional valves up to 10 %), below where (3.11) "
-                                "no longer meets the port", f"reversals ({transients})"))
+                                "no longer meets the port", f"reversals ({_TRANSIENTS})"))
     params.append(Parameter("valve.null_offset_V", -0.03 * hyd.u_v_max, 0.03 * hyd.u_v_max,
                             "±3 % of the command range (servo-valve data sheets: ≤ 2–3 %)", small))
-    edges = ("AT", "PB", "BT") if hyd.four_way else ("AT",)
     both = "both directions at several commands, with every chamber pressure logged"
-    for edge in edges:
+    for edge in ("AT", "PB", "BT") if hyd.four_way else ("AT",):
         params.append(Parameter(f"valve.edge_gain_{edge}", 0.8, 1.25,
                                 "control edges matched within ±20 % (grinding tolerance, wear)", both))
-    params.append(rel("supply.pressure_Pa", 0.9, 1.1, "±10 % of the set pressure (relief valve, gauge)",
+    return params
+
+
+def _supply_parameters(doc: dict) -> list[Parameter]:
+    """The supply's part of :func:`default_parameters`: its set pressure and the tank's back pressure."""
+    return [_relative(doc, "supply.pressure_Pa", 0.9, 1.1, "±10 % of the set pressure (relief valve, gauge)",
                       "the piston held against an end stop with the valve open (that chamber reads P_s), or ps_Pa "
-                      "logged"))
-    params.append(Parameter("supply.tank_pressure_Pa", 0.0, 3e5, "return-line back pressure 0–3 bar (filter, "
-                            "cooler, lines)", "the piston held against an end stop (the other chamber reads the "
-                            "tank)", limit="the tank at atmospheric pressure"))
+                      "logged"),
+            Parameter("supply.tank_pressure_Pa", 0.0, 3e5, "return-line back pressure 0–3 bar (filter, "
+                      "cooler, lines)", "the piston held against an end stop (the other chamber reads the "
+                      "tank)", limit="the tank at atmospheric pressure")]
+
+
+def _friction_and_oil_parameters(machine: Machine, doc: dict, dynamics: bool) -> list[Parameter]:
+    """The seal friction per direction (Coulomb; with ``dynamics`` viscous and static too) and, with
+    ``dynamics``, the oil spring: bulk modulus and dead volumes."""
     speeds = "several speeds in each direction"
+    params = [_relative(doc, f"friction.{side}.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess (wear, "
+                        "temperature, seal type)", speeds) for side in ("positive", "negative")]
+    if not dynamics:
+        return params
     for side in ("positive", "negative"):
-        params.append(rel(f"friction.{side}.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess (wear, "
-                          "temperature, seal type)", speeds))
-    if dynamics:
-        for side in ("positive", "negative"):
-            params.append(rel(f"friction.{side}.viscous_Nspm", 0.5, 2.0, "viscous seal friction half to twice the "
-                              "guess (oil viscosity with temperature, seal type)", f"a range of speeds ({transients})"))
-            params.append(rel(f"friction.{side}.static_N", 0.5, 2.0, "static (Stribeck) level half to twice the "
-                              "guess", f"slow reversals ({transients})"))
-        params.append(rel("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to "
-                          "less than half with hoses and undissolved air (Merritt §2.5)",
-                          f"the oil spring's ringing and P1's rise ({transients})"))
-        for side in ("cap", "rod") if hyd.four_way else ("cap",):
-            params.append(rel(f"cylinder.dead_volume_{side}_m3", 0.5, 4.0, "hoses, manifold bores and the valve's "
-                              "own volume, half to four times the drawing's", "the oil spring at both ends of the "
-                              "stroke (it trades against the bulk modulus in mid-stroke)"))
-    if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
-        mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
-        params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
-                                "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at speed "
-                                "the weight trades against the Coulomb friction), or weighing it", null_value=mass))
-    return ParameterSet(p for p in params if p.upper > p.lower)
+        params.append(_relative(doc, f"friction.{side}.viscous_Nspm", 0.5, 2.0, "viscous seal friction half to twice "
+                                "the guess (oil viscosity with temperature, seal type)",
+                                f"a range of speeds ({_TRANSIENTS})"))
+        params.append(_relative(doc, f"friction.{side}.static_N", 0.5, 2.0, "static (Stribeck) level half to twice "
+                                "the guess", f"slow reversals ({_TRANSIENTS})"))
+    params.append(_relative(doc, "oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, "
+                            "down to less than half with hoses and undissolved air (Merritt §2.5)",
+                            f"the oil spring's ringing and P1's rise ({_TRANSIENTS})"))
+    for side in ("cap", "rod") if machine.hydraulics.four_way else ("cap",):
+        params.append(_relative(doc, f"cylinder.dead_volume_{side}_m3", 0.5, 4.0, "hoses, manifold bores and the "
+                                "valve's own volume, half to four times the drawing's", "the oil spring at both ends "
+                                "of the stroke (it trades against the bulk modulus in mid-stroke)"))
+    return params
 
 
 def hexapod_parameters(machine: Machine) -> ParameterSet:
@@ -185,18 +210,15 @@ def hexapod_parameters(machine: Machine) -> ParameterSet:
     params = []
     for leg in range(1, 7):
         for edge, what in (("PA", "supply edge P→A"), ("AT", "return edge A→T")):
-            key = f"legs.leg{leg}.valve.edge_gain_{edge}"
-            value = float(get_key(doc, key))
-            params.append(Parameter(key, 0.6 * value, 1.5 * value, f"leg {leg}'s valve, its {what}: flow gain within "
-                                    f"±30 % of the guess, edges matched within ±20 % (data sheets: ±10 %)",
-                                    f"{motion}: leg {leg} extending and retracting"))
+            params.append(_relative(doc, f"legs.leg{leg}.valve.edge_gain_{edge}", 0.6, 1.5, f"leg {leg}'s valve, "
+                                    f"its {what}: flow gain within ±30 % of the guess, edges matched within ±20 % "
+                                    f"(data sheets: ±10 %)", f"{motion}: leg {leg} extending and retracting"))
     for key, lo, hi, source, experiment in (
             ("oil.bulk_modulus_Pa", 0.4, 1.4, "effective bulk modulus: mineral oil 1.4–2.0 GPa, down to less than "
              "half with hoses and undissolved air (Merritt §2.5)", f"reversals ({motion}): the oil spring's ringing"),
             ("friction.positive.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion),
             ("friction.negative.coulomb_N", 0.5, 2.0, "seal friction half to twice the guess", motion)):
-        value = float(get_key(doc, key))
-        params.append(Parameter(key, lo * value, hi * value, source, experiment))
+        params.append(_relative(doc, key, lo, hi, source, experiment))
     platform, joints = _platform(machine)
     payload = machine.effects.payload_kg
     params.append(Parameter("load.payload_kg", payload - 0.3 * platform, payload + platform,

@@ -115,11 +115,11 @@ class LegChange:
 
     @classmethod
     def of(cls, leg: int, **values: float) -> "LegChange":
-        # a vector (the payload's position) is left as given: the check below refuses it by name
-        return cls(int(leg), tuple(sorted((k, v if isinstance(v, (tuple, list)) else float(v))
-                                          for k, v in values.items())))
+        return cls(int(leg), tuple(values.items()))
 
     def __post_init__(self) -> None:
+        """Names checked first, then the values made floats, sorted by name (a shared vector, the payload's
+        position, is refused by its name, not by a failed conversion)."""
         from hexsim.plant.params import HydraulicParams
 
         known = {f.name for f in fields(HydraulicParams)} | {f.name for f in fields(Effects)}
@@ -130,12 +130,21 @@ class LegChange:
                 raise InputError(f"LegChange of leg{self.leg}: unknown parameter {name!r}")
             if name in SHARED_FIELDS:
                 raise InputError(f"LegChange of leg{self.leg}: {name} is shared by all legs, not one leg's")
+        object.__setattr__(self, "values", tuple(sorted((k, _number(self.leg, k, v)) for k, v in self.values)))
 
     def apply(self, hyd, eff: Effects):
         """(hydraulics, effects) of this leg: ``hyd`` and ``eff`` with the values replaced (validated)."""
         own = {f.name for f in fields(Effects)}
         return (hyd.replace(**{k: v for k, v in self.values if k not in own}),
                 eff.replace(**{k: v for k, v in self.values if k in own}))
+
+
+def _number(leg: int, name: str, value) -> float:
+    """``value`` as a float; InputError naming the leg and the parameter if it is not a number."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"LegChange of leg{leg}: {name} must be a number, got {value!r}") from None
 
 
 def merge_leg_changes(first: tuple[LegChange, ...], then: tuple[LegChange, ...]) -> tuple[LegChange, ...]:
