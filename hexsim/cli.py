@@ -294,6 +294,7 @@ def _progress_line(text: str) -> None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from hexsim.measured.identify import left_out_text
     from hexsim.measured.measurement import read_log
     from hexsim.measured.reports.validation import effect_label, plus_minus
     from hexsim.measured.validation import validate
@@ -318,6 +319,9 @@ def cmd_validate(args: argparse.Namespace) -> int:
     doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs, without=without, model=args.model,
                    progress=not args.quiet and sys.stderr.isatty(),
                    notify=None if args.quiet or sys.stderr.isatty() else _progress_line)
+    left_out = doc["windows"].get("left_out")
+    if left_out and left_out_text(left_out):
+        print(f"left out: {left_out_text(left_out)}")
     print(f"verdict: {doc['verdict']}")
     for line in doc["conclusions"]:
         print(f"  {line}")

@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 
 from hexsim.cli import main
+from hexsim.errors import InputError
 from hexsim.measured.calibration import calibrate
-from hexsim.measured.dynamics import STOP_MARGIN_M, away_from_stops
-from hexsim.measured.identify import Problem
+from hexsim.measured.identify import STOP_MARGIN_M, Problem, left_out_text
 from hexsim.measured.measurement import read_log
-from hexsim.measured.replay import ReplayProblem
+from hexsim.measured.replay import ReplayProblem, Windows
+from hexsim.measured.residuals import clipped
 from hexsim.plant.machine import dump, load_machine
 from independent_actuator import Actuator, motion, write
 
@@ -86,21 +87,42 @@ def test_validate_on_the_calibrated_machine_names_the_effect_and_nothing_on_a_nu
     assert abs(leak_doc["added_effects"][0]["parameters"]["C_l"]["value"] / 3.0 - 1.0) < 0.1
 
 
-def test_windows_at_the_end_stops_are_not_evidence(tmp_path):
-    """A log whose piston reaches an end stop: the windows within STOP_MARGIN_M of the end it reaches are
-    left out, the others kept; a closed-loop log in mid-stroke keeps every window."""
+def test_windows_at_the_end_stops_or_with_a_clipped_sensor_are_not_evidence(tmp_path):
+    """A log whose piston reaches an end stop: the windows within STOP_MARGIN_M of the end it reaches are no
+    windows of the replay problem, the others are; a closed-loop log in mid-stroke keeps every window. A noisy
+    position that sits at one reading for a stretch (a transducer at the end of its range) leaves its windows
+    out and is reported; the same stretch without noise (a simulated piston at rest) is not called clipped."""
     t = np.arange(0.0, 3.0, 1e-3)
-    y = np.clip(0.05 + 0.2 * t, 0.0, 0.2)  # reaches the 0.2 m stop at 0.75 s
+    y = np.clip(0.05 + 0.2 * t, 0.0, 0.2)  # reaches the 0.2 m stop at 0.75 s: two windows before it
     cols = {"time_s": t, "valve_cmd_V": np.full(t.size, 1.0), "pos_m": y}
+    too_few = r"fewer than four replay windows .*\(8 of its 10 left out: 8 windows at the end"
+    with pytest.raises(InputError, match=too_few):
+        Problem(read_log(write(cols, tmp_path / "fast.csv", "fast ramp to the stop")))
+    y = np.clip(0.05 + 0.075 * t, 0.0, 0.2)  # reaches the stop at 2 s
+    cols["pos_m"] = y
     log = read_log(write(cols, tmp_path / "stop.csv", "ramp to the stop"))
     problem = Problem(log)
     assert isinstance(problem, ReplayProblem)  # every member the identifier and discovery read
-    keep = away_from_stops(log, problem, 0.2)
-    reach = problem.windows.take(y).max(axis=1)
-    assert np.array_equal(keep, reach < 0.2 - STOP_MARGIN_M) and keep.any() and not keep.all()
+    reach = Windows.tile(t.size, problem.windows.length).take(y).max(axis=1)
+    assert len(problem.windows.starts) == np.count_nonzero(reach < 0.2 - STOP_MARGIN_M) >= 2
+    assert problem.left_out["end_stops"] == np.count_nonzero(reach >= 0.2 - STOP_MARGIN_M) > 0
+    assert problem.left_out["clipped_columns"] == {}  # noise-free: a piston at rest, not a sensor's range
     mid = {"time_s": t, "valve_cmd_V": np.zeros(t.size), "pos_m": 0.1 + 0.03 * np.sin(2 * np.pi * t)}
     log = read_log(write(mid, tmp_path / "mid.csv", "mid-stroke"))
-    assert away_from_stops(log, Problem(log), 0.2).all()
+    assert Problem(log).left_out == {"end_stops": 0, "clipped": 0, "clipped_columns": {}}
+    noisy = 0.1 + 0.05 * np.sin(2 * np.pi * 0.5 * t) + np.random.default_rng(1).normal(0.0, 3e-4, t.size)
+    top = float(np.quantile(noisy, 0.9))
+    log = read_log(write(mid | {"pos_m": np.minimum(noisy, top)}, tmp_path / "clip.csv", "transducer range"))
+    at_top = clipped(log.columns["pos_m"], "position")
+    assert np.count_nonzero(at_top) == np.count_nonzero(noisy >= top)
+    assert log.columns["pos_m"][at_top].max() == pytest.approx(top)
+    problem = Problem(log)
+    touched = Windows.tile(t.size, problem.windows.length).take(at_top).any(axis=1)
+    assert problem.left_out["clipped"] == np.count_nonzero(touched)
+    assert len(problem.windows.starts) == np.count_nonzero(~touched)
+    assert problem.left_out["clipped_columns"]["pos_m"]["samples"] == np.count_nonzero(at_top)
+    assert "pos_m reads its range's end" in left_out_text(problem.left_out)
+    assert not clipped(noisy, "position").any()  # noise alone repeats no extreme value
 
 
 def test_the_command_writes_the_machine_and_a_report_of_the_transients(calibrated, tmp_path, capsys):

@@ -10,8 +10,9 @@ or the switches of an open-loop experiment.
 :class:`ReplayEvidence` is one log as the identifier replays it (:class:`hexsim.measured.identify.Problem`:
 0.3 s windows, each started from the measured state and driven by the logged valve setpoints u_v, the
 sensors' offsets and scales fitted as nuisance): the even windows are fitted, the odd ones held out. A
-window in which the piston comes within :data:`STOP_MARGIN_M` of an end the log reaches (an end stop, whose
-stiffness and the transducer's offset there are not the nominal's business) is left out. Residuals are
+window in which the piston comes within :data:`hexsim.measured.identify.STOP_MARGIN_M` of an end the log
+reaches (an end stop, whose stiffness and the transducer's offset there are not the nominal's business) or
+a sensor sits at the end of its range is no window of the problem. Residuals are
 divided by the log's noise budget (sensor noise and the replay's numerical tolerance, measured once on the
 prior machine), so a fit is judged in the same units ``hexsim validate`` judges a log in.
 """
@@ -32,28 +33,9 @@ from hexsim.measured.replay import PlantModel, Windows, nominal_plant
 from hexsim.measured.residuals import effective_n
 from hexsim.plant.machine import Machine
 
-#: [m] A window whose measured position comes this close to an end of travel the log reaches is left out.
-STOP_MARGIN_M = 3e-3
 #: Fit windows replayed per log at most (spread over the log): a fit's cost stays bounded for long logs;
 #: the held-out windows are all scored.
 MAX_FIT_WINDOWS = 16
-#: [m] An extreme of the log's travel within this of the stroke's end (0 or L_s) is an end stop it reached.
-STOP_REACHED_M = 1e-2
-
-
-def away_from_stops(log: MeasurementLog, problem: Problem, stroke: float) -> np.ndarray:
-    """(windows,) bool: the windows whose measured position stays :data:`STOP_MARGIN_M` inside each end of
-    travel the log reaches (its lowest or highest position within :data:`STOP_REACHED_M` of 0 or ``stroke``)."""
-    pos = problem.windows.take(log.columns["pos_m"])
-    lo, hi = float(np.min(log.columns["pos_m"])), float(np.max(log.columns["pos_m"]))
-    keep = np.ones(len(pos), dtype=bool)
-    if lo < STOP_REACHED_M:
-        keep &= pos.min(axis=1) > lo + STOP_MARGIN_M
-    if hi > stroke - STOP_REACHED_M:
-        keep &= pos.max(axis=1) < hi - STOP_MARGIN_M
-    return keep
-
-
 def _only(problem: Problem, rows: np.ndarray) -> Problem:
     """A copy of ``problem`` whose windows are its windows ``rows`` alone, all of them fit windows."""
     out = copy.copy(problem)
@@ -75,10 +57,10 @@ class ReplayEvidence:
 
     @classmethod
     def of(cls, log: MeasurementLog, machine: Machine, every_window: bool = False) -> "ReplayEvidence":
-        """The evidence of ``log`` judged against ``machine`` (``every_window``: all windows away from the stops
-        held out, for a log that is predicted, not fitted). A hexapod log is replayed in closed loop as
-        ``hexsim validate`` replays it (:meth:`_hexapod`). Raises InputError for a single-actuator log without
-        the valve command or position, or one with fewer than three replay windows away from the stops; for
+        """The evidence of ``log`` judged against ``machine`` (``every_window``: all windows held out, for a
+        log that is predicted, not fitted). A hexapod log is replayed in closed loop as ``hexsim validate``
+        replays it (:meth:`_hexapod`). Raises InputError for a single-actuator log without the valve command
+        or position, or one with fewer than four replay windows away from the stops (:class:`Problem`); for
         a hexapod log as :class:`hexsim.measured.hexapod_replay.HexapodProblem`."""
         if log.system == "hexapod":
             return cls._hexapod(log, machine, every_window)
@@ -86,15 +68,9 @@ class ReplayEvidence:
         if missing:
             raise InputError(f"{log.path}: calibration from transients needs the column(s) {', '.join(missing)}")
         log = dataclasses.replace(log, machine=machine)
-        problem = Problem(log)
-        keep = away_from_stops(log, problem, machine.hydraulics.stroke)
-        problem.fit_rows = problem.fit_rows[keep[problem.fit_rows]]
-        problem.test_rows = problem.test_rows[keep[problem.test_rows]]
+        problem = Problem(log)  # its windows keep away from the end stops and clipped sensors
         if every_window:
             problem.test_rows = np.sort(np.concatenate([problem.fit_rows, problem.test_rows]))
-        if len(problem.fit_rows) < 2 or len(problem.test_rows) < 1:
-            raise InputError(f"{log.path}: fewer than three 0.3 s replay windows keep {STOP_MARGIN_M * 1e3:g} mm "
-                             f"away from the end stops; calibration from transients needs motion in mid-stroke")
         budget = measure_budget(problem, problem.simulate(problem.nominal))
         fitted = problem.fit_rows[np.unique(np.linspace(0, len(problem.fit_rows) - 1, MAX_FIT_WINDOWS).round().astype(int))]
         return cls(log, problem, budget, _only(problem, fitted))

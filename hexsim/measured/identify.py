@@ -68,7 +68,7 @@ from hexsim.measured.replay import (
     replay,
     nominal_plant,
 )
-from hexsim.measured.residuals import effective_n, noise_of
+from hexsim.measured.residuals import clipped, effective_n, noise_of
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.effects import EFFECT_NAMES
 from hexsim.plant.machine import with_keys
@@ -81,6 +81,12 @@ WINDOW_S = 0.3
 #: (velocity from a filtered derivative, P1 with its sensor noise) is not exact, and the 100 Hz oil
 #: spring rings the difference out over some 10–40 ms.
 SETTLE_S = 0.05
+#: [m] A window whose measured position comes this close to an end of travel the log reaches is left out:
+#: the end stops' position and stiffness, and the transducer's offset there, are no part of the machine
+#: file (the real servo cylinder's retracted end reads 4-6 mm, not 0).
+STOP_MARGIN_M = 3e-3
+#: [m] An extreme of the log's travel within this of the stroke's end (0 or L_s) is an end stop it reached.
+STOP_REACHED_M = 1e-2
 #: Replay step [s] (the simulator's) and the factor of the coarse replay for the numerical tolerance.
 REPLAY_DT = 1e-4
 RICHARDSON = 2
@@ -139,11 +145,18 @@ class Problem:
     def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
         self.log = log
         length = int(round(window_s * log.sample_rate_hz))
-        self.windows = Windows.tile(len(log.time), length)
+        tiles = Windows.tile(len(log.time), length)
+        usable, self.left_out = usable_windows(log, tiles)
+        self.windows = Windows(tiles.starts[usable], length)
         self.fit_rows = np.arange(0, len(self.windows.starts), 2)
         self.test_rows = np.arange(1, len(self.windows.starts), 2)
-        if len(self.test_rows) < 2:
+        if len(self.test_rows) < 2 and usable.all():
             raise InputError(f"{log.path}: the log is shorter than four replay windows of {window_s} s")
+        if len(self.test_rows) < 2:
+            raise InputError(f"{log.path}: the log has fewer than four replay windows of {window_s} s away from "
+                             f"its end stops and clipped sensors ({len(tiles.starts) - int(usable.sum())} of its "
+                             f"{len(tiles.starts)} left out: {left_out_text(self.left_out)}); a replay needs motion "
+                             f"in mid-stroke")
         self.settle = int(round(SETTLE_S * log.sample_rate_hz))
         self.channels = available_channels(log)
         self.scales = channel_scales(log)
@@ -174,7 +187,8 @@ class Problem:
     def window_doc(self) -> dict:
         fs = self.log.sample_rate_hz
         return {"count": int(len(self.windows.starts)), "length_s": self.windows.length / fs,
-                "settle_s": self.settle / fs, "fit": "even windows", "held_out": "odd windows"}
+                "settle_s": self.settle / fs, "fit": "even windows", "held_out": "odd windows",
+                "left_out": self.left_out}
 
     def analysis_view(self, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Residuals (k, n) per channel as the residual analysis takes them: windows without the settling."""
@@ -193,6 +207,47 @@ class Problem:
         """Log times [s] of the samples of :meth:`analysis_view` (k, n)."""
         fs = self.log.sample_rate_hz
         return self.log.time[self.windows.starts][:, None] + np.arange(self.settle, self.windows.length)[None, :] / fs
+
+
+def usable_windows(log: MeasurementLog, windows: Windows) -> tuple[np.ndarray, dict]:
+    """Which replay windows of a single-actuator log are evidence: (windows,) bool, and what was left out
+    (``end_stops``: windows within :data:`STOP_MARGIN_M` of an end of travel the log reaches, its lowest or
+    highest position within :data:`STOP_REACHED_M` of 0 or the machine's stroke; ``clipped``: windows with
+    a sample where a channel sits at the end of its sensor's range, :func:`hexsim.measured.residuals.clipped`,
+    and ``clipped_columns``: column -> {"value", "samples"}). Neither the stops nor the sensors' ranges are
+    in the machine file: a window there would judge the nominal on what it does not describe."""
+    pos = windows.take(log.columns["pos_m"])
+    lo, hi = float(np.min(log.columns["pos_m"])), float(np.max(log.columns["pos_m"]))
+    free = np.ones(len(pos), dtype=bool)
+    if lo < STOP_REACHED_M:
+        free &= pos.min(axis=1) > lo + STOP_MARGIN_M
+    if hi > log.machine.hydraulics.stroke - STOP_REACHED_M:
+        free &= pos.max(axis=1) < hi - STOP_MARGIN_M
+    unclipped = np.ones(len(pos), dtype=bool)
+    columns = {}
+    for ch in available_channels(log):
+        col = CHANNELS[ch][0]
+        at = clipped(log.columns[col], ch)
+        if at.any():
+            columns[col] = {"value": float(log.columns[col][at][0]), "samples": int(at.sum())}
+            unclipped &= ~windows.take(at).any(axis=1)
+    return free & unclipped, {"end_stops": int(np.count_nonzero(~free)),
+                              "clipped": int(np.count_nonzero(free & ~unclipped)), "clipped_columns": columns}
+
+
+def left_out_text(left_out: dict) -> str:
+    """What :func:`usable_windows` left out, one phrase ("" for nothing), e.g. "14 windows at the end stops,
+    2 more with a clipped channel (pos_m reads its range's end, 0.1999756, in 3312 samples)"."""
+    parts = []
+    if left_out["end_stops"]:
+        parts.append(f"{left_out['end_stops']} windows at the end stops")
+    if left_out["clipped"]:
+        parts.append(f"{left_out['clipped']} {'more ' if parts else ''}with a clipped channel")
+    text = ", ".join(parts)
+    if left_out["clipped_columns"]:
+        text += " (" + "; ".join(f"{col} reads its range's end, {c['value']:.7g}, in {c['samples']} samples"
+                                 for col, c in left_out["clipped_columns"].items()) + ")"
+    return text
 
 
 @dataclass(frozen=True)
@@ -267,8 +322,9 @@ def model_floor(block: dict, channels) -> dict[str, float]:
     calibration (the ``transients`` of the machine file's ``calibration`` block), the root mean square over
     those logs. A model cannot be held to a closer fit on a new log than on the held-out part of the logs it
     was calibrated on (model-form uncertainty, e.g. Kennedy & O'Hagan 2001; ASME V&V 20): a part of the
-    calibration's uncertainty. Empty without transients (a steady calibration is judged on its features)."""
-    rows = [t["after"] for t in block.get("transients", []) if "after" in t]
+    calibration's uncertainty. A steady calibration's logs count with every window (``replayed``: none was
+    fitted). Empty for a machine that was not calibrated."""
+    rows = [t["after"] for t in (*block.get("transients", []), *block.get("replayed", [])) if "after" in t]
     out = {}
     for ch in channels:
         excess = [r["budget"][ch] ** 2 * max(r["held_out_rms_in_budgets"][ch] ** 2 - 1.0, 0.0) for r in rows

@@ -16,6 +16,12 @@ from scipy import signal, stats
 MAX_LAG = 20  # lags [samples] of the whiteness and cross-correlation tests
 #: Floors of the noise estimates, per channel [SI]: 0.1 µm, 100 Pa, 100 Pa, 1e-3 m/s^2.
 NOISE_FLOOR = {"position": 1e-7, "p1": 100.0, "p2": 100.0, "p_s": 100.0, "acceleration": 1e-3}
+#: A noisy channel is clipped at an extreme value that repeats exactly in at least this many samples and
+#: this share of the log: white noise of the channel's level repeats a value rarely, a sensor or its
+#: converter at the end of its range (the real servo cylinder's position transducer at 10 V, 0.1999756 m,
+#: in a quarter of a log's samples) gives the same reading for as long as it stays there.
+CLIP_MIN_SAMPLES = 20
+CLIP_MIN_SHARE = 0.005
 
 
 def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
@@ -34,6 +40,28 @@ def noise_of(x: np.ndarray, channel: str) -> float:
     d2 = np.diff(x, 2, axis=1 if x.ndim > 1 else 0).ravel()
     mad = float(np.median(np.abs(d2 - np.median(d2))))
     return max(1.4826 * mad / math.sqrt(6.0), NOISE_FLOOR[channel])
+
+
+def clipped(x: np.ndarray, channel: str) -> np.ndarray:
+    """(N,) bool: the samples of a logged signal ``x`` (N,) at an end of its sensor's range: its highest or
+    lowest value when that value repeats exactly in at least :data:`CLIP_MIN_SAMPLES` samples and
+    :data:`CLIP_MIN_SHARE` of the log while the other samples carry noise (above twice the channel's
+    :data:`NOISE_FLOOR`, and above twice the reading's quantisation step). A noise-free signal (a simulated
+    log) is never called clipped: a piston resting at a stop repeats its position there physically."""
+    out = np.zeros(x.shape, dtype=bool)
+    if x.size < 3:
+        return out
+    ends = [v for v in (float(np.max(x)), float(np.min(x)))
+            if np.count_nonzero(x == v) >= max(CLIP_MIN_SAMPLES, CLIP_MIN_SHARE * x.size)]
+    if not ends:
+        return out
+    at_end = np.isin(x, ends)
+    rest = x[~at_end]
+    steps = np.diff(np.unique(rest))
+    quantum = float(steps.min()) if steps.size else 0.0
+    if rest.size < 3 or noise_of(rest, channel) <= max(2.0 * NOISE_FLOOR[channel], 2.0 * quantum):
+        return out
+    return at_end
 
 
 def effective_n(res: np.ndarray) -> float:
