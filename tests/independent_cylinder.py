@@ -4,8 +4,8 @@
 - spool x_v = (u - u_0) / u_max * x_max (an ideal spool); openings a = w max(|x_v| - O_l, 0) on the side x_v opens;
 - each control edge: q = k C_d a sqrt(2 / rho) dp / sqrt(|dp| + 2 kPa) (turbulent, laminar only below ~2 kPa:
   another regularisation than hexsim's, whose laminar range reaches 0.1 bar);
-- chambers: dp1/dt = E / (A1 y + V_A) (q_PA - q_AT - A1 v), dp2/dt = E / (A2 (L - y) + V_B) (q_PB - q_BT + A2 v),
-  pressures kept above -0.9 bar;
+- chambers: dp1/dt = E / (A1 y + V_A) (q_PA - q_AT + q_L - A1 v), dp2/dt = E / (A2 (L - y) + V_B) (q_PB - q_BT
+  - q_L + A2 v), q_L = C_L (p2 - p1) the leakage across the piston seal; pressures kept above -0.9 bar;
 - piston: M dv/dt = p1 A1 - p2 A2 - F_c± tanh(v / 1 mm/s) - M g cos(inclination) + end stops (stiff springs
   with damping at 0 and L);
 - logs in the measurement-log format written by numpy (time_s, valve_cmd_V, pos_m, p1_Pa, p2_Pa), with noise.
@@ -46,6 +46,7 @@ class Rig:
     coulomb_neg: float = 76.1
     mass: float = 1.0
     inclination_deg: float = 90.0
+    leakage: float = 0.0  # C_L [m^3/(s Pa)] across the piston seal, from the rod side to the cap side
     # a valve whose opening is not linear in the command: (|u| V, fraction of the full opening) points,
     # interpolated from (0, 0); None: linear beyond the overlap
     curve: tuple[tuple[float, float], ...] | None = None
@@ -83,8 +84,9 @@ def simulate(rig: Rig, t: np.ndarray, u: np.ndarray, y0: float) -> tuple[np.ndar
             open_pos, open_neg = (full, 0.0) if x > 0 else (0.0, full)
         q_a = _edge(rig.k_pa, rig.cd, open_pos, rig.supply - p1, rig.rho) - _edge(rig.k_at, rig.cd, open_neg, p1 - rig.tank, rig.rho)
         q_b = _edge(rig.k_pb, rig.cd, open_neg, rig.supply - p2, rig.rho) - _edge(rig.k_bt, rig.cd, open_pos, p2 - rig.tank, rig.rho)
-        dp1 = rig.bulk / (a1 * max(y, 0.0) + rig.v_a) * (q_a - a1 * v)
-        dp2 = rig.bulk / (a2 * max(rig.stroke - y, 0.0) + rig.v_b) * (q_b + a2 * v)
+        q_leak = rig.leakage * (p2 - p1)
+        dp1 = rig.bulk / (a1 * max(y, 0.0) + rig.v_a) * (q_a + q_leak - a1 * v)
+        dp2 = rig.bulk / (a2 * max(rig.stroke - y, 0.0) + rig.v_b) * (q_b - q_leak + a2 * v)
         if p1 < -0.9e5 and dp1 < 0:
             dp1 = 0.0
         if p2 < -0.9e5 and dp2 < 0:
@@ -116,14 +118,19 @@ def simulate(rig: Rig, t: np.ndarray, u: np.ndarray, y0: float) -> tuple[np.ndar
     return out[0], out[2], out[3]
 
 
-def experiment(rig: Rig, volts: float, folder: pathlib.Path, name: str, rng: np.random.Generator) -> pathlib.Path:
+def experiment(rig: Rig, volts: float | tuple[float, ...], folder: pathlib.Path, name: str,
+               rng: np.random.Generator) -> pathlib.Path:
     """The real rig's calibration experiment at ``volts``: 0 V for 0.1 s, +U until the piston has rested
-    at the far stop for 0.6 s, -U likewise, logged at 1 kHz with 0.3 mm and 0.3 bar of noise."""
+    at the far stop for 0.6 s, -U likewise (several U: one after the other), logged at 1 kHz with 0.3 mm and
+    0.3 bar of noise."""
     a1 = math.pi / 4 * rig.bore**2
-    speed = 0.8 * (volts / 10.0) * rig.width * rig.x_max * rig.cd * math.sqrt(2 * 30e5 / rig.rho) / a1
-    leg = rig.stroke / speed + 0.6
-    t = np.arange(0.0, 0.1 + 2 * leg, 1e-3)
-    u = np.where(t < 0.1, 0.0, np.where(t < 0.1 + leg, volts, -volts))
+    levels = [0.0]
+    for v in np.atleast_1d(volts):
+        speed = 0.8 * (v / 10.0) * rig.width * rig.x_max * rig.cd * math.sqrt(2 * 30e5 / rig.rho) / a1
+        hold = int(round((rig.stroke / speed + 0.6) * 1000))
+        levels += [v] * hold + [-v] * hold
+    u = np.repeat(np.array(levels), [100] + [1] * (len(levels) - 1))
+    t = np.arange(u.size) * 1e-3
     y, p1, p2 = simulate(rig, t, u, 0.005)
     path = folder / f"{name}.csv"
     cols = np.column_stack([t, u, y + rng.normal(0, 3e-4, t.size), p1 + rng.normal(0, 3e4, t.size),
@@ -132,5 +139,5 @@ def experiment(rig: Rig, volts: float, folder: pathlib.Path, name: str, rng: np.
     path.with_suffix(".json").write_text(json.dumps({
         "system": "single-actuator", "sample_rate_hz": 1000.0, "controller": {"type": "none"}, "valve": "4-way",
         "cylinder": {"bore_m": rig.bore, "rod_m": rig.rod, "stroke_m": rig.stroke},
-        "description": f"independent 4-way cylinder, {volts:g} V"}))
+        "description": f"independent 4-way cylinder, {' then '.join(f'{v:g}' for v in np.atleast_1d(volts))} V"}))
     return path

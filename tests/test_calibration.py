@@ -17,6 +17,7 @@ from hexsim.cli import main
 from hexsim.measured.calibration import calibrate, features
 from hexsim.measured.parameters import default_parameters
 from hexsim.measured.measurement import read_log
+from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine, read_machine
 
 DATA = pathlib.Path(__file__).resolve().parents[1] / "examples" / "data" / "servo_cylinder"
@@ -67,6 +68,49 @@ def test_calibration_recovers_a_machine_off_its_file_and_predicts_held_out_comma
     # the output is a machine file: the fitted values in place, the calibration's provenance with it
     assert calibrated.calibration["logs"] == [str(log.path) for log in fit]
     assert calibrated.hydraulics.supply_pressure == pytest.approx(rows["supply.pressure_Pa"]["value"])
+
+
+#: Effects added to the first machine of TRUTHS after its calibration experiments: (the truth's change, the
+#: effect hexsim must name, its parameter and the value it must come back at, absolute tolerance).
+EFFECTS = {
+    "null": ({}, None, None, None, None),
+    "leakage": ({"leakage": 3e-12}, "leakage", "C_l", 3.0, 0.3),  # [1e-12 m^3/(s Pa)]
+    "cold seals": ({"coulomb_pos": 130.0, "coulomb_neg": 100.0}, "friction", "k_c", 1.65, 0.08),  # 130/80, 100/60
+    "worn return edge": ({"k_at": 0.84}, "edge_asymmetry", "k_AT", 0.84, 0.03),
+    "null drift": ({"null_offset": 0.15}, "null_offset", "u_0", 0.15, 0.03),
+}
+
+
+@pytest.fixture(scope="module")
+def calibrated_rig(tmp_path_factory):
+    """The first machine of TRUTHS calibrated on its experiments at 2, 4 and 7 V (steady features)."""
+    truth = TRUTHS["valve, edges, supply, tank, friction"]
+    folder = tmp_path_factory.mktemp("rig")
+    calibrated, report = calibrate(_logs(truth, folder, (2.0, 4.0, 7.0)), NOMINAL, cross_validate=False)
+    return truth, calibrated, report, folder
+
+
+@pytest.mark.parametrize("case", list(EFFECTS))
+def test_calibrate_then_validate_names_the_effect_on_a_4_way_machine_off_its_file(calibrated_rig, case):
+    """Calibrated on steady experiments, then judged on a run at 1 V, then 3 V, of the same machine with an effect
+    added (or none): the null is ``none``, each effect is named at its value (at one command a null offset
+    and the edges' asymmetry change the two directions' speeds alike; two commands tell them apart). The windows
+    at the end stops are left out of the replay; the calibrated model's misfit on its own logs' windows enters the
+    budget."""
+    truth, calibrated, report, folder = calibrated_rig
+    assert [r["log"].endswith(".csv") for r in report["replayed"]] == [True] * 3
+    change, name, parameter, value, tol = EFFECTS[case]
+    rng = np.random.default_rng(5)
+    log = read_log(experiment(truth.replace(**change), (1.0, 3.0), folder, f"validate_{case.replace(' ', '_')}", rng),
+                   machine=calibrated)
+    doc = validate(log, jobs=2)
+    assert doc["windows"]["left_out"]["end_stops"] > 0
+    if name is None:
+        assert doc["verdict"] == "none", doc["held_out_rms_in_budgets"]
+        return
+    assert doc["verdict"] == "explained", (doc["held_out_rms_in_budgets"], doc["conclusions"])
+    assert [e["name"] for e in doc["added_effects"]] == [name]
+    assert doc["added_effects"][0]["parameters"][parameter]["value"] == pytest.approx(value, abs=tol)
 
 
 def test_what_one_command_cannot_separate_is_held_at_its_prior_with_the_experiment_that_would(tmp_path):
@@ -131,6 +175,14 @@ def test_real_cylinder_calibrated_on_one_repeat_predicts_the_other(tmp_path, cap
     capsys.readouterr()
     assert main(["machine", "show", str(out)]) == 0  # a calibrated file is a machine file like any other
     assert json.loads(capsys.readouterr().out)["calibration"]["logs"] == fit
+    # a held-out repeat judged on the calibrated file: nothing beyond what the calibration left; the windows
+    # at the stops and where the position transducer reads the end of its range (10 V) are left out
+    assert main(["validate", held[2], "--machine", str(out), "--json", str(tmp_path / "v.json")]) == 0
+    doc = json.loads((tmp_path / "v.json").read_text())
+    assert doc["verdict"] == "none", doc["held_out_rms_in_budgets"]
+    assert doc["windows"]["left_out"]["end_stops"] > 10 and doc["windows"]["count"] >= 4
+    assert doc["windows"]["left_out"]["clipped_columns"]["pos_m"]["value"] == pytest.approx(0.2, abs=1e-4)
+    assert "left out: " in capsys.readouterr().out
 
 
 def test_features_of_a_real_run_are_its_steady_motions_and_end_stop_plateaus():

@@ -44,6 +44,7 @@ def table(report: dict) -> str:
         lines.append(f"fitted features  before: {errs(report['fit']['before'])}")
         lines.append(f"                 after:  {errs(report['fit']['after'])}")
     transients(report.get("transients", []), "held-out windows of")
+    transients([r for r in report.get("replayed", []) if "after" in r], "windows of")
     held = report.get("held_out", {})
     if "before" in held:
         lines.append(f"held-out logs    before: {errs(held['before'])}")
