@@ -89,3 +89,23 @@ def test_two_parameters_the_residual_only_sees_together_are_not_both_fitted():
     assert key.startswith("friction.") and ("trades against" in why or "standard error" in why)
     screening = fit_parameters(residual_of, machine, params, options=FitOptions(rule=False, max_nfev=5))
     assert screening.held == {} and np.all(screening.std_errors == 0.0)
+
+
+def test_a_bound_the_data_barely_ask_for_is_held_and_one_they_ask_for_is_kept():
+    """A parameter the residual sees only faintly, whose truth lies beyond its bracket, runs to the bound at
+    no material gain (the real cylinder's 10 V table point, seen through a 0.01 V null offset): held at its
+    prior; the same parameter seen plainly stays at its bound, a finding (calibration reports it)."""
+    machine = load_machine("servo_cylinder")
+    params = _set(machine)
+    truth = params.priors(machine) * np.array([1.2, 0.8, 3.0])  # the bulk modulus beyond its 2x bound
+    for faint, held in ((3e-4, True), (1.0, False)):
+        design = np.random.default_rng(4).normal(size=(40, 3))
+        design[:, 2] *= faint
+        residual_of, _ = _linear(design, truth, noise=0.01)
+        fit = fit_parameters(residual_of, machine, params)
+        prior, upper = params.priors(machine)[2], params.upper[2]
+        if held:  # and the others as if it were not there
+            assert "barely ask for" in fit.held["oil.bulk_modulus_Pa"] and fit.values[2] == prior
+            assert fit.values[0] == pytest.approx(truth[0], rel=0.01)
+        else:  # (the others then make up for what the bound withholds)
+            assert fit.held == {} and fit.values[2] == pytest.approx(upper)

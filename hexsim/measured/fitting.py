@@ -11,7 +11,10 @@ correlations from :func:`hexsim.measured.statistics.fit_statistics`.
 standard error exceeds :data:`MAX_SE_SHARE` of its bound range, or the worse known of two correlated
 beyond :data:`MAX_CORRELATION`, is held at its prior with the reason, and the rest refitted, until none
 breaks the rule. Before the first fit, a parameter no residual entry sees across its whole bracket (at the
-prior, and with the others at three quarters of theirs) is held.
+prior, and with the others at three quarters of theirs) is held. A parameter the fit drove to a bound is
+held too when putting it back at its prior costs less than :data:`MIN_BOUND_GAIN` in the weighted sum of
+squares (the others as fitted): a bound reached through a sensitivity the data barely have (the real
+cylinder's 10 V table point, seen by its 5 V runs only through a null offset of 0.01 V) is no finding.
 """
 
 from __future__ import annotations
@@ -31,6 +34,9 @@ from hexsim.plant.machine import Machine
 MAX_SE_SHARE = 0.25
 #: Two parameters this correlated trade against each other: the one known worse is held at its prior.
 MAX_CORRELATION = 0.98
+#: A parameter at a bound whose prior costs less than this in the weighted sum of squares (chi^2 with one
+#: degree of freedom: 1 is one standard deviation) is not asked for by the data: held at its prior.
+MIN_BOUND_GAIN = 1.0
 #: A machine the residual cannot be computed for (a physics error, an invalid file) costs this per entry.
 FAILED_RESIDUAL = 1e3
 
@@ -124,7 +130,10 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         share = 1.0 if independent_share is None else independent_share(params.apply(machine, x))
         stats = fit_statistics(sol.jac, sol.fun, free=_inside(sol), n_independent=share * len(sol.fun))
         se_z, corr = stats.std_errors, stats.correlation
-        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
+        worst, why = _weak_at_bound(sol, residual, (prior[free] - lo[free]) / span[free])
+        x[free] = lo[free] + sol.x * span[free]  # the residual's closure wrote its trial values there
+        if worst is None:
+            worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
         if worst is None:
             se = np.zeros(len(params))
             se[free] = se_z * span[free]
@@ -163,6 +172,25 @@ def _inside(sol) -> np.ndarray:
     """(k,) bool: the parameters the fit left inside their bounds (normalised coordinates). scipy's trf
     returns the Jacobian column of a parameter at an active bound zeroed: it is not a free variable there."""
     return (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
+
+
+def _weak_at_bound(sol, residual: Callable[[np.ndarray], np.ndarray], z_prior: np.ndarray) -> tuple[int | None, str]:
+    """The free parameter at a bound the data barely ask for, and why: of those the fit moved from their
+    prior (``z_prior`` (f,), normalised) to a bound, the one whose return to the prior (the others as
+    fitted) raises the weighted sum of squares least, if by less than :data:`MIN_BOUND_GAIN`; (None, "")
+    if none. ``residual``: of the normalised free values. A prior at the bound (a tank pressure of 0, a
+    physical limit) is no move."""
+    best, gain = None, MIN_BOUND_GAIN
+    for j in np.flatnonzero(~_inside(sol) & (np.abs(sol.x - z_prior) > 1e-3)):  # a prior at its bound stays
+        z = sol.x.copy()
+        z[j] = z_prior[j]
+        g = float(np.sum(residual(z) ** 2) - np.sum(sol.fun ** 2))
+        if g < gain:
+            best, gain = int(j), g
+    if best is None:
+        return None, ""
+    return best, (f"the fit ran to a bound the data barely ask for: its prior costs {max(gain, 0.0):.2g} in the "
+                  f"weighted sum of squares (less than {MIN_BOUND_GAIN:g})")
 
 
 def _unidentified(sol, se_z: np.ndarray, corr: np.ndarray, keys: list[str],
