@@ -15,8 +15,11 @@ from independent_cylinder import Rig, experiment
 
 from hexsim.cli import main
 from hexsim.measured.calibration import calibrate, features
+from hexsim.measured.discovery import apply_terms, equation_errors, equation_terms
+from hexsim.measured.identify import Problem
 from hexsim.measured.parameters import default_parameters
 from hexsim.measured.measurement import read_log
+from hexsim.measured.replay import nominal_plant
 from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine, read_machine
 
@@ -111,6 +114,41 @@ def test_calibrate_then_validate_names_the_effect_on_a_4_way_machine_off_its_fil
     assert doc["verdict"] == "explained", (doc["held_out_rms_in_budgets"], doc["conclusions"])
     assert [e["name"] for e in doc["added_effects"]] == [name]
     assert doc["added_effects"][0]["parameters"][parameter]["value"] == pytest.approx(value, abs=tol)
+
+
+#: Effects out of the library (validate --without them): the truth's change and the discovery's terms with their
+#: values (relative to the calibrated file's edge gain for an edge) and absolute tolerances.
+DISCOVERED = {
+    "null": ({}, {}),
+    "leakage": ({"leakage": 3e-12}, {"flow:p2 - p1": (3e-12, 0.3e-12), "flow_rod:p1 - p2": (3e-12, 0.3e-12)}),
+    "weak B->T edge": ({"k_bt": 0.8}, {"flow_rod:phi_BT": (0.8, 0.03)}),
+}
+
+
+@pytest.mark.parametrize("case", list(DISCOVERED))
+def test_the_discovery_reads_a_4_way_cylinders_leak_and_edge_in_the_chambers_they_touch(calibrated_rig, case):
+    """Both chambers' flow equations on the calibrated model: a leak across the piston appears in each at its
+    C_l, a weak B→T edge in the rod side's only, a null has no term; with 0.3 mm of position noise the
+    areas' terms are not asked (they would fit that noise with the equation's own terms at -1). What is
+    found maps onto the model: one C_l for the two sides' leak terms, the edge's gain scaled."""
+    truth, calibrated, _, folder = calibrated_rig
+    change, expected = DISCOVERED[case]
+    log = read_log(experiment(truth.replace(**change), (1.0, 3.0), folder, f"discover_{case.replace(' ', '_')}",
+                              np.random.default_rng(6)), machine=calibrated)
+    base = nominal_plant(log)
+    if "k_bt" in change:  # the discovery's coefficient is relative to the model's edge: (1 + c) k_BT,cal
+        expected = {"flow_rod:phi_BT": (change["k_bt"] / base.effects.edge_gain_bt - 1.0, 0.03)}
+    terms, found, far, not_asked = equation_terms(Problem(log), equation_errors(log, base))
+    assert not far and set(not_asked) == {"flow:A1 ydot", "flow_rod:A2 ydot"}
+    assert set(found) == set(expected), terms
+    for key, (value, tol) in expected.items():
+        assert found[key] == pytest.approx(value, abs=tol), key
+    model, applied = apply_terms(base, found)
+    assert set(applied) == set(found)
+    if "leakage" in change:
+        assert model.effects.leakage == pytest.approx(found["flow:p2 - p1"])
+    if "k_bt" in change:
+        assert model.effects.edge_gain_bt == pytest.approx(change["k_bt"], abs=0.03)
 
 
 def test_what_one_command_cannot_separate_is_held_at_its_prior_with_the_experiment_that_would(tmp_path):

@@ -207,7 +207,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "internal leakage of a worn piston seal: up to ~1 L/min at 70 bar, 2e-10 m^3/(s Pa) "
               "(Merritt §3.4; a new seal leaks < 1e-12)",
               lambda m, x: _eff(m, leakage=x[0] * 1e-12),
-              "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber", (0.0,)),
+              "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber (a 4-way valve: "
+              "C_l (P2 - P1), from the rod side)", (0.0,)),
     Candidate("load", ("M", "inclination"), ("kg", "deg"),
               lambda log: ((log.mass_kg or moving_mass(), max(log.inclination_deg, 1.0)),
                            (1.5 * (log.mass_kg or moving_mass()), 30.0)), (5.0, 0.0), (400.0, 89.0),

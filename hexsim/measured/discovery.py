@@ -7,6 +7,11 @@ PNAS 2016):
 - **flow** (seed eq. 3.6-3.7): r_Q = (y A1 + V_pl)/E dP1/dt + A1 ydot - phi_1,model [m^3/s],
 - **force** (seed eq. 3.8): r_F = M ydd - (P1 A1 - P_s A2 - F_f(ydot) - M g cos(theta)) [N],
 
+and on a 4-way valve (both chambers fed by the valve) the cap side's flow equation with the leakage across
+the piston C_l (P2 - P1) when P2 is logged, the rod side's when P2 is logged, r_Q2 = (A2 (L_s - y) +
+V_pl,B)/E dP2/dt - A2 ydot - phi_2,model (:data:`ROD_FLOW_TERMS`: the edges P→B and B→T), and the force
+equation with P2 A2 in place of P_s A2 when both pressures are logged,
+
 with ydot, ydd, dP1/dt Savitzky–Golay derivatives and every term smoothed by the same filter. Each
 residual is regressed on a dictionary of physically meaningful features (:data:`FLOW_TERMS`,
 :data:`FORCE_TERMS`: the two valve edges' flows, the leakage pressure difference, velocity, a smooth sign
@@ -15,7 +20,10 @@ of velocity, position, constants) by the Lasso path with the BIC choosing the sp
 cross-validation folds), refitted by least squares on the chosen terms, and pruned to the terms whose
 coefficient is at least :data:`MIN_T` standard errors from zero (standard errors inflated by the
 residual's autocorrelation) and that remove at least :data:`MIN_SHARE` of the equation error on the
-held-out windows. The fit uses the samples of the identifier's fit windows only.
+held-out windows. The fit uses the samples of the identifier's fit windows only. The piston area's term is
+not asked when the position's derivative noise is a material part of the equation error
+(:data:`AREA_NOISE_SHARE`): the error holds that noise through its own A ydot, and the equation's own terms
+at -1 would fit it.
 
 Terms that map onto a model parameter (edge gains, leakage, viscous and Coulomb friction) are added to
 the model — all together and each alone, keeping what lowers the replay's held-out error most, and
@@ -29,10 +37,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 
 from hexsim.measured.replay import PlantModel, ReplayProblem
-from hexsim.measured.residuals import effective_n
+from hexsim.measured.residuals import effective_n, noise_of
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant import hydraulics
 from hexsim.plant.model import gravity, moving_mass
@@ -41,6 +49,11 @@ SMOOTH_S = 0.021  # [s] Savitzky–Golay window (cubic) of the derivatives and o
 MIN_T = 4.0  # a term is kept when |coefficient| >= MIN_T standard errors
 MIN_SHARE = 0.05  # ... and when it removes at least this share of the held-out equation error (mean square)
 V_COULOMB = 1e-3  # [m/s] width of the smooth sign tanh(ydot / V_COULOMB)
+#: The piston area's column A ydot carries the position's derivative noise, and so does the flow equation's
+#: error itself (through its own A ydot): when that noise is this share of the error's rms or more, the
+#: regression fits the noise with the equation's own terms at -1 (errors in variables; seen on a 4-way
+#: cylinder logged with 0.3 mm of position noise: every log "far off"), and the area is not asked.
+AREA_NOISE_SHARE = 0.2
 
 
 @dataclass(frozen=True)
@@ -65,6 +78,24 @@ FLOW_TERMS = (
     Term("A1 ydot", "flow", "-", "the bottom chamber takes {pct:.1f} % {more} oil per metre of stroke than A1 "
          "(effective area)", 0.2),
 )
+#: The 4-way valve's cap side: the leakage across the piston comes from the rod side (P2 - P1, logged).
+FLOW_TERMS_4WAY = (
+    *FLOW_TERMS[:2],
+    Term("p2 - p1", "flow", "m^3/(s Pa)", "a flow of {c:.3g} m^3/(s Pa) times (P2 - P1) into the cap side "
+         "(leakage across the piston)"),
+    *FLOW_TERMS[3:],
+)
+#: The 4-way valve's rod side B (its pressure P2 logged).
+ROD_FLOW_TERMS = (
+    Term("phi_PB", "flow_rod", "-", "the supply edge P→B passes {pct:.0f} % {more} flow than eq. (3.4)", 0.5),
+    Term("phi_BT", "flow_rod", "-", "the return edge B→T passes {pct:.0f} % {more} flow than eq. (3.4)", 0.5),
+    Term("p1 - p2", "flow_rod", "m^3/(s Pa)", "a flow of {c:.3g} m^3/(s Pa) times (P1 - P2) into the rod side "
+         "(leakage across the piston)"),
+    Term("1", "flow_rod", "m^3/s", "a constant flow of {c:.3g} m^3/s into the rod side (a null offset or an "
+         "external leak)"),
+    Term("A2 ydot", "flow_rod", "-", "the rod side gives {pct:.1f} % {more} oil per metre of stroke than A2 "
+         "(effective area)", 0.2),
+)
 FORCE_TERMS = (
     Term("ydot", "force", "N s/m", "a viscous force of {c:.4g} N s/m times the velocity (along the motion if > 0)"),
     Term("tanh(ydot/1 mm/s)", "force", "N", "a Coulomb-like force of {c:.3g} N (along the motion if > 0)"),
@@ -87,12 +118,15 @@ def _smooth(x: np.ndarray, n: int, deriv: int = 0, fs: float = 1.0) -> np.ndarra
     return savgol_filter(x, n, 3, deriv=deriv, delta=1.0 / fs)
 
 
-def flow_equation(y, u, p1, p_s, fs: float, model: PlantModel, lag: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Residual of the flow equation of one leg (N,) [m^3/s] and its dictionary (N, len(FLOW_TERMS)), from
-    its measured position y [m], valve setpoint u [V], P1 and P_s [Pa] (arrays (N,)) at ``fs`` [Hz].
-    ``lag``: the dictionary of :data:`LAG_TERMS` instead (N, 1), and the residual of a flow that acts half
-    a sample after its row (the logged u_v holds over the sample after it: without that, every leg of a
-    1 kHz hexapod log showed a lag of 0.53 ms)."""
+def flow_equation(y, u, p1, p_s, fs: float, model: PlantModel, lag: bool = False,
+                  p2=None) -> tuple[np.ndarray, np.ndarray]:
+    """Residual of the flow equation of one leg's cap side (N,) [m^3/s] and its dictionary (N, 5): 
+    :data:`FLOW_TERMS`, or :data:`FLOW_TERMS_4WAY` on a 4-way valve), from its measured position y [m],
+    valve setpoint u [V], P1 and P_s [Pa] (arrays (N,)) at ``fs`` [Hz]; ``p2`` [Pa] (N,) the rod side's
+    logged pressure on a 4-way valve (None: not logged, the leakage column is zero). ``lag``: the
+    dictionary of :data:`LAG_TERMS` instead (N, 1), and the residual of a flow that acts half a sample after
+    its row (the logged u_v holds over the sample after it: without that, every leg of a 1 kHz hexapod log
+    showed a lag of 0.53 ms)."""
     hyd, eff = model.hydraulics, model.effects
     n = max(5, int(round(SMOOTH_S * fs)) | 1)
     ydot = _smooth(y, n, 1, fs)
@@ -101,35 +135,81 @@ def flow_equation(y, u, p1, p_s, fs: float, model: PlantModel, lag: bool = False
     dps, dpt = p_s - p1, p1 - hyd.tank_pressure
     phi_pa = eff.edge_gain_pa * hydraulics.edge_flow(a1, dps, hyd)
     phi_at = -eff.edge_gain_at * hydraulics.edge_flow(a2, dpt, hyd)
-    phi = phi_pa + phi_at + eff.leakage * dps
+    if hyd.four_way:  # the leak comes from the rod side (hexsim.plant.legs: C_l (P2 - P1))
+        dpl = np.zeros_like(p1) if p2 is None else p2 - p1
+    else:
+        dpl = dps
+    phi = phi_pa + phi_at + eff.leakage * dpl
     volume = hydraulics.chamber_volume(y, hyd)
     target = volume / hyd.bulk_modulus * dp1 + hyd.area_bottom * ydot - _smooth(phi, n)
     if lag:
         dphi = _smooth(phi_pa + phi_at, n, 1, fs)
         return target + 0.5 / fs * dphi, dphi[:, None]
-    x = np.column_stack([_smooth(phi_pa, n), _smooth(phi_at, n), _smooth(dps, n), np.ones_like(y),
-                         hyd.area_bottom * ydot])
+    # the area's column with its sign: a coefficient c is an effective area (1 + c) A1 (r_Q = -c A1 ydot)
+    x = np.column_stack([_smooth(phi_pa, n), _smooth(phi_at, n), _smooth(dpl, n), np.ones_like(y),
+                         -hyd.area_bottom * ydot])
+    _unless_noisy(target, x, y, hyd.area_bottom, n, fs)
     return target, x
 
 
-def equation_errors(log, model: PlantModel) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Residuals of the flow and force equations of a single-actuator log per sample and their
-    dictionaries: equation -> (target (N,), features (N, k)). Needs pos_m, valve_cmd_V and p1_Pa."""
+def rod_flow_equation(y, u, p1, p2, p_s, fs: float, model: PlantModel) -> tuple[np.ndarray, np.ndarray]:
+    """The 4-way valve's rod side: residual (N,) [m^3/s] of (A2 (L_s - y) + V_pl,B)/E dP2/dt - A2 ydot -
+    (phi_PB - phi_BT + C_l (P1 - P2)) and its dictionary (N, len(:data:`ROD_FLOW_TERMS`)), from the measured
+    y [m], u [V], P1, P2 and P_s [Pa] (arrays (N,)) at ``fs`` [Hz] (seed eq. 3.4 and 3.7 written for chamber
+    B; :func:`hexsim.plant.hydraulics.valve_flow_rod`)."""
+    hyd, eff = model.hydraulics, model.effects
+    n = max(5, int(round(SMOOTH_S * fs)) | 1)
+    ydot = _smooth(y, n, 1, fs)
+    dp2 = _smooth(p2, n, 1, fs)
+    a1, a2 = hydraulics.flow_areas(hydraulics.spool_position(u, hyd), hyd)  # P→B opens with A→T, B→T with P→A
+    phi_pb = eff.edge_gain_pb * hydraulics.edge_flow(a2, p_s - p2, hyd)
+    phi_bt = -eff.edge_gain_bt * hydraulics.edge_flow(a1, p2 - hyd.tank_pressure, hyd)
+    phi = phi_pb + phi_bt + eff.leakage * (p1 - p2)
+    volume = np.maximum(hyd.stroke - np.asarray(y, dtype=float), 0.0) * hyd.area_rod + hyd.pipeline_volume_rod
+    target = volume / hyd.bulk_modulus * dp2 - hyd.area_rod * ydot - _smooth(phi, n)
+    x = np.column_stack([_smooth(phi_pb, n), _smooth(phi_bt, n), _smooth(p1 - p2, n), np.ones_like(y),
+                         hyd.area_rod * ydot])  # (1 + c) A2
+    _unless_noisy(target, x, y, hyd.area_rod, n, fs)
+    return target, x
+
+
+def _unless_noisy(target: np.ndarray, x: np.ndarray, y: np.ndarray, area: float, n: int, fs: float) -> None:
+    """Zero the area column (the last of ``x``, (N, k)) in place when the noise the position y [m] (N,)
+    puts on A ydot is :data:`AREA_NOISE_SHARE` of the equation error ``target``'s rms or more: the noise
+    of the Savitzky–Golay derivative is sigma_y times the norm of its coefficients."""
+    sigma_v = noise_of(y, "position") * float(np.linalg.norm(savgol_coeffs(n, 3, deriv=1, delta=1.0 / fs)))
+    if area * sigma_v >= AREA_NOISE_SHARE * float(np.sqrt(np.mean(target ** 2))):
+        x[:, -1] = 0.0
+
+
+def equation_errors(log, model: PlantModel) -> dict[str, tuple[np.ndarray, np.ndarray, tuple[Term, ...]]]:
+    """Residuals of the equations a single-actuator log closes, per sample, with their dictionaries:
+    equation -> (target (N,), features (N, k), the k terms). Needs pos_m and valve_cmd_V. The 3-way valve:
+    the cap side's flow (p1_Pa) and the force equation (P_s A2 on the rod side). The 4-way valve: the cap
+    side's flow with p1_Pa, the rod side's with p2_Pa, the force equation with both."""
     c = log.columns
     hyd, eff = model.hydraulics, model.effects
     fs = log.sample_rate_hz
     n = max(5, int(round(SMOOTH_S * fs)) | 1)
-    y, u, p1 = c["pos_m"], c["valve_cmd_V"], c["p1_Pa"]
+    y, u = c["pos_m"], c["valve_cmd_V"]
+    p1, p2 = c.get("p1_Pa"), c.get("p2_Pa") if hyd.four_way else None
     p_s = c["ps_Pa"] if "ps_Pa" in c else np.full_like(y, hyd.supply_pressure)
-    flow = flow_equation(y, u, p1, p_s, fs, model)
-    ydot = _smooth(y, n, 1, fs)
-    ydd = _smooth(y, n, 2, fs)
-    mass = eff.mass_kg or log.mass_kg or moving_mass()
-    incl = eff.inclination_deg if eff.inclination_deg is not None else log.inclination_deg
-    f_hyd = p1 * hyd.area_bottom - p_s * hyd.area_rod - hydraulics.friction_force(ydot, hyd)
-    force_target = mass * ydd - _smooth(f_hyd, n) + mass * gravity() * math.cos(math.radians(incl))
-    force_x = np.column_stack([ydot, np.tanh(ydot / V_COULOMB), np.ones_like(y)])
-    return {"flow": flow, "force": (force_target, force_x)}
+    out = {}
+    if p1 is not None:
+        out["flow"] = (*flow_equation(y, u, p1, p_s, fs, model, p2=p2), FLOW_TERMS_4WAY if hyd.four_way else FLOW_TERMS)
+    if p2 is not None:
+        out["flow_rod"] = (*rod_flow_equation(y, u, p2 if p1 is None else p1, p2, p_s, fs, model),
+                           ROD_FLOW_TERMS)
+    rod_side = p2 if hyd.four_way else p_s
+    if p1 is not None and rod_side is not None:
+        ydot = _smooth(y, n, 1, fs)
+        ydd = _smooth(y, n, 2, fs)
+        mass = eff.mass_kg or log.mass_kg or moving_mass()
+        incl = eff.inclination_deg if eff.inclination_deg is not None else log.inclination_deg
+        f_hyd = p1 * hyd.area_bottom - rod_side * hyd.area_rod - hydraulics.friction_force(ydot, hyd)
+        force_target = mass * ydd - _smooth(f_hyd, n) + mass * gravity() * math.cos(math.radians(incl))
+        out["force"] = (force_target, np.column_stack([ydot, np.tanh(ydot / V_COULOMB), np.ones_like(y)]), FORCE_TERMS)
+    return out
 
 
 def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[list[dict], dict[str, float], bool]:
@@ -288,9 +368,16 @@ def apply_terms(model: PlantModel, found: dict[str, float], mean_dp: float = 0.0
     if "flow:phi_AT" in found and eff.edge_gain_at * (1 + found["flow:phi_AT"]) > 0:
         eff = eff.replace(edge_gain_at=eff.edge_gain_at * (1 + found["flow:phi_AT"]))
         applied.append("flow:phi_AT")
-    if "flow:p_s - p1" in found and eff.leakage + found["flow:p_s - p1"] >= 0:
-        eff = eff.replace(leakage=eff.leakage + found["flow:p_s - p1"])
-        applied.append("flow:p_s - p1")
+    # the 3-way valve's leak from P_s; the 4-way's across the piston, seen by either chamber: one C_l, the
+    # first side's coefficient, and the other side's term counts as applied with it
+    leaks = [k for k in ("flow:p_s - p1", "flow:p2 - p1", "flow_rod:p1 - p2") if k in found]
+    if leaks and eff.leakage + found[leaks[0]] >= 0:
+        eff = eff.replace(leakage=eff.leakage + found[leaks[0]])
+        applied += leaks
+    for key, edge in (("flow_rod:phi_PB", "edge_gain_pb"), ("flow_rod:phi_BT", "edge_gain_bt")):
+        if key in found and getattr(eff, edge) * (1 + found[key]) > 0:
+            eff = eff.replace(**{edge: getattr(eff, edge) * (1 + found[key])})
+            applied.append(key)
     if "force:ydot" in found:  # an extra force c ydot is a viscous friction of -c
         sp, sn = hyd.viscous_pos - found["force:ydot"], hyd.viscous_neg - found["force:ydot"]
         if sp >= 0 and sn >= 0:
@@ -306,6 +393,27 @@ def apply_terms(model: PlantModel, found: dict[str, float], mean_dp: float = 0.0
     return model.replace(hydraulics=hyd, effects=eff), applied
 
 
+def equation_terms(problem: ReplayProblem, errors: dict) -> tuple[list[dict], dict[str, float], bool, list[str]]:
+    """The sparse terms of each equation of :func:`equation_errors` (``errors``) of a single-actuator log,
+    fitted on the samples of the problem's fit windows and judged on its held-out windows (less the
+    Savitzky–Golay edge of each window): the JSON-ready terms, {"equation:term": coefficient}, whether an
+    equation is far off (:func:`_sparse_terms`), and the area terms not asked (:func:`_unless_noisy`)."""
+    w = problem.windows
+    edge = max(5, int(round(SMOOTH_S * problem.log.sample_rate_hz)))
+    rows = lambda sel: (w.starts[sel][:, None] + np.arange(edge, w.length - edge)[None, :]).ravel()  # noqa: E731
+    fit, test = rows(problem.fit_rows), rows(problem.test_rows)
+    terms, found, far, not_asked = [], {}, False, []
+    for target, x, dictionary in errors.values():
+        t_eq, f_eq, off = _sparse_terms(target, x, fit, test, dictionary, None)
+        terms += t_eq
+        found |= f_eq
+        far = far or off
+        area = dictionary[-1]
+        if area.name.endswith("ydot") and area.equation != "force" and not x[:, -1].any():
+            not_asked.append(f"{area.equation}:{area.name}")
+    return terms, found, far, not_asked
+
+
 def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, score=None) -> dict:
     """Fit the sparse correction on the fit windows' samples, add what maps onto the model, replay and
     compare on the held-out windows (see the module doc). ``base``/``base_scored``: the model the verdict
@@ -315,27 +423,22 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
     if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation, its terms added to
     that leg (:func:`_discover_legs`)."""
     log = problem.log
-    if base.hydraulics.four_way:  # its dictionary is the 3-way valve's (P_s - P1, the rod side at supply)
-        return {"done": False, "why": "the discovery's equation terms are written for the seed's 3-way valve; this "
-                "machine has a 4-way valve (both chambers), for which they do not hold"}
+    if log.system == "hexapod" and base.hydraulics.four_way:  # its legs' dictionary is the 3-way valve's
+        return {"done": False, "why": "the hexapod's leg-by-leg discovery is written for the seed's 3-way valve; "
+                "this machine's legs have 4-way valves (both chambers)"}
     if log.system == "hexapod":
         return _discover_legs(problem, base, base_scored, budget, score)
-    if "p1_Pa" not in log.columns:
-        return {"done": False, "why": "discovery needs the bottom-chamber pressure p1_Pa"}
     errors = equation_errors(log, base)
-    w = problem.windows
-    edge = max(5, int(round(SMOOTH_S * log.sample_rate_hz)))
-    rows = lambda sel: (w.starts[sel][:, None] + np.arange(edge, w.length - edge)[None, :]).ravel()  # noqa: E731
-    fit, test = rows(problem.fit_rows), rows(problem.test_rows)
-    terms, found, far = [], {}, False
-    for eq, dictionary in (("flow", FLOW_TERMS), ("force", FORCE_TERMS)):
-        t_eq, f_eq, off = _sparse_terms(*errors[eq], fit, test, dictionary, None)
-        terms += t_eq
-        found |= f_eq
-        far = far or off
+    if not errors:
+        return {"done": False, "why": "discovery needs a chamber pressure: p1_Pa" +
+                (" or p2_Pa (a 4-way valve)" if base.hydraulics.four_way else "")}
+    terms, found, far, not_asked = equation_terms(problem, errors)
     out = {"done": True, "method": "LassoLarsIC (BIC) on the equation errors of the fit windows, least squares "
            f"on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of the held-out "
            "equation error", "terms": terms}
+    if not_asked:
+        out["not_asked"] = {k: "the position's noise on A ydot is as large as a share of the equation's error: "
+                            "the area's term would fit that noise (AREA_NOISE_SHARE)" for k in not_asked}
     if not found:
         why = (_far_off([]) if far else "no term stands out of the equation noise")
         return out | {"added_to_model": [], "why": why}
@@ -344,7 +447,8 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
     # the representable terms together, then each alone: the replay on held-out windows decides
     c = log.columns
     p_s = c["ps_Pa"] if "ps_Pa" in c else base.hydraulics.supply_pressure
-    mean_dp = float(np.mean(p_s - c["p1_Pa"]))
+    # a constant inflow read as a leak from P_s (the 3-way valve; the 4-way's leak has its own column)
+    mean_dp = 0.0 if base.hydraulics.four_way else float(np.mean(p_s - c["p1_Pa"]))
     _, representable = apply_terms(base, found, mean_dp)
     trials = [representable] + ([[k] for k in representable] if len(representable) > 1 else [])
     best = None
@@ -364,7 +468,8 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
     out |= {"added_to_model": applied, "held_out_rms_before": base_scored.held_out_rms,
             "held_out_rms_after": scored.held_out_rms,
             "held_out_cost_recovered": 1.0 - cost_after / cost_before if cost_before > 0 else 0.0,
-            "effects_after": {"edge_gain_pa": model.effects.edge_gain_pa, "edge_gain_at": model.effects.edge_gain_at,
-                              "leakage": model.effects.leakage}}
+            "effects_after": {k: getattr(model.effects, k) for k in (
+                "edge_gain_pa", "edge_gain_at", "leakage",
+                *(("edge_gain_pb", "edge_gain_bt") if base.hydraulics.four_way else ()))}}
     out["_scored"] = scored
     return out

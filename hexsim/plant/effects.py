@@ -38,17 +38,17 @@ class Effects:
     (phi_PA + phi_leak - A2 ydot) (the rod side is connected to the supply, seed Fig. 3.1).
 
     Spool: a second-order spool position loop, x_v'' = w_v^2 (x_v,set - x_v) - 2 zeta w_v x_v' with
-    w_v = 2 pi f_v (valve datasheets give the -90° frequency; Jelali & Kroll §3.4), x_v limited to
-    ±x_v,max. Spool play: the setpoint passes a backlash of half width h [V] before the spool (the
-    hysteresis of the flow curve the seed measured, §4.2). Leakage: internal across the piston,
-    C_l (P_s - P1) into the bottom chamber. Sensor delay: the position the controller and the log see
-    is y(t - tau_y). Edge asymmetry: the supply (P→A) and return (A→T) edges of the spool pass k_PA and
-    k_AT times the flow of eq. (3.4), and with a 4-way valve the rod side's P→B and B→T edges k_PB and k_BT (ground edges differ by manufacturing tolerance and wear; the seed's
-    measured flow curve is not symmetric either, §4.2). Entrained air: a volume fraction a of undissolved
-    air at atmospheric pressure makes the oil softer the lower the pressure (:func:`hexsim.plant.legs.bulk_modulus`).
-    Payload (hexapod): a point mass m_p at c_p on the
-    platform (platform frame, origin at the platform body), added to the platform's mass, centre of mass
-    and inertia (parallel-axis theorem); the seed's 600 kg is the Micro Motion System's maximum payload.
+    w_v = 2 pi f_v (valve datasheets give the -90° frequency; Jelali & Kroll §3.4), x_v limited to ±x_v,max.
+    Spool play: the setpoint passes a backlash of half width h [V] before the spool (the hysteresis of the flow
+    curve the seed measured, §4.2). Leakage: internal across the piston, C_l (P_s - P1) into the bottom chamber
+    (a 4-way valve: C_l (P2 - P1), out of the rod side). Sensor delay: the position the controller and the log
+    see is y(t - tau_y). Edge asymmetry: the supply (P→A) and return (A→T) edges of the spool pass k_PA and k_AT
+    times the flow of eq. (3.4), and with a 4-way valve the rod side's P→B and B→T edges k_PB and k_BT (ground
+    edges differ by manufacturing tolerance and wear; the seed's measured flow curve is not symmetric
+    either, §4.2). Entrained air: a volume fraction a of undissolved air at atmospheric pressure makes the oil
+    softer the lower the pressure (:func:`hexsim.plant.legs.bulk_modulus`). Payload (hexapod): a point mass m_p
+    at c_p on the platform (platform frame, origin at the platform body), added to the platform's mass, centre
+    of mass and inertia (parallel-axis theorem); the seed's 600 kg is the Micro Motion System's maximum payload.
     """
 
     supply_resistance: float = 0.0  # R_s [Pa s/m^3], P_s sag per unit supply flow; 0: ideal supply
