@@ -120,8 +120,8 @@ def _smooth(x: np.ndarray, n: int, deriv: int = 0, fs: float = 1.0) -> np.ndarra
 
 def flow_equation(y, u, p1, p_s, fs: float, model: PlantModel, lag: bool = False,
                   p2=None) -> tuple[np.ndarray, np.ndarray]:
-    """Residual of the flow equation of one leg's cap side (N,) [m^3/s] and its dictionary (N, 5): 
-    :data:`FLOW_TERMS`, or :data:`FLOW_TERMS_4WAY` on a 4-way valve), from its measured position y [m],
+    """Residual of the flow equation of one leg's cap side (N,) [m^3/s] and its dictionary (N, 5)
+    (:data:`FLOW_TERMS`, or :data:`FLOW_TERMS_4WAY` on a 4-way valve), from its measured position y [m],
     valve setpoint u [V], P1 and P_s [Pa] (arrays (N,)) at ``fs`` [Hz]; ``p2`` [Pa] (N,) the rod side's
     logged pressure on a 4-way valve (None: not logged, the leakage column is zero). ``lag``: the
     dictionary of :data:`LAG_TERMS` instead (N, 1), and the residual of a flow that acts half a sample after
@@ -156,7 +156,7 @@ def rod_flow_equation(y, u, p1, p2, p_s, fs: float, model: PlantModel) -> tuple[
     """The 4-way valve's rod side: residual (N,) [m^3/s] of (A2 (L_s - y) + V_pl,B)/E dP2/dt - A2 ydot -
     (phi_PB - phi_BT + C_l (P1 - P2)) and its dictionary (N, len(:data:`ROD_FLOW_TERMS`)), from the measured
     y [m], u [V], P1, P2 and P_s [Pa] (arrays (N,)) at ``fs`` [Hz] (seed eq. 3.4 and 3.7 written for chamber
-    B; :func:`hexsim.plant.hydraulics.valve_flow_rod`)."""
+    B; :func:`hexsim.plant.hydraulics.valve_flow_rod`). P1 not logged: pass P2 for it (no leak column)."""
     hyd, eff = model.hydraulics, model.effects
     n = max(5, int(round(SMOOTH_S * fs)) | 1)
     ydot = _smooth(y, n, 1, fs)
@@ -437,8 +437,8 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
            f"on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of the held-out "
            "equation error", "terms": terms}
     if not_asked:
-        out["not_asked"] = {k: "the position's noise on A ydot is as large as a share of the equation's error: "
-                            "the area's term would fit that noise (AREA_NOISE_SHARE)" for k in not_asked}
+        out["not_asked"] = {k: f"the position's derivative noise on A ydot is {AREA_NOISE_SHARE:.0%} or more of "
+                            "the equation error's RMS: the area's term would fit that noise" for k in not_asked}
     if not found:
         why = (_far_off([]) if far else "no term stands out of the equation noise")
         return out | {"added_to_model": [], "why": why}
