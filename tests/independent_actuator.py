@@ -2,18 +2,22 @@
 calibrate-then-validate tests on the 3-way valve. Its own equations, integrated by classical Runge-Kutta
 at 2 µs (numba):
 
-- spool x_v = (u - u_0) / u_max * x_max (ideal, seed eq. 3.2), or following it as a second-order loop; the opening of each edge by ``area``:
+- spool x_v = (u - u_0) / u_max * x_max (ideal, seed eq. 3.2), or following it as a second-order loop,
+  behind a backlash of half width ``play`` [V] on the setpoint; the opening of each edge by ``area``:
   "sharp" pi d max(|x_v| - O_l, 0) (3.3), "quadratic" k_a x_v^2 (3.11 everywhere, as the seed's own
   simulations), "port" min(k_a x_v^2, pi d max(|x_v| - O_l, 0)) (a real spool: the smooth opening until
   the port limits it, with a kink where hexsim blends C¹);
 - each edge q = k C_d a sqrt(2 / rho) dp / sqrt(|dp| + 2 kPa) (turbulent; laminar below ~2 kPa, another
   regularisation than hexsim's); a leak C_l (P_s - P1) across the piston into the cap side;
-- dP1/dt = E / (A1 y + V_pl) (phi_1 + leak - A1 ydot) (3.7), P1 kept above -0.9 bar;
-- M yddot = P1 A1 - P_s A2 - F_f(ydot) - M g (3.8) with the Stribeck curve (3.9, arctan as published),
-  stiff end stops outside 0 … L;
+- dP1/dt = E / (A1 y + V_pl) (phi_1 + leak - A1 ydot) (3.7), P1 kept above -0.9 bar; with entrained air
+  the oil's and the air's compliances in series, the air's volume polytropic in the absolute pressure;
+- a supply that sags through a resistance with the flow drawn (supply edge, leak, rod side), first order;
+- M yddot = P1 A1 - P_s A2 - F_f(ydot) - M g cos(inclination) (3.8) with the Stribeck curve (3.9, arctan as
+  published), stiff end stops outside 0 … L;
 - a P controller at 500 Hz on the noisy position (valve saturated at ±10 V), the seed's faded-in sine (3.10)
-  as the reference; logged at 1 kHz: position, P1, P_s (constant), the accelerometer as the mean specific
-  force over each sample interval (Δv/Δt + g), with noise; the position transducer may lag (y(t - delay)).
+  as the reference; logged at 1 kHz: position, P1, P_s (its set value; with a sagging supply as a
+  transducer reads it), the accelerometer along the axis as the mean specific force over each sample
+  interval (Δv/Δt + g cos(inclination)), with noise; the position transducer may lag (y(t - delay)).
 """
 
 from __future__ import annotations
@@ -58,6 +62,12 @@ class Actuator:
     spool_hz: float = 0.0  # natural frequency of the spool's position loop (0: ideal, eq. 3.2)
     spool_zeta: float = 0.7
     sensor_delay: float = 0.0  # [s] the position transducer shows y(t - delay)
+    play: float = 0.0  # [V] half width of a backlash between the valve setpoint and the spool's
+    air: float = 0.0  # volume fraction of undissolved air at atmospheric pressure in the oil
+    air_n: float = 1.4  # its polytropic exponent
+    supply_resistance: float = 0.0  # [Pa s/m^3] the supply pressure's sag per unit of flow drawn (0: stiff)
+    supply_tau: float = 0.02  # [s] the pump and accumulator's time constant of that sag
+    inclination_deg: float = 0.0  # the cylinder's axis from vertical
 
     def replace(self, **kw) -> "Actuator":
         return replace(self, **kw)
@@ -68,7 +78,8 @@ def _pack(s: Actuator) -> np.ndarray:
     return np.array([a1, a1 - math.pi / 4 * s.rod**2, s.stroke, s.supply, s.tank, s.x_max, s.u_max, s.spool_d,
                      s.area_gain, s.overlap, s.null_offset, {"sharp": 0.0, "quadratic": 1.0, "port": 2.0}[s.area],
                      s.flow_gain, s.k_at, s.cd, s.rho, s.bulk, s.v_pl, s.leak, s.mass, *s.viscous, *s.coulomb,
-                     *s.static, *s.c_s, s.arctan_k, 2 * math.pi * s.spool_hz, s.spool_zeta])
+                     *s.static, *s.c_s, s.arctan_k, 2 * math.pi * s.spool_hz, s.spool_zeta, s.air, s.air_n,
+                     s.supply_resistance, s.supply_tau, math.cos(math.radians(s.inclination_deg))])
 
 
 @numba.njit(cache=True)
@@ -81,15 +92,26 @@ def _rhs(z, u, c):
         x, dxv, dvv = xv, vv, w * w * (x_set - xv) - 2.0 * c[30] * w * vv
     else:
         x, dxv, dvv = x_set, 0.0, 0.0
-    dp1, force = leg(c, y, v, p1, x)
-    return np.array([v, (force - m * 9.81) / m, dp1, dxv, dvv])
+    ps = z[5]
+    dp1, force, drawn = leg_at(c, y, v, p1, x, ps)
+    dps = (c[3] - c[33] * drawn - ps) / c[34] if c[33] > 0 else 0.0
+    return np.array([v, (force - m * 9.81 * c[35]) / m, dp1, dxv, dvv, dps])
 
 
 @numba.njit(cache=True)
 def leg(c, y, v, p1, x):
     """(dP1/dt [Pa/s], the force on the load [N]: pressures, friction and end stops) of one cylinder ``c``
-    (:func:`_pack`) at piston position y, velocity v, cap pressure p1 and spool position x."""
-    a1, a2, stroke, ps, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
+    (:func:`_pack`) at piston position y, velocity v, cap pressure p1 and spool position x, at the nominal
+    supply pressure."""
+    dp1, force, _ = leg_at(c, y, v, p1, x, c[3])
+    return dp1, force
+
+
+@numba.njit(cache=True)
+def leg_at(c, y, v, p1, x, ps):
+    """:func:`leg` at supply pressure ps [Pa], and the flow drawn from the supply [m^3/s] (the supply edge,
+    the leak, and the rod side's displacement, connected to the supply)."""
+    a1, a2, stroke, _, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
     port = math.pi * d * max(abs(x) - ol, 0.0)
     smooth = ka * x * x
     a = port if form == 0.0 else (smooth if form == 1.0 else min(smooth, port))
@@ -100,6 +122,10 @@ def leg(c, y, v, p1, x):
     else:
         dp = p1 - pt
         phi = -kq * kat * orifice * dp / math.sqrt(abs(dp) + 2e3)
+    if c[31] > 0:  # entrained air: oil and air volumes compressed in series, the air polytropically
+        pa = max(p1 + 1.01325e5, 1e3)
+        ratio = c[31] * (1.01325e5 / pa) ** (1.0 / c[32])  # air volume per oil volume at pa
+        bulk = (1.0 + ratio) / (1.0 / bulk + ratio / (c[32] * pa))
     dp1 = bulk / (a1 * max(y, 0.0) + vpl) * (phi + leak * (ps - p1) - a1 * v)
     if p1 < -0.9e5 and dp1 < 0:
         dp1 = 0.0
@@ -110,7 +136,7 @@ def leg(c, y, v, p1, x):
         stop = -2e8 * y - 2e4 * v
     elif y > stroke:
         stop = -2e8 * (y - stroke) - 2e4 * v
-    return dp1, p1 * a1 - ps * a2 - friction + stop
+    return dp1, p1 * a1 - ps * a2 - friction + stop, (phi if x > 0 else 0.0) + leak * (ps - p1) - a2 * v
 
 
 @numba.njit(cache=True)
@@ -137,24 +163,29 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
     t = np.arange(0.0, duration, dt)
     period = 1.0 / frequency
     ref = s.stroke / 2 + amplitude * np.sin(2 * np.pi * frequency * t) * np.clip(t / period, 0.0, 1.0)
-    z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g) / a1, -s.null_offset / s.u_max * s.x_max, 0.0])
-    out = {k: np.empty(len(t)) for k in ("pos", "p1", "u", "acc")}
+    g_axis = g * math.cos(math.radians(s.inclination_deg))  # gravity along the cylinder's axis
+    z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g_axis) / a1, -s.null_offset / s.u_max * s.x_max,
+                  0.0, s.supply])
+    out = {k: np.empty(len(t)) for k in ("pos", "p1", "u", "acc", "ps")}
     y_meas = rng.normal(0.0, noise[0], len(t))
-    u = 0.0
+    u = spool_u = 0.0
     v_prev = 0.0
     for j in range(len(t)):
         out["pos"][j] = z[0]
         y_meas[j] += float(np.interp(t[j] - s.sensor_delay, t[:j + 1], out["pos"][:j + 1])) if s.sensor_delay else z[0]
         if j % 2 == 0:  # the 500 Hz controller on the measured position
             u = float(np.clip(s.kp * (ref[j] - y_meas[j]), -s.u_max, s.u_max))
-        out["p1"][j], out["u"][j] = z[2], u
-        out["acc"][j] = (z[1] - v_prev) / dt + g if j else g
+            spool_u = min(max(spool_u, u - s.play), u + s.play)  # the play operator (backlash)
+        out["p1"][j], out["u"][j], out["ps"][j] = z[2], u, z[5]
+        out["acc"][j] = (z[1] - v_prev) / dt + g_axis if j else g_axis
         v_prev = z[1]
-        z = _advance(z, u, c, 2e-6, 500)
+        z = _advance(z, spool_u, c, 2e-6, 500)
         assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
-    return {"time_s": t, "ref_m": ref, "valve_cmd_V": out["u"], "pos_m": y_meas,
-            "p1_Pa": out["p1"] + rng.normal(0.0, noise[1], len(t)), "ps_Pa": np.full(len(t), s.supply),
-            "acc_mps2": out["acc"] + rng.normal(0.0, noise[2], len(t))}
+    p1 = out["p1"] + rng.normal(0.0, noise[1], len(t))
+    acc = out["acc"] + rng.normal(0.0, noise[2], len(t))
+    ps = out["ps"] + rng.normal(0.0, noise[1], len(t)) if s.supply_resistance > 0 else out["ps"]
+    return {"time_s": t, "ref_m": ref, "valve_cmd_V": out["u"], "pos_m": y_meas, "p1_Pa": p1, "ps_Pa": ps,
+            "acc_mps2": acc}
 
 
 def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0,

@@ -5,7 +5,8 @@ The truth is ``tests/independent_actuator.py`` (the seed's single actuator in it
 +7 %, return edge -5 %, overlap 8 µm, bulk modulus 1.2 GPa, twice the pipeline volume, 44 kg, friction
 levels changed per direction) and a port-limited spool (the smaller of eq. 3.11 and the port, with its
 overlap as a dead band): against the built-in file its logs are ``unexplained``. hexsim is told only the
-built-in file; it calibrates on one closed-loop experiment, then judges other logs of the machine."""
+built-in file; it calibrates on one closed-loop experiment, then judges other logs of the machine: with
+nothing added, and with each library effect added in the independent actuator's own terms."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from hexsim.measured.identify import STOP_MARGIN_M, Problem, left_out_text
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import ReplayProblem, Windows
 from hexsim.measured.residuals import clipped
+from hexsim.plant.effects import EFFECT_NAMES
 from hexsim.plant.machine import dump, load_machine
 from independent_actuator import Actuator, motion, write
 
@@ -66,25 +68,62 @@ def test_the_calibration_recovers_the_machine_and_chooses_its_valve(calibrated):
     assert all(after[ch] < 1.5 for ch in ("position", "p1", "acceleration")), after
 
 
-def test_validate_on_the_calibrated_machine_names_the_effect_and_nothing_on_a_null(calibrated, capsys):
-    """Another motion of the machine (1 Hz, 50 mm): nothing added -> none (with the built-in file it is
-    unexplained); a leak across the piston -> leakage, at its value. The calibration's uncertainty is part
-    of the budget."""
+#: Each library effect added to TRUTH as a machine shows it (a supply line of 1.2 bar/(L/min), a 35 Hz spool,
+#: 0.25 V of null drift and of spool play, a leak, a heavier inclined load, cold seals, warm or aerated oil,
+#: a lagging transducer, a worn return edge), in the independent actuator's own terms; the answer's parameter
+#: that measures it, its true value in the answer's unit (relative to the calibrated file where the effect
+#: is a factor) and the tolerance.
+EFFECTS = {
+    "supply_pressure": ({"supply_resistance": 1.2e5 / (1e-3 / 60), "supply_tau": 0.03}, "R_s", 1.2, 0.15),
+    "spool_dynamics": ({"spool_hz": 35.0}, "f_v", 35.0, 0.15),
+    "null_offset": ({"null_offset": 0.25}, "u_0", 0.25, 0.1),
+    "hysteresis": ({"play": 0.25}, "h", 0.25, 0.1),
+    "leakage": ({"leak": 3e-12}, "C_l", 3.0, 0.1),
+    "load": ({"mass": 65.0, "inclination_deg": 25.0}, "M", 65.0, 0.1),
+    "friction": ({"coulomb": (75.0 * 2.5, 52.0 * 2.5), "static": (75.0, 75.0)}, "k_c", 2.5, 0.1),
+    "bulk_modulus": ({"bulk": 0.55e9}, "E", 0.55, 0.1),
+    "sensor_delay": ({"sensor_delay": 0.005}, "tau_y", 5.0, 0.1),
+    "edge_asymmetry": ({"k_at": TRUTH.k_at * 0.7}, "k_AT", 0.7, 0.1),
+    "entrained_air": ({"air": 0.035}, "a", 3.5, 0.15),
+}
+
+
+@pytest.fixture(scope="module")
+def answers(calibrated):
+    """``hexsim validate LOG --machine calibrated.json`` on another motion of TRUTH (1 Hz, 50 mm, 6 s), with
+    nothing added ("none") and with each of :data:`EFFECTS`: the answers' JSON by name."""
     path, _, folder = calibrated
-    null = write(motion(TRUTH, 6.0, 1.0, 0.05, np.random.default_rng(13)), folder / "null.csv", "null")
-    leak = write(motion(TRUTH.replace(leak=3e-12), 6.0, 1.0, 0.05, np.random.default_rng(14)), folder / "leak.csv",
-                 "leakage")
-    answers = {}
-    for log in (null, leak):
-        out = folder / f"{log.stem}.answer.json"
-        assert main(["validate", str(log), "--machine", str(path), "--json", str(out), "--jobs", "2"]) == 0
-        answers[log.stem] = json.loads(out.read_text())
-    capsys.readouterr()
-    assert answers["null"]["verdict"] == "none", answers["null"]["held_out_rms_in_budgets"]
-    assert answers["null"]["budget"]["position"]["calibration"] > 0.0
-    leak_doc = answers["leak"]
-    assert leak_doc["verdict"] == "explained" and [e["name"] for e in leak_doc["added_effects"]] == ["leakage"]
-    assert abs(leak_doc["added_effects"][0]["parameters"]["C_l"]["value"] / 3.0 - 1.0) < 0.1
+    out = {}
+    for k, name in enumerate(("none", *EFFECTS)):
+        changes = EFFECTS[name][0] if name in EFFECTS else {}
+        log = write(motion(TRUTH.replace(**changes), 6.0, 1.0, 0.05, np.random.default_rng(40 + k)),
+                    folder / f"{name}.csv", name)
+        answer = folder / f"{name}.answer.json"
+        assert main(["validate", str(log), "--machine", str(path), "--json", str(answer), "--quiet",
+                     "--jobs", "1"]) == 0
+        out[name] = json.loads(answer.read_text())
+    return out
+
+
+def test_validate_on_the_calibrated_machine_answers_none_on_a_null(answers):
+    """Nothing added: none (with the built-in file the same machine is unexplained), and the calibration's
+    uncertainty is part of the budget."""
+    assert set(EFFECTS) == set(EFFECT_NAMES)  # every library effect is tried below
+    null = answers["none"]
+    assert null["verdict"] == "none", null["held_out_rms_in_budgets"]
+    assert null["budget"]["position"]["calibration"] > 0.0
+
+
+@pytest.mark.parametrize("effect", EFFECT_NAMES)
+def test_validate_on_the_calibrated_machine_names_each_library_effect_at_its_value(answers, effect):
+    """The effect added to the machine is the one named, alone, and its parameter comes back near the
+    truth: the calibration took up the nominal's departures, not the effect's."""
+    doc = answers[effect]
+    _, key, truth, tolerance = EFFECTS[effect]
+    assert doc["verdict"] == "explained", (doc["verdict"], doc["held_out_rms_in_budgets"])
+    assert [e["name"] for e in doc["added_effects"]] == [effect], doc["added_effects"]
+    value = doc["added_effects"][0]["parameters"][key]["value"]
+    assert abs(value / truth - 1.0) < tolerance, (key, value, truth)
 
 
 def test_windows_at_the_end_stops_or_with_a_clipped_sensor_are_not_evidence(tmp_path):
