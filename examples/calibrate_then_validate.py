@@ -10,7 +10,7 @@ allows and a valve that is not hexsim's default. hexsim is told nothing but the 
    effect added -> ``hexsim.validate`` against the calibrated file.
 
 The script prints, per log, the hidden truth beside the verdict and the named effects; it made the
-README's calibrate-then-validate table. Noise: 2 µm, 0.02 bar, 0.02 m/s^2.
+calibrate-then-validate table of docs/calibration.md. Noise: 2 µm, 0.02 bar, 0.02 m/s^2.
 
     python examples/calibrate_then_validate.py [--out DIR] [--machines port,quadratic,sharp] [--only NAME ...]
 """
@@ -52,6 +52,12 @@ EFFECTS = {
     "friction": ("Coulomb and static friction 1.6x (cold seals)", {"coulomb": 1.6, "static": 1.6}),
     "spool": ("a 40 Hz spool (damping 0.7)", {"spool_hz": 40.0}),
     "sensor_delay": ("position measured 2 ms late", {"sensor_delay": 0.002}),
+    "supply_pressure": ("the supply sags 1.2 bar per L/min drawn (30 ms)",
+                        {"supply_resistance": 1.2e5 / (1e-3 / 60), "supply_tau": 0.03}),
+    "hysteresis": ("0.25 V of play between the setpoint and the spool", {"play": 0.25}),
+    "load": ("a heavier load on an inclined axis: 65 kg at 25 deg", {"mass": 65.0, "inclination_deg": 25.0}),
+    "bulk_modulus": ("warm oil: bulk modulus 0.55 GPa", {"bulk": 0.55e9}),
+    "entrained_air": ("3.5 % of air entrained in the oil", {"air": 0.035}),
 }
 
 
