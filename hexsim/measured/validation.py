@@ -164,9 +164,12 @@ def _leg_sentences(ident: Identification) -> list[str]:
         if mags[j] > 1e-4 and mags[j] > 5.0 * rest:
             kp = p.log.kp
             out.append(f"The position of leg{j + 1} reads {offsets[j] * 1e3:+.3f} mm off the closed-loop replay "
-                       f"(the other legs {rest * 1e3:.3f} mm): a sensor offset of that leg, or a valve null offset "
-                       f"of about {-offsets[j] * kp:+.3f} V on it (K_p = {kp:g} V/m holds the piston that far off); "
-                       "in closed loop the two look alike, and the calibration takes it.")
+                       f"(the other legs {rest * 1e3:.3f} mm), and the position's calibration takes it: a static "
+                       f"tracking error, most likely a valve null offset of about {-offsets[j] * kp:+.3f} V on that "
+                       f"leg (K_p = {kp:g} V/m holds the piston that far off) or a flow it needs at rest (a leak). A "
+                       "transducer offset would not show here (the controller holds the measured position on the "
+                       "setpoint on the machine as in the replay); it is not judged as an effect, because a "
+                       "closed-loop log does not tell the valve's null from that flow (docs/calibration.md, A hexapod).")
     payload = hexapod_payload(ident)
     if payload is not None:
         out.append(f"The six legs' P1 offsets are one load, not six sensor offsets: a payload change of "
