@@ -237,3 +237,30 @@ def test_an_open_loop_hexapod_run_from_six_valve_columns(tmp_path, capsys):
     assert main(["validate", str(log)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "open-loop hexapod log" in err[0] and "hexsim run valve:" in err[0]
+
+
+def test_discovery_finds_a_leak_across_one_4_way_legs_piston_on_that_leg(tmp_path):
+    """A hexapod on 4-way valves: each leg's cap-side and rod-side flow equations on its own signals (P1 and
+    P2 logged). A leak C_l (P2 - P1) across leg 2's piston shows as that leg's leakage term, in both chambers'
+    equations with the size of the leak, and on no other leg; the nominal log gives no term on any leg."""
+    from hexsim.measured.discovery import discover
+    from hexsim.measured.hexapod_replay import HexapodProblem
+    from hexsim.outputs.logio import write_log
+    from hexsim.plant.effects import LegChange
+
+    hyd, leak = hexsim.HydraulicParams(valve_type="4-way"), 4e-12
+    machine = hexsim.Machine(hydraulics=hyd)
+    found = {}
+    for name, legs in (("nominal", ()), ("leak", (LegChange.of(2, leakage=leak),))):
+        result = hexsim.simulate(hexsim.RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=8,
+                                                  hydraulics=hyd, leg_changes=legs))
+        write_log(tmp_path / f"{name}.csv", result, noise=np.random.default_rng(5))
+        problem = HexapodProblem(read_log(tmp_path / f"{name}.csv", machine=machine))
+        assert "leg2_p2_Pa" in problem.log.columns
+        found[name] = discover(problem, problem.nominal, None, None)["terms"]
+    assert found["nominal"] == []
+    assert {t["leg"] for t in found["leak"]} == {2}, found["leak"]
+    leaks = {t["equation"]: t["coefficient"] for t in found["leak"] if t["term"] in ("p2 - p1", "p1 - p2")}
+    assert leaks, found["leak"]
+    for equation, c_l in leaks.items():
+        assert c_l == pytest.approx(leak, rel=0.2), equation

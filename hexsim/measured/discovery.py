@@ -247,7 +247,9 @@ def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[li
 
 def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget, score) -> dict:
     """The flow equation of each hexapod leg on its own logged signals (with that leg's own parameters):
-    a leg-level flow effect (leakage, a null offset, an edge) shows in that leg's equation error only.
+    a leg-level flow effect (leakage, a null offset, an edge) shows in that leg's equation error only. Legs
+    with 4-way valves: the cap side's equation with the leak from the rod side (:data:`FLOW_TERMS_4WAY`, P2
+    from ``legN_p2_Pa``) and, with P2 logged, the rod side's (:data:`ROD_FLOW_TERMS`).
     The terms that map onto a parameter are added to their leg (:class:`hexsim.plant.effects.LegChange`), the
     log is replayed, and the held-out error before and after is reported; nothing is kept if it does not
     fall."""
@@ -257,19 +259,27 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
     segments = problem.rows.reshape(problem.shape)
     fit, test = segments[problem.fit_rows].ravel(), segments[problem.test_rows].ravel()
     p_s = c["ps_Pa"] if "ps_Pa" in c else np.full(len(log.time), base.hydraulics.supply_pressure)
+    four_way = base.hydraulics.four_way
     terms, per_leg, far = [], {}, []
     for leg in range(1, 7):
         if f"leg{leg}_p1_Pa" not in c:
             return {"done": False, "why": "discovery needs the legs' P1 (leg*_p1_Pa)"}
         own = leg_model(base, leg)
-        target, x = flow_equation(c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"], p_s,
-                                  log.sample_rate_hz, own)
-        t_leg, f_leg, off = _sparse_terms(target, x, fit, test, FLOW_TERMS, leg)
-        if off:
-            far.append(leg)
-        terms += t_leg
-        if f_leg:
-            per_leg[leg] = (own, f_leg, float(np.mean(p_s - c[f"leg{leg}_p1_Pa"])))
+        y, u, p1 = c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"]
+        p2 = c.get(f"leg{leg}_p2_Pa") if four_way else None
+        equations = [(*flow_equation(y, u, p1, p_s, log.sample_rate_hz, own, p2=p2),
+                      FLOW_TERMS_4WAY if four_way else FLOW_TERMS)]
+        if p2 is not None:  # the 4-way valve's rod side, its own flow equation
+            equations.append((*rod_flow_equation(y, u, p1, p2, p_s, log.sample_rate_hz, own), ROD_FLOW_TERMS))
+        f_leg = {}
+        for target, x, dictionary in equations:
+            t_eq, f_eq, off = _sparse_terms(target, x, fit, test, dictionary, leg)
+            if off and leg not in far:
+                far.append(leg)
+            terms += t_eq
+            f_leg |= f_eq
+        if f_leg:  # a constant inflow is read as a leak from P_s on the 3-way valve only (apply_terms)
+            per_leg[leg] = (own, f_leg, 0.0 if four_way else float(np.mean(p_s - p1)))
     out = {"done": True, "method": f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
            f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of "
            "the held-out equation error", "terms": terms, "added_to_model": []}
@@ -314,8 +324,9 @@ def _lag_terms(log, p_s: np.ndarray, base: PlantModel, fit: np.ndarray, test: np
 
     c, terms = log.columns, []
     for leg in range(1, 7):
+        p2 = c.get(f"leg{leg}_p2_Pa") if base.hydraulics.four_way else None
         target, x = flow_equation(c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"], p_s,
-                                  log.sample_rate_hz, leg_model(base, leg), lag=True)
+                                  log.sample_rate_hz, leg_model(base, leg), lag=True, p2=p2)
         terms += _sparse_terms(target, x, fit, test, LAG_TERMS, leg)[0]
     return terms
 
@@ -420,12 +431,9 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
     stands on and its :class:`hexsim.measured.identify.Scored`; ``score(problem, sim, budget)`` scores a replay the
     same way (:func:`hexsim.measured.identify.score`, passed in so this module does not import the identifier).
     Returns the JSON-ready account; ``terms`` empty
-    if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation, its terms added to
-    that leg (:func:`_discover_legs`)."""
+    if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation(s), its terms added to
+    that leg (:func:`_discover_legs`; 3-way and 4-way valves)."""
     log = problem.log
-    if log.system == "hexapod" and base.hydraulics.four_way:  # its legs' dictionary is the 3-way valve's
-        return {"done": False, "why": "the hexapod's leg-by-leg discovery is written for the seed's 3-way valve; "
-                "this machine's legs have 4-way valves (both chambers)"}
     if log.system == "hexapod":
         return _discover_legs(problem, base, base_scored, budget, score)
     errors = equation_errors(log, base)
