@@ -56,7 +56,8 @@ CASES = {
                                    static=lambda a: tuple(2 * c for c in a.static))),
     "bulk_modulus": ("warm oil: bulk modulus 0.6 GPa (calibrated 1.25)", lambda m: on_legs(m, None, bulk=0.6e9)),
     "entrained_air": ("3 % of air entrained in the oil", lambda m: on_legs(m, None, air=0.03)),
-    "null_offset": ("leg 4's valve null drifted by 0.2 V", lambda m: on_legs(m, (4,), null_offset=0.2)),
+    "null_offset": ("leg 4's valve null drifted by 0.2 V",
+                    lambda m: on_legs(m, (4,), null_offset=lambda a: a.null_offset + 0.2)),
 }
 
 

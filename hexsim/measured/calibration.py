@@ -344,7 +344,11 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     notify = notify or (lambda text: None)
     ev = _gather(logs, held_out, machine, dynamics)
     best, tried = _choose_form(ev, machine, params, flow_areas, notify)
+    nulls = []
+    if ev.hexapod:
+        best["machine"], nulls = leg_null_offsets(ev.replays, best["machine"])
     report = _report(ev, machine, best, tried, logs)
+    report["parameters"] += nulls
     if held_out:
         report["held_out"] = _held_out(held_out, machine, best["machine"], ev.loads)
     if cross_validate and len(ev.steady) >= 3 and not ev.replays:
@@ -355,6 +359,59 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
                           for f, b, a in zip(ev.feats, before, after) if f.log in steady_names]
     return _with_provenance(best["machine"], machine, report, best["flow_area"], len(logs)), report
+
+
+#: Each hexapod leg's valve null offset is bracketed as a servo-valve data sheet's zero point: ±3 % of the
+#: command range (the ``valve.null_offset_V`` bracket of :mod:`hexsim.measured.parameters`).
+LEG_NULL_RANGE = 0.03
+
+
+def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dict]]:
+    """Each hexapod leg's valve null offset from its static tracking error, after the other parameters are
+    fitted: in closed loop a null offset u_0 holds the piston u_0 / K_p off its setpoint wherever the valve's
+    flow is linear in u_v - u_0 (seed eq. 3.2-3.4 with the P control of §2.3.2), while a transducer's offset
+    does not show between log and replay (the controller holds the measured position on the setpoint on the
+    machine as in the model). So u_0,leg = u_0,prior - K_p d_leg, d_leg the mean of measured minus replayed
+    position over the fit segments of the ``replays`` (:class:`hexsim.measured.dynamics.ReplayEvidence`, their
+    position offsets calibrated freely) less the legs' median of it, averaged over the logs. The common
+    part stays with the sensors, as ``hexsim validate`` leaves it (:func:`hexsim.measured.identify.calibrate`):
+    all six nulls shifted alike are not told from the model's common mismatch (an unmodelled spool lag on a
+    heave offsets all six legs alike), so each null is found relative to the legs' median; its standard
+    error from the residual's independent samples (:func:`hexsim.measured.residuals.effective_n`). Without
+    it, ``hexsim validate`` (whose closed-loop replay leaves a leg's offset standing out of the others' in the
+    residual, :data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`) would take every valve's
+    zero-point tolerance for a drifted null.
+
+    Returns the machine with ``legs.legN.valve.null_offset_V`` set (clipped to ±:data:`LEG_NULL_RANGE` of the
+    command range: beyond it the report says "at a bound") and the parameter rows for the report."""
+    from hexsim.measured.residuals import effective_n
+    from hexsim.plant.machine import with_keys
+
+    u_max = machine.hydraulics.u_v_max
+    offsets, variances = [], []
+    for r in replays:
+        p = r.problem
+        d = (p.measured["position"] - p.simulate(r.model(machine))["position"])[p.fit_rows]  # (rows, n, 6) [m]
+        mean = d.mean(axis=(0, 1))
+        offsets.append(r.log.kp * (mean - np.median(mean)))  # [V] per leg, off the legs' common offset
+        variances.append([(r.log.kp * float(np.std(d[..., j]))) ** 2 / max(effective_n(d[..., j]), 1.0)
+                          for j in range(d.shape[2])])
+    shift = np.mean(offsets, axis=0)
+    se = np.sqrt(np.sum(variances, axis=0)) / len(replays)
+    priors = [dict(dict(machine.legs).get(leg, ())).get("null_offset", machine.hydraulics.null_offset)
+              for leg in range(1, len(shift) + 1)]
+    rows, values = [], {}
+    for leg, (prior, du, e) in enumerate(zip(priors, shift, se), start=1):
+        key, lo, hi = f"legs.leg{leg}.valve.null_offset_V", -LEG_NULL_RANGE * u_max, LEG_NULL_RANGE * u_max
+        value = float(np.clip(prior - du, lo, hi))
+        values[key] = value
+        rows.append({"key": key, "unit": "V", "value": value, "std_error": float(e), "prior": float(prior),
+                     "lower": lo, "upper": hi, "bounds_source": "servo-valve data sheets: zero point within 2–3 % "
+                     "of the command range", "experiment": "closed-loop motion of that leg (its static tracking "
+                     "error)", "status": "fitted" if lo < prior - du < hi else "at a bound",
+                     "why": "the leg's static tracking error asks for more than a valve's zero-point tolerance: a "
+                     "leak or a sensor of that leg, not its null"})
+    return with_keys(machine, values), rows
 
 
 def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs: list[MeasurementLog]) -> dict:

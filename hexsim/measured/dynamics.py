@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,11 +79,14 @@ class ReplayEvidence:
     @classmethod
     def _hexapod(cls, log: MeasurementLog, machine: Machine, every_window: bool) -> "ReplayEvidence":
         """A hexapod log's evidence: its closed-loop replay (:class:`hexsim.measured.hexapod_replay.HexapodProblem`,
-        one run of the whole log: the even segments fitted, the odd held out; ``every_window``: all held out)."""
+        one run of the whole log: the even segments fitted, the odd held out; ``every_window``: all held out).
+        Each leg's position offset is calibrated freely here (a leg's static tracking error is its valve's null,
+        set after the fit: :func:`hexsim.measured.calibration.leg_null_offsets`)."""
         from hexsim.measured.hexapod_replay import HexapodProblem
 
         log = dataclasses.replace(log, machine=machine)
         problem = HexapodProblem(log)
+        problem.position_offset_limit = math.inf  # each leg's offset free: the legs' nulls take it afterwards
         if every_window:
             problem.test_rows = np.arange(problem.segments)
         budget = measure_budget(problem, problem.simulate(problem.nominal))

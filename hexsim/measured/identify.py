@@ -141,6 +141,7 @@ class Problem:
     (windows, samples), the first :data:`SETTLE_S` of each window not scored."""
 
     windowed = True  # each window starts from the measured state (position residual 0 at its start)
+    position_offset_limit = math.inf  # (unused: a window's position starts at the measured one)
 
     def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
         self.log = log
@@ -371,8 +372,12 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
     replays the position starts each window at the measured value, so only its scale is fitted, on the
     increments from the window start. Scales are limited to 1 ± :data:`SCALE_LIMIT` and fitted only to
     signals that move, against the noise (:data:`SCALE_MIN_SNR`) and against the channel's other signals
-    (:data:`SCALE_MIN_SHARE`). Returns (calibrated residual = offset + scale sim - measured per
-    channel, calibration: channel -> {"offset": [...], "scale": [...]} per signal)."""
+    (:data:`SCALE_MIN_SHARE`). A closed-loop replay's position (hexapod) gets its scale on the motion about
+    its mean and an offset within ``problem.position_offset_limit`` of the legs' common one
+    (:func:`_closed_loop_position`): the rest of a leg's offset is a static tracking error, left in the
+    residual for the effects (a valve null offset, a leak) and reported under ``"static_error"``. Returns
+    (calibrated residual = offset + scale sim - measured per channel, calibration: channel -> {"offset":
+    [...], "scale": [...]} per signal)."""
     out, cal = {}, {}
     s0 = problem.settle
     for ch in problem.channels:
@@ -380,6 +385,10 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
         res = sim_c - meas
         offsets, scales = [], []
         motion = [float(np.std(sim_c[rows, s0:, j])) for j in range(sim_c.shape[2])]
+        if ch == "position" and not problem.windowed:  # closed loop: each leg's offset near the legs' common one
+            cal[ch] = _closed_loop_position(problem, sim_c, res, rows, motion)
+            out[ch] = res[..., 0] if sim[ch].ndim == 2 else res
+            continue
         for j in range(sim_c.shape[2]):
             x = sim_c[:, :, j]
             r = res[rows, s0:, j].ravel()
@@ -405,6 +414,45 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
         out[ch] = res[..., 0] if sim[ch].ndim == 2 else res
         cal[ch] = {"offset": offsets, "scale": scales}
     return out, cal
+
+
+def closed_loop_offsets(problem: ReplayProblem, sim_c: np.ndarray, res: np.ndarray, rows: np.ndarray,
+                        motion: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """A closed-loop replay's position, each leg's least-squares scale (on the replayed motion about its mean,
+    where it moves: :data:`SCALE_MIN_SNR`, :data:`SCALE_MIN_SHARE`) and free offset (the mean of measured -
+    scaled replay) on ``rows``: (offsets (legs,) [m], scale errors beta (legs,)). ``sim_c``, ``res``:
+    (rows, samples, legs) replayed position and replayed - measured [m]."""
+    s0, betas, free = problem.settle, [], []
+    for j in range(sim_c.shape[2]):
+        x = sim_c[rows, s0:, j].ravel()
+        xc, r = x - float(np.mean(x)), res[rows, s0:, j].ravel()
+        moves = (motion[j] >= SCALE_MIN_SNR * problem.log_noise["position"]
+                 and motion[j] >= SCALE_MIN_SHARE * max(motion))
+        beta = _bounded(_lstsq1(xc, -r), "position") if moves else 0.0
+        betas.append(beta)
+        free.append(-float(np.mean(r + beta * xc)))
+    return np.array(free), np.array(betas)
+
+
+def _closed_loop_position(problem: ReplayProblem, sim_c: np.ndarray, res: np.ndarray, rows: np.ndarray,
+                          motion: list[float]) -> dict:
+    """:func:`calibrate`'s closed-loop position, ``res`` (rows, samples, legs) calibrated in place: each leg's
+    scale and an offset within ``problem.position_offset_limit`` of the legs' common offset (their median),
+    the rest of a leg's offset left in the residual as a static tracking error (module doc of
+    :mod:`hexsim.measured.hexapod_replay`). Returns the channel's calibration: "offset" (intercepts) and
+    "scale" per leg, "common_offset" [m], and "static_error" (leg label -> its whole offset [m]) if any."""
+    free, betas = closed_loop_offsets(problem, sim_c, res, rows, motion)
+    common = float(np.median(free))
+    limit = problem.position_offset_limit
+    offsets = np.clip(free, common - limit, common + limit)
+    out = {"offset": [], "scale": [float(1.0 + b) for b in betas], "common_offset": common}
+    for j, (offset, beta) in enumerate(zip(offsets, betas)):
+        mean = float(np.mean(sim_c[rows, problem.settle:, j]))
+        res[:, :, j] += offset + beta * (sim_c[:, :, j] - mean)
+        out["offset"].append(float(offset - beta * mean))
+        if offset != free[j]:
+            out.setdefault("static_error", {})[f"leg{j + 1}"] = float(free[j])
+    return out
 
 
 @dataclass
@@ -672,9 +720,18 @@ def _fit_one(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget,
     return fit
 
 
+def _rebuilt(source: tuple) -> ReplayProblem:
+    """A worker's copy of the problem: :func:`make_problem` of (log, model), with the position offset limit
+    :func:`identify` set from the log's nominal replay (:func:`static_offset_limit`)."""
+    log, model, limit = source
+    problem = make_problem(log, model)
+    problem.position_offset_limit = limit
+    return problem
+
+
 def _fit_in_worker(source: tuple, key: str, base: PlantModel, budget: Budget,
                    on_top_of: tuple[str, ...], starts=None) -> FitResult:
-    return _fit_one(make_problem(*source), key, base, budget, on_top_of, starts)
+    return _fit_one(_rebuilt(source), key, base, budget, on_top_of, starts)
 
 
 def start_cost(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
@@ -740,7 +797,7 @@ def linear_start(cand, starts: list[np.ndarray], lower: np.ndarray, upper: np.nd
 
 
 def _start_cost_in_worker(source, key, base, budget):
-    return start_cost(make_problem(*source), key, base, budget)
+    return start_cost(_rebuilt(source), key, base, budget)
 
 
 def standout_legs(problem: ReplayProblem, scored: Scored, budget: Budget) -> list[int]:
@@ -804,10 +861,11 @@ class Identification:
 
 def _parallel(jobs: int, fn, worker, problem, calls: list[tuple], on_done=None) -> list:
     """``fn(*args)`` for each args of ``calls``, results in the order of ``calls``; in worker processes as
-    ``worker((log, model), *args)`` (which rebuilds ``problem`` from its log and hexapod formulation,
-    :func:`make_problem`) when jobs > 1. ``on_done(result)`` is called as each finishes (progress)."""
+    ``worker((log, model, position_offset_limit), *args)`` (which rebuilds ``problem`` from its log, hexapod
+    formulation and the limit this log's nominal set, :func:`_rebuilt`) when jobs > 1. ``on_done(result)`` is
+    called as each finishes (progress)."""
     on_done = on_done or (lambda result: None)
-    source = (problem.log, getattr(problem, "model", "platform"))
+    source = (problem.log, getattr(problem, "model", "platform"), problem.position_offset_limit)
     if in_workers(jobs) and len(calls) > 1:
         with worker_pool(min(jobs, len(calls))) as pool:
             futures = {pool.submit(worker, source, *args): i for i, args in enumerate(calls)}
@@ -925,6 +983,44 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
     return rounds, screening, accepted, current, model, budget
 
 
+def static_offset_limit(problem: ReplayProblem, sim: dict[str, np.ndarray]) -> float:
+    """[m] How far a leg's position offset may lie from the legs' common offset (their median) and still be
+    calibrated, on this log (:data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`):
+    :data:`~hexsim.measured.hexapod_replay.STATIC_SPREAD` times the legs' median distance from their median
+    offset (:func:`closed_loop_offsets` on the fit rows of the nominal replay ``sim``: the model's spread; a
+    leg whose static tracking error stands out of it is left in the residual), within
+    :data:`~hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_FLOOR_M` … ``CLOSED_LOOP_OFFSET_M``."""
+    from hexsim.measured.hexapod_replay import CLOSED_LOOP_OFFSET_FLOOR_M, CLOSED_LOOP_OFFSET_M, STATIC_SPREAD
+
+    sim_c = _signals(sim["position"])
+    rows = problem.fit_rows
+    motion = [float(np.std(sim_c[rows, problem.settle:, j])) for j in range(sim_c.shape[2])]
+    free, _ = closed_loop_offsets(problem, sim_c, sim_c - _signals(problem.measured["position"]), rows, motion)
+    spread = float(np.median(np.abs(free - np.median(free))))
+    return float(np.clip(STATIC_SPREAD * spread, CLOSED_LOOP_OFFSET_FLOOR_M, CLOSED_LOOP_OFFSET_M))
+
+
+def _discover_partial(problem: ReplayProblem, nominal: "Scored", model: PlantModel, current: "Scored",
+                      budget: Budget, accepted: list[FitResult]) -> dict:
+    """Discovery after a ``partial`` verdict: on the model with the accepted effects, and on the nominal with
+    them left out, since an accepted effect may stand in for the missing one (a leg's null offset holds
+    the mean of a leak's flow that the library lacks, and the leak's own term is then no longer seen). The
+    account whose kept terms leave the lower held-out cost is returned (``"on"`` says which); if neither
+    keeps a term, the one on the accepted effects."""
+    on_top = discover(problem, model, current, budget, score)
+    alone = discover(problem, problem.nominal, nominal, budget, score)
+    label = " + ".join(a.key for a in accepted)
+
+    def after(found: dict) -> float:
+        scored = found.get("_scored")
+        return float(scored.window_cost[problem.test_rows].sum()) if scored is not None else math.inf
+
+    if after(alone) < min(after(on_top), float(current.window_cost[problem.test_rows].sum())):
+        return alone | {"on": f"the nominal model, {label} left out: its discovered terms explain the held-out "
+                              f"data better than {label} does"}
+    return on_top | {"on": f"the model with {label}"}
+
+
 def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
              progress: bool = False, notify=None, model: str = "platform") -> Identification:
     """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
@@ -942,6 +1038,8 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     if candidates is None:
         candidates = default_candidates(log.system)
     nominal_sim = problem.simulate(problem.nominal)
+    if not problem.windowed:
+        problem.position_offset_limit = static_offset_limit(problem, nominal_sim)
     budget = measure_budget(problem, nominal_sim)
     nominal = score(problem, nominal_sim, budget)
     notify("noise budget measured; held-out RMS / budget: " + ", ".join(
@@ -956,6 +1054,10 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         verdict = "explained" if max(within_budget(current, budget).values()) <= WITHIN else "partial"
     if verdict in ("partial", "unexplained"):
         notify("discovery: sparse correction of the model's equations")
-    found = discover(problem, model, current, budget, score) if verdict in ("partial", "unexplained") else None
+    found = None
+    if verdict == "unexplained":
+        found = discover(problem, model, current, budget, score)
+    elif verdict == "partial":
+        found = _discover_partial(problem, nominal, model, current, budget, accepted)
     return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,
                           final=current, verdict=verdict, discovery=found, screening=screening)

@@ -126,6 +126,7 @@ class ReplayProblem(Protocol):
 
     log: MeasurementLog
     windowed: bool  # each row starts from the measured state (a position offset is then not seen)
+    position_offset_limit: float  # [m] most of a position offset calibrated as the sensor's (closed loop)
     replay_mode: str  # how the log drives the model, for reports
     scored: str  # which samples are scored, for reports
     fit_rows: np.ndarray

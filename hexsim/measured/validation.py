@@ -153,23 +153,21 @@ def _calibration_sentences(ident: Identification) -> list[str]:
 
 
 def _leg_sentences(ident: Identification) -> list[str]:
-    """Hexapod: one leg's position offset standing out, a payload in the legs' P1 offsets, one leg's
-    residual standing out."""
+    """Hexapod: a leg's static tracking error (its position offset beyond
+    :data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`, left in the residual), a payload in the legs'
+    P1 offsets, one leg's residual standing out."""
     out, p = [], ident.problem
-    offsets = ident.final.calibration.get("position", {}).get("offset", [])
-    if len(offsets) >= 3 and not p.windowed:
-        mags = np.abs(offsets)
-        j = int(np.argmax(mags))
-        rest = float(np.median(np.delete(mags, j)))
-        if mags[j] > 1e-4 and mags[j] > 5.0 * rest:
-            kp = p.log.kp
-            out.append(f"The position of leg{j + 1} reads {offsets[j] * 1e3:+.3f} mm off the closed-loop replay "
-                       f"(the other legs {rest * 1e3:.3f} mm), and the position's calibration takes it: a static "
-                       f"tracking error, most likely a valve null offset of about {-offsets[j] * kp:+.3f} V on that "
-                       f"leg (K_p = {kp:g} V/m holds the piston that far off) or a flow it needs at rest (a leak). A "
-                       "transducer offset would not show here (the controller holds the measured position on the "
-                       "setpoint on the machine as in the replay); it is not judged as an effect, because a "
-                       "closed-loop log does not tell the valve's null from that flow (docs/calibration.md, A hexapod).")
+    position = ident.nominal.calibration.get("position", {})  # before any effect: what the effects were asked
+    for label, offset in sorted(position.get("static_error", {}).items(), key=lambda kv: -abs(kv[1])):
+        common = position["common_offset"]
+        offset -= common
+        kp = p.log.kp
+        out.append(f"The position of {label} reads {offset * 1e3:+.3f} mm off the closed-loop replay beyond the "
+                   f"legs' common offset ({common * 1e3:+.3f} mm): a static tracking error, left in the "
+                   "residual for the effects to explain (a transducer offset would not show here: the controller "
+                   "holds the measured position on the setpoint on the machine as in the replay). A valve null "
+                   f"offset of about {-offset * kp:+.3f} V on that leg would hold it there (K_p = {kp:g} V/m), "
+                   "or a flow the leg needs at rest (a leak).")
     payload = hexapod_payload(ident)
     if payload is not None:
         out.append(f"The six legs' P1 offsets are one load, not six sensor offsets: a payload change of "
@@ -240,6 +238,8 @@ def _verdict_sentences(ident: Identification) -> list[str]:
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
     out += _close_call_sentences(ident)
     found = ident.discovery or {}
+    if found.get("on", "").startswith("the nominal model"):
+        out.append(f"Discovery on {found['on']}.")
     for term in found.get("terms", []):
         out.append(f"Discovered in the {term['equation']} equation: {term['meaning']} "
                    f"(coefficient {term['coefficient']:.4g} ± {term['std_error']:.2g} {term['unit']}).")
