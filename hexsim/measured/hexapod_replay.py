@@ -119,7 +119,8 @@ class HexapodProblem:
     held out."""
 
     windowed = False  # one replay from the neutral pose: a position offset is an offset
-    #: [m] the most of a leg's position offset the sensor calibration takes (the rest is left in the residual)
+    #: [m] how far off the legs' common offset a leg's position offset is calibrated (the rest is left in the
+    #: residual); validate sets it per log (:func:`hexsim.measured.identify.static_offset_limit`)
     position_offset_limit = CLOSED_LOOP_OFFSET_M
 
     def __init__(self, log: MeasurementLog, max_segments: int | None = None, model: str = "platform") -> None:

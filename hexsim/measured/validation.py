@@ -153,14 +153,16 @@ def _calibration_sentences(ident: Identification) -> list[str]:
 
 
 def _leg_sentences(ident: Identification) -> list[str]:
-    """Hexapod: a leg's static tracking error (its position offset beyond
-    :data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`, left in the residual), a payload in the legs'
-    P1 offsets, one leg's residual standing out."""
+    """Hexapod: a leg's static tracking error (its position offset off the legs' common one beyond the log's
+    limit, :data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`, left in the residual) where what is
+    left exceeds the position's budget, a payload in the legs' P1 offsets, one leg's residual standing out."""
     out, p = [], ident.problem
     position = ident.nominal.calibration.get("position", {})  # before any effect: what the effects were asked
     for label, offset in sorted(position.get("static_error", {}).items(), key=lambda kv: -abs(kv[1])):
         common = position["common_offset"]
         offset -= common
+        if abs(offset) - p.position_offset_limit <= ident.budget.total.get("position", 0.0):
+            continue  # left in the residual, but within the position's budget: nothing to say
         kp = p.log.kp
         out.append(f"The position of {label} reads {offset * 1e3:+.3f} mm off the closed-loop replay beyond the "
                    f"legs' common offset ({common * 1e3:+.3f} mm): a static tracking error, left in the "
