@@ -384,6 +384,7 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
 
     Returns the machine with ``legs.legN.valve.null_offset_V`` set (clipped to ±:data:`LEG_NULL_RANGE` of the
     command range: beyond it the report says "at a bound") and the parameter rows for the report."""
+    from hexsim.measured.identify import position_offsets
     from hexsim.measured.residuals import effective_n
     from hexsim.plant.machine import with_keys
 
@@ -391,9 +392,10 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
     offsets, variances = [], []
     for r in replays:
         p = r.problem
-        d = (p.measured["position"] - p.simulate(r.model(machine))["position"])[p.fit_rows]  # (rows, n, 6) [m]
-        mean = d.mean(axis=(0, 1))
+        sim = p.simulate(r.model(machine))["position"]
+        mean = position_offsets(p, sim, p.fit_rows)
         offsets.append(r.log.kp * (mean - np.median(mean)))  # [V] per leg, off the legs' common offset
+        d = (p.measured["position"] - sim)[p.fit_rows, p.settle:]  # (rows, n, 6) [m]
         variances.append([(r.log.kp * float(np.std(d[..., j]))) ** 2 / max(effective_n(d[..., j]), 1.0)
                           for j in range(d.shape[2])])
     shift = np.mean(offsets, axis=0)

@@ -259,27 +259,21 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
     segments = problem.rows.reshape(problem.shape)
     fit, test = segments[problem.fit_rows].ravel(), segments[problem.test_rows].ravel()
     p_s = c["ps_Pa"] if "ps_Pa" in c else np.full(len(log.time), base.hydraulics.supply_pressure)
-    four_way = base.hydraulics.four_way
     terms, per_leg, far = [], {}, []
     for leg in range(1, 7):
         if f"leg{leg}_p1_Pa" not in c:
             return {"done": False, "why": "discovery needs the legs' P1 (leg*_p1_Pa)"}
         own = leg_model(base, leg)
-        y, u, p1 = c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"]
-        p2 = c.get(f"leg{leg}_p2_Pa") if four_way else None
-        equations = [(*flow_equation(y, u, p1, p_s, log.sample_rate_hz, own, p2=p2),
-                      FLOW_TERMS_4WAY if four_way else FLOW_TERMS)]
-        if p2 is not None:  # the 4-way valve's rod side, its own flow equation
-            equations.append((*rod_flow_equation(y, u, p1, p2, p_s, log.sample_rate_hz, own), ROD_FLOW_TERMS))
         f_leg = {}
-        for target, x, dictionary in equations:
+        for target, x, dictionary in _leg_equations(log, leg, own, p_s):
             t_eq, f_eq, off = _sparse_terms(target, x, fit, test, dictionary, leg)
             if off and leg not in far:
                 far.append(leg)
             terms += t_eq
             f_leg |= f_eq
         if f_leg:  # a constant inflow is read as a leak from P_s on the 3-way valve only (apply_terms)
-            per_leg[leg] = (own, f_leg, 0.0 if four_way else float(np.mean(p_s - p1)))
+            mean_dp = 0.0 if own.hydraulics.four_way else float(np.mean(p_s - c[f"leg{leg}_p1_Pa"]))
+            per_leg[leg] = (own, f_leg, mean_dp)
     out = {"done": True, "method": f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
            f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of "
            "the held-out equation error", "terms": terms, "added_to_model": []}
@@ -317,16 +311,34 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
     return out
 
 
+def _leg_signals(log, leg: int, four_way: bool) -> tuple:
+    """Leg ``leg``'s logged y [m], u_v [V], P1 and, on a 4-way valve, P2 [Pa] (None if not logged), each (N,)."""
+    c = log.columns
+    return (c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"],
+            c.get(f"leg{leg}_p2_Pa") if four_way else None)
+
+
+def _leg_equations(log, leg: int, own: PlantModel, p_s: np.ndarray) -> list[tuple]:
+    """The flow equations leg ``leg`` of a hexapod log closes with its own parameters ``own``, as (target,
+    features, dictionary): the cap side's (:data:`FLOW_TERMS`, a 4-way valve's :data:`FLOW_TERMS_4WAY`) and,
+    on a 4-way valve with P2 logged, the rod side's (:data:`ROD_FLOW_TERMS`)."""
+    y, u, p1, p2 = _leg_signals(log, leg, own.hydraulics.four_way)
+    fs = log.sample_rate_hz
+    out = [(*flow_equation(y, u, p1, p_s, fs, own, p2=p2), FLOW_TERMS_4WAY if own.hydraulics.four_way else FLOW_TERMS)]
+    if p2 is not None:
+        out.append((*rod_flow_equation(y, u, p1, p2, p_s, fs, own), ROD_FLOW_TERMS))
+    return out
+
+
 def _lag_terms(log, p_s: np.ndarray, base: PlantModel, fit: np.ndarray, test: np.ndarray) -> list[dict]:
     """:data:`LAG_TERMS` on each hexapod leg's flow equation (its own parameters), as
     :func:`_sparse_terms` reports them."""
     from hexsim.measured.candidates import leg_model
 
-    c, terms = log.columns, []
+    terms = []
     for leg in range(1, 7):
-        p2 = c.get(f"leg{leg}_p2_Pa") if base.hydraulics.four_way else None
-        target, x = flow_equation(c[f"leg{leg}_pos_m"], c[f"leg{leg}_valve_cmd_V"], c[f"leg{leg}_p1_Pa"], p_s,
-                                  log.sample_rate_hz, leg_model(base, leg), lag=True, p2=p2)
+        y, u, p1, p2 = _leg_signals(log, leg, base.hydraulics.four_way)
+        target, x = flow_equation(y, u, p1, p_s, log.sample_rate_hz, leg_model(base, leg), lag=True, p2=p2)
         terms += _sparse_terms(target, x, fit, test, LAG_TERMS, leg)[0]
     return terms
 

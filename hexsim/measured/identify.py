@@ -416,40 +416,37 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
     return out, cal
 
 
-def closed_loop_offsets(problem: ReplayProblem, sim_c: np.ndarray, res: np.ndarray, rows: np.ndarray,
-                        motion: list[float]) -> tuple[np.ndarray, np.ndarray]:
-    """A closed-loop replay's position, each leg's least-squares scale (on the replayed motion about its mean,
-    where it moves: :data:`SCALE_MIN_SNR`, :data:`SCALE_MIN_SHARE`) and free offset (the mean of measured -
-    scaled replay) on ``rows``: (offsets (legs,) [m], scale errors beta (legs,)). ``sim_c``, ``res``:
-    (rows, samples, legs) replayed position and replayed - measured [m]."""
-    s0, betas, free = problem.settle, [], []
-    for j in range(sim_c.shape[2]):
-        x = sim_c[rows, s0:, j].ravel()
-        xc, r = x - float(np.mean(x)), res[rows, s0:, j].ravel()
-        moves = (motion[j] >= SCALE_MIN_SNR * problem.log_noise["position"]
-                 and motion[j] >= SCALE_MIN_SHARE * max(motion))
-        beta = _bounded(_lstsq1(xc, -r), "position") if moves else 0.0
-        betas.append(beta)
-        free.append(-float(np.mean(r + beta * xc)))
-    return np.array(free), np.array(betas)
+def position_offsets(problem: ReplayProblem, sim_position: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Each signal's mean of measured minus replayed position over ``rows`` (their scored samples) [m],
+    shape (signals,): a closed-loop replay's legs' offsets (a scale fitted on the motion about its mean does
+    not change them)."""
+    d = _signals(problem.measured["position"] - sim_position)[rows, problem.settle:]
+    return d.mean(axis=(0, 1))
 
 
 def _closed_loop_position(problem: ReplayProblem, sim_c: np.ndarray, res: np.ndarray, rows: np.ndarray,
                           motion: list[float]) -> dict:
-    """:func:`calibrate`'s closed-loop position, ``res`` (rows, samples, legs) calibrated in place: each leg's
-    scale and an offset within ``problem.position_offset_limit`` of the legs' common offset (their median),
+    """:func:`calibrate`'s closed-loop position, ``res`` (rows, samples, legs; replayed - measured [m])
+    calibrated in place: each leg's least-squares scale on the replayed motion ``sim_c`` about its mean (where
+    it moves: :data:`SCALE_MIN_SNR`, :data:`SCALE_MIN_SHARE`) and an offset within
+    ``problem.position_offset_limit`` of the legs' common offset (the median of :func:`position_offsets`),
     the rest of a leg's offset left in the residual as a static tracking error (module doc of
     :mod:`hexsim.measured.hexapod_replay`). Returns the channel's calibration: "offset" (intercepts) and
     "scale" per leg, "common_offset" [m], and "static_error" (leg label -> its whole offset [m]) if any."""
-    free, betas = closed_loop_offsets(problem, sim_c, res, rows, motion)
+    s0 = problem.settle
+    free = position_offsets(problem, sim_c, rows)
     common = float(np.median(free))
     limit = problem.position_offset_limit
-    offsets = np.clip(free, common - limit, common + limit)
-    out = {"offset": [], "scale": [float(1.0 + b) for b in betas], "common_offset": common}
-    for j, (offset, beta) in enumerate(zip(offsets, betas)):
-        mean = float(np.mean(sim_c[rows, problem.settle:, j]))
+    out = {"offset": [], "scale": [], "common_offset": common}
+    for j, offset in enumerate(np.clip(free, common - limit, common + limit)):
+        mean = float(np.mean(sim_c[rows, s0:, j]))
+        moves = (motion[j] >= SCALE_MIN_SNR * problem.log_noise["position"]
+                 and motion[j] >= SCALE_MIN_SHARE * max(motion))
+        beta = _bounded(_lstsq1(sim_c[rows, s0:, j].ravel() - mean, -res[rows, s0:, j].ravel()), "position") \
+            if moves else 0.0
         res[:, :, j] += offset + beta * (sim_c[:, :, j] - mean)
         out["offset"].append(float(offset - beta * mean))
+        out["scale"].append(float(1.0 + beta))
         if offset != free[j]:
             out.setdefault("static_error", {})[f"leg{j + 1}"] = float(free[j])
     return out
@@ -987,15 +984,12 @@ def static_offset_limit(problem: ReplayProblem, sim: dict[str, np.ndarray]) -> f
     """[m] How far a leg's position offset may lie from the legs' common offset (their median) and still be
     calibrated, on this log (:data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`):
     :data:`~hexsim.measured.hexapod_replay.STATIC_SPREAD` times the legs' median distance from their median
-    offset (:func:`closed_loop_offsets` on the fit rows of the nominal replay ``sim``: the model's spread; a
+    offset (:func:`position_offsets` on the fit rows of the nominal replay ``sim``: the model's spread; a
     leg whose static tracking error stands out of it is left in the residual), within
     :data:`~hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_FLOOR_M` … ``CLOSED_LOOP_OFFSET_M``."""
     from hexsim.measured.hexapod_replay import CLOSED_LOOP_OFFSET_FLOOR_M, CLOSED_LOOP_OFFSET_M, STATIC_SPREAD
 
-    sim_c = _signals(sim["position"])
-    rows = problem.fit_rows
-    motion = [float(np.std(sim_c[rows, problem.settle:, j])) for j in range(sim_c.shape[2])]
-    free, _ = closed_loop_offsets(problem, sim_c, sim_c - _signals(problem.measured["position"]), rows, motion)
+    free = position_offsets(problem, sim["position"], problem.fit_rows)
     spread = float(np.median(np.abs(free - np.median(free))))
     return float(np.clip(STATIC_SPREAD * spread, CLOSED_LOOP_OFFSET_FLOOR_M, CLOSED_LOOP_OFFSET_M))
 
