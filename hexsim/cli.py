@@ -302,7 +302,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
     _check_outputs(args)
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
-    from hexsim.plant.effects import CANDIDATE_NAMES
+    from hexsim.measured.candidates import CANDIDATE_NAMES
 
     without = tuple(name.strip() for name in args.without.split(",") if name.strip())
     for name in without:

@@ -14,8 +14,9 @@ import pytest
 
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
+from hexsim.measured.candidates import EFFECT_NAMES
 from hexsim.outputs.logio import write_log
-from hexsim.plant.effects import EFFECT_NAMES, Effects
+from hexsim.plant.effects import Effects
 from hexsim.plant.params import HydraulicParams
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.runner import simulate

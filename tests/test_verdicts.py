@@ -16,11 +16,11 @@ import pytest
 from scipy.signal import butter, filtfilt
 
 from hexsim.control.scenario import Scenario
-from hexsim.measured.candidates import CANDIDATES, plausibility, plausible_bounds
+from hexsim.measured.candidates import CANDIDATES, EFFECT_NAMES, plausibility, plausible_bounds
 from hexsim.measured.identify import identify
 from hexsim.measured.measurement import read_log
 from hexsim.outputs.logio import write_log
-from hexsim.plant.effects import EFFECT_NAMES, Effects
+from hexsim.plant.effects import Effects
 from hexsim.plant.params import HydraulicParams
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.runner import simulate

@@ -1,11 +1,22 @@
 """The library of effects the nominal seed model lacks, as the identifier fits them.
 
-Each :class:`Candidate` extends a model by one effect with one to three free parameters. Its bounds are
-the *physically plausible range* of each parameter, written next to it with its source; the fit is
-bounded there, and a fitted value at a bound (within :data:`AT_BOUND` of the range) is flagged and never
-reported as a finding. :func:`plausible_bounds` narrows the ranges to what the log can resolve: no
-sensor delay below one sample period, no spool frequency above half the sample rate, and a supply set
-pressure inside the logged supply pressure when ``ps_Pa`` is logged.
+Each effect is declared once, as one :class:`Candidate` of :data:`CANDIDATES`: its free parameters (one to
+three) with units, the fit's starts, the *physically plausible range* of each parameter written next to it
+with its source, the value that means "no effect", how it edits a model, the systems whose logs it applies
+to, and how a log narrows its range (:attr:`Candidate.narrow`: no spool frequency above half the sample
+rate, a supply set pressure at the top of the logged supply pressure) or floors what it resolves
+(:attr:`Candidate.floor`: no sensor delay below one sample period). Everything else is read off these
+declarations: the names (:data:`CANDIDATE_NAMES`, :func:`candidates_for` a system), which effects can act on
+one hexapod leg alone (:data:`LEG_LEVEL`, from the fields the effect changes) and the plausibility of a fit.
+The fit is bounded by the plausible range, and a fitted value at a bound (within :data:`AT_BOUND` of the
+range) is flagged and never reported as a finding.
+
+What an effect changes in the plant is the machine's side, not the fit's: its parameters are fields of
+:class:`~hexsim.plant.effects.Effects` or :class:`~hexsim.plant.params.HydraulicParams` (whose zero value
+is the seed's model), each one key of the machine file (:data:`hexsim.plant.machine.KEYS`, by component:
+valve, cylinder, oil, supply, load, sensors), and its equations are in the compiled leg step
+(:mod:`hexsim.plant.legs`), written once for simulation and replay alike. A new effect is therefore a
+field, its machine-file key, its equations and a :class:`Candidate` here.
 """
 
 from __future__ import annotations
@@ -16,9 +27,11 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import PlantModel
-from hexsim.plant.effects import EFFECT_NAMES, SHARED_FIELDS, Effects, LegChange
+from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
+from hexsim.plant.machine import SYSTEMS
 from hexsim.plant.model import moving_mass
 from hexsim.plant.params import HydraulicParams
 
@@ -57,6 +70,12 @@ class Candidate:
     # (identify.linear_start); default no_effect. Unlike no_effect, not a verdict on a fitted value: an
     # edge asymmetry with k_PA = 1 and k_AT = 0.9 is an effect.
     neutral: tuple[float | None, ...] = ()
+    #: the systems whose logs the effect applies to ("single-actuator", "hexapod")
+    systems: tuple[str, ...] = ("single-actuator", "hexapod")
+    #: (lower, upper) narrowed to what a log resolves (:func:`plausible_bounds`); None: the plausible range
+    narrow: Callable[[MeasurementLog, np.ndarray, np.ndarray], None] | None = None
+    #: the smallest value of a parameter a log resolves, name -> value (:func:`resolution_floor`)
+    floor: Callable[[MeasurementLog], dict[str, float]] | None = None
 
     @property
     def origin(self) -> tuple[float | None, ...]:
@@ -139,6 +158,29 @@ def _payload(model: PlantModel, x) -> PlantModel:
     return _eff(model, payload_kg=x[0], payload_at_m=(x[1], x[2], 0.0))
 
 
+def _narrow_supply(log: MeasurementLog, lower: np.ndarray, upper: np.ndarray) -> None:
+    """The set pressure lies at or above the highest supply measured (the supply only sags under flow, so
+    the truth sits at the top of the measured range, not inside it), up to a relief-valve margin."""
+    if "ps_Pa" in log.columns:
+        lo, hi = np.quantile(log.columns["ps_Pa"], [0.01, 0.99]) / 1e5
+        lower[2], upper[2] = lo - 0.5, hi + RELIEF_MARGIN_BAR
+
+
+def _narrow_spool(log: MeasurementLog, lower: np.ndarray, upper: np.ndarray) -> None:
+    """No spool frequency above half the sample rate."""
+    upper[0] = min(upper[0], 0.5 * log.sample_rate_hz)
+
+
+def _narrow_delay(log: MeasurementLog, lower: np.ndarray, upper: np.ndarray) -> None:
+    """The fit may go below one sample period; acceptance needs one (:func:`_delay_floor`)."""
+    lower[0] = 0.0
+
+
+def _delay_floor(log: MeasurementLog) -> dict[str, float]:
+    """A delay shorter than one sample period is not resolved."""
+    return {"tau_y": 1e3 / log.sample_rate_hz}
+
+
 #: [m] A leg setpoint within this of its first value: the platform is still at rest (:func:`payload_start`).
 REST_TOLERANCE_M = 1e-5
 
@@ -186,13 +228,13 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "supply line and accumulator far too small for the flow; tau_s 1 ms-1 s (Jelali & Kroll §3.7)",
               _supply,
               "pump + accumulator behind a supply line: P_s sags from the set pressure P_s0 by R_s phi_s, "
-              "time constant tau_s", (0.0, None, None)),
+              "time constant tau_s", (0.0, None, None), narrow=_narrow_supply),
     Candidate("spool_dynamics", ("f_v", "zeta_v"), ("Hz", "-"),
               lambda log: ((20.0, 0.7), (50.0, 0.7), (120.0, 0.7)), (5.0, 0.3), (300.0, 1.5),
               "-90° frequency of proportional and servo valves 5-300 Hz, damping 0.3-1.5 (manufacturers' "
               "frequency responses, e.g. Rexroth 4WRPEH, Moog D633; Jelali & Kroll §3.4)",
               lambda m, x: _eff(m, spool_frequency=x[0], spool_damping=x[1]),
-              "second-order spool position loop (natural frequency f_v, damping zeta_v)"),
+              "second-order spool position loop (natural frequency f_v, damping zeta_v)", narrow=_narrow_spool),
     Candidate("null_offset", ("u_0",), ("V",), lambda log: ((-0.2,), (0.0,), (0.2,)), (-2.0,), (2.0,),
               "zero point within ±20 % of u_v,max (datasheets adjust it to a few % and give drifts of "
               "< 1 %/10 K; seed §5.3)",
@@ -215,7 +257,7 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "a moving mass of 5-400 kg per axis (seed app. A: 40 kg) and any inclination short of "
               "horizontal",
               _load, "moving mass and inclination of the axis differ from the declared (seed ch. 4: gravity not "
-              "along the actuator)", (None, 0.0)),
+              "along the actuator)", (None, 0.0), systems=("single-actuator",)),
     Candidate("friction", ("k_c", "k_sigma"), ("-", "-"), lambda log: ((1.0, 1.0), (0.5, 1.0), (2.5, 1.0)),
               (0.0, 0.0), (10.0, 10.0),
               "Coulomb/static and viscous levels within 0-10x the seed's identified ones (seed §2.3.3, "
@@ -231,7 +273,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "a position transducer and its filter lag 0-50 ms; below one sample period the log cannot "
               "resolve a delay",
               lambda m, x: _eff(m, sensor_delay=x[0] * 1e-3),
-              "the position measurement lags the piston by tau_y", (0.0,)),
+              "the position measurement lags the piston by tau_y", (0.0,), narrow=_narrow_delay,
+              floor=_delay_floor),
     Candidate("edge_asymmetry", ("k_PA", "k_AT"), ("-", "-"), lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
               (0.5, 0.5), (1.5, 1.5),
               "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
@@ -252,33 +295,38 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "centre of gravity inside the platform (1.2 m square); down to -200 kg: a platform lighter than "
               "modelled", _payload,
               "hexapod: a payload m_p at (x_p, y_p) on the platform (platform frame, at the platform's own "
-              "height), its weight and inertia through MuJoCo", (0.0, None, None)),
+              "height), its weight and inertia through MuJoCo", (0.0, None, None), systems=("hexapod",)),
 )}
-assert tuple(CANDIDATES) == (*EFFECT_NAMES, "payload")
+#: Every candidate's name, in the order they are tried.
+CANDIDATE_NAMES = tuple(CANDIDATES)
+
+
+def candidates_for(system: str) -> tuple[str, ...]:
+    """The names of the candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``),
+    read off each candidate's :attr:`Candidate.systems`: the load (mass, inclination) is a single axis's,
+    the payload the hexapod's. Raises InputError for another system."""
+    if system not in SYSTEMS:
+        raise InputError(f"unknown system {system!r} ({' or '.join(SYSTEMS)})")
+    return tuple(name for name, cand in CANDIDATES.items() if system in cand.systems)
+
+
+#: The effects of the single actuator's leg model (every candidate but the hexapod's payload).
+EFFECT_NAMES = candidates_for("single-actuator")
 
 
 def plausible_bounds(cand: Candidate, log: MeasurementLog) -> tuple[np.ndarray, np.ndarray]:
-    """(lower, upper) of ``cand``'s parameters for this log: the plausible range, narrowed to what the log
-    resolves (see the module doc)."""
+    """(lower, upper) of ``cand``'s parameters for this log: the plausible range, narrowed by the
+    candidate's own :attr:`Candidate.narrow` to what the log resolves (see the module doc)."""
     lower, upper = np.array(cand.lower, dtype=float), np.array(cand.upper, dtype=float)
-    fs = log.sample_rate_hz
-    if cand.name == "spool_dynamics":
-        upper[0] = min(upper[0], 0.5 * fs)
-    if cand.name == "sensor_delay":
-        lower[0] = 0.0  # the fit may go below; acceptance needs one sample period (resolution_floor)
-    if cand.name == "supply_pressure" and "ps_Pa" in log.columns:
-        # the set pressure lies at or above the highest supply measured (the supply only sags under flow,
-        # so the truth sits at the top of the measured range, not inside it), up to a relief-valve margin
-        lo, hi = np.quantile(log.columns["ps_Pa"], [0.01, 0.99]) / 1e5
-        lower[2], upper[2] = lo - 0.5, hi + RELIEF_MARGIN_BAR
+    if cand.narrow is not None:
+        cand.narrow(log, lower, upper)
     return lower, upper
 
 
 def resolution_floor(cand: Candidate, log: MeasurementLog) -> dict[str, float]:
-    """Smallest value of a parameter the log can resolve, name -> value (in the candidate's units)."""
-    if cand.name == "sensor_delay":
-        return {"tau_y": 1e3 / log.sample_rate_hz}
-    return {}
+    """Smallest value of a parameter the log can resolve, name -> value (in the candidate's units): the
+    candidate's :attr:`Candidate.floor`, none without one."""
+    return {} if cand.floor is None else cand.floor(log)
 
 
 def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.ndarray | None = None) -> list[str]:

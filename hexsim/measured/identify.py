@@ -53,6 +53,7 @@ from hexsim.measured.candidates import (
     LEG_LEVEL,
     applier,
     candidate_key,
+    candidates_for,
     parse_key,
     plausibility,
     plausible_bounds,
@@ -70,7 +71,6 @@ from hexsim.measured.replay import (
 )
 from hexsim.measured.residuals import clipped, effective_n, noise_of
 from hexsim.measured.statistics import fit_statistics
-from hexsim.plant.effects import EFFECT_NAMES
 from hexsim.plant.machine import with_keys
 from hexsim.signals import near_reversals
 from hexsim.simulation.workers import in_workers, worker_pool
@@ -664,14 +664,10 @@ def within_budget(scored: Scored, budget: Budget) -> dict[str, float]:
     return {ch: (rms / b[ch]) ** 2 for ch, rms in scored.held_out_rms.items()}
 
 
-#: Candidates that apply to a hexapod log: the load (mass, inclination) is a single-axis fact, the
-#: payload the hexapod's.
-HEXAPOD_CANDIDATES = (*(n for n in EFFECT_NAMES if n != "load"), "payload")
-
-
 def default_candidates(system: str) -> tuple[str, ...]:
-    """The candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``)."""
-    return HEXAPOD_CANDIDATES if system == "hexapod" else EFFECT_NAMES
+    """The candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``), as each
+    candidate declares (:func:`hexsim.measured.candidates.candidates_for`)."""
+    return candidates_for(system)
 
 
 def make_problem(log: MeasurementLog, model: str = "platform"):

@@ -9,7 +9,9 @@ fields of :class:`~hexsim.plant.params.HydraulicParams`; mass and inclination of
 the hexapod's platform are rigid-body facts and edit the MuJoCo spec before it is compiled
 (:func:`hexsim.plant.model.apply_load`).
 
-The equations of the effects are written once, in the leg step of :mod:`hexsim.plant.legs`.
+The equations of the effects are written once, in the leg step of :mod:`hexsim.plant.legs`; how the
+identifier fits each effect (its parameters, plausible ranges and sources) is declared once, in
+:data:`hexsim.measured.candidates.CANDIDATES`.
 """
 
 from __future__ import annotations
@@ -19,13 +21,6 @@ from dataclasses import dataclass, fields, replace
 
 from hexsim.errors import InputError
 from hexsim.plant.params import _check_nonnegative
-
-#: Names of the candidate effects of the identifier (issue 4), in the order they are tried.
-EFFECT_NAMES = ("supply_pressure", "spool_dynamics", "null_offset", "hysteresis", "leakage", "load", "friction",
-                "bulk_modulus", "sensor_delay", "edge_asymmetry", "entrained_air")
-#: Every candidate of the identifier: the effects above and, on the hexapod, the payload.
-CANDIDATE_NAMES = (*EFFECT_NAMES, "payload")
-
 
 @dataclass(frozen=True)
 class Effects:

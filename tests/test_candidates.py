@@ -1,0 +1,74 @@
+"""The effect library's declarations (hexsim/measured/candidates.py), on small stand-in logs: what each
+candidate declares is what the identifier reads (systems, narrowed ranges, resolution floors), and every
+parameter an effect changes can be written to a machine file."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from hexsim.errors import InputError
+from hexsim.measured.candidates import (
+    CANDIDATE_NAMES,
+    CANDIDATES,
+    EFFECT_NAMES,
+    RELIEF_MARGIN_BAR,
+    candidates_for,
+    plausibility,
+    plausible_bounds,
+    resolution_floor,
+    touched_fields,
+)
+from hexsim.plant.machine import KEYS
+
+
+def stand_in_log(sample_rate_hz: float, **columns: np.ndarray) -> SimpleNamespace:
+    """What the bounds read of a log: its sample rate and its columns."""
+    return SimpleNamespace(sample_rate_hz=sample_rate_hz, columns=columns)
+
+
+def test_each_system_gets_the_candidates_that_declare_it():
+    actuator, hexapod = candidates_for("single-actuator"), candidates_for("hexapod")
+    assert "load" in actuator and "load" not in hexapod  # mass and inclination of one axis
+    assert "payload" in hexapod and "payload" not in actuator
+    assert set(actuator) | set(hexapod) == set(CANDIDATE_NAMES) == set(CANDIDATES)
+    assert EFFECT_NAMES == actuator
+    assert list(hexapod) == [n for n in CANDIDATE_NAMES if n in hexapod]  # the declared order, kept
+    with pytest.raises(InputError, match="unknown system 'crane'"):
+        candidates_for("crane")
+
+
+def test_every_field_an_effect_changes_is_a_machine_file_key():
+    """A named or calibrated effect is written into a machine file: each field it changes needs its key."""
+    keyed = {k.target[1] for k in KEYS if k.target[0] in ("hydraulics", "effects")}
+    for name, cand in CANDIDATES.items():
+        changed = touched_fields(cand)
+        assert changed, f"{name} changes nothing"
+        assert changed <= keyed, f"{name}: {sorted(changed - keyed)} have no machine-file key"
+
+
+def test_a_slow_log_narrows_the_spool_frequency_and_floors_the_delay():
+    spool, delay = CANDIDATES["spool_dynamics"], CANDIDATES["sensor_delay"]
+    slow, fast = stand_in_log(200.0), stand_in_log(2000.0)
+    assert plausible_bounds(spool, slow)[1][0] == 100.0  # half the sample rate
+    assert plausible_bounds(spool, fast)[1][0] == spool.upper[0]  # the plausible range
+    assert resolution_floor(delay, slow) == {"tau_y": 5.0}  # one sample period, ms
+    assert resolution_floor(spool, slow) == {}
+    problems = plausibility(delay, slow, np.array([3.0]), np.array([0.1]))
+    assert problems and "finer than the log resolves" in problems[0]
+    assert not plausibility(delay, slow, np.array([8.0]), np.array([0.1]))
+
+
+def test_the_supply_set_pressure_is_bounded_by_the_logged_supply_and_the_declaration_is_not_changed():
+    supply = CANDIDATES["supply_pressure"]
+    declared = (supply.lower, supply.upper)
+    ps = np.linspace(66e5, 70e5, 101)
+    lower, upper = plausible_bounds(supply, stand_in_log(1000.0, ps_Pa=ps))
+    assert lower[2] == pytest.approx(np.quantile(ps, 0.01) / 1e5 - 0.5)
+    assert upper[2] == pytest.approx(np.quantile(ps, 0.99) / 1e5 + RELIEF_MARGIN_BAR)
+    assert (lower[:2] == supply.lower[:2]).all() and (upper[:2] == supply.upper[:2]).all()
+    assert (supply.lower, supply.upper) == declared
+    lower, upper = plausible_bounds(supply, stand_in_log(1000.0))  # no supply logged: the plausible range
+    assert tuple(lower) == supply.lower and tuple(upper) == supply.upper
