@@ -99,18 +99,11 @@ def _rhs(z, u, c):
 
 
 @numba.njit(cache=True)
-def leg(c, y, v, p1, x):
-    """(dP1/dt [Pa/s], the force on the load [N]: pressures, friction and end stops) of one cylinder ``c``
-    (:func:`_pack`) at piston position y, velocity v, cap pressure p1 and spool position x, at the nominal
-    supply pressure."""
-    dp1, force, _ = leg_at(c, y, v, p1, x, c[3])
-    return dp1, force
-
-
-@numba.njit(cache=True)
 def leg_at(c, y, v, p1, x, ps):
-    """:func:`leg` at supply pressure ps [Pa], and the flow drawn from the supply [m^3/s] (the supply edge,
-    the leak, and the rod side's displacement, connected to the supply)."""
+    """(dP1/dt [Pa/s], the force on the load [N]: pressures, friction and end stops, the flow drawn from the
+    supply [m^3/s]: the supply edge, the leak and the rod side's displacement, connected to the supply) of
+    one cylinder ``c`` (:func:`_pack`) at piston position y, velocity v, cap pressure p1, spool position x
+    and supply pressure ps [Pa]."""
     a1, a2, stroke, _, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
     port = math.pi * d * max(abs(x) - ol, 0.0)
     smooth = ka * x * x

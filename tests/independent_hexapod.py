@@ -2,7 +2,10 @@
 calibrate-then-validate tests. Its own equations, integrated by classical Runge-Kutta at 10 µs (numba):
 
 - six legs of :mod:`tests.independent_actuator` (its valve, orifice, cap chamber, Stribeck friction and end
-  stops, :func:`tests.independent_actuator.leg`), each with its own parameters (six valves, six data sheets);
+  stops, :func:`tests.independent_actuator.leg_at`), each with its own parameters (six valves, six data sheets),
+  its spool ideal or a second-order loop (the leg's ``spool_hz``) behind the leg's ``play`` on the setpoint;
+- one supply for the six legs: ideal, or sagging through ``supply_resistance`` with the flow the legs draw,
+  first order with ``supply_tau`` (logged, with noise, as a transducer reads it);
 - a rigid platform (mass, principal inertia about its centre of mass) moved by the legs' forces along the
   leg axes, Newton–Euler about the centre of mass in the world frame; the legs are massless but for each
   piston rod, whose mass moves along its leg (added to the mass matrix as m_r J_i^T J_i, its weight along the
@@ -11,7 +14,8 @@ calibrate-then-validate tests. Its own equations, integrated by classical Runge-
 - orientation as a unit quaternion; leg i joins base joint a_i (world) to platform joint b_i (platform frame);
   piston y_i = |p + R b_i - a_i| - L_min;
 - a P controller per leg at 500 Hz on the noisy leg positions (valves saturated at ±10 V), tracking the legs'
-  lengths of a platform motion (inverse kinematics written here);
+  lengths of a platform motion (inverse kinematics written here); the positions may reach it (and the log)
+  ``sensor_delay`` late;
 - logged at 1 kHz: each leg's setpoint, valve command, position and P1, the supply, and the accelerometer at the
   platform frame's origin, in the platform frame, as the mean specific force over each sample interval.
 
@@ -27,7 +31,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from independent_actuator import Actuator, _pack, leg
+from independent_actuator import Actuator, _pack, leg_at
 from independent_actuator import write as write_log
 
 G = 9.81
@@ -48,6 +52,9 @@ class Hexapod:
     rod_mass: float = 2.5
     legs: tuple[Actuator, ...] = field(default_factory=lambda: (Actuator(),) * 6)
     kp: float = 200.0
+    supply_resistance: float = 0.0  # [Pa s/m^3] the supply's sag per unit flow drawn by the six legs; 0: ideal
+    supply_tau: float = 0.02  # [s] its time constant
+    sensor_delay: float = 0.0  # [s] the leg positions' delay (the motion computer's, all legs alike)
 
     def joints(self) -> tuple[np.ndarray, np.ndarray, float]:
         """(base joints (6, 3) world, platform joints (6, 3) platform frame, the platform frame's height at the
@@ -77,8 +84,9 @@ def _quat_matrix(q):
 
 
 @numba.njit(cache=True)
-def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min):
-    """State z: centre of mass (3), quaternion (4), its velocity (3), angular velocity (3, world), P1 (6)."""
+def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply):
+    """State z: centre of mass (3), quaternion (4), its velocity (3), angular velocity (3, world), P1 (6), each
+    leg's spool position and velocity (12), the supply pressure (1); ``supply`` (set pressure, R_s, tau_s)."""
     q = z[3:7] / np.sqrt(np.sum(z[3:7] ** 2))
     rot = _quat_matrix(q)
     v, w = z[7:10], z[10:13]
@@ -89,7 +97,8 @@ def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min):
     f = np.zeros(6)
     f[2] = -mass * G
     f[3:] = -np.cross(w, iw @ w)
-    out = np.zeros(19)
+    out = np.zeros(32)
+    drawn = 0.0
     for i in range(6):
         r = rot @ b[i]
         vec = z[0:3] + r - a[i]
@@ -99,7 +108,12 @@ def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min):
         yd = np.dot(n, v + np.cross(w, r))
         c = legs[i]
         x = (u[i] - c[10]) / c[6] * c[5]  # ideal spool (seed eq. 3.2)
-        dp1, force = leg(c, length - l_min, yd, z[13 + i], x)
+        if c[29] > 0:  # a second-order spool loop
+            wv, xv, vv = c[29], z[19 + 2 * i], z[20 + 2 * i]
+            out[19 + 2 * i], out[20 + 2 * i] = vv, wv * wv * (x - xv) - 2.0 * c[30] * wv * vv
+            x = xv
+        dp1, force, flow = leg_at(c, length - l_min, yd, z[13 + i], x, z[31])
+        drawn += flow
         f += jac * (force - rod_mass * G * n[2])
         mm += rod_mass * np.outer(jac, jac)
         out[13 + i] = dp1
@@ -111,16 +125,18 @@ def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min):
     out[5] = 0.5 * (wq[0] * q[2] - wq[1] * q[3] + wq[2] * q[0] + wq[3] * q[1])
     out[6] = 0.5 * (wq[0] * q[3] + wq[1] * q[2] - wq[2] * q[1] + wq[3] * q[0])
     out[7:13] = acc
+    if supply[1] > 0:
+        out[31] = (supply[0] - supply[1] * drawn - z[31]) / supply[2]
     return out
 
 
 @numba.njit(cache=True)
-def _advance(z, u, legs, a, b, mass, inertia, rod_mass, l_min, h, n):
+def _advance(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, h, n):
     for _ in range(n):
-        k1 = _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min)
-        k2 = _rhs(z + 0.5 * h * k1, u, legs, a, b, mass, inertia, rod_mass, l_min)
-        k3 = _rhs(z + 0.5 * h * k2, u, legs, a, b, mass, inertia, rod_mass, l_min)
-        k4 = _rhs(z + h * k3, u, legs, a, b, mass, inertia, rod_mass, l_min)
+        k1 = _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
+        k2 = _rhs(z + 0.5 * h * k1, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
+        k3 = _rhs(z + 0.5 * h * k2, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
+        k4 = _rhs(z + h * k3, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
         z = z + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
         z[3:7] /= np.sqrt(np.sum(z[3:7] ** 2))
     return z
@@ -153,12 +169,19 @@ def motion(s: Hexapod, duration: float, poses, rng: np.random.Generator, step: f
     jac = np.concatenate([n, np.cross(r, n)], axis=1)  # (6 legs, 6)
     force = np.linalg.solve(jac.T, np.array([0.0, 0.0, s.mass * G, 0.0, 0.0, 0.0])) + s.rod_mass * G * n[:, 2]
     p1 = (force + ps * a2) / a1
-    z = np.concatenate([c0, [1.0, 0.0, 0.0, 0.0], np.zeros(6), p1])
+    spool = np.zeros(12)
+    spool[0::2] = -legs[:, 10] / legs[:, 6] * legs[:, 5]  # each spool at rest where u = 0 puts it
+    z = np.concatenate([c0, [1.0, 0.0, 0.0, 0.0], np.zeros(6), p1, spool, [ps[0]]])
+    supply = np.array([ps[0], s.supply_resistance, s.supply_tau])
+    play = np.array([leg_.play for leg_ in s.legs])
     inertia = np.asarray(s.inertia, dtype=float)
     sensor = -com  # the platform frame's origin from the centre of mass, platform frame
     cols = {k: np.empty((len(t), 6)) for k in ("pos", "p1", "u")}
+    true_pos = np.empty((len(t), 6))
+    supply_log = np.empty(len(t))
     acc = np.empty((len(t), 3))
     u = np.zeros(6)
+    spool_u = np.zeros(6)
     substeps = int(round(dt / step))
 
     def sensor_velocity(z):
@@ -168,13 +191,16 @@ def motion(s: Hexapod, duration: float, poses, rng: np.random.Generator, step: f
     v_prev, _ = sensor_velocity(z)
     for j in range(len(t)):
         rot = _quat_matrix(z[3:7])
-        cols["pos"][j] = np.linalg.norm(z[0:3] + b @ rot.T - a, axis=1) - s.l_min
-        measured = cols["pos"][j] + rng.normal(0.0, noise[0], 6)
+        true_pos[j] = np.linalg.norm(z[0:3] + b @ rot.T - a, axis=1) - s.l_min
+        seen = true_pos[j] if not s.sensor_delay else np.array(
+            [np.interp(t[j] - s.sensor_delay, t[:j + 1], true_pos[:j + 1, i]) for i in range(6)])
+        measured = seen + rng.normal(0.0, noise[0], 6)
         if j % 2 == 0:
             u = np.clip(s.kp * (ref[j] - measured), -10.0, 10.0)
-        cols["p1"][j], cols["u"][j] = z[13:19], u
+            spool_u = np.minimum(np.maximum(spool_u, u - play), u + play)  # each leg's play (backlash)
+        cols["p1"][j], cols["u"][j], supply_log[j] = z[13:19], u, z[31]
         cols["pos"][j] = measured
-        z = _advance(z, u, legs, a, b, s.mass, inertia, s.rod_mass, s.l_min, step, substeps)
+        z = _advance(z, spool_u, legs, a, b, s.mass, inertia, s.rod_mass, s.l_min, supply, step, substeps)
         assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
         v_now, rot = sensor_velocity(z)
         acc[j] = rot.T @ ((v_now - v_prev) / dt + np.array([0.0, 0.0, G]))  # the interval j … j+1
@@ -185,7 +211,8 @@ def motion(s: Hexapod, duration: float, poses, rng: np.random.Generator, step: f
         out |= {f"leg{i + 1}_ref_m": ref[:, i], f"leg{i + 1}_valve_cmd_V": cols["u"][:, i],
                 f"leg{i + 1}_pos_m": cols["pos"][:, i],
                 f"leg{i + 1}_p1_Pa": cols["p1"][:, i] + rng.normal(0.0, noise[1], len(t))}
-    out["ps_Pa"] = np.full(len(t), float(ps[0]))
+    out["ps_Pa"] = (supply_log + rng.normal(0.0, noise[1], len(t)) if s.supply_resistance > 0
+                    else np.full(len(t), float(ps[0])))
     for k, axis in enumerate("xyz"):
         out[f"platform_acc_{axis}_mps2"] = acc[:, k] + rng.normal(0.0, noise[2], len(t))
     return out
