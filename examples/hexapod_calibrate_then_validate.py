@@ -58,6 +58,13 @@ CASES = {
     "entrained_air": ("3 % of air entrained in the oil", lambda m: on_legs(m, None, air=0.03)),
     "null_offset": ("leg 4's valve null drifted by 0.2 V",
                     lambda m: on_legs(m, (4,), null_offset=lambda a: a.null_offset + 0.2)),
+    "supply_pressure": ("the supply sags 0.4 bar per L/min the six legs draw (30 ms)",
+                        lambda m: dataclasses.replace(m, supply_resistance=0.4e5 / (1e-3 / 60), supply_tau=0.03)),
+    "spool_dynamics": ("every valve's spool a 40 Hz loop (damping 0.7)", lambda m: on_legs(m, None, spool_hz=40.0)),
+    "hysteresis": ("0.3 V of play before leg 3's spool", lambda m: on_legs(m, (3,), play=0.3)),
+    "sensor_delay": ("the leg positions measured 2 ms late", lambda m: dataclasses.replace(m, sensor_delay=0.002)),
+    "payload": ("90 kg more on the platform, at its centre of gravity",
+                lambda m: dataclasses.replace(m, mass=m.mass + 90.0)),
 }
 
 

@@ -12,6 +12,7 @@ one leg's piston, and one leg's valve null drifted.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -133,3 +134,21 @@ def test_a_legs_valve_null_offset_is_named_on_its_leg_with_its_voltage(calibrate
     assert doc["added_effects"][0]["parameters"]["u_0"]["value"] - own == pytest.approx(NULL_OFFSET, abs=0.01)
     said = [c for c in doc["conclusions"] if c.startswith(f"The position of leg{NULL_LEG} ")]
     assert said and "static tracking error" in said[0], doc["conclusions"]
+
+
+def test_a_heavier_payload_is_named_as_the_change_to_the_calibrated_one(calibrated, tmp_path):
+    """90 kg more on the platform of the calibrated machine (at the truth's centre of gravity, which the
+    calibration did not see: its payload is 51 kg at 0.28 m height): named as the change, with where it
+    sits, height included (the surge tilts the legs' forces by it), on top of the calibrated payload."""
+    paths, machine, _ = calibrated
+    truth = _machine()
+    heavier = dataclasses.replace(truth, mass=truth.mass + 90.0)
+    log = write(motion(heavier, 5.0, _other_motion, np.random.default_rng(5)), tmp_path / "payload.csv",
+                "surge, heave and yaw; 90 kg more on the platform")
+    doc = validate(read_log(log, machine=machine))
+    assert doc["verdict"] == "explained", doc["conclusions"]
+    (effect,) = doc["added_effects"]
+    assert effect["name"] == "payload", doc["conclusions"]
+    found = {k: v["value"] for k, v in effect["parameters"].items()}
+    assert found["m_p"] == pytest.approx(90.0, rel=0.05)
+    assert np.allclose([found["x_p"], found["y_p"], found["z_p"]], truth.com, atol=0.05), found

@@ -21,7 +21,10 @@ from hexsim.measured.candidates import (
     resolution_floor,
     touched_fields,
 )
+from hexsim.measured.replay import PlantModel
+from hexsim.plant.effects import Effects
 from hexsim.plant.machine import KEYS
+from hexsim.plant.params import HydraulicParams
 
 
 def stand_in_log(sample_rate_hz: float, **columns: np.ndarray) -> SimpleNamespace:
@@ -72,3 +75,20 @@ def test_the_supply_set_pressure_is_bounded_by_the_logged_supply_and_the_declara
     assert (supply.lower, supply.upper) == declared
     lower, upper = plausible_bounds(supply, stand_in_log(1000.0))  # no supply logged: the plausible range
     assert tuple(lower) == supply.lower and tuple(upper) == supply.upper
+
+
+def test_a_payload_change_adds_to_the_machines_payload_with_its_weight_and_moments_exact():
+    """On a calibrated machine (51 kg at c_0), m_p = 0 is that machine, and 90 kg added at c_p gives one
+    payload whose mass and first moment are the sum of the two (the weight and its moments on the legs)."""
+    payload = CANDIDATES["payload"]
+    c0, cp = np.array([0.155, -0.104, 0.279]), np.array([0.015, -0.009, 0.205])
+    model = PlantModel(HydraulicParams(), Effects(payload_kg=51.0, payload_at_m=tuple(c0)))
+    same = payload.apply(model, np.array([0.0, *cp]))
+    assert same.effects.payload_kg == 51.0 and np.allclose(same.effects.payload_at_m, c0)
+    both = payload.apply(model, np.array([90.0, *cp])).effects
+    assert both.payload_kg == pytest.approx(141.0)
+    assert np.allclose(both.payload_kg * np.array(both.payload_at_m), 51.0 * c0 + 90.0 * cp)
+    off = payload.apply(model, np.array([-51.0, *c0])).effects  # the payload taken off
+    assert off.payload_kg == pytest.approx(0.0, abs=1e-12)
+    bare = PlantModel(HydraulicParams(), Effects())  # no payload in the file: the change is the payload
+    assert payload.apply(bare, np.array([90.0, *cp])).effects.payload_at_m == pytest.approx(tuple(cp))

@@ -1,7 +1,7 @@
 """The library of effects the nominal seed model lacks, as the identifier fits them.
 
 Each effect is declared once, as one :class:`Candidate` of :data:`CANDIDATES`: its free parameters (one to
-three) with units, the fit's starts, the *physically plausible range* of each parameter written next to it
+four) with units, the fit's starts, the *physically plausible range* of each parameter written next to it
 with its source, the value that means "no effect", how it edits a model, the systems whose logs it applies
 to, and how a log narrows its range (:attr:`Candidate.narrow`: no spool frequency above half the sample
 rate, a supply set pressure at the top of the logged supply pressure) or floors what it resolves
@@ -155,7 +155,17 @@ def _load(model: PlantModel, x) -> PlantModel:
 
 
 def _payload(model: PlantModel, x) -> PlantModel:
-    return _eff(model, payload_kg=x[0], payload_at_m=(x[1], x[2], 0.0))
+    """``model`` with a payload change: m_p = x[0] [kg] at (x_p, y_p, z_p) = x[1:4] [m] (platform frame) added
+    to the model's payload m_0 at c_0. The two are one point mass m_0 + m_p at their centre of gravity, so
+    the weight and its moments are exact; the inertia the two masses have about that centre,
+    m_0 m_p / (m_0 + m_p) |c_0 - c_p|^2, is left out (1.3 kg m^2 for 90 kg added 0.2 m from a 51 kg payload,
+    against the platform's 80-144). m_p = 0 is the machine as its file describes it, calibrated payload
+    included."""
+    m0, c0 = model.effects.payload_kg, np.asarray(model.effects.payload_at_m, dtype=float)
+    added = np.asarray(x[1:4], dtype=float)
+    total = m0 + x[0]
+    at = (m0 * c0 + x[0] * added) / total if abs(total) > 1e-9 else added
+    return _eff(model, payload_kg=float(total), payload_at_m=tuple(float(v) for v in at))
 
 
 def _narrow_supply(log: MeasurementLog, lower: np.ndarray, upper: np.ndarray) -> None:
@@ -215,9 +225,15 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
 
 
 def _payload_starts(log: MeasurementLog) -> tuple[tuple[float, ...], ...]:
+    """The statics' mass and position (:func:`payload_start`) and two generic masses, each at the height of
+    the machine's payload (the platform frame's origin without one): a change of what is on the platform
+    sits where it sits until the motion says otherwise (heave alone cannot: the height only tilts the legs'
+    forces under surge, sway, roll and pitch)."""
+    eff = log.machine.effects
+    z0 = float(eff.payload_at_m[2]) if eff.payload_kg else 0.0
     start = payload_start(log)
-    generic = ((100.0, 0.0, 0.0), (-100.0, 0.0, 0.0))
-    return generic if start is None else (start, *generic)
+    generic = ((100.0, 0.0, 0.0, z0), (-100.0, 0.0, 0.0, z0))
+    return generic if start is None else ((*start, z0), *generic)
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
@@ -289,13 +305,14 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               lambda m, x: _eff(m, air_fraction=x[0] * 1e-2),
               "entrained air: a volume fraction a of air at atmospheric pressure (adiabatic, n = 1.4) makes the "
               "oil's bulk modulus fall at low pressure (hexsim.plant.legs.bulk_modulus)", (0.0,)),
-    Candidate("payload", ("m_p", "x_p", "y_p"), ("kg", "m", "m"), _payload_starts, (-200.0, -0.6, -0.6),
-              (600.0, 0.6, 0.6),
+    Candidate("payload", ("m_p", "x_p", "y_p", "z_p"), ("kg", "m", "m", "m"), _payload_starts,
+              (-200.0, -0.6, -0.6, -0.2), (600.0, 0.6, 0.6, 0.6),
               "the Micro Motion System carries a payload of up to about 600 kg (seed §2.2.1); a "
-              "centre of gravity inside the platform (1.2 m square); down to -200 kg: a platform lighter than "
-              "modelled", _payload,
-              "hexapod: a payload m_p at (x_p, y_p) on the platform (platform frame, at the platform's own "
-              "height), its weight and inertia through MuJoCo", (0.0, None, None), systems=("hexapod",)),
+              "centre of gravity inside the platform (1.2 m square), from 0.2 m below its joints' plane to 0.6 m "
+              "above it (a seat, a cockpit); down to -200 kg: a platform lighter than modelled", _payload,
+              "hexapod: a payload change m_p at (x_p, y_p, z_p) on the platform (platform frame), added to the "
+              "machine's payload, its weight and inertia through MuJoCo", (0.0, None, None, None),
+              systems=("hexapod",)),
 )}
 #: Every candidate's name, in the order they are tried.
 CANDIDATE_NAMES = tuple(CANDIDATES)
