@@ -43,6 +43,7 @@ MACHINES = {
                       coulomb=(70.0, 66.0), viscous=(2400.0, 1700.0)),
 }
 
+
 def drawn(seed: int) -> Actuator:
     """A machine drawn at random within a data sheet's tolerances of appendix A: valve form, flow gain ±8 %,
     return edge ±6 %, overlap 0-25 µm, zero point ±0.05 V, bulk modulus 1.1-1.8 GPa, dead volume 0.2-2.5 cm^3,
@@ -100,6 +101,9 @@ def main() -> None:
     parser.add_argument("--only", nargs="*", choices=sorted(EFFECTS), help="validate only these logs")
     parser.add_argument("--jobs", type=int, default=2)
     args = parser.parse_args()
+    for name in args.machines.split(","):
+        if name not in MACHINES and not (name.startswith("drawn") and name[5:].isdigit()):
+            parser.error(f"--machines: unknown machine {name!r} ({', '.join(MACHINES)} or drawnSEED)")
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     prior = load_machine(None)
@@ -107,8 +111,6 @@ def main() -> None:
           "acceleration) | wall |")
     print("|---|---|---|---|---|---|")
     for name in args.machines.split(","):
-        if name not in MACHINES and not (name.startswith("drawn") and name[5:].isdigit()):
-            parser.error(f"--machines: unknown machine {name!r} ({', '.join(MACHINES)} or drawnSEED)")
         truth = MACHINES[name] if name in MACHINES else drawn(int(name[5:]))
         cal_logs = []
         for i, (duration, freq, amp) in enumerate(((8.0, 0.5, 0.06), (6.0, 1.5, 0.03))):

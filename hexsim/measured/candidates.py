@@ -199,7 +199,7 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     """A start for the payload candidate (m_p [kg], x_p, y_p [m]) from statics: the legs' P1 while the
     platform is still at rest (the replay starts at rest in the neutral pose: the rows before any leg's
     setpoint has moved by :data:`REST_TOLERANCE_M`, at most the first 0.1 s, at least three rows) minus
-    the model's static P1 there, through :func:`hexsim.measured.hexapod_replay.payload_from_statics`. None
+    the model's static P1 there (the machine file's payload included: the start is the change), through :func:`hexsim.measured.hexapod_replay.payload_from_statics`. None
     for a log without the legs' P1 or offsets that are not one load. (Over a fixed 0.1 s, a 1 Hz heave's
     fade-in had already raised P1 by 0.53 bar: a 30 kg payload read as 64 kg.)"""
     p1, ref = log.leg_array("p1_Pa"), log.leg_array("ref_m")
