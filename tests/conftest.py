@@ -24,12 +24,12 @@ def pytest_cmdline_main(config):
 
 
 #: The longest test files, longest first (seconds on one worker, `pytest --durations=0` on 2 cores, summed per
-#: file): validation 194, the hexapod's calibration 161, hexapod validation 148, transients 121 (every library
-#: effect on the calibrated machine), calibration 114, verdicts 53, cli 39; the rest 10-20 or less. Handed out
-#: first, the two workers finish together; in the alphabetical order the validation files came last and one
-#: worker ran them alone for minutes.
-LONGEST_FIRST = ("test_validation.py", "test_calibration_hexapod.py", "test_hexapod_validation.py",
-                 "test_calibration_transients.py", "test_calibration.py", "test_verdicts.py", "test_cli.py")
+#: file, at c749c41): the hexapod's calibration 247, calibration 211, transients 200 (every library effect on
+#: the calibrated machine), hexapod validation 161, validation 130, verdicts 48, cli 20; the rest 18 or less.
+#: Handed out first, the two workers finish together; in the alphabetical order the validation files came
+#: last and one worker ran them alone for minutes.
+LONGEST_FIRST = ("test_calibration_hexapod.py", "test_calibration.py", "test_calibration_transients.py",
+                 "test_hexapod_validation.py", "test_validation.py", "test_verdicts.py", "test_cli.py")
 
 
 def pytest_collection_modifyitems(config, items):
