@@ -253,27 +253,13 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
     The terms that map onto a parameter are added to their leg (:class:`hexsim.plant.effects.LegChange`), the
     log is replayed, and the held-out error before and after is reported; nothing is kept if it does not
     fall."""
-    from hexsim.measured.candidates import leg_model, with_leg
-
     log, c = problem.log, problem.log.columns
+    if any(f"leg{leg}_p1_Pa" not in c for leg in range(1, 7)):
+        return {"done": False, "why": "discovery needs the legs' P1 (leg*_p1_Pa)"}
     segments = problem.rows.reshape(problem.shape)
     fit, test = segments[problem.fit_rows].ravel(), segments[problem.test_rows].ravel()
     p_s = c["ps_Pa"] if "ps_Pa" in c else np.full(len(log.time), base.hydraulics.supply_pressure)
-    terms, per_leg, far = [], {}, []
-    for leg in range(1, 7):
-        if f"leg{leg}_p1_Pa" not in c:
-            return {"done": False, "why": "discovery needs the legs' P1 (leg*_p1_Pa)"}
-        own = leg_model(base, leg)
-        f_leg = {}
-        for target, x, dictionary in _leg_equations(log, leg, own, p_s):
-            t_eq, f_eq, off = _sparse_terms(target, x, fit, test, dictionary, leg)
-            if off and leg not in far:
-                far.append(leg)
-            terms += t_eq
-            f_leg |= f_eq
-        if f_leg:  # a constant inflow is read as a leak from P_s on the 3-way valve only (apply_terms)
-            mean_dp = 0.0 if own.hydraulics.four_way else float(np.mean(p_s - c[f"leg{leg}_p1_Pa"]))
-            per_leg[leg] = (own, f_leg, mean_dp)
+    terms, per_leg, far = _leg_terms(log, base, p_s, fit, test)
     out = {"done": True, "method": f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
            f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of "
            "the held-out equation error", "terms": terms, "added_to_model": []}
@@ -289,6 +275,37 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
             why = "the valves' flow lags their setpoints: reported, not added to the model (no parameter of its flow " \
                   "equation maps onto a lag; the library's spool_dynamics does)"
         return out | {"why": why}
+    return out | _replay_leg_terms(problem, base, base_scored, budget, score, per_leg)
+
+
+def _leg_terms(log, base: PlantModel, p_s: np.ndarray, fit: np.ndarray, test: np.ndarray) -> tuple[list, dict, list]:
+    """Each leg's sparse terms (:func:`_sparse_terms` on :func:`_leg_equations` with the leg's own
+    parameters): the JSON-ready terms of all legs, per leg with a term (its model, {"equation:term":
+    coefficient}, the mean P_s - P1 [Pa] a constant inflow is read against as a leak: the 3-way valve only,
+    :func:`apply_terms`), and the legs whose equation is far off."""
+    from hexsim.measured.candidates import leg_model
+
+    terms, per_leg, far = [], {}, []
+    for leg in range(1, 7):
+        own = leg_model(base, leg)
+        f_leg = {}
+        for target, x, dictionary in _leg_equations(log, leg, own, p_s):
+            t_eq, f_eq, off = _sparse_terms(target, x, fit, test, dictionary, leg)
+            if off and leg not in far:
+                far.append(leg)
+            terms += t_eq
+            f_leg |= f_eq
+        if f_leg:
+            mean_dp = 0.0 if own.hydraulics.four_way else float(np.mean(p_s - log.columns[f"leg{leg}_p1_Pa"]))
+            per_leg[leg] = (own, f_leg, mean_dp)
+    return terms, per_leg, far
+
+
+def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, budget, score, per_leg: dict) -> dict:
+    """The terms of ``per_leg`` (:func:`_leg_terms`) that map onto a parameter, added to their legs and
+    replayed: the account's additions if the held-out error falls (:func:`_kept`), else why not."""
+    from hexsim.measured.candidates import with_leg
+
     model, applied = base, []
     for leg, (own, found, mean_dp) in per_leg.items():
         changed, keys = apply_terms(own, found, mean_dp)
@@ -296,19 +313,26 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
             model = with_leg(model, leg, changed)
             applied += [f"leg{leg}:{k}" for k in keys]
     if not applied or score is None:
-        return out | {"why": "no term maps onto a parameter of its leg: reported, not replayed"}
+        return {"why": "no term maps onto a parameter of its leg: reported, not replayed"}
     scored = score(problem, problem.simulate(model), budget)
-    before = float(base_scored.window_cost[problem.test_rows].sum())
-    after = float(scored.window_cost[problem.test_rows].sum())
+    before, after = held_out_cost(problem, base_scored), held_out_cost(problem, scored)
     if after >= before:
-        return out | {"why": "adding the legs' terms did not lower the held-out error of the replay: reported, "
-                             "not kept"}
-    out |= {"added_to_model": applied, "held_out_rms_before": base_scored.held_out_rms,
+        return {"why": "adding the legs' terms did not lower the held-out error of the replay: reported, not kept"}
+    return _kept(applied, base_scored, scored, before, after) | {
+        "leg_changes": [{"leg": ch.leg, "values": dict(ch.values)} for ch in model.leg_changes]}
+
+
+def held_out_cost(problem: ReplayProblem, scored) -> float:
+    """The summed cost of ``scored``'s (:class:`hexsim.measured.identify.Scored`) held-out rows."""
+    return float(scored.window_cost[problem.test_rows].sum())
+
+
+def _kept(applied: list[str], base_scored, scored, before: float, after: float) -> dict:
+    """The account of terms kept: what was added, the held-out RMS before and after, the share of the
+    held-out cost ``before`` that ``after`` recovers, and the replay's score (``_scored``, not in the JSON)."""
+    return {"added_to_model": applied, "held_out_rms_before": base_scored.held_out_rms,
             "held_out_rms_after": scored.held_out_rms,
-            "held_out_cost_recovered": 1.0 - after / before if before > 0 else 0.0,
-            "leg_changes": [{"leg": ch.leg, "values": dict(ch.values)} for ch in model.leg_changes]}
-    out["_scored"] = scored
-    return out
+            "held_out_cost_recovered": 1.0 - after / before if before > 0 else 0.0, "_scored": scored}
 
 
 def _leg_signals(log, leg: int, four_way: bool) -> tuple:
@@ -462,8 +486,7 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
     if not found:
         why = (_far_off([]) if far else "no term stands out of the equation noise")
         return out | {"added_to_model": [], "why": why}
-    test_rows = problem.test_rows
-    cost_before = float(base_scored.window_cost[test_rows].sum())
+    cost_before = held_out_cost(problem, base_scored)
     # the representable terms together, then each alone: the replay on held-out windows decides
     c = log.columns
     p_s = c["ps_Pa"] if "ps_Pa" in c else base.hydraulics.supply_pressure
@@ -477,7 +500,7 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
         if not applied:
             continue
         scored = score(problem, problem.simulate(model), budget)
-        cost = float(scored.window_cost[test_rows].sum())
+        cost = held_out_cost(problem, scored)
         if best is None or cost < best[0]:
             best = (cost, model, applied, scored)
     out["not_representable"] = [k for k in found if k not in representable]
@@ -485,11 +508,7 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
         return out | {"added_to_model": [], "why": "adding the terms that map onto model parameters did not lower "
                       "the held-out error of the replay: reported, not kept"}
     cost_after, model, applied, scored = best
-    out |= {"added_to_model": applied, "held_out_rms_before": base_scored.held_out_rms,
-            "held_out_rms_after": scored.held_out_rms,
-            "held_out_cost_recovered": 1.0 - cost_after / cost_before if cost_before > 0 else 0.0,
-            "effects_after": {k: getattr(model.effects, k) for k in (
-                "edge_gain_pa", "edge_gain_at", "leakage",
-                *(("edge_gain_pb", "edge_gain_bt") if base.hydraulics.four_way else ()))}}
-    out["_scored"] = scored
-    return out
+    return out | _kept(applied, base_scored, scored, cost_before, cost_after) | {
+        "effects_after": {k: getattr(model.effects, k) for k in (
+            "edge_gain_pa", "edge_gain_at", "leakage",
+            *(("edge_gain_pb", "edge_gain_bt") if base.hydraulics.four_way else ()))}}

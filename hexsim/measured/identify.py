@@ -58,7 +58,7 @@ from hexsim.measured.candidates import (
     plausibility,
     plausible_bounds,
 )
-from hexsim.measured.discovery import discover
+from hexsim.measured.discovery import discover, held_out_cost
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import (
     CHANNELS,
@@ -1002,10 +1002,9 @@ def _discover_partial(problem: ReplayProblem, nominal: "Scored", model: PlantMod
     label = " + ".join(a.key for a in accepted)
 
     def after(found: dict) -> float:
-        scored = found.get("_scored")
-        return float(scored.window_cost[problem.test_rows].sum()) if scored is not None else math.inf
+        return held_out_cost(problem, found["_scored"]) if "_scored" in found else math.inf
 
-    if after(alone) < min(after(on_top), float(current.window_cost[problem.test_rows].sum())):
+    if after(alone) < min(after(on_top), held_out_cost(problem, current)):
         return alone | {"on": f"the nominal model, {label} left out: its discovered terms explain the held-out "
                               f"data better than {label} does"}
     return on_top | {"on": f"the model with {label}"}
