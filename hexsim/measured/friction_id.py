@@ -3,10 +3,17 @@
 F_f = F_L - M ydd - M g cos(inclination), with F_L = P1 A1 - P_s A2 (seed eq. 2.3) from the pressures of
 the 3-way valve, A1 p1 - A2 p2 from both chambers of a 4-way valve (the areas of the log's machine file),
 or F_L = ``force_N`` for a drive without pressure sensors (the seed notes the method applies to electric
-drives too); a log needs only the columns of one of these and the position. Runs of one experiment
-that logged different pressures (the real servo cylinder's pA and pB runs) are merged row by row. The velocity is a Savitzky–Golay derivative of the measured position; M (ydd + g cos θ) is
-the logged accelerometer (specific force, ``acc_mps2``; a log holding acceleration without g is
-recognised by its mean) where there is one, else the position's second derivative.
+drives too); a log needs only the columns of one of these and the position.
+
+Which samples: an open-loop experiment (constant valve commands) is read in its steady windows only
+(:func:`steady_windows`: after the command settles, away from the end stops, at a constant speed), where
+the acceleration is nil and is left out, each sample at its window's straight-line speed; runs of one
+experiment that logged different pressures (the real servo cylinder's pA and pB runs) are merged row by
+row where both move steadily (two runs reach a stop at different times). A log without steady motions
+(closed loop) is read sample by sample away from the stops, the velocity and the acceleration from a
+zero-phase (symmetric) Savitzky–Golay filter of the position, or M (ydd + g cos θ) from the logged
+accelerometer (specific force, ``acc_mps2``; a log holding acceleration without g is recognised by its
+mean).
 
 The curve fitted is the one the simulator uses (:func:`hexsim.plant.hydraulics.friction_force`, seed eq. 3.9),
 F_f = sigma v + s(v) [F_c0 + F_s0 exp(-|v| / c_s)] with s(v) = arctan(k v) (times 2/pi when
@@ -14,12 +21,16 @@ F_f = sigma v + s(v) [F_c0 + F_s0 exp(-|v| / c_s)] with s(v) = arctan(k v) (time
 simulation recover each other's parameters. (Eq. 2.4 of the seed has sign(v) for s(v); with the
 published eq. 3.9, arctan tends to ±pi/2 and the Coulomb level at speed is pi/2 F_c0.) Standard errors
 from the Jacobian; a parameter the data cannot separate (at a bound of its range, or a standard error
-larger than the value) is reported as unidentifiable with the reason, never as a number.
+larger than the value) is reported as unidentifiable with the reason, never as a number. The model is
+as rich as the speeds in the data: one speed per direction gives its level alone. The loss is robust
+(soft L1 beyond :data:`ROBUST_SCALE_N`); a direction with too few usable samples, a force that aids the
+motion, or a scatter larger than its level answers "cannot fit" with the reason instead of a number.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -62,6 +73,17 @@ ROBUST_SCALE_N = 10.0
 #: [m] Samples this close to the ends of the observed piston range are left out: at an end stop the
 #: pressures build up against the stop, not against friction.
 END_MARGIN_M = 0.003
+#: [s] After the valve command of an open-loop experiment changes, its samples are left out this long:
+#: the piston accelerates and the chamber pressures ring (the oil spring's mode, tens of Hz) first.
+SETTLE_S = 0.05
+#: [-] A steady window's samples move within this share of the window's own speed (the speed from a
+#: straight line through the window's positions): the rest of a constant command is still accelerating.
+STEADY_SPEED_SHARE = 0.2
+#: Usable samples a direction needs before a curve is fitted to it.
+MIN_SAMPLES = 50
+#: [-] Speeds of one direction spanning less than this ratio (95th over 5th percentile) cannot tell a
+#: viscous slope from the Coulomb level: the level alone is fitted there.
+MIN_SPEED_RATIO = 1.5
 
 
 def merge_runs(logs: list[MeasurementLog]) -> MeasurementLog:
@@ -101,14 +123,86 @@ def load_force(log: MeasurementLog, hyd: HydraulicParams) -> tuple[np.ndarray, s
     raise InputError(f"{log.path}: friction identification needs column 'force_N', or {need}; the log has {have}")
 
 
-def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None
-                     ) -> tuple[np.ndarray, np.ndarray, str, str]:
-    """(velocity [m/s], friction force [N], source of F_L, source of the acceleration) per sample, the
-    samples within :data:`END_MARGIN_M` of the ends of the observed stroke left out. ``hyd``: the areas
-    (default the log's machine's). Raises InputError naming the missing columns (:func:`load_force`), or
-    if the log is not a single axis."""
+def _stops_mask(pos: np.ndarray) -> np.ndarray:
+    """(N,) bool: samples further than :data:`END_MARGIN_M` from both ends of the observed range."""
+    return (pos > pos.min() + END_MARGIN_M) & (pos < pos.max() - END_MARGIN_M)
+
+
+def steady_windows(log: MeasurementLog) -> np.ndarray:
+    """(N,) int: the steady window each sample of an open-loop experiment belongs to (-1: none). A window
+    is a stretch of constant valve command (|u_v| > 0.05 V) less its first :data:`SETTLE_S`, away from the
+    end stops (:data:`END_MARGIN_M`), whose speed (zero-phase Savitzky–Golay, :data:`ACC_WINDOW_S`) is
+    within :data:`STEADY_SPEED_SHARE` of the window's median speed. All -1 for a log without a valve
+    command or a command that never holds (a closed-loop log)."""
+    window = np.full(len(log.time), -1)
+    if "valve_cmd_V" not in log.columns or len(log.time) < savgol_length(log.sample_rate_hz, ACC_WINDOW_S):
+        return window
+    u, pos, fs = log.columns["valve_cmd_V"], log.columns["pos_m"], log.sample_rate_hz
+    vel = savgol(pos, fs, ACC_WINDOW_S, deriv=1)
+    away = _stops_mask(pos)
+    settle = int(round(SETTLE_S * fs))
+    bounds = np.concatenate([[0], np.flatnonzero(np.diff(u) != 0) + 1, [len(u)]])
+    for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+        if abs(u[a]) <= 0.05 or b - a - settle < MIN_SAMPLES // 5:
+            continue
+        idx = np.arange(a + settle, b)[away[a + settle:b]]
+        if len(idx) < 5:
+            continue
+        typical = float(np.median(vel[idx]))
+        idx = idx[np.abs(vel[idx] - typical) <= STEADY_SPEED_SHARE * abs(typical)]
+        window[idx] = k
+    return window
+
+
+@dataclasses.dataclass(frozen=True)
+class FrictionSamples:
+    """The samples friction is fitted to. ``velocity`` (N,) [m/s]; ``force`` (N,) [N] the friction force
+    F_f = F_L - M (ydd + g cos θ); ``window`` (N,) the steady window of each sample (-1: a sample of a
+    moving log, its acceleration from the filter named in ``acceleration_source``); ``force_source``:
+    where F_L came from."""
+
+    velocity: np.ndarray
+    force: np.ndarray
+    window: np.ndarray
+    force_source: str
+    acceleration_source: str
+
+
+def _window_speeds(t: np.ndarray, pos: np.ndarray, window: np.ndarray) -> np.ndarray:
+    """(N,) each steady sample's speed [m/s]: the slope of a straight line through its window's
+    positions (the noise of a derivative left out); NaN outside the windows."""
+    speed = np.full(len(t), np.nan)
+    for k in np.unique(window[window >= 0]):
+        idx = window == k
+        speed[idx] = np.polynomial.polynomial.polyfit(t[idx], pos[idx], 1)[1]
+    return speed
+
+
+def friction_samples(runs: MeasurementLog | list[MeasurementLog], hyd: HydraulicParams | None = None
+                     ) -> FrictionSamples:
+    """The samples of one experiment that friction can be read from (:class:`FrictionSamples`).
+
+    ``runs``: a log, or runs of one experiment that logged different channels (merged row by row,
+    :func:`merge_runs`: the real servo cylinder's pA and pB runs). An open-loop experiment with steady
+    motions (:func:`steady_windows`; of every run, so two runs that reach a stop at different times
+    pair only where both move steadily) gives its steady samples, the acceleration left out and each
+    sample at its window's speed (a direction without steady motion then has no samples). Otherwise (a
+    closed-loop log, or a command that never holds) every
+    sample away from the stops, the velocity and M ydd from a zero-phase Savitzky–Golay filter (cubic,
+    :data:`ACC_WINDOW_S` with a logged accelerometer, else :data:`DERIVATIVE_WINDOW_S` on the position).
+    ``hyd``: the areas (default the log's machine's). Raises InputError naming the missing columns
+    (:func:`load_force`), or if the log is not a single axis, or its machine is a user's hexapod file (which
+    gives no leg's moving mass) and the sidecar declares no ``mass_kg``."""
+    runs = [runs] if isinstance(runs, MeasurementLog) else list(runs)
+    log = merge_runs(runs)
     if log.system != "single-actuator":
         raise InputError(f"{log.path}: friction identification needs a single-actuator log (this is {log.system})")
+    if log.machine.system != log.system and log.machine.path is not None and "mass_kg" not in log.sidecar:
+        # the built-in hexapod's leg is the seed's actuator (40 kg, app. A); a user's hexapod file has no
+        # moving mass of one leg
+        raise InputError(f"{log.path}: a single-actuator log, but the machine {log.machine.label} is a "
+                         f"{log.machine.system}, which gives no leg's moving mass: pass the actuator's machine file "
+                         f"(--machine) or declare mass_kg in the log's sidecar")
     hyd = hyd or log.machine.hydraulics
     c = log.columns
     f_l, source = load_force(log, hyd)
@@ -116,19 +210,33 @@ def friction_samples(log: MeasurementLog, hyd: HydraulicParams | None = None
     mass = log.mass_kg or moving_mass()
     g_axis = gravity() * np.cos(np.deg2rad(log.inclination_deg))
     pos = c["pos_m"]
-    inside = (pos > pos.min() + END_MARGIN_M) & (pos < pos.max() - END_MARGIN_M)
+    n = len(log.time)
+    window = steady_windows(runs[0])[:n]
+    for other in runs[1:]:
+        window = np.where(steady_windows(other)[:n] == window, window, -1)
+    if np.sum(window >= 0) >= MIN_SAMPLES:  # steady motions: no derivative of the position enters the force
+        speeds = _window_speeds(log.time, pos, window)
+        steady = window >= 0
+        return FrictionSamples(speeds[steady], (f_l - mass * g_axis)[steady], window[steady], source,
+                               "left out: steady windows (speed constant to "
+                               f"{STEADY_SPEED_SHARE:.0%}, each at its straight-line speed)")
+    inside = _stops_mask(pos)
     if "acc_mps2" in c:  # M (ydd + g cos θ) measured: no second derivative of the position
         _check_length(log, savgol_length(fs, ACC_WINDOW_S))
         specific = c["acc_mps2"]
         if abs(float(np.mean(specific))) < 0.5 * g_axis:  # the log holds acceleration, not specific force
             specific = specific + g_axis
         vel = savgol(pos, fs, ACC_WINDOW_S, deriv=1)
-        return vel[inside], savgol(f_l - mass * specific, fs, ACC_WINDOW_S)[inside], source, "accelerometer (acc_mps2)"
+        force = savgol(f_l - mass * specific, fs, ACC_WINDOW_S)
+        return FrictionSamples(vel[inside], force[inside], np.full(int(inside.sum()), -1), source,
+                               f"accelerometer (acc_mps2), zero-phase Savitzky-Golay {ACC_WINDOW_S * 1e3:.0f} ms")
     _check_length(log, savgol_length(fs, DERIVATIVE_WINDOW_S))
     vel = savgol(pos, fs, DERIVATIVE_WINDOW_S, deriv=1)
     acc = savgol(pos, fs, DERIVATIVE_WINDOW_S, deriv=2)
-    f_l = savgol(f_l, fs, DERIVATIVE_WINDOW_S)
-    return vel[inside], (f_l - mass * acc - mass * g_axis)[inside], source, "second derivative of the position"
+    force = savgol(f_l, fs, DERIVATIVE_WINDOW_S) - mass * acc - mass * g_axis
+    return FrictionSamples(vel[inside], force[inside], np.full(int(inside.sum()), -1), source,
+                           f"second derivative of the position, zero-phase Savitzky-Golay "
+                           f"{DERIVATIVE_WINDOW_S * 1e3:.0f} ms")
 
 
 def _check_length(log: MeasurementLog, n: int) -> None:
@@ -159,19 +267,28 @@ class _Fit(NamedTuple):
     jac: np.ndarray
 
 
-def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = ()) -> tuple[dict, dict, np.ndarray]:
+def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = (),
+           n_independent: float | None = None, weighted: bool = False) -> tuple[dict, dict, np.ndarray]:
     """(parameters with value, standard error, unit and why a value is not identifiable; the
     unidentifiable ones' reasons; standard errors) of a fit ``sol`` (x, fun, jac) within bounds (lo, hi);
-    parameters in ``fixed`` were not fitted (their entries are left for the caller)."""
+    parameters in ``fixed`` were not fitted (their entries are left for the caller). ``n_independent``:
+    the independent samples behind the residual (default: the residual's effective count, filtered
+    samples being correlated; steady windows: one per window and not more than the samples say)."""
     free = [i for i, p in enumerate(PARAMS) if p not in fixed]
     is_free = np.isin(np.arange(len(PARAMS)), free)
-    se = fit_statistics(sol.jac, sol.fun, free=is_free, n_parameters=len(free),  # filtered: correlated
-                        n_independent=effective_n(sol.fun[None, :])).std_errors
+    n_eff = effective_n(sol.fun[None, :])
+    stats = fit_statistics(sol.jac, sol.fun, free=is_free, n_parameters=len(free),
+                           n_independent=n_eff if n_independent is None else min(n_independent, n_eff))
+    se = stats.std_errors
     # the residual's sensitivity to each parameter over its typical size: a direction the data does not
     # see at all has a zero column, which the pseudo-inverse answers with a standard error of 0
     sensitivity = np.linalg.norm(sol.jac, axis=0) * np.array(X_SCALE)
     blind = sensitivity < 1e-6 * max(float(sensitivity.max()), 1e-300)
     params, unidentifiable = {}, {}
+    if weighted:  # residuals in units of their standard errors: a reduced chi-square below 1 is no better data
+        jf = sol.jac[:, is_free]
+        se = np.zeros(len(PARAMS))
+        se[is_free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf)), 0.0, None) * max(1.0, stats.s2))
     for i, (p, x, e, u, a, b) in enumerate(zip(PARAMS, sol.x, se, UNITS, lo, hi)):
         params[p] = {"value": float(x), "std_error": float(e), "unit": u}
         if i not in free:
@@ -182,68 +299,158 @@ def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = ()) -> 
         elif x <= a + 1e-9 * (b - a) or x >= b - 1e-9 * (b - a):
             reason = f"at the bound {a if x <= a + 1e-9 * (b - a) else b:g} {u} of the fit"
         elif not np.isfinite(e) or e > abs(x):
-            reason = (f"the data cannot separate it (standard error {e:.3g} {u} larger than the value "
-                      f"{x:.3g}): too few samples at speeds near c_s, where the Stribeck term changes")
+            where = ("the speeds in the data do not separate a slope from the level" if p == "sigma" else
+                     "too few samples at speeds near c_s, where the Stribeck term changes")
+            reason = f"the data cannot separate it (standard error {e:.3g} {u} larger than the value {x:.3g}): {where}"
         if reason:
             params[p]["unidentifiable"] = unidentifiable[p] = reason
     return params, unidentifiable, se
+
+
+LOWER, UPPER = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])  # the fit's bounds
+#: the parameters each model frees: the level alone, Coulomb + viscous, the whole Stribeck curve
+MODELS = {"level": ("F_c0",), "coulomb+viscous": ("sigma", "F_c0"), "stribeck": PARAMS}
+HUMP_REASON = ("no samples at speeds near c_s, where the Stribeck term changes: fitted Coulomb + viscous with "
+               "F_s0 = 0; run slower motions (a few mm/s) to identify the hump")
+
+
+def _fit_curve(v: np.ndarray, f: np.ndarray, weight: np.ndarray, free: tuple[str, ...], x0: np.ndarray,
+               hyd: HydraulicParams, robust: bool) -> _Fit:
+    """Least squares of (stribeck(v) - f) weight over the ``free`` parameters, the others held at ``x0``;
+    the Jacobian (n, 4) with zero columns for the held ones. ``robust``: soft L1 beyond
+    :data:`ROBUST_SCALE_N` (samples), else plain (window medians, already robust)."""
+    idx = [PARAMS.index(p) for p in free]
+
+    def full(y):
+        x = x0.copy()
+        x[idx] = y
+        return x
+
+    sol = least_squares(lambda y: (stribeck(v, full(y), hyd) - f) * weight,
+                        np.clip(x0[idx], LOWER[idx] + 1e-9, UPPER[idx]), bounds=(LOWER[idx], UPPER[idx]),
+                        x_scale=np.array(X_SCALE)[idx], **({"loss": "soft_l1", "f_scale": ROBUST_SCALE_N} if robust else {}))
+    jac = np.zeros((len(v), len(PARAMS)))
+    jac[:, idx] = sol.jac
+    return _Fit(full(sol.x), sol.fun, jac)
+
+
+def _windows(v: np.ndarray, f: np.ndarray, window: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each steady window as one measurement: its speed [m/s], median force [N] and the median's standard
+    error [N] (1.25 x the robust scatter over the root of its samples)."""
+    ids = np.unique(window)
+    speed = np.array([v[window == k][0] for k in ids])
+    force = np.array([np.median(f[window == k]) for k in ids])
+    error = np.array([1.2533 * 1.4826 * np.median(np.abs(f[window == k] - np.median(f[window == k])))
+                      / np.sqrt(np.sum(window == k)) for k in ids])
+    return speed, force, np.maximum(error, 1e-3)
+
+
+def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: HydraulicParams, side: str) -> dict:
+    """One direction's fit: parameters (value, standard error, unit, why not identifiable), the RMS and
+    robust scatter of the samples about it [N], the samples; or ``cannot_fit`` with the reason where the
+    data cannot support a curve (too few samples, a force that aids the motion, a scatter larger than the
+    level). Steady windows (``window`` >= 0) are fitted as one measurement each (:func:`_windows`,
+    standard errors scaled by the reduced chi-square where it exceeds 1); other samples one by one with a
+    robust loss. The model is as rich as the data: one speed (one window, or speeds within
+    :data:`MIN_SPEED_RATIO`) gives the level alone, two to four windows Coulomb + viscous, more and
+    samples near c_s the Stribeck hump."""
+    if len(v) < MIN_SAMPLES:
+        return {"cannot_fit": f"only {len(v)} usable samples move in the {side} direction (steady where the "
+                              f"command holds, away from the stops, faster than {V_MIN * 1e3:g} mm/s); {MIN_SAMPLES} "
+                              "are needed", "samples": int(len(v))}
+    along = float(np.median(f * np.sign(v)))
+    if along <= 0.0:
+        return {"cannot_fit": f"the force read along the {side} motion aids it (median {along:.3g} N); friction "
+                              "opposes motion: check the areas, the moving mass and inclination (M g cos θ) and "
+                              "which runs were paired", "samples": int(len(v))}
+    steady = bool(np.all(window >= 0))
+    if steady:
+        pv, pf, pe = _windows(v, f, window)
+        weight, n_points = 1.0 / pe, len(pv)
+    else:
+        pv, pf, weight, n_points = v, f, np.ones(len(v)), None
+    speed = np.abs(pv)
+    ratio = float(np.percentile(speed, 95) / max(np.percentile(speed, 5), 1e-12))
+    x0 = np.array([0.0, along, 0.0, 0.005])
+    held: dict[str, str] = {}
+    if ratio < MIN_SPEED_RATIO:
+        model = "level"
+        held = dict.fromkeys(("sigma", "F_s0", "c_s"), (
+            f"the data span one speed ({np.percentile(speed, 5) * 1e3:.3g}-{np.percentile(speed, 95) * 1e3:.3g} mm/s): "
+            "a viscous slope or a Stribeck hump cannot be told from the Coulomb level; fitted the level alone (run two "
+            "or more speeds)"))
+    elif steady and n_points < 5:
+        model = "coulomb+viscous"
+        held = dict.fromkeys(("F_s0", "c_s"), f"{n_points} steady speeds cannot show a Stribeck hump (it needs five or "
+                                              "more, some of a few mm/s): fitted Coulomb + viscous with F_s0 = 0")
+    else:
+        model = "stribeck"
+        x0 = np.array([1000.0, along, 20.0, 0.005])
+    sol = _fit_curve(pv, pf, weight, MODELS[model], x0, hyd, robust=not steady)
+    if model == "stribeck":
+        _, unidentifiable, _ = _judge(sol, LOWER, UPPER)
+        if any(p in unidentifiable for p in ("F_s0", "c_s")):
+            # no samples near c_s: the hump cannot be told from the viscous slope; fit Coulomb + viscous
+            # (F_s0 = 0), the curve the speeds in the data do identify
+            x0 = sol.x.copy()
+            x0[2] = 0.0
+            sol = _fit_curve(pv, pf, weight, MODELS["coulomb+viscous"], x0, hyd, robust=not steady)
+            held = dict.fromkeys(("F_s0", "c_s"), HUMP_REASON)
+    params, unidentifiable, _ = _judge(sol, LOWER, UPPER, fixed=tuple(held), n_independent=n_points,
+                                       weighted=steady)
+    for p, why in held.items():
+        params[p]["unidentifiable"] = unidentifiable[p] = why
+    residual = stribeck(v, sol.x, hyd) - f
+    scatter = float(1.4826 * np.median(np.abs(residual - np.median(residual))))
+    level = float(abs(np.median(stribeck(v, sol.x, hyd))))
+    out = {"parameters": params, "rms_N": float(np.sqrt(np.mean(residual**2))), "scatter_N": scatter,
+           "samples": int(len(v)), "unidentifiable": unidentifiable, "_x": sol.x}
+    if steady:
+        out["windows"] = n_points
+    if scatter > level:
+        out["cannot_fit"] = (f"the friction force scatters by {scatter:.3g} N (robust) about a level of {level:.3g} N: "
+                             "the data cannot support a curve (are the pressures of one experiment, the position "
+                             "inside the stroke, the moving mass right?)")
+    return out
 
 
 def identify_friction(logs: MeasurementLog | list) -> dict:
     """Fitted Stribeck parameters per direction with standard errors, the RMS fit error, the samples
     used and, for open-loop experiments, the friction measured at each steady speed against the fit.
     ``logs``: one log, or a list of experiments, each a log or a list of runs of one experiment that
-    logged different channels (:func:`merge_runs`); the samples of all are fitted together with the first
-    log's machine (its friction curve's arctan gain and the areas). Raises InputError if a direction has
-    fewer than 50 samples faster than 0.5 mm/s, or a log lacks what the force needs."""
+    logged different channels (:func:`friction_samples`); the samples of all are fitted together with the
+    first log's machine (its friction curve's arctan gain and the areas). A direction the data cannot
+    support has ``cannot_fit`` (the reason) instead of a curve. Raises InputError if a log lacks what the
+    force needs, or is not a single axis (:func:`friction_samples`), or neither direction can be fitted."""
     groups = [logs] if isinstance(logs, MeasurementLog) else list(logs)
-    experiments = [merge_runs(g if isinstance(g, list) else [g]) for g in groups]
+    runs = [g if isinstance(g, list) else [g] for g in groups]
+    experiments = [merge_runs(r) for r in runs]
     first = experiments[0]
     hyd = first.machine.hydraulics
-    parts = [friction_samples(log, hyd) for log in experiments]
-    vel = np.concatenate([p[0] for p in parts])
-    ff = np.concatenate([p[1] for p in parts])
-    source, acc_source = parts[0][2], parts[0][3]
+    parts = [friction_samples(r, hyd) for r in runs]
+    vel = np.concatenate([p.velocity for p in parts])
+    ff = np.concatenate([p.force for p in parts])
+    # steady windows numbered across the experiments (-1 stays: a sample of a moving log)
+    offsets = np.cumsum([0] + [int(p.window.max()) + 1 for p in parts[:-1]])
+    windows = np.concatenate([np.where(p.window >= 0, p.window + o, -1) for p, o in zip(parts, offsets)])
     out = {"log": ", ".join(str(log.path) for log in experiments), "machine": first.machine.label,
-           "experiments": len(experiments), "force_source": source, "acceleration_source": acc_source,
-           "mass_kg": first.mass_kg or moving_mass(), "inclination_deg": first.inclination_deg,
-           "assumed": first.assumed,
+           "experiments": len(experiments), "force_source": parts[0].force_source,
+           "acceleration_source": parts[0].acceleration_source, "mass_kg": first.mass_kg or moving_mass(),
+           "inclination_deg": first.inclination_deg, "assumed": first.assumed,
            "equation": "seed eq. (3.9), the simulator's friction curve (hexsim.plant.hydraulics.friction_force)"}
-    lo, hi = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])
     fitted = {}
     for side, mask in (("positive", vel > V_MIN), ("negative", vel < -V_MIN)):
-        if mask.sum() < 50:
-            raise InputError(f"{first.path}: only {int(mask.sum())} samples move in the {side} direction faster "
-                             f"than {V_MIN * 1e3:g} mm/s; friction cannot be fitted")
-        v, f = vel[mask], ff[mask]
-        x0 = np.array([1000.0, 50.0, 20.0, 0.005])  # the shape s(v) carries the direction: magnitudes
-        # a robust loss (soft L1 beyond ROBUST_SCALE_N): the few samples of a valve switch, where the
-        # pressures ring and the moving mass is uncertain, must not carry the curve
-        sol = least_squares(lambda x, v=v, f=f: stribeck(v, x, hyd) - f, x0, bounds=(lo, hi),
-                            x_scale=X_SCALE, loss="soft_l1", f_scale=ROBUST_SCALE_N)
-        params, unidentifiable, se = _judge(sol, lo, hi)
-        if any(p in unidentifiable for p in ("F_s0", "c_s")):
-            # no samples near c_s: the hump cannot be told from the viscous slope; fit Coulomb + viscous
-            # (F_s0 = 0), the curve the speeds in the data do identify
-            x_cv = sol.x.copy()
-            x_cv[2] = 0.0
-            sol2 = least_squares(lambda y, v=v, f=f: stribeck(v, np.array([y[0], y[1], 0.0, x_cv[3]]), hyd) - f,
-                                 np.clip(x_cv[:2], lo[:2] + 1e-6, hi[:2]), bounds=(lo[:2], hi[:2]), x_scale=[1000, 50],
-                                 loss="soft_l1", f_scale=ROBUST_SCALE_N)
-            sol = _Fit(np.array([*sol2.x, 0.0, x_cv[3]]), sol2.fun, np.hstack([sol2.jac, np.zeros((len(v), 2))]))
-            params, _, se = _judge(sol, lo, hi, fixed=("F_s0", "c_s"))
-            for p in ("F_s0", "c_s"):
-                params[p]["unidentifiable"] = unidentifiable[p] = (
-                    "no samples at speeds near c_s, where the Stribeck term changes: fitted Coulomb + viscous with "
-                    "F_s0 = 0; run slower motions (a few mm/s) to identify the hump")
-        fitted[side] = sol.x
-        s2 = float(sol.fun @ sol.fun) / max(effective_n(sol.fun[None, :]) - 4, 1.0)  # filtered: correlated
-        out[side] = {"parameters": params, "rms_N": float(np.sqrt(s2)), "samples": int(len(v)),
-                     "unidentifiable": unidentifiable}
+        out[side] = _fit_direction(vel[mask], ff[mask], windows[mask], hyd, side)
+        if "cannot_fit" not in out[side]:
+            fitted[side] = out[side]["_x"]
+        out[side].pop("_x", None)
+    if not fitted:
+        raise InputError(f"{first.path}: friction cannot be fitted: positive: {out['positive']['cannot_fit']}; "
+                         f"negative: {out['negative']['cannot_fit']}")
     steady = [row for log in experiments for row in _steady_friction(log, hyd)]
     for row in steady:
-        x = fitted["positive" if row["velocity_mps"] > 0 else "negative"]
-        row["fitted_N"] = float(stribeck(np.array([row["velocity_mps"]]), x, hyd)[0])
+        x = fitted.get("positive" if row["velocity_mps"] > 0 else "negative")
+        row["fitted_N"] = None if x is None else float(stribeck(np.array([row["velocity_mps"]]), x, hyd)[0])
     out["steady"] = steady
     out["_samples"] = (vel, ff)
     out["_hydraulics"] = hyd  # the friction curve's arctan gain and scale, for the plot

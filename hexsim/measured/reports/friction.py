@@ -21,6 +21,8 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
     ax = fig.subplots()
     ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g cos θ (seed eq. 2.3)")
     for side, sgn in (("positive", 1), ("negative", -1)):
+        if "cannot_fit" in result[side]:
+            continue
         x = np.array([result[side]["parameters"][p]["value"] for p in PARAMS])
         v = sgn * np.linspace(V_MIN, max(np.abs(vel).max(), 2 * V_MIN), 200)
         ax.plot(v, stribeck(v, x, result.get("_hydraulics")), color="C0" if sgn > 0 else "C3",
