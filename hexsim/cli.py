@@ -12,6 +12,7 @@ import math
 import os
 import pathlib
 import sys
+import warnings
 
 from compensation import NAMES as COMPENSATORS
 from compensation import CompensatorSettings, SettingsError
@@ -22,7 +23,7 @@ from hexsim.control.scenario import (
     SCENARIOS,
     make_scenario,
 )
-from hexsim.errors import HexsimError, InputError
+from hexsim.errors import HexsimError, InputError, ModelNote
 from hexsim.plant.params import ControllerParams
 from hexsim.plant.temperature import WarmUp
 from hexsim.simulation.workers import START_METHODS, worker_count
@@ -602,7 +603,16 @@ def cmd_machine(args: argparse.Namespace) -> int:
     else:
         doc = load_machine(None).document()
         doc["name"] = path.stem
-    new = set_keys(doc, [parse_assignment(a) for a in args.assignments])
+    assignments = [parse_assignment(a) for a in args.assignments]
+    new = set_keys(doc, assignments)
+    if any(key == "hexapod.mjcf" and value is not None for key, value in assignments):
+        # an MJCF is the hexapod now: the built hexapod's numbers a shown file carries go, unless set here
+        given = {key for key, _ in assignments}
+        dropped = [k for k in new.get("hexapod", {}) if not k.startswith("mjcf") and f"hexapod.{k}" not in given]
+        for k in dropped:
+            del new["hexapod"][k]
+        if dropped:
+            print("dropped " + ", ".join(f"hexapod.{k}" for k in dropped) + " (the MJCF is the hexapod now)")
     machine_from_document(new, str(path))  # checked before anything is written
     write_atomic(path, lambda tmp: tmp.write_text(dump(new), encoding="utf-8"))
     print(f"wrote {path}")
@@ -792,6 +802,15 @@ def _workers(args: argparse.Namespace):
     return dask_client(args.scheduler, args.jobs)
 
 
+def _show_note(message, category, filename, lineno, file=None, line=None) -> None:
+    """A :class:`~hexsim.errors.ModelNote` as one line ``hexsim: note: …`` on stderr; other warnings as Python
+    shows them."""
+    if issubclass(category, ModelNote):
+        print("hexsim: note: " + " ".join(str(message).split()), file=sys.stderr)
+    else:
+        sys.stderr.write(warnings.formatwarning(message, category, filename, lineno, line))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -800,7 +819,9 @@ def main(argv: list[str] | None = None) -> int:
         args.json = StdoutTarget(sys.stdout)
         streams = contextlib.redirect_stdout(sys.stderr)
     try:
-        with streams, _workers(args):
+        with streams, _workers(args), warnings.catch_warnings():
+            warnings.simplefilter("default", ModelNote)  # each note once
+            warnings.showwarning = _show_note
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                         "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine,
                         "calibrate": cmd_calibrate}

@@ -15,3 +15,9 @@ class WorkspaceError(HexsimError, ValueError):
 
 class PhysicsError(HexsimError, RuntimeError):
     """Invalid physics: a non-finite state or a MuJoCo warning (names the time and, where known, the leg)."""
+
+
+class ModelNote(UserWarning):
+    """Something hexsim changed or approximated in a user's model to drive it (a public MJCF's convention
+    brought to hexsim's leg, an actuator replaced): issued with :func:`warnings.warn`; the CLI prints each
+    once as ``hexsim: note: …``."""

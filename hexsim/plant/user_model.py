@@ -37,6 +37,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.plant.geometry import Geometry
+from hexsim.plant.user_legs import conform, name_everything, note
 
 #: the physics step hexsim runs a user's hexapod at, at most [s] (the seed's 10 kHz, §3.3)
 MAX_TIMESTEP_S = 1e-4
@@ -45,8 +46,10 @@ CLOSURE_TOLERANCE_M = 1e-4
 #: the closing connects' solver parameters, as the built hexapod's (models/hexapod.py): a 0.5 ms time
 #: constant; MuJoCo's default 20 ms would make the closed loop a spring softer than the oil column
 CLOSURE_SOLREF, CLOSURE_SOLIMP = [0.0005, 1.0], [0.9999, 0.9999, 0.001, 0.5, 2.0]
-#: a slide axis further than this from the line base joint → ball is refused [rad]
+#: a slide axis further than this from the line base joint → ball is said in a note [rad]; further than
+#: AXIS_REFUSE_RAD (2°) it is refused
 AXIS_TOLERANCE_RAD = 1e-3
+AXIS_REFUSE_RAD = float(np.deg2rad(2.0))
 
 _J = mujoco.mjtObj.mjOBJ_JOINT
 _B = mujoco.mjtObj.mjOBJ_BODY
@@ -63,11 +66,20 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
         raise InputError(f"{where}: no such MJCF file")
     try:
         spec = mujoco.MjSpec.from_file(str(path))
+        _rename_user_sensors(spec, where)
+        name_everything(spec, spec.compile())
         m = spec.compile()
     except ValueError as exc:
         raise InputError(f"{where}: MuJoCo cannot load it: {' '.join(str(exc).split())}") from None
     legs = _legs(m, g.mjcf_legs, where)
     platform = _platform(m, g.mjcf_platform, where)
+    if conform(spec, m, legs, platform, where):  # a public model's conventions made hexsim's leg
+        names = [mujoco.mj_id2name(m, _J, j) for j in legs]
+        try:
+            m = spec.compile()
+        except ValueError as exc:
+            raise InputError(f"{where}: MuJoCo cannot compile it after hexsim's edits: {' '.join(str(exc).split())}") from None
+        legs = [mujoco.mj_name2id(m, _J, n) for n in names]
     d = mujoco.MjData(m)
     key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral")
     if key >= 0:
@@ -84,7 +96,11 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     sensor_at = _sensor_site(m, g.mjcf_sensor_site, platform, where)
     _check_names(m, legs, platform, where)
     names = [mujoco.mj_id2name(m, _J, j) for j in legs]
-    for a in [a for a in spec.actuators if a.target in names]:
+    replaced = [a for a in spec.actuators if a.target in names]
+    if replaced:
+        note(f"{where}: the model's actuators on the slides ({', '.join(a.name or '(unnamed)' for a in replaced)}) are "
+             f"replaced by hexsim's force motors (the hydraulics drive the legs)")
+    for a in replaced:
         spec.delete(a)
     for i, name in enumerate(names, 1):
         _rename(spec, "joint", name, f"leg{i}")
@@ -173,8 +189,11 @@ def _check_leg(m: mujoco.MjModel, d: mujoco.MjData, i: int, joint: int, stroke: 
     if m.body_weldid[parent] != 0:
         raise InputError(f"{leg}: its barrel must hang from the world or a static base body")
     first = m.body_jntadr[barrel]
-    if len(kinds) == 2 and np.linalg.norm(d.xanchor[first] - d.xanchor[first + 1]) > 1e-9:
-        raise InputError(f"{leg}: its two base hinges' anchors are apart; a universal joint turns about one point")
+    gap = float(np.linalg.norm(d.xanchor[first] - d.xanchor[first + 1])) if len(kinds) == 2 else 0.0
+    if gap > 1e-9:
+        note(f"{leg}: its two base hinges' anchors are {gap * 1e3:.1f} mm apart; hexsim's kinematics pivot the leg "
+             f"at the first (the leg's length off by up to {gap * (1 - np.cos(np.deg2rad(10.0))) * 1e3:.2f} mm at "
+             f"10° about the second)")
     return rod
 
 
@@ -209,9 +228,14 @@ def _closure(m: mujoco.MjModel, d: mujoco.MjData, i: int, rod: int, platform: in
         slide = m.body_jntadr[rod]
         line = (ball - base) / np.linalg.norm(ball - base)
         off = np.arccos(np.clip(abs(line @ d.xaxis[slide]), -1.0, 1.0))
-        if off > AXIS_TOLERANCE_RAD:
+        if off > AXIS_REFUSE_RAD:
             raise InputError(f"{leg}: its slide axis is {np.rad2deg(off):.2f}° off the line from its base joint to "
-                             f"its platform ball; a leg's piston runs along that line")
+                             f"its platform ball (more than {np.rad2deg(AXIS_REFUSE_RAD):g}°); a leg's piston runs along "
+                             f"that line")
+        if off > AXIS_TOLERANCE_RAD:
+            note(f"{leg}: its slide axis is {np.rad2deg(off):.2f}° off the line from its base joint to its platform "
+                 f"ball; hexsim's kinematics take the leg along that line (the piston's travel is off by "
+                 f"{(1 - np.cos(off)) * 100:.2g} % of the length change)")
         y = d.qpos[m.jnt_qposadr[slide]]
         if not 0.0 < y < m.jnt_range[slide, 1]:
             raise InputError(f"{leg}: its piston sits at {y:g} m at the neutral pose, not inside its stroke")
@@ -258,6 +282,18 @@ def _check_names(m: mujoco.MjModel, legs: list[int], platform: int, where: str) 
                                   and m.actuator_trnid[actuator, 0] in legs):
             raise InputError(f"{where}: hexsim names its own actuator 'leg{i}_force'; the model uses that name for "
                              f"another element: rename it")
+
+
+def _rename_user_sensors(spec: mujoco.MjSpec, where: str) -> None:
+    """The model's own sensors named like one of hexsim's renamed ``user_<name>`` (said in a note)."""
+    from hexsim.models.hexapod import PLATFORM_SENSORS
+
+    ours = {*(s for s, _ in PLATFORM_SENSORS), *(f"leg{i}_{q}" for i in range(1, 7) for q in ("pos", "vel"))}
+    for sensor in spec.sensors:
+        if sensor.name in ours:
+            note(f"{where}: the model's sensor {sensor.name!r} is renamed 'user_{sensor.name}' (hexsim names its own "
+                 f"so)")
+            sensor.name = f"user_{sensor.name}"
 
 
 def _rename(spec: mujoco.MjSpec, kind: str, old: str, new: str) -> None:
