@@ -30,7 +30,6 @@ motion, or a scatter larger than its level answers "cannot fit" with the reason 
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import NamedTuple
 
 import numpy as np

@@ -8,9 +8,9 @@ What it finds (the names in ``hexapod.mjcf_legs`` / ``hexapod.mjcf_platform``, o
 
 * **legs**: six slide joints (``leg1`` … ``leg6``, or the model's only six slide joints in file order). Each
   slide moves the leg's **rod** (a body with that one joint) inside its **barrel** (the rod's parent),
-  which turns at the base on a universal joint (two hinges whose anchors coincide) or a ball, and hangs
-  from the world or a static body. The slide's range is the piston's stroke, 0 … ``cylinder.stroke_m``
-  (y = 0 fully retracted, as the hydraulics count it);
+  which turns at the base on a universal joint (two hinges; anchors apart are said in a note) or a ball,
+  and hangs from the world or a static body. The slide's range is the piston's stroke, 0 …
+  ``cylinder.stroke_m`` (y = 0 fully retracted, as the hydraulics count it);
 * **platform**: a free-jointed child of the world (body ``platform``, or the model's only free body);
 * **closures**: for every leg an active equality ``connect`` between its rod (body or site) and the
   platform (body or site), the platform-side ball joint. The slide's axis must run through the base
@@ -24,8 +24,11 @@ sensors (:func:`hexsim.models.hexapod.add_instruments`); the keyframe ``neutral`
 model's reference pose ``qpos0``). It makes the closing connects site to site (``rod{i}_tip`` to
 ``platform_anchor{i}``) and as stiff as the built hexapod's, 0.5 ms (:data:`CLOSURE_SOLREF`), switches contacts off (a hexapod has no intended contacts) and shortens the physics step to the seed's 1e-4 s where the file's is longer (the oil column is stiff).
 
-Each thing it cannot use is refused with one :class:`~hexsim.errors.InputError` line naming the file,
-the leg and what is wrong.
+Public models' other ways of writing the same legs (a range of any origin, a cross piece, three hinges
+or a ball welded or connected at the rod's tip, their own servos) are first rewritten into this form by
+:mod:`hexsim.plant.user_legs`, each change said in a :class:`~hexsim.errors.ModelNote`. Each thing it
+cannot use is refused with one :class:`~hexsim.errors.InputError` line naming the file, the leg and what
+is wrong.
 """
 
 from __future__ import annotations
@@ -260,15 +263,12 @@ def _sensor_site(m: mujoco.MjModel, name, platform: int, where: str) -> tuple[np
 
 def _check_names(m: mujoco.MjModel, legs: list[int], platform: int, where: str) -> None:
     """InputError if a name hexsim gives or adds is taken by another element of the model."""
-    from hexsim.models.hexapod import PLATFORM_SENSORS
-
     taken = {
         _J: {f"leg{i}": legs[i - 1] for i in range(1, 7)},
         _B: {"platform": platform},
         mujoco.mjtObj.mjOBJ_SITE: {n: None for n in ["platform_centre", *(f"platform_anchor{i}" for i in range(1, 7)),
                                                      *(f"rod{i}_tip" for i in range(1, 7))]},
-        mujoco.mjtObj.mjOBJ_SENSOR: {n: None for n in [*(s for s, _ in PLATFORM_SENSORS),
-                                                       *(f"leg{i}_{q}" for i in range(1, 7) for q in ("pos", "vel"))]},
+        mujoco.mjtObj.mjOBJ_SENSOR: {n: None for n in _hexsim_sensor_names()},
     }
     for kind, names in taken.items():
         for name, allowed in names.items():
@@ -284,11 +284,16 @@ def _check_names(m: mujoco.MjModel, legs: list[int], platform: int, where: str) 
                              f"another element: rename it")
 
 
-def _rename_user_sensors(spec: mujoco.MjSpec, where: str) -> None:
-    """The model's own sensors named like one of hexsim's renamed ``user_<name>`` (said in a note)."""
+def _hexsim_sensor_names() -> list[str]:
+    """The sensors hexsim adds to a user's hexapod (:func:`hexsim.models.hexapod.add_instruments`)."""
     from hexsim.models.hexapod import PLATFORM_SENSORS
 
-    ours = {*(s for s, _ in PLATFORM_SENSORS), *(f"leg{i}_{q}" for i in range(1, 7) for q in ("pos", "vel"))}
+    return [*(s for s, _ in PLATFORM_SENSORS), *(f"leg{i}_{q}" for i in range(1, 7) for q in ("pos", "vel"))]
+
+
+def _rename_user_sensors(spec: mujoco.MjSpec, where: str) -> None:
+    """The model's own sensors named like one of hexsim's renamed ``user_<name>`` (said in a note)."""
+    ours = set(_hexsim_sensor_names())
     for sensor in spec.sensors:
         if sensor.name in ours:
             note(f"{where}: the model's sensor {sensor.name!r} is renamed 'user_{sensor.name}' (hexsim names its own "
