@@ -12,6 +12,8 @@ at 2 µs (numba):
 - dP1/dt = E / (A1 y + V_pl) (phi_1 + leak - A1 ydot) (3.7), P1 kept above -0.9 bar; with entrained air
   the oil's and the air's compliances in series, the air's volume polytropic in the absolute pressure;
 - a supply that sags through a resistance with the flow drawn (supply edge, leak, rod side), first order;
+  or a pressure-compensated pump (its flow limited, turned back over a band below the set pressure) into an
+  accumulator, which sags only where the flow drawn exceeds the pump's;
 - M yddot = P1 A1 - P_s A2 - F_f(ydot) - M g cos(inclination) (3.8) with the Stribeck curve (3.9, arctan as
   published), stiff end stops outside 0 … L;
 - a P controller at 500 Hz on the noisy position (valve saturated at ±10 V), the seed's faded-in sine (3.10)
@@ -67,6 +69,12 @@ class Actuator:
     air_n: float = 1.4  # its polytropic exponent
     supply_resistance: float = 0.0  # [Pa s/m^3] the supply pressure's sag per unit of flow drawn (0: stiff)
     supply_tau: float = 0.02  # [s] the pump and accumulator's time constant of that sag
+    # a pressure-compensated pump instead (pump_flow > 0): it delivers pump_flow [m^3/s] at most, its
+    # displacement turned back in proportion over the last pump_band [Pa] below the set pressure, into an
+    # accumulator of capacitance accumulator [m^3/Pa] that the actuator draws from
+    pump_flow: float = 0.0
+    pump_band: float = 3e5
+    accumulator: float = 5e-11
     inclination_deg: float = 0.0  # the cylinder's axis from vertical
 
     def replace(self, **kw) -> "Actuator":
@@ -79,7 +87,8 @@ def _pack(s: Actuator) -> np.ndarray:
                      s.area_gain, s.overlap, s.null_offset, {"sharp": 0.0, "quadratic": 1.0, "port": 2.0}[s.area],
                      s.flow_gain, s.k_at, s.cd, s.rho, s.bulk, s.v_pl, s.leak, s.mass, *s.viscous, *s.coulomb,
                      *s.static, *s.c_s, s.arctan_k, 2 * math.pi * s.spool_hz, s.spool_zeta, s.air, s.air_n,
-                     s.supply_resistance, s.supply_tau, math.cos(math.radians(s.inclination_deg))])
+                     s.supply_resistance, s.supply_tau, math.cos(math.radians(s.inclination_deg)),
+                     s.pump_flow, s.pump_band, s.accumulator])
 
 
 @numba.njit(cache=True)
@@ -94,7 +103,10 @@ def _rhs(z, u, c):
         x, dxv, dvv = x_set, 0.0, 0.0
     ps = z[5]
     dp1, force, drawn = leg_at(c, y, v, p1, x, ps)
-    dps = (c[3] - c[33] * drawn - ps) / c[34] if c[33] > 0 else 0.0
+    if c[36] > 0:  # pressure-compensated pump into an accumulator
+        dps = (c[36] * min(max((c[3] - ps) / c[37], 0.0), 1.0) - drawn) / c[38]
+    else:
+        dps = (c[3] - c[33] * drawn - ps) / c[34] if c[33] > 0 else 0.0
     return np.array([v, (force - m * 9.81 * c[35]) / m, dp1, dxv, dvv, dps])
 
 
@@ -176,7 +188,8 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
         assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
     p1 = out["p1"] + rng.normal(0.0, noise[1], len(t))
     acc = out["acc"] + rng.normal(0.0, noise[2], len(t))
-    ps = out["ps"] + rng.normal(0.0, noise[1], len(t)) if s.supply_resistance > 0 else out["ps"]
+    sags = s.supply_resistance > 0 or s.pump_flow > 0
+    ps = out["ps"] + rng.normal(0.0, noise[1], len(t)) if sags else out["ps"]
     return {"time_s": t, "ref_m": ref, "valve_cmd_V": out["u"], "pos_m": y_meas, "p1_Pa": p1, "ps_Pa": ps,
             "acc_mps2": acc}
 

@@ -45,13 +45,16 @@ def calibrated(tmp_path_factory):
 
 def test_the_calibration_recovers_the_machine_and_chooses_its_valve(calibrated):
     """Each parameter the transients identify comes back within what a data sheet would call known; the
-    port-limited flow area is chosen over the file's smooth one by the held-out windows; what the log
-    cannot tell (the supply: ps_Pa is logged, so it is the log's) is held with the reason."""
+    port-limited flow area is chosen over the file's smooth one by the held-out windows; the supply, which
+    the log carries (ps_Pa), is the log's level, said as such."""
     _, report, _ = calibrated
     assert report["flow_area"]["chosen"] == "port"
     costs = {t["flow_area"]: t["held_out_cost"] for t in report["flow_area"]["tried"]}
-    assert costs["port"] < costs["smooth"]  # after the screening; the full fit of the chosen form goes further:
-    assert report["flow_area"]["held_out_cost"] < 0.1 * costs["port"]
+    assert costs["port"] < costs["smooth"]  # after the screening; the full fit of the chosen form goes as far or
+    # further, and far below the file's form (with the supply no longer a parameter the screening reaches
+    # nearly the optimum already: 10042 -> 9939; with it held in the fit, 770388 -> 10446)
+    assert report["flow_area"]["held_out_cost"] <= costs["port"]
+    assert report["flow_area"]["held_out_cost"] < 0.05 * costs["smooth"]
     rows = {r["key"]: r for r in report["parameters"]}
     expected = {"load.mass_kg": (44.0, 0.05), "oil.bulk_modulus_Pa": (1.2e9, 0.08),
                 "friction.positive.coulomb_N": (75.0, 0.08), "friction.negative.coulomb_N": (52.0, 0.08),
@@ -60,8 +63,9 @@ def test_the_calibration_recovers_the_machine_and_chooses_its_valve(calibrated):
     for key, (truth, rel) in expected.items():
         assert rows[key]["status"] == "fitted", (key, rows[key])
         assert abs(rows[key]["value"] / truth - 1.0) < rel, (key, rows[key]["value"], truth)
-    assert rows["supply.pressure_Pa"]["status"] == "held at its prior"
-    assert "do not depend on it" in rows["supply.pressure_Pa"]["why"]
+    # ps_Pa is logged: the supply is the log's level, an operating condition, not a fit held at its prior
+    assert rows["supply.pressure_Pa"]["status"] == "from the logs", rows["supply.pressure_Pa"]
+    assert rows["supply.pressure_Pa"]["value"] == pytest.approx(TRUTH.supply, rel=1e-6)
     after = report["transients"][0]["after"]["held_out_rms_in_budgets"]
     before = report["transients"][0]["before"]["held_out_rms_in_budgets"]
     assert before["position"] > 10.0  # the file is visibly off this machine
@@ -177,3 +181,23 @@ def test_the_command_writes_the_machine_and_a_report_of_the_transients(calibrate
     assert "flow area        port" in md and "held-out windows of calibration.csv" in md
     assert (rep / "features.png").read_bytes()[:4] == b"\x89PNG"
     assert load_machine(out).hydraulics.flow_area == "port"
+
+
+def test_a_pressure_compensated_pump_that_sags_is_named_not_left_outside_the_list(calibrated, tmp_path):
+    """A supply unlike the library's (a pump of 6 L/min at most, turned back over 3 bar, into a small
+    accumulator: P_s holds, then falls where the flow drawn exceeds the pump's), in the independent
+    actuator's own terms. The supply candidate removes almost all of the held-out error but its lag and set
+    pressure run to the edges of their ranges (its form is a line through the flow): the answer is partial,
+    naming the supply and its parameters at the edge, never 'outside the list'."""
+    path, _, _ = calibrated
+    log = write(motion(TRUTH.replace(pump_flow=1e-4, accumulator=2e-11), 6.0, 1.0, 0.05, np.random.default_rng(77)),
+                tmp_path / "pump.csv", "pressure-compensated pump")
+    answer = tmp_path / "pump.answer.json"
+    assert main(["validate", str(log), "--machine", str(path), "--json", str(answer), "--quiet", "--jobs", "1"]) == 0
+    doc = json.loads(answer.read_text())
+    assert doc["verdict"] == "partial" and doc["added_effect"] == "supply_pressure", doc["verdict"]
+    supply = next(c for c in doc["candidates"] if c["effect"] == "supply_pressure")
+    assert supply["held_out_gain"] > 0.9 and supply["at_edge_of_range"], supply
+    text = " ".join(doc["conclusions"])
+    assert "supply_pressure explains" in text and "at a bound of its plausible range" in text
+    assert "outside the list" not in text

@@ -281,12 +281,13 @@ def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine:
 
 
 def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, flow_areas: tuple[str, ...] | None,
-                 notify: Callable[[str], None]) -> tuple[dict, list[dict]]:
+                 notify: Callable[[str], None], fixed: tuple[str, ...] = ()) -> tuple[dict, list[dict]]:
     """Calibrate each flow-area form (default :func:`_forms`; with transients only, else the machine's own),
     each from the prior (a form's calibrated values are another form's far valley): with more than one, a
     screening (a few evaluations, no held-at-prior rule; a hexapod's on its logs' first segments, each replay
     being the whole log's), then the form that predicts the held-out windows best calibrated in full from
-    where its screening ended. Returns (the chosen: ``flow_area``, ``start`` machine, ``params``, ``fit``,
+    where its screening ended; the keys ``fixed`` are not fitted (the logs state them). Returns (the chosen:
+    ``flow_area``, ``start`` machine, ``params``, ``fit``,
     ``machine``; every form tried, with its held-out cost or why it was refused). Raises InputError if no
     form could be calibrated."""
     forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
@@ -304,8 +305,8 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
         except InputError as exc:
             tried.append({"flow_area": form, "refused": str(exc)})
             continue
-        form_params = (ParameterSet(params) if params is not None else
-                       default_parameters(start, dynamics=bool(ev.replays), hexapod=ev.hexapod))
+        form_params = ParameterSet(p for p in (params if params is not None else default_parameters(
+            start, dynamics=bool(ev.replays), hexapod=ev.hexapod)) if p.key not in fixed)
         notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
         fit = fit_parameters(ev.residual(judged), start, form_params, independent_share=share, notify=notify,
                              options=screening if screen else options)
@@ -342,13 +343,14 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     (``cross_validate``, three or more steady logs) on each log left out of a refit, and the feature rows.
     Raises InputError for a log that is not evidence of either kind, or an unknown ``dynamics``."""
     notify = notify or (lambda text: None)
+    machine, supply = supply_from_logs(logs, machine)
     ev = _gather(logs, held_out, machine, dynamics)
-    best, tried = _choose_form(ev, machine, params, flow_areas, notify)
+    best, tried = _choose_form(ev, machine, params, flow_areas, notify, fixed=(supply["key"],) if supply else ())
     nulls = []
     if ev.hexapod:
         best["machine"], nulls = leg_null_offsets(ev.replays, best["machine"])
     report = _report(ev, machine, best, tried, logs)
-    report["parameters"] += nulls
+    report["parameters"] += nulls + ([supply] if supply else [])
     if held_out:
         report["held_out"] = _held_out(held_out, machine, best["machine"], ev.loads)
     if cross_validate and len(ev.steady) >= 3 and not ev.replays:
@@ -359,6 +361,28 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
                           for f, b, a in zip(ev.feats, before, after) if f.log in steady_names]
     return _with_provenance(best["machine"], machine, report, best["flow_area"], len(logs)), report
+
+
+def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Machine, dict | None]:
+    """The supply pressure as the logs state it: where every log carries ``ps_Pa``, the machine's
+    ``supply.pressure_Pa`` is the median of all their samples (the level every replay already runs at,
+    :func:`hexsim.measured.replay.supply_from_log`), an operating condition measured, not a parameter to fit
+    (fitted, it moves no replay and would be "held at its prior"). Returns the machine with it set and its
+    report row (status ``from the logs``); the machine unchanged and None where a log lacks ``ps_Pa``."""
+    from hexsim.plant.machine import with_keys
+
+    if not logs or any("ps_Pa" not in log.columns for log in logs):
+        return machine, None
+    samples = np.concatenate([log.columns["ps_Pa"] for log in logs])
+    level = float(np.median(samples))
+    spread = float(1.4826 * np.median(np.abs(samples - level)))
+    row = {"key": "supply.pressure_Pa", "unit": "Pa", "value": level,
+           "std_error": spread / math.sqrt(len(samples)), "prior": float(machine.hydraulics.supply_pressure),
+           "lower": float(np.min(samples)), "upper": float(np.max(samples)),
+           "bounds_source": "the logged supply pressure's range", "experiment": "ps_Pa logged",
+           "status": "from the logs", "why": f"every log carries ps_Pa: the median of its {len(samples)} samples "
+           f"(it ranges {np.min(samples) / 1e5:.4g}…{np.max(samples) / 1e5:.4g} bar), the level every replay runs at"}
+    return with_keys(machine, {"supply.pressure_Pa": level}), row
 
 
 #: Each hexapod leg's valve null offset is bracketed as a servo-valve data sheet's zero point: ±3 % of the

@@ -38,6 +38,8 @@ from hexsim.plant.params import HydraulicParams
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
 #: A fitted value closer than this fraction of its plausible range to a bound is "at the bound".
 AT_BOUND = 0.01
+#: the words :func:`plausibility` says a value at a bound of its plausible range with
+AT_EDGE_WORDS = "at a bound of its plausible range"
 #: A fitted value within this many standard errors of the value that switches its effect off is no
 #: finding (the discovery's threshold too). A fixed share of the range instead rejected R_s = 0.150 ±
 #: 0.00003 bar/(L/min) (under 1 % of its 0-20 range) and C_l = 1.005 ± 0.005 e-12 as "no effect".
@@ -367,7 +369,7 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
                             + (f" (within {NO_EFFECT_SE:g} standard errors)" if by_se else ""))
         elif ((v <= lower[i] + AT_BOUND * span[i] and off != lower[i])
               or (v >= upper[i] - AT_BOUND * span[i] and off != upper[i])):
-            problems.append(f"{name} = {v:.4g} {unit} at a bound of its plausible range "
+            problems.append(f"{name} = {v:.4g} {unit} {AT_EDGE_WORDS} "
                             f"{lower[i]:.4g}…{upper[i]:.4g}")
     for name, floor in resolution_floor(cand, log).items():
         i = cand.parameters.index(name)

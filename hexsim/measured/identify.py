@@ -49,6 +49,7 @@ from tqdm import tqdm
 
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.candidates import (
+    AT_EDGE_WORDS,
     CANDIDATES,
     LEG_LEVEL,
     applier,
@@ -515,6 +516,9 @@ class FitResult:
     accepted: bool = False
     reasons: list[str] = field(default_factory=list)  # why not accepted
     leg: int | None = None  # the leg it acts on alone (hexapod), None: all legs / the single actuator
+    # passes every test but has parameters at a bound of their plausible range (those reasons): the effect
+    # is there, its form or range does not fit this machine; taken as a partial explanation when nothing passes
+    at_edge: list[str] = field(default_factory=list)
 
     @property
     def key(self) -> str:
@@ -523,7 +527,7 @@ class FitResult:
     def as_dict(self) -> dict:
         return {"effect": self.name, "leg": self.leg, "on_top_of": list(self.on_top_of), "parameters": self.parameters,
                 "held_out_gain": self.held_out_gain, "p_value": self.p_value, "accepted": self.accepted,
-                "rejected_because": self.reasons, "held_out_rms": self.scored.held_out_rms,
+                "rejected_because": self.reasons, "at_edge_of_range": self.at_edge, "held_out_rms": self.scored.held_out_rms,
                 "calibration": self.scored.calibration, "function_evaluations": self.nfev}
 
 
@@ -645,9 +649,11 @@ def judge(problem: ReplayProblem, base: Scored, fit: FitResult, budget: Budget, 
                 where = f"{ch} of {labels[j]}" if len(labels) > 1 else ch
                 reasons.append(f"{where} worse: held-out RMS {was:.3g} -> {now:.3g} {CHANNELS[ch][1]}")
     cand = CANDIDATES[fit.name]
-    reasons += plausibility(cand, problem.log, fit.x, np.array([fit.parameters[p]["std_error"] for p in cand.parameters]))
-    fit.reasons = reasons
-    fit.accepted = not reasons
+    plausible = plausibility(cand, problem.log, fit.x, np.array([fit.parameters[p]["std_error"] for p in cand.parameters]))
+    edge = [r for r in plausible if AT_EDGE_WORDS in r]
+    fit.at_edge = edge if not reasons and len(edge) == len(plausible) else []
+    fit.reasons = reasons + plausible
+    fit.accepted = not fit.reasons
 
 
 def signal_labels(problem: ReplayProblem, channel: str) -> list[str]:
@@ -956,6 +962,12 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
             rounds.append(fits)
             passed = [f for f in fits if f.accepted]
             if not passed:
+                # the effect is there but its parameters sit at the edge of their range: named as a partial
+                # explanation (never "outside the list"), and the search stops on it
+                edge = [f for f in fits if f.at_edge]
+                if edge:
+                    accepted.append(max(edge, key=lambda f: f.held_out_gain))
+                    current, model = accepted[-1].scored, accepted[-1].model
                 break
             best = max(passed, key=lambda f: f.held_out_gain)
             accepted.append(best)
@@ -1039,6 +1051,8 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         verdict = "none"
     elif not accepted:
         verdict = "unexplained"
+    elif any(a.at_edge for a in accepted):
+        verdict = "partial"
     else:
         verdict = "explained" if max(within_budget(current, budget).values()) <= WITHIN else "partial"
     if verdict in ("partial", "unexplained"):

@@ -234,8 +234,13 @@ def _verdict_sentences(ident: Identification) -> list[str]:
                    "its budget.")
     elif ident.verdict == "partial":
         left = [ch for ch, v in within_budget(ident.final, ident.budget).items() if v > WITHIN]
-        out.append("Accepted: " + " + ".join(fit_label(f) for f in ident.accepted) + f"; structure is left in "
-                   f"{', '.join(left)} that no library effect explains.")
+        out.append("Accepted: " + " + ".join(fit_label(f) for f in ident.accepted) + (
+            f"; structure is left in {', '.join(left)} that no library effect explains." if left else "."))
+        for f in ident.accepted:
+            if f.at_edge:
+                out.append(f"{fit_label(f)} explains {f.held_out_gain:.1%} of the held-out error with "
+                           f"{'; '.join(f.at_edge)}: the effect is in this log, but its form or its range does not "
+                           f"fit this machine (a partial explanation, not a calibrated value).")
     elif ident.verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
     out += _close_call_sentences(ident)
