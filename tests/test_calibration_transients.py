@@ -201,3 +201,24 @@ def test_a_pressure_compensated_pump_that_sags_is_named_not_left_outside_the_lis
     text = " ".join(doc["conclusions"])
     assert "supply_pressure explains" in text and "at a bound of its plausible range" in text
     assert "outside the list" not in text
+
+
+def test_an_inclined_heavier_load_is_named_not_calibrated_out_by_the_sensors(calibrated, tmp_path):
+    """The axis tilted 30° with the mass raised so that its weight along the axis is unchanged (44 kg / cos 30°
+    = 50.8 kg): P1 hardly sees it, the accelerometer reads g (cos 30° - 1) = -1.31 m/s² off. That offset is no
+    zero-g bias (the data sheet allows ±0.2 m/s², machine file ``sensors``): the sensor is held at its limit,
+    the answer says so, and the load is named with its inclination."""
+    path, _, _ = calibrated
+    log = write(motion(TRUTH.replace(mass=50.8, inclination_deg=30.0), 6.0, 1.0, 0.05, np.random.default_rng(5)),
+                tmp_path / "inclined.csv", "inclined, heavier")
+    answer = tmp_path / "inclined.answer.json"
+    assert main(["validate", str(log), "--machine", str(path), "--json", str(answer), "--quiet", "--jobs", "1"]) == 0
+    doc = json.loads(answer.read_text())
+    nominal = doc["calibration"]["nominal"]["acceleration"]
+    assert abs(nominal["offset"][0]) <= 0.2 + 1e-12
+    assert nominal["beyond"][0] == pytest.approx(9.80665 * (np.cos(np.radians(30.0)) - 1.0), abs=0.15), nominal
+    assert any("offset asks" in c and "physics, not the sensor" in c for c in doc["conclusions"]), doc["conclusions"]
+    assert doc["verdict"] == "explained" and doc["added_effect"] == "load"
+    load = doc["added_effects"][0]["parameters"]
+    assert load["inclination"]["value"] == pytest.approx(30.0, rel=0.1)
+    assert load["M"]["value"] == pytest.approx(50.8, rel=0.05)

@@ -9,7 +9,9 @@ engineer would sign it.
    (the closed-loop hexapod replay of the model's own replay), in quadrature.
 2. **Calibration.** Every model, the nominal included, fits sensor calibration as nuisance parameters
    (:func:`calibrate`): an offset per channel and a scale for the position transducer and the
-   accelerometer. They are reported as calibration, never as an effect.
+   accelerometer, within the machine file's sensor tolerances (:class:`hexsim.plant.params.SensorSpec`).
+   They are reported as calibration, never as an effect; an offset asked beyond its tolerance stays in the
+   residual (physics, not the sensor) and is reported.
 3. **Fit.** A candidate (:mod:`hexsim.measured.candidates`) is fitted by ``scipy.optimize.least_squares`` inside
    its plausible range on the *fit* windows (even), residuals divided by b_c.
 4. **Accept** (:func:`judge`) only if, on the *held-out* windows (odd):
@@ -106,10 +108,12 @@ MAX_EFFECTS = 3
 MIN_EXCESS_SHARE = 0.25
 #: Channels whose sensors get a calibration scale (the others an offset only).
 SCALED = ("position", "acceleration")
-#: Largest calibration scale error fitted per channel, |scale - 1|: accelerometers' sensitivity tolerance is
-#: a few percent (±5 % uncalibrated); position transducers are linear to far better than 1 %, and a looser
-#: position scale trades with the valve's flow gain (the increments of a window scale with both).
-SCALE_LIMIT = {"position": 0.01, "acceleration": 0.05}
+G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
+#: The largest calibration scale error |scale - 1| and offset fitted per channel are the machine file's
+#: ``sensors`` tolerances (:class:`hexsim.plant.params.SensorSpec`: accelerometers ±5 % and ±0.2 m/s²,
+#: pressure transducers ±1.25 bar, position transducers ±1 %: a looser position scale trades with the
+#: valve's flow gain, the increments of a window scale with both). What a fit asks beyond them stays in the
+#: residual for the effects and is reported under ``"beyond"``.
 #: A scale is fitted only to a signal whose replayed motion is at least this many times the log's noise
 #: estimate (standard deviations; that estimate includes the accelerometer's real high-frequency content,
 #: 0.26 m/s^2 on a single-actuator log whose motion is 1.4 m/s^2): a hexapod's accelerometer axes across
@@ -362,8 +366,8 @@ def _lstsq1(x: np.ndarray, y: np.ndarray) -> float:
     return float(x @ y) / den if den > 0 else 0.0
 
 
-def _bounded(beta: float, channel: str) -> float:
-    return float(np.clip(beta, -SCALE_LIMIT[channel], SCALE_LIMIT[channel]))
+def _bounded(beta: float, limit: float) -> float:
+    return float(np.clip(beta, -limit, limit))
 
 
 def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[dict[str, np.ndarray],
@@ -371,7 +375,9 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
     """Residuals with the sensor calibration fitted on ``rows`` (least squares, scored samples):
     measured ≈ offset + scale · simulated, the scale for :data:`SCALED` channels only. For windowed
     replays the position starts each window at the measured value, so only its scale is fitted, on the
-    increments from the window start. Scales are limited to 1 ± :data:`SCALE_LIMIT` and fitted only to
+    increments from the window start. Scales and offsets are limited to the log's machine's sensor
+    tolerances (:class:`hexsim.plant.params.SensorSpec`; what a fit asks beyond an offset's limit is left in
+    the residual for the effects and listed per signal under ``"beyond"``), scales fitted only to
     signals that move, against the noise (:data:`SCALE_MIN_SNR`) and against the channel's other signals
     (:data:`SCALE_MIN_SHARE`). A closed-loop replay's position (hexapod) gets its scale on the motion about
     its mean and an offset within ``problem.position_offset_limit`` of the legs' common one
@@ -381,40 +387,67 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
     [...], "scale": [...]} per signal)."""
     out, cal = {}, {}
     s0 = problem.settle
+    spec = problem.log.machine.sensors
     for ch in problem.channels:
         sim_c, meas = _signals(sim[ch]), _signals(problem.measured[ch])
         res = sim_c - meas
-        offsets, scales = [], []
+        offsets, scales, beyond = [], [], []
         motion = [float(np.std(sim_c[rows, s0:, j])) for j in range(sim_c.shape[2])]
         if ch == "position" and not problem.windowed:  # closed loop: each leg's offset near the legs' common one
             cal[ch] = _closed_loop_position(problem, sim_c, res, rows, motion)
             out[ch] = res[..., 0] if sim[ch].ndim == 2 else res
             continue
+        scale_limit, offset_limit = spec.scale_limit(ch), spec.offset_limit(ch)
         for j in range(sim_c.shape[2]):
             x = sim_c[:, :, j]
             r = res[rows, s0:, j].ravel()
             if ch == "position" and problem.windowed:  # increments from the window start: scale only
                 inc = x - x[:, :1]
-                beta = _bounded(_lstsq1(inc[rows, s0:].ravel(), -r), ch)
+                beta = _bounded(_lstsq1(inc[rows, s0:].ravel(), -r), scale_limit)
                 res[:, :, j] += beta * inc
                 offsets.append(0.0)
                 scales.append(1.0 + beta)
+                beyond.append(None)
                 continue
-            if (ch in SCALED and motion[j] >= SCALE_MIN_SNR * problem.log_noise[ch]
-                    and motion[j] >= SCALE_MIN_SHARE * max(motion)):
-                a = np.stack([np.ones(r.size), x[rows, s0:].ravel()], axis=1)
-                offset, beta = np.linalg.lstsq(a, -r, rcond=None)[0]
-                if abs(beta) > SCALE_LIMIT[ch]:  # clamp the scale, refit the offset
-                    beta = _bounded(beta, ch)
-                    offset = -float(np.mean(r + beta * x[rows, s0:].ravel()))
-            else:
-                offset, beta = -float(np.mean(r)), 0.0
+            scaled = (ch in SCALED and motion[j] >= SCALE_MIN_SNR * problem.log_noise[ch]
+                      and motion[j] >= SCALE_MIN_SHARE * max(motion))
+            # an accelerometer offset of about ±g is the log's convention (acceleration for specific force, or
+            # the reverse), which the validation says; the data sheet's bias is taken about it
+            centres = (0.0, G_STANDARD, -G_STANDARD) if ch == "acceleration" else (0.0,)
+            offset, beta, asked = _offset_and_scale(x[rows, s0:].ravel(), r, scaled, scale_limit, offset_limit,
+                                                    centres)
             res[:, :, j] += offset + beta * x
             offsets.append(float(offset))
             scales.append(1.0 + float(beta))
+            beyond.append(asked)
         out[ch] = res[..., 0] if sim[ch].ndim == 2 else res
         cal[ch] = {"offset": offsets, "scale": scales}
+        if any(b is not None for b in beyond):
+            cal[ch]["beyond"] = beyond
     return out, cal
+
+
+def _offset_and_scale(x: np.ndarray, r: np.ndarray, scaled: bool, scale_limit: float | None,
+                      offset_limit: float | None, centres: tuple[float, ...] = (0.0,)
+                      ) -> tuple[float, float, float | None]:
+    """Least squares of offset + beta x = -r (beta only where ``scaled``), each within its limit (None: free),
+    the offset about the nearest of ``centres``: (offset, beta, the offset asked beyond its limit or None).
+    A clamped scale refits the offset and a clamped offset the scale."""
+    if scaled:
+        offset, beta = np.linalg.lstsq(np.stack([np.ones(r.size), x], axis=1), -r, rcond=None)[0]
+    else:
+        offset, beta = -float(np.mean(r)), 0.0
+    if scaled and abs(beta) > scale_limit:  # clamp the scale, refit the offset
+        beta = _bounded(beta, scale_limit)
+        offset = -float(np.mean(r + beta * x))
+    centre = min(centres, key=lambda c: abs(offset - c))
+    if offset_limit is None or abs(offset - centre) <= offset_limit:
+        return float(offset), float(beta), None
+    asked = float(offset)
+    offset = centre + _bounded(offset - centre, offset_limit)
+    if scaled:  # the scale on what the offset leaves
+        beta = _bounded(_lstsq1(x, -r - offset), scale_limit)
+    return float(offset), float(beta), asked
 
 
 def position_offsets(problem: ReplayProblem, sim_position: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -443,7 +476,8 @@ def _closed_loop_position(problem: ReplayProblem, sim_c: np.ndarray, res: np.nda
         mean = float(np.mean(sim_c[rows, s0:, j]))
         moves = (motion[j] >= SCALE_MIN_SNR * problem.log_noise["position"]
                  and motion[j] >= SCALE_MIN_SHARE * max(motion))
-        beta = _bounded(_lstsq1(sim_c[rows, s0:, j].ravel() - mean, -res[rows, s0:, j].ravel()), "position") \
+        beta = _bounded(_lstsq1(sim_c[rows, s0:, j].ravel() - mean, -res[rows, s0:, j].ravel()),
+                        problem.log.machine.sensors.position_scale) \
             if moves else 0.0
         res[:, :, j] += offset + beta * (sim_c[:, :, j] - mean)
         out["offset"].append(float(offset - beta * mean))

@@ -16,6 +16,7 @@ from hexsim.measured.candidates import CANDIDATES
 from hexsim.measured.identify import (
     ALPHA,
     FIT_PER_ROUND,
+    G_STANDARD,
     MAX_EFFECTS,
     MIN_EXCESS_SHARE,
     SCALED,
@@ -34,7 +35,6 @@ from hexsim.measured.reports.validation import fit_label, markdown, plot
 from hexsim.measured.residuals import analyse
 from hexsim.tables import StdoutTarget, write_atomic, write_json
 
-G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
 
 
 #: A payload read from the legs' P1 offsets is reported when it is at least this heavy [kg] and the offsets
@@ -124,6 +124,43 @@ def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
     return out
 
 
+#: the machine-file key that bounds each channel's sensor offset, and what besides the sensor gives one
+_OFFSET_KEYS = {"acceleration": ("sensors.acceleration_offset_mps2", "m/s^2"), "p1": ("sensors.pressure_offset_Pa", "Pa"),
+                "p2": ("sensors.pressure_offset_Pa", "Pa"), "p_s": ("sensors.pressure_offset_Pa", "Pa")}
+
+
+def _beyond_sentences(ident: Identification) -> list[str]:
+    """A sensor offset the nominal replay asked beyond its data sheet (machine file ``sensors``): physics, not
+    the sensor, with the effects that give one; the candidates were fitted with it held at its limit."""
+    out = []
+    asked = ident.nominal.calibration
+    log = ident.problem.log
+    for ch, (key, unit) in _OFFSET_KEYS.items():
+        beyond = [(j, b) for j, b in enumerate(asked.get(ch, {}).get("beyond", [])) if b is not None]
+        if not beyond:
+            continue
+        j, worst = max(beyond, key=lambda item: abs(item[1]))
+        labels = signal_labels(ident.problem, ch)
+        limit = log.machine.sensors.offset_limit(ch)
+        scale = 1e5 if unit == "Pa" else 1.0
+        shown = "bar" if unit == "Pa" else unit
+        what = (f"an inclination: the axis {_tilt(log, worst)} from vertical instead of "
+                f"{log.inclination_deg:g}°, or a load" if ch == "acceleration" and log.system == "single-actuator"
+                else "a load (weight, payload) or a supply level" if ch != "acceleration"
+                else "the platform's pose or a payload")
+        out.append(f"The {labels[j] if len(labels) > 1 else ch} sensor's offset asks {worst / scale:+.3g} {shown}, "
+                   f"beyond its data sheet's ±{limit / scale:.3g} {shown} ({key}): physics, not the sensor ({what}); "
+                   f"it is held at its limit and the effects are judged with it held.")
+    return out
+
+
+def _tilt(log: MeasurementLog, offset: float) -> str:
+    """The axis angle [deg, text] whose g cos θ differs from the log's declared one by an accelerometer
+    offset ``offset`` [m/s^2]."""
+    c = math.cos(math.radians(log.inclination_deg)) + offset / G_STANDARD
+    return f"{math.degrees(math.acos(c)):.0f}°" if -1.0 <= c <= 1.0 else "further"
+
+
 def _calibration_sentences(ident: Identification) -> list[str]:
     out = []
     final = ident.final.calibration  # the calibration of the model the verdict stands on
@@ -133,6 +170,7 @@ def _calibration_sentences(ident: Identification) -> list[str]:
                        f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
                        "format specific force, or the reverse), not physics; it is calibrated out.")
             break
+    out += _beyond_sentences(ident)
     settled = ident.verdict in ("none", "explained")
     for ch in SCALED:
         cal = final.get(ch)

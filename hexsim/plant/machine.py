@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from hexsim.errors import InputError
 from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.geometry import Geometry
-from hexsim.plant.params import ControllerParams, HydraulicParams
+from hexsim.plant.params import ControllerParams, HydraulicParams, SensorSpec
 
 FORMAT = "hexsim-machine"
 VERSION = 1
@@ -154,6 +154,15 @@ KEYS: tuple[Key, ...] = (
     _k("sensors.position_noise_m", "controller.position_noise", "m", "rms white noise of the position sensor",
        "a transducer's resolution"),
     _k("sensors.position_delay_s", "effects.sensor_delay", "s", "delay of the position measurement", "none"),
+    _k("sensors.position_scale_tolerance", "sensors.position_scale", "-", "the position transducer's gain error a "
+       "validation may calibrate (±)", "transducer data sheets: ±0.02–1 % with the mounting"),
+    _k("sensors.acceleration_offset_mps2", "sensors.acceleration_offset", "m/s^2", "the accelerometer's zero-g bias "
+       "a validation may calibrate (±); beyond it a misfit is physics (an inclination, a load)",
+       "accelerometer data sheets: 5–25 mg"),
+    _k("sensors.acceleration_scale_tolerance", "sensors.acceleration_scale", "-", "the accelerometer's sensitivity "
+       "error a validation may calibrate (±)", "accelerometer data sheets: ±2–5 %"),
+    _k("sensors.pressure_offset_Pa", "sensors.pressure_offset", "Pa", "each pressure transducer's zero error a "
+       "validation may calibrate (±)", "±0.5 % of a 250 bar span (transducer data sheets)"),
     _k("controller.type", "machine.control", "-", "P (position loop per leg) or none (open loop: the valve "
        "command is given)", "seed §2.2.4", kind="text", choices=CONTROL_TYPES),
     _k("controller.kp_VPm", "controller.kp", "V/m", "P gain K_p", "hexsim (seed §3.3 tuned by hand)"),
@@ -236,6 +245,7 @@ class Machine:
     system: str = "hexapod"
     hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
     controller: ControllerParams = field(default_factory=ControllerParams)
+    sensors: SensorSpec = field(default_factory=SensorSpec)  # the transducers' data-sheet tolerances
     effects: Effects = field(default_factory=Effects)
     geometry: Geometry = field(default_factory=Geometry)  # the hexapod's (unused by a single actuator)
     control: str = "P"
@@ -433,7 +443,7 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
             hint = f"; known in {section}: {', '.join(known)}" if known else \
                 f"; sections: {', '.join(sorted({k.path.split('.')[0] for k in KEYS}))}"
             raise InputError(f"{where}: unknown key {key!r}{hint}")
-    values = {"hydraulics": {}, "controller": {}, "effects": {}, "machine": {}, "geometry": {}}
+    values = {"hydraulics": {}, "controller": {}, "effects": {}, "machine": {}, "geometry": {}, "sensors": {}}
     for path, value in flat.items():
         key = _BY_PATH[path]
         values[key.target[0]][key.target[1]] = _checked(key, value, where)
@@ -452,6 +462,7 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
         hyd = _build_hydraulics(hyd_values, rated_flow, rated_dp)
         controller = ControllerParams(**values["controller"])
         effects = Effects(**values["effects"])
+        sensors = SensorSpec(**values["sensors"])
     except InputError as exc:
         raise InputError(f"{where}: {_key_names(str(exc))}") from None
     name = meta.get("name", pathlib.Path(where).stem)
@@ -460,7 +471,7 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
     legs = _legs(meta.get("legs", {}), system, hyd, effects, where)
     machine = Machine(name=name, description=meta.get("description", ""),
                    system=system, hydraulics=hyd, controller=controller, effects=effects, geometry=geometry,
-                   control=control,
+                   sensors=sensors, control=control,
                    rated_flow=rated_flow, rated_dp=rated_dp, sources=tuple(sources.items()),
                    calibration=calibration, legs=legs)
     defaulted = tuple(k.path for k in KEYS if k.path not in flat and not machine._omitted(k))
@@ -541,7 +552,7 @@ def _key_names(message: str) -> str:
     for key in sorted(KEYS, key=lambda k: -len(k.target[1])):  # longest first: pipeline_volume_rod before pipeline_volume
         section, name = key.target
         cls = {"hydraulics": "HydraulicParams", "controller": "ControllerParams", "effects": "Effects",
-               "geometry": "Geometry"}.get(section)
+               "geometry": "Geometry", "sensors": "SensorSpec"}.get(section)
         if cls:
             message = message.replace(f"{cls}.{name} ", f"{key.path} ").replace(f"{cls}.{name}", key.path)
     return message

@@ -276,3 +276,32 @@ class ControllerParams:
     def replace(self, **changes) -> "ControllerParams":
         """A copy with ``changes`` applied (validated again)."""
         return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """The transducers' data-sheet tolerances: how far ``hexsim validate`` may calibrate each sensor's
+    offset and scale as nuisance parameters (:func:`hexsim.measured.identify.calibrate`). A misfit that
+    asks for more is physics, not the sensor (an accelerometer offset of 1.3 m/s² on an axis is an
+    inclination of 30°, not a zero-g bias), and is left for the effects. The machine file's ``sensors``
+    section; the defaults are typical industrial transducers'."""
+
+    position_scale: float = 0.01  # [-] position transducer gain within ±1 % (magnetostrictive and
+    # potentiometric transducers: ±0.02–1 % with the mounting's lever)
+    acceleration_offset: float = 0.2  # [m/s^2] accelerometer zero-g bias within ±0.2 m/s² (±20 mg:
+    # industrial MEMS and servo accelerometers' data sheets state 5–25 mg)
+    acceleration_scale: float = 0.05  # [-] accelerometer sensitivity within ±5 % (data sheets ±2–5 %)
+    pressure_offset: float = 1.25e5  # [Pa] pressure transducer zero within ±1.25 bar (±0.5 % of a 250 bar
+    # span, industrial strain-gauge transducers' data sheets)
+
+    def __post_init__(self) -> None:
+        _check_nonnegative(self, "position_scale", "acceleration_offset", "acceleration_scale", "pressure_offset")
+
+    def offset_limit(self, channel: str) -> float | None:
+        """The largest offset [channel's unit] a sensor of ``channel`` may have (None: not bounded here)."""
+        return {"acceleration": self.acceleration_offset, "p1": self.pressure_offset, "p2": self.pressure_offset,
+                "p_s": self.pressure_offset}.get(channel)
+
+    def scale_limit(self, channel: str) -> float | None:
+        """The largest scale error [-] of ``channel``'s sensor (None: its scale is not fitted)."""
+        return {"position": self.position_scale, "acceleration": self.acceleration_scale}.get(channel)
