@@ -70,6 +70,7 @@ def test_the_calibration_recovers_the_machine_and_chooses_its_valve(calibrated):
     before = report["transients"][0]["before"]["held_out_rms_in_budgets"]
     assert before["position"] > 10.0  # the file is visibly off this machine
     assert all(after[ch] < 1.5 for ch in ("position", "p1", "acceleration")), after
+    assert report["own_budget"]["reached"] == all(v <= 2**0.5 for v in after.values()), report["own_budget"]
 
 
 #: Each library effect added to TRUTH as a machine shows it (a supply line of 1.2 bar/(L/min), a 35 Hz spool,
@@ -222,3 +223,17 @@ def test_an_inclined_heavier_load_is_named_not_calibrated_out_by_the_sensors(cal
     load = doc["added_effects"][0]["parameters"]
     assert load["inclination"]["value"] == pytest.approx(30.0, rel=0.1)
     assert load["M"]["value"] == pytest.approx(50.8, rel=0.05)
+
+
+def test_a_calibration_that_cannot_reach_its_own_logs_budget_says_so(calibrated, capsys):
+    """Told to use only the quadratic area (3.11 at every opening) on a port-limited spool, the calibration
+    cannot follow its own log: the report says which channels are short of the budget and by how much, and
+    what that means for a validation (the model's floor), on the terminal too."""
+    _, _, folder = calibrated
+    assert main(["calibrate", str(folder / "calibration.csv"), "--flow-area", "quadratic", "--out",
+                 str(folder / "quadratic.json")]) == 0
+    out = capsys.readouterr().out
+    assert "does not reach its own logs' budget: held-out position" in out, out
+    doc = json.loads((folder / "quadratic.json").read_text())
+    own = doc["calibration"]["own_budget"]
+    assert not own["reached"] and own["short"]["position"] > 10.0, own

@@ -467,10 +467,38 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
     elif ev.steady:
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
     _add_priors(report, best["start"], best["params"])
+    if ev.replays or ev.steady:
+        report["own_budget"] = own_budget(report)
     if ev.feats:
         report["fit"] = {"before": _errors(ev.feats, predict(ev.feats, machine, ev.loads)),
                          "after": _errors(ev.feats, predict(ev.feats, calibrated, ev.loads))}
     return report
+
+
+def own_budget(report: dict) -> dict:
+    """Whether the calibrated model reaches its own calibration logs' budget: the worst held-out RMS in
+    budgets per channel over the logs' windows after the calibration (``transients`` or ``replayed``),
+    ``reached`` when every channel's is within sqrt(:data:`hexsim.measured.identify.WITHIN`), else
+    ``short`` (channel -> budgets) and a ``sentence`` saying what that means for a validation on this machine:
+    the model leaves structure of its own (form the calibration cannot fit), which ``hexsim validate`` counts
+    as the model's floor (:func:`hexsim.measured.identify.model_floor`) and judges effects against."""
+    from hexsim.measured.identify import WITHIN
+
+    rows = [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t]
+    worst: dict[str, float] = {}
+    for r in rows:
+        for ch, v in r.get("held_out_rms_in_budgets", {}).items():
+            worst[ch] = max(worst.get(ch, 0.0), float(v))
+    short = {ch: v for ch, v in worst.items() if v > math.sqrt(WITHIN)}
+    out = {"reached": not short, "held_out_rms_in_budgets": worst, "short": short}
+    if short:
+        out["sentence"] = (
+            "The calibrated model does not reach its own logs' budget: held-out " + ", ".join(
+                f"{ch} {v:.3g}" for ch, v in short.items()) + f" budgets (reached: within {math.sqrt(WITHIN):.2g}). "
+            "What it leaves is model form the calibration cannot fit (a valve curve between the forms, a dynamic "
+            "the model lacks): hexsim validate counts it as this machine's floor and judges effects against it; "
+            "small effects on this machine are not resolved below it.")
+    return out
 
 
 def _replayed(logs: list[MeasurementLog], prior: Machine, calibrated: Machine) -> list[dict]:

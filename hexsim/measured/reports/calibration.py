@@ -52,6 +52,10 @@ def table(report: dict) -> str:
     transients(held.get("transients", []), "held-out log")
     for row in report.get("leave_one_log_out", []):
         lines.append(f"left out {pathlib.Path(row['log']).name:22s} {errs(row)}")
+    own = report.get("own_budget")
+    if own:
+        lines.append(own.get("sentence", "The calibrated model reaches its own logs' budget (held-out " + ", ".join(
+            f"{ch} {v:.3g}" for ch, v in own["held_out_rms_in_budgets"].items()) + " budgets)."))
     return "\n".join(lines)
 
 
