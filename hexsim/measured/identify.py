@@ -109,11 +109,12 @@ MIN_EXCESS_SHARE = 0.25
 #: Channels whose sensors get a calibration scale (the others an offset only).
 SCALED = ("position", "acceleration")
 G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
-#: The largest calibration scale error |scale - 1| and offset fitted per channel are the machine file's
-#: ``sensors`` tolerances (:class:`hexsim.plant.params.SensorSpec`: accelerometers ±5 % and ±0.2 m/s²,
-#: pressure transducers ±1.25 bar, position transducers ±1 %: a looser position scale trades with the
-#: valve's flow gain, the increments of a window scale with both). What a fit asks beyond them stays in the
-#: residual for the effects and is reported under ``"beyond"``.
+# The largest calibration scale error |scale - 1| and offset fitted per channel are the machine file's
+# ``sensors`` tolerances (hexsim.plant.params.SensorSpec: accelerometers ±5 % and ±0.2 m/s², pressure
+# transducers ±1.25 bar, position transducers ±1 %: a looser position scale trades with the valve's flow
+# gain, the increments of a window scale with both). What a fit asks beyond them stays in the residual for
+# the effects and is reported under "beyond".
+
 #: A scale is fitted only to a signal whose replayed motion is at least this many times the log's noise
 #: estimate (standard deviations; that estimate includes the accelerometer's real high-frequency content,
 #: 0.26 m/s^2 on a single-actuator log whose motion is 1.4 m/s^2): a hexapod's accelerometer axes across

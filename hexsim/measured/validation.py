@@ -124,7 +124,7 @@ def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
     return out
 
 
-#: the machine-file key that bounds each channel's sensor offset, and what besides the sensor gives one
+#: the machine-file key that bounds each channel's sensor offset, and the unit of the offset
 _OFFSET_KEYS = {"acceleration": ("sensors.acceleration_offset_mps2", "m/s^2"), "p1": ("sensors.pressure_offset_Pa", "Pa"),
                 "p2": ("sensors.pressure_offset_Pa", "Pa"), "p_s": ("sensors.pressure_offset_Pa", "Pa")}
 
