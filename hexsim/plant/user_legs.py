@@ -60,9 +60,9 @@ def _joints(m: mujoco.MjModel, body: int) -> list[int]:
     return list(range(m.body_jntadr[body], m.body_jntadr[body] + m.body_jntnum[body]))
 
 
-def name_everything(spec: mujoco.MjSpec, m: mujoco.MjModel) -> None:
-    """Give every unnamed joint, body and equality of ``spec`` a name (``hexsim_joint{id}``, …)
-    so that values and references can follow them through edits (the spec lists them in compiled order)."""
+def name_everything(spec: mujoco.MjSpec) -> None:
+    """Give every unnamed joint, body and equality of ``spec`` a name (``hexsim_joint{k}``, … by its place
+    in the spec) so that values and references can follow them through edits."""
     for j, joint in enumerate(spec.joints):
         if not joint.name:
             joint.name = f"hexsim_joint{j}"

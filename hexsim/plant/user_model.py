@@ -70,7 +70,7 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     try:
         spec = mujoco.MjSpec.from_file(str(path))
         _rename_user_sensors(spec, where)
-        name_everything(spec, spec.compile())
+        name_everything(spec)
         m = spec.compile()
     except ValueError as exc:
         raise InputError(f"{where}: MuJoCo cannot load it: {' '.join(str(exc).split())}") from None
