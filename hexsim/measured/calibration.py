@@ -369,13 +369,15 @@ def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Mach
     :func:`hexsim.measured.replay.supply_from_log`), an operating condition measured, not a parameter to fit
     (fitted, it moves no replay and would be "held at its prior"). Returns the machine with it set and its
     report row (status ``from the logs``); the machine unchanged and None where a log lacks ``ps_Pa``."""
+    from scipy.stats import median_abs_deviation
+
     from hexsim.plant.machine import with_keys
 
     if not logs or any("ps_Pa" not in log.columns for log in logs):
         return machine, None
     samples = np.concatenate([log.columns["ps_Pa"] for log in logs])
     level = float(np.median(samples))
-    spread = float(1.4826 * np.median(np.abs(samples - level)))
+    spread = float(median_abs_deviation(samples, scale="normal"))
     row = {"key": "supply.pressure_Pa", "unit": "Pa", "value": level,
            "std_error": spread / math.sqrt(len(samples)), "prior": float(machine.hydraulics.supply_pressure),
            "lower": float(np.min(samples)), "upper": float(np.max(samples)),

@@ -34,6 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
@@ -335,13 +336,31 @@ def _fit_curve(v: np.ndarray, f: np.ndarray, weight: np.ndarray, free: tuple[str
 
 def _windows(v: np.ndarray, f: np.ndarray, window: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each steady window as one measurement: its speed [m/s], median force [N] and the median's standard
-    error [N] (1.25 x the robust scatter over the root of its samples)."""
+    error [N] (1.25 x the robust scatter, scipy's normal-scaled MAD, over the root of its samples)."""
     ids = np.unique(window)
     speed = np.array([v[window == k][0] for k in ids])
     force = np.array([np.median(f[window == k]) for k in ids])
-    error = np.array([1.2533 * 1.4826 * np.median(np.abs(f[window == k] - np.median(f[window == k])))
-                      / np.sqrt(np.sum(window == k)) for k in ids])
+    error = np.array([1.2533 * median_abs_deviation(f[window == k], scale="normal") / np.sqrt(np.sum(window == k))
+                      for k in ids])
     return speed, force, np.maximum(error, 1e-3)
+
+
+def _model_for(speed: np.ndarray, n_points: int | None, along: float) -> tuple[str, dict[str, str], np.ndarray]:
+    """The richest model (a :data:`MODELS` key) the speeds [m/s] of one direction identify, the parameters
+    it holds with why, and its start x0 (``along``: the level the force reads [N]). ``n_points``: the steady
+    windows (None: samples of a moving log). One speed (within :data:`MIN_SPEED_RATIO`): the level alone;
+    two to four windows: Coulomb + viscous; else the whole Stribeck curve."""
+    ratio = float(np.percentile(speed, 95) / max(np.percentile(speed, 5), 1e-12))
+    if ratio < MIN_SPEED_RATIO:
+        why = (f"the data span one speed ({np.percentile(speed, 5) * 1e3:.3g}-{np.percentile(speed, 95) * 1e3:.3g} "
+               "mm/s): a viscous slope or a Stribeck hump cannot be told from the Coulomb level; fitted the level "
+               "alone (run two or more speeds)")
+        return "level", dict.fromkeys(("sigma", "F_s0", "c_s"), why), np.array([0.0, along, 0.0, 0.005])
+    if n_points is not None and n_points < 5:
+        why = (f"{n_points} steady speeds cannot show a Stribeck hump (it needs five or more, some of a few mm/s): "
+               "fitted Coulomb + viscous with F_s0 = 0")
+        return "coulomb+viscous", dict.fromkeys(("F_s0", "c_s"), why), np.array([0.0, along, 0.0, 0.005])
+    return "stribeck", {}, np.array([1000.0, along, 20.0, 0.005])
 
 
 def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: HydraulicParams, side: str) -> dict:
@@ -368,23 +387,7 @@ def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: Hydrau
         weight, n_points = 1.0 / pe, len(pv)
     else:
         pv, pf, weight, n_points = v, f, np.ones(len(v)), None
-    speed = np.abs(pv)
-    ratio = float(np.percentile(speed, 95) / max(np.percentile(speed, 5), 1e-12))
-    x0 = np.array([0.0, along, 0.0, 0.005])
-    held: dict[str, str] = {}
-    if ratio < MIN_SPEED_RATIO:
-        model = "level"
-        held = dict.fromkeys(("sigma", "F_s0", "c_s"), (
-            f"the data span one speed ({np.percentile(speed, 5) * 1e3:.3g}-{np.percentile(speed, 95) * 1e3:.3g} mm/s): "
-            "a viscous slope or a Stribeck hump cannot be told from the Coulomb level; fitted the level alone (run two "
-            "or more speeds)"))
-    elif steady and n_points < 5:
-        model = "coulomb+viscous"
-        held = dict.fromkeys(("F_s0", "c_s"), f"{n_points} steady speeds cannot show a Stribeck hump (it needs five or "
-                                              "more, some of a few mm/s): fitted Coulomb + viscous with F_s0 = 0")
-    else:
-        model = "stribeck"
-        x0 = np.array([1000.0, along, 20.0, 0.005])
+    model, held, x0 = _model_for(np.abs(pv), n_points, along)
     sol = _fit_curve(pv, pf, weight, MODELS[model], x0, hyd, robust=not steady)
     if model == "stribeck":
         _, unidentifiable, _ = _judge(sol, LOWER, UPPER)
@@ -400,7 +403,7 @@ def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: Hydrau
     for p, why in held.items():
         params[p]["unidentifiable"] = unidentifiable[p] = why
     residual = stribeck(v, sol.x, hyd) - f
-    scatter = float(1.4826 * np.median(np.abs(residual - np.median(residual))))
+    scatter = float(median_abs_deviation(residual, scale="normal"))
     level = float(abs(np.median(stribeck(v, sol.x, hyd))))
     out = {"parameters": params, "rms_N": float(np.sqrt(np.mean(residual**2))), "scatter_N": scatter,
            "samples": int(len(v)), "unidentifiable": unidentifiable, "_x": sol.x}

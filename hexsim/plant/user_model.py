@@ -76,13 +76,7 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
         raise InputError(f"{where}: MuJoCo cannot load it: {' '.join(str(exc).split())}") from None
     legs = _legs(m, g.mjcf_legs, where)
     platform = _platform(m, g.mjcf_platform, where)
-    if conform(spec, m, legs, platform, where):  # a public model's conventions made hexsim's leg
-        names = [mujoco.mj_id2name(m, _J, j) for j in legs]
-        try:
-            m = spec.compile()
-        except ValueError as exc:
-            raise InputError(f"{where}: MuJoCo cannot compile it after hexsim's edits: {' '.join(str(exc).split())}") from None
-        legs = [mujoco.mj_name2id(m, _J, n) for n in names]
+    m, legs = _conformed(spec, m, legs, platform, where)
     d = mujoco.MjData(m)
     key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "neutral")
     if key >= 0:
@@ -120,6 +114,21 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
         e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, site.name, f"platform_anchor{i}"
         e.solref, e.solimp = CLOSURE_SOLREF, CLOSURE_SOLIMP
     return spec
+
+
+def _conformed(spec: mujoco.MjSpec, m: mujoco.MjModel, legs: list[int], platform: int,
+               where: str) -> tuple[mujoco.MjModel, list[int]]:
+    """The model and its legs' slide ids after a public model's conventions are made hexsim's leg
+    (:func:`hexsim.plant.user_legs.conform`, ``spec`` edited in place); ``m`` and ``legs`` as they are if
+    nothing changed. Raises InputError if MuJoCo cannot compile the edited spec."""
+    if not conform(spec, m, legs, platform, where):
+        return m, legs
+    names = [mujoco.mj_id2name(m, _J, j) for j in legs]
+    try:
+        m = spec.compile()
+    except ValueError as exc:
+        raise InputError(f"{where}: MuJoCo cannot compile it after hexsim's edits: {' '.join(str(exc).split())}") from None
+    return m, [mujoco.mj_name2id(m, _J, n) for n in names]
 
 
 def _body(spec: mujoco.MjSpec, m: mujoco.MjModel, body: int) -> mujoco.MjsBody:

@@ -19,7 +19,9 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
     vel, ff = result["_samples"]
     fig = Figure(figsize=(7, 4.5), layout="tight")
     ax = fig.subplots()
-    ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M ydd - M g cos θ (seed eq. 2.3)")
+    steady = result["acceleration_source"].startswith("left out")  # steady windows: no M ydd term
+    ax.plot(vel, ff, ",", color="0.5", label="F_f = F_L - M g cos θ, steady windows (seed eq. 2.3)" if steady
+            else "F_f = F_L - M ydd - M g cos θ (seed eq. 2.3)")
     for side, sgn in (("positive", 1), ("negative", -1)):
         if "cannot_fit" in result[side]:
             continue
