@@ -6,7 +6,9 @@ at 2 µs (numba):
   behind a backlash of half width ``play`` [V] on the setpoint; the opening of each edge by ``area``:
   "sharp" pi d max(|x_v| - O_l, 0) (3.3), "quadratic" k_a x_v^2 (3.11 everywhere, as the seed's own
   simulations), "port" min(k_a x_v^2, pi d max(|x_v| - O_l, 0)) (a real spool: the smooth opening until
-  the port limits it, with a kink where hexsim blends C¹);
+  the port limits it, with a kink where hexsim blends C¹), or "spool" (none of hexsim's forms: a port of
+  ``port_width`` x pi d with a smooth underlap, w s ln(1 + exp((x_v + underlap) / s)) per edge, both edges
+  open around null, saturating smoothly where the port is uncovered at ``port_open`` x x_max);
 - each edge q = k C_d a sqrt(2 / rho) dp / sqrt(|dp| + 2 kPa) (turbulent; laminar below ~2 kPa, another
   regularisation than hexsim's); a leak C_l (P_s - P1) across the piston into the cap side;
 - dP1/dt = E / (A1 y + V_pl) (phi_1 + leak - A1 ydot) (3.7), P1 kept above -0.9 bar; with entrained air
@@ -46,7 +48,11 @@ class Actuator:
     area_gain: float = 300.0
     overlap: float = 5e-6
     null_offset: float = 0.0
-    area: str = "port"  # "sharp" | "quadratic" | "port"
+    area: str = "port"  # "sharp" | "quadratic" | "port" | "spool"
+    port_width: float = 0.8  # "spool": the port's width as a fraction of the full perimeter pi d
+    underlap: float = 8e-6  # "spool": [m] each edge opens this far before null
+    rounding: float = 10e-6  # "spool": [m] the edges' rounding (the softplus's width)
+    port_open: float = 0.85  # "spool": the port is uncovered at this fraction of x_max
     flow_gain: float = 1.0  # both edges
     k_at: float = 1.0  # the return edge relative to the supply edge
     cd: float = 0.611
@@ -84,11 +90,21 @@ class Actuator:
 def _pack(s: Actuator) -> np.ndarray:
     a1 = math.pi / 4 * s.bore**2
     return np.array([a1, a1 - math.pi / 4 * s.rod**2, s.stroke, s.supply, s.tank, s.x_max, s.u_max, s.spool_d,
-                     s.area_gain, s.overlap, s.null_offset, {"sharp": 0.0, "quadratic": 1.0, "port": 2.0}[s.area],
+                     s.area_gain, s.overlap, s.null_offset, {"sharp": 0.0, "quadratic": 1.0, "port": 2.0, "spool": 3.0}[s.area],
                      s.flow_gain, s.k_at, s.cd, s.rho, s.bulk, s.v_pl, s.leak, s.mass, *s.viscous, *s.coulomb,
                      *s.static, *s.c_s, s.arctan_k, 2 * math.pi * s.spool_hz, s.spool_zeta, s.air, s.air_n,
                      s.supply_resistance, s.supply_tau, math.cos(math.radians(s.inclination_deg)),
-                     s.pump_flow, s.pump_band, s.accumulator])
+                     s.pump_flow, s.pump_band, s.accumulator, s.port_width * math.pi * s.spool_d, s.underlap,
+                     s.rounding, s.port_open * s.x_max])
+
+
+@numba.njit(cache=True)
+def spool_edge(c, x):
+    """The opening [m^2] of an edge of the "spool" valve at spool position x [m] (positive opens it)."""
+    w, lap, s, x_open = c[39], c[40], c[41], c[42]
+    z = (x + lap) / s
+    e = w * s * (z + math.log1p(math.exp(-z)) if z > 0 else math.log1p(math.exp(z)))
+    return e / (1.0 + (e / (w * x_open)) ** 4) ** 0.25
 
 
 @numba.njit(cache=True)
@@ -121,7 +137,12 @@ def leg_at(c, y, v, p1, x, ps):
     smooth = ka * x * x
     a = port if form == 0.0 else (smooth if form == 1.0 else min(smooth, port))
     orifice = cd * a * math.sqrt(2.0 / rho)
-    if x > 0:
+    phi_in = 0.0
+    if form == 3.0:  # both edges open around null
+        dps, dpt = ps - p1, p1 - pt
+        phi_in = kq * cd * spool_edge(c, x) * math.sqrt(2.0 / rho) * dps / math.sqrt(abs(dps) + 2e3)
+        phi = phi_in - kq * kat * cd * spool_edge(c, -x) * math.sqrt(2.0 / rho) * dpt / math.sqrt(abs(dpt) + 2e3)
+    elif x > 0:
         dp = ps - p1
         phi = kq * orifice * dp / math.sqrt(abs(dp) + 2e3)
     else:
@@ -141,7 +162,8 @@ def leg_at(c, y, v, p1, x, ps):
         stop = -2e8 * y - 2e4 * v
     elif y > stroke:
         stop = -2e8 * (y - stroke) - 2e4 * v
-    return dp1, p1 * a1 - ps * a2 - friction + stop, (phi if x > 0 else 0.0) + leak * (ps - p1) - a2 * v
+    drawn = phi_in if form == 3.0 else (phi if x > 0 else 0.0)
+    return dp1, p1 * a1 - ps * a2 - friction + stop, drawn + leak * (ps - p1) - a2 * v
 
 
 @numba.njit(cache=True)

@@ -206,5 +206,19 @@ def test_opening_table_interpolates_from_the_origin_on_both_sides_of_null():
         assert (a1, a2) == pytest.approx((0.0, full * fraction), abs=1e-15)
     with pytest.raises(InputError, match="must end at u_v_max"):
         HydraulicParams(flow_area="table", opening_table=((1.0, 0.1), (5.0, 0.5)))
+
+
+def test_an_opening_table_that_starts_below_null_opens_both_edges_around_it():
+    """An underlapped valve as a table: each edge opens 0.5 V before null, so at null both are open (half the
+    first point's opening, written out here), A→T closes at +0.5 V, P→A at -0.5 V; a point below null must
+    have opening 0."""
+    p = HydraulicParams(flow_area="table", opening_table=((-0.5, 0.0), (0.5, 0.02), (10.0, 1.0)))
+    full = math.pi * p.spool_diameter * p.x_v_max
+    at_06 = 0.02 + 0.1 * (1.0 - 0.02) / 9.5  # A→T at +0.6 V: 0.1 V along the line from (0.5, 0.02) to (10, 1)
+    for u, (f1, f2) in ((0.0, (0.01, 0.01)), (0.25, (0.015, 0.005)), (0.5, (0.02, 0.0)), (-0.6, (0.0, at_06))):
+        a1, a2 = hydraulics.flow_areas(u / p.u_v_max * p.x_v_max, p)
+        assert (a1, a2) == pytest.approx((full * f1, full * f2), abs=1e-15), u
+    with pytest.raises(InputError, match="opening 0"):
+        HydraulicParams(flow_area="table", opening_table=((-0.5, 0.01), (10.0, 1.0)))
     with pytest.raises(InputError, match="set flow_area to 'table'"):
         HydraulicParams(opening_table=((10.0, 1.0),))

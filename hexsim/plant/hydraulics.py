@@ -113,7 +113,9 @@ def flow_areas(x_v, p: HydraulicParams):
     (:attr:`~hexsim.plant.params.HydraulicParams.smooth_blend`). ``p.flow_area == "quadratic"``: (3.11) at every
     opening, as the seed simulated. ``p.flow_area == "port"``: the smaller of (3.11) and the port's opening
     (3.3), a kink where they cross (0.90 V with the seed's values) and the overlap
-    a dead band (a real spool).
+    a dead band (a real spool). ``p.flow_area == "table"``: the opening table's fraction of pi d x_v,max,
+    a1 at the command u = x_v u_v,max / x_v,max and a2 at -u (both open around null where the table starts
+    below it: an underlap).
 
     Returns two arrays shaped like ``x_v`` (:func:`hexsim.plant.legs.flow_areas`, elementwise).
     """

@@ -91,7 +91,8 @@ class LegParams(NamedTuple):
     k_pb: float  # supply-edge gain P→B [-] (4-way)
     k_bt: float  # return-edge gain B→T [-] (4-way)
     tab_n: float  # points of the opening table (flow_area "table"); 0: no table
-    # the table's points (|u_v| [V], opening fraction), the origin first, unused points the last one repeated
+    # the table's points (u_v [V], opening fraction of the edge the command opens), closed at and below the
+    # first (the origin, or where an underlapped edge opens), unused points the last one repeated
     tu0: float
     tu1: float
     tu2: float
@@ -132,8 +133,10 @@ def _blend(hyd: HydraulicParams) -> tuple[float, float]:
 
 
 def _table_fields(hyd: HydraulicParams) -> tuple[float, ...]:
-    """tab_n and the eight (u, f) points of :class:`LegParams`: the origin, the table, the last point repeated."""
-    points = [(0.0, 0.0), *((float(u), float(f)) for u, f in hyd.opening_table)]
+    """tab_n and the eight (u, f) points of :class:`LegParams`: the origin unless the table starts at or below
+    null (an underlap: the edge opens at that command), the table, the last point repeated."""
+    table = [(float(u), float(f)) for u, f in hyd.opening_table]
+    points = table if table and table[0][0] <= 0.0 else [(0.0, 0.0), *table]
     n = len(points) - 1
     points += [points[-1]] * (8 - len(points))
     return (float(n), *(u for u, _ in points), *(f for _, f in points))
@@ -208,12 +211,13 @@ def flow_areas(x_v, P):
     (:attr:`hexsim.plant.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); or the
     smaller of (3.11) and the port's opening, a kink where they cross (``flow_area="port"``: a real spool, its
     overlap a dead band); or
-    the opening table's fraction of the full opening pi d x_v,max at the command |x_v| u_v,max / x_v,max
-    (:func:`table_opening`); edge gains not applied."""
+    the opening table's fraction of the full opening pi d x_v,max, each edge at the command that opens it
+    (P→A at u = x_v u_v,max / x_v,max, A→T at -u: both open around null where the table starts below it,
+    an underlap; :func:`table_opening`); edge gains not applied."""
     if P.tab_n > 0.5:
-        a = P.port_width * P.x_v_max * table_opening(abs(x_v) * (P.u_v_max / P.x_v_max), P)
-        a1 = a if x_v > 0.0 else 0.0
-        return a1, a - a1
+        u = x_v * (P.u_v_max / P.x_v_max)
+        full = P.port_width * P.x_v_max
+        return full * table_opening(u, P), full * table_opening(-u, P)
     if P.sharp > 1.5:  # port: the smaller of (3.11) and the port's opening (3.3), a kink where they cross
         a = min(P.smooth_gain * x_v * x_v, P.port_width * max(abs(x_v) - P.overlap, 0.0))
         a1 = a if x_v > 0.0 else 0.0
@@ -240,8 +244,10 @@ def _lerp(u, ua, fa, ub, fb):
 
 @_inline
 def table_opening(u, P):
-    """The opening fraction at command |u_v| = u [V]: linear between the table's points (tu_k, tf_k) of
-    :class:`LegParams`, from the origin; beyond the last point its value."""
+    """The opening fraction of an edge at the command u [V] that opens it: closed at and below the table's
+    first point (tu0, tf0 = 0) of :class:`LegParams`, linear between its points, beyond the last its value."""
+    if u <= P.tu0:
+        return 0.0
     if u <= P.tu1:
         return _lerp(u, P.tu0, P.tf0, P.tu1, P.tf1)
     if u <= P.tu2:

@@ -79,8 +79,9 @@ KEYS: tuple[Key, ...] = (
        "the port), quadratic (3.11 everywhere), port ((3.11) until the port's opening is smaller, the port beyond: a kink, a real spool), "
        "sharp (3.3, linear with overlap/underlap), table (opening_table)",
        "seed eq. 3.3, 3.11", kind="text", choices=("smooth", "quadratic", "port", "sharp", "table")),
-    _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[|u_v| V, opening as a fraction "
-       "of the full opening], …] to u_v,max, linear between points from (0, 0), both sides of null alike",
+    _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[u_v V, opening as a fraction "
+       "of the full opening], …] to u_v,max, linear between points from (0, 0), both edges alike; a first point "
+       "[-u V, 0] below null: each edge opens u before null (an underlap)",
        "valve data sheet (flow against command) or a calibration", kind="table"),
     _k("valve.command_range_V", "hydraulics.u_v_max", "V", "valve setpoint at full spool stroke u_v,max", _SEED),
     _k("valve.spool_stroke_m", "hydraulics.x_v_max", "m", "spool travel at u_v,max x_v,max", _SEED),

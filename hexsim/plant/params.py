@@ -20,7 +20,8 @@ import numpy as np
 from hexsim.errors import InputError
 
 FlowArea = Literal["smooth", "quadratic", "port", "sharp", "table"]
-#: Most points an opening table may have (besides the origin): the compiled leg step holds them as fields.
+#: Most points an opening table may have above null (besides the origin, or the one point below null where an
+#: underlapped edge opens): the compiled leg step holds eight as fields.
 MAX_TABLE_POINTS = 7
 ValveType = Literal["3-way", "4-way"]
 
@@ -81,9 +82,11 @@ class HydraulicParams:
     # blend); "sharp": (3.3); "table": the opening against the command as a data sheet or a
     # measurement gives it (opening_table)
     flow_area: FlowArea = "smooth"
-    # (|u_v| [V], opening as a fraction of the full port opening pi d x_v,max) points, commands increasing to
-    # u_v,max, openings non-decreasing, linear in between from (0, 0); the same on both sides of null (the
-    # overlap is in the table: zero opening up to it). Used with flow_area "table" only.
+    # (u_v [V], opening as a fraction of the full port opening pi d x_v,max) points of the edge the command
+    # opens (P→A; A→T at -u_v alike), commands increasing to u_v,max, openings non-decreasing, linear in
+    # between from (0, 0); an overlap is in the table (zero opening up to it), an underlap a first point
+    # below null with opening 0 (the edge opens there: both edges open around null). Used with flow_area
+    # "table" only.
     opening_table: tuple[tuple[float, float], ...] = ()
     # Lowest pressure the bottom chamber's oil holds [Pa, gauge]: 0.1 bar absolute, where dissolved air comes
     # out of mineral oil and the oil cavitates (air-release pressures 0.1–0.3 bar abs.; the vapour pressure is
@@ -187,14 +190,20 @@ class HydraulicParams:
                 raise InputError(f"HydraulicParams.opening_table is given but flow_area is {self.flow_area!r}: set "
                                  f"flow_area to 'table' to use it")
             return
-        if not (1 <= len(table) <= MAX_TABLE_POINTS):
-            raise InputError(f"HydraulicParams.opening_table needs 1…{MAX_TABLE_POINTS} points (|u_v| V, opening "
-                             f"fraction) for flow_area 'table', got {len(table)}")
-        prev_u, prev_f = 0.0, 0.0
         for i, point in enumerate(table):
             if not (len(point) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in point)):
                 raise InputError(f"HydraulicParams.opening_table point {i + 1} must be two finite numbers, got {point!r}")
-            u, f = point
+        below = 1 if table and table[0][0] <= 0.0 else 0
+        if not (1 <= len(table) - below <= MAX_TABLE_POINTS):
+            raise InputError(f"HydraulicParams.opening_table needs 1…{MAX_TABLE_POINTS} points (u_v V, opening "
+                             f"fraction) above null for flow_area 'table' (and at most one at or below it), got "
+                             f"{len(table) - below}")
+        if below and (table[0][1] != 0.0 or table[0][0] < -0.2 * self.u_v_max):
+            raise InputError(f"HydraulicParams.opening_table point 1 ({table[0][0]:g} V, {table[0][1]:g}): a point at "
+                             f"or below null is where an underlapped edge opens: opening 0, within 20 % of the "
+                             f"command range below null")
+        prev_u, prev_f = (table[0][0] - 1.0, 0.0) if below else (0.0, 0.0)
+        for i, (u, f) in enumerate(table):
             if u <= prev_u or f < prev_f or f > 2.0:
                 raise InputError(
                     f"HydraulicParams.opening_table point {i + 1} ({u:g} V, {f:g}): commands must increase from 0 and "
