@@ -76,6 +76,7 @@ from hexsim.measured.residuals import clipped, effective_n, noise_of
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.machine import with_keys
 from hexsim.signals import near_reversals
+from hexsim.simulation.metrics import STANDARD_GRAVITY
 from hexsim.simulation.workers import in_workers, worker_pool
 
 #: Valve-replay window [s]: long enough to see a flow offset integrate, short enough not to drift away.
@@ -108,7 +109,6 @@ MAX_EFFECTS = 3
 MIN_EXCESS_SHARE = 0.25
 #: Channels whose sensors get a calibration scale (the others an offset only).
 SCALED = ("position", "acceleration")
-G_STANDARD = 9.80665  # [m/s^2], standard gravity: an accelerometer offset near it is a convention problem
 # The largest calibration scale error |scale - 1| and offset fitted per channel are the machine file's
 # ``sensors`` tolerances (hexsim.plant.params.SensorSpec: accelerometers ±5 % and ±0.2 m/s², pressure
 # transducers ±1.25 bar, position transducers ±1 %: a looser position scale trades with the valve's flow
@@ -414,7 +414,7 @@ def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarr
                       and motion[j] >= SCALE_MIN_SHARE * max(motion))
             # an accelerometer offset of about ±g is the log's convention (acceleration for specific force, or
             # the reverse), which the validation says; the data sheet's bias is taken about it
-            centres = (0.0, G_STANDARD, -G_STANDARD) if ch == "acceleration" else (0.0,)
+            centres = (0.0, STANDARD_GRAVITY, -STANDARD_GRAVITY) if ch == "acceleration" else (0.0,)
             offset, beta, asked = _offset_and_scale(x[rows, s0:].ravel(), r, scaled, scale_limit, offset_limit,
                                                     centres)
             res[:, :, j] += offset + beta * x

@@ -16,7 +16,6 @@ from hexsim.measured.candidates import CANDIDATES
 from hexsim.measured.identify import (
     ALPHA,
     FIT_PER_ROUND,
-    G_STANDARD,
     MAX_EFFECTS,
     MIN_EXCESS_SHARE,
     SCALED,
@@ -33,6 +32,9 @@ from hexsim.measured.calibration import hexapod_hint, nominal_check, transient_c
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.reports.validation import fit_label, markdown, plot
 from hexsim.measured.residuals import analyse
+from hexsim.plant.machine import KEYS
+from hexsim.plant.params import OFFSET_FIELDS
+from hexsim.simulation.metrics import STANDARD_GRAVITY
 from hexsim.tables import StdoutTarget, write_atomic, write_json
 
 
@@ -124,21 +126,17 @@ def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
     return out
 
 
-#: the machine-file key that bounds each channel's sensor offset, and the unit of the offset
-_OFFSET_KEYS = {"acceleration": ("sensors.acceleration_offset_mps2", "m/s^2"), "p1": ("sensors.pressure_offset_Pa", "Pa"),
-                "p2": ("sensors.pressure_offset_Pa", "Pa"), "p_s": ("sensors.pressure_offset_Pa", "Pa")}
-
-
 def _beyond_sentences(ident: Identification) -> list[str]:
     """A sensor offset the nominal replay asked beyond its data sheet (machine file ``sensors``): physics, not
     the sensor, with the effects that give one; the candidates were fitted with it held at its limit."""
     out = []
     asked = ident.nominal.calibration
     log = ident.problem.log
-    for ch, (key, unit) in _OFFSET_KEYS.items():
+    for ch, name in OFFSET_FIELDS.items():
         beyond = [(j, b) for j, b in enumerate(asked.get(ch, {}).get("beyond", [])) if b is not None]
         if not beyond:
             continue
+        key, unit = next((k.path, k.unit) for k in KEYS if k.target == ("sensors", name))
         j, worst = max(beyond, key=lambda item: abs(item[1]))
         labels = signal_labels(ident.problem, ch)
         limit = log.machine.sensors.offset_limit(ch)
@@ -157,7 +155,7 @@ def _beyond_sentences(ident: Identification) -> list[str]:
 def _tilt(log: MeasurementLog, offset: float) -> str:
     """The axis angle [deg, text] whose g cos θ differs from the log's declared one by an accelerometer
     offset ``offset`` [m/s^2]."""
-    c = math.cos(math.radians(log.inclination_deg)) + offset / G_STANDARD
+    c = math.cos(math.radians(log.inclination_deg)) + offset / STANDARD_GRAVITY
     return f"{math.degrees(math.acos(c)):.0f}°" if -1.0 <= c <= 1.0 else "further"
 
 
@@ -165,7 +163,7 @@ def _calibration_sentences(ident: Identification) -> list[str]:
     out = []
     final = ident.final.calibration  # the calibration of the model the verdict stands on
     for a in final.get("acceleration", {}).get("offset", []):
-        if abs(abs(a) - G_STANDARD) < 0.15 * G_STANDARD:
+        if abs(abs(a) - STANDARD_GRAVITY) < 0.15 * STANDARD_GRAVITY:
             out.append(f"The accelerometer reads {a:+.2f} m/s^2 off the model: a constant offset of about "
                        f"{'+' if a > 0 else '-'}g is a convention problem (the log holds acceleration, the "
                        "format specific force, or the reverse), not physics; it is calibrated out.")

@@ -287,6 +287,11 @@ class ControllerParams:
         return dataclasses.replace(self, **changes)
 
 
+#: The :class:`SensorSpec` field that bounds each channel's sensor offset.
+OFFSET_FIELDS = {"acceleration": "acceleration_offset", "p1": "pressure_offset", "p2": "pressure_offset",
+                 "p_s": "pressure_offset"}
+
+
 @dataclass(frozen=True)
 class SensorSpec:
     """The transducers' data-sheet tolerances: how far ``hexsim validate`` may calibrate each sensor's
@@ -308,8 +313,7 @@ class SensorSpec:
 
     def offset_limit(self, channel: str) -> float | None:
         """The largest offset [channel's unit] a sensor of ``channel`` may have (None: not bounded here)."""
-        return {"acceleration": self.acceleration_offset, "p1": self.pressure_offset, "p2": self.pressure_offset,
-                "p_s": self.pressure_offset}.get(channel)
+        return getattr(self, OFFSET_FIELDS[channel]) if channel in OFFSET_FIELDS else None
 
     def scale_limit(self, channel: str) -> float | None:
         """The largest scale error [-] of ``channel``'s sensor (None: its scale is not fitted)."""
