@@ -196,6 +196,10 @@ HEXAPOD_SCREEN_SEGMENTS, HEXAPOD_SCREEN_NFEV = 24, 3
 #: family (the seed's 300 x_v^2 and its port), keeping the one that predicts the held-out windows best.
 SEED_FORMS = ("smooth", "port", "quadratic", "sharp")
 DYNAMICS = ("auto", "always", "never")
+#: The commands of a calibrated flow curve (:func:`table_from`), as fractions of u_v,max: one below null
+#: where an underlapped edge opens, eight from null to a tenth of the range where reversals happen (the
+#: edges' overlap or underlap and their rounding), two beyond for fast motions, the end of the range.
+TABLE_KNOTS = (-0.02, 0.0, 0.005, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.25, 0.55, 1.0)
 
 
 def _is_steady(log: MeasurementLog) -> bool:
@@ -213,11 +217,46 @@ def _forms(machine: Machine, flow_areas: tuple[str, ...] | None) -> tuple[str, .
     """The flow-area forms to calibrate: those asked for, else the machine's own and, for a valve of the
     seed's (3.11) family, the others of :data:`SEED_FORMS`."""
     own = machine.hydraulics.flow_area
+    if flow_areas and own != "table":  # "table" there: the chosen form's curve read from the logs afterwards
+        flow_areas = tuple(f for f in flow_areas if f != "table")
     if flow_areas:
         return tuple(flow_areas)
     if own in SEED_FORMS[:3]:
         return (own, *(f for f in SEED_FORMS if f != own))
     return (own,)
+
+
+def _wants_curve(ev: "_Evidence", machine: Machine, flow_areas: tuple[str, ...] | None) -> bool:
+    """Whether a calibration goes on to read the valve's flow curve from the logs' flows (:func:`_with_curve`):
+    when "table" is asked for on a machine without a table of its own. Raises InputError where it is asked for
+    and cannot be read: steady features only, hexapod logs, or a log without ``p1_Pa`` (named)."""
+    if not flow_areas or "table" not in flow_areas or machine.hydraulics.flow_area == "table":
+        return False
+    if not ev.replays or ev.hexapod:
+        raise InputError("--flow-area table reads the valve's curve from single-actuator transients (closed-loop "
+                         "motions, steps); these logs give " + ("hexapod replays" if ev.hexapod else "steady features"))
+    lacking = [r.log.path.name for r in ev.replays if "p1_Pa" not in r.log.columns]
+    if lacking:
+        raise InputError(f"--flow-area table reads the valve's curve from the chamber's flow: {', '.join(lacking)} "
+                         f"has no p1_Pa column")
+    return True
+
+
+def table_from(machine: Machine, curve: Machine | None = None) -> Machine:
+    """``machine`` with its valve's opening as a table (flow area "table") at :data:`TABLE_KNOTS`: the form's
+    opening of the P→A edge of ``curve`` (default ``machine``) sampled there times its flow gain k_PA, as a
+    fraction of pi d x_v,max (at most 2, not decreasing; closed at the first knot below null), k_PA then 1 and
+    the return edge's k_AT relative to it (the edges' ratio kept), the overlap 0 (the table carries it)."""
+    hyd, eff = (curve or machine).hydraulics, (curve or machine).effects
+    u = np.array(TABLE_KNOTS) * hyd.u_v_max
+    a1, _ = hydraulics.flow_areas(u / hyd.u_v_max * hyd.x_v_max, hyd)
+    f = np.minimum(np.maximum.accumulate(eff.edge_gain_pa * a1 / (math.pi * hyd.spool_diameter * hyd.x_v_max)), 2.0)
+    f[0] = 0.0
+    doc = json.loads(json.dumps(machine.document()))
+    doc["valve"].update(flow_area="table", overlap_m=0.0, edge_gain_PA=1.0,
+                        edge_gain_AT=eff.edge_gain_at / eff.edge_gain_pa,
+                        opening_table=[[round(float(a), 6), float(b)] for a, b in zip(u, f)])
+    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 
 def with_flow_area(machine: Machine, form: str) -> Machine:
@@ -322,7 +361,55 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
         best["fit"] = fit_parameters(ev.residual(), best["start"], best["params"], independent_share=share,
                                      initial=best["machine"], options=options, notify=notify)
         best["machine"] = best["params"].apply(best["start"], best["fit"].values)
+    if _wants_curve(ev, machine, flow_areas):
+        best = _with_curve(ev, best, tried, options, notify)
     return best, tried
+
+
+#: The chosen form's parameters a flow curve read from the logs replaces (its shape and gain are the table's;
+#: the return edge's gain, the bulk modulus and the dead volume it fits from the same flows start the replay fit).
+CURVE_REPLACES = ("valve.edge_gain_PA", "valve.smooth_area_gain", "valve.overlap_m", "valve.spool_diameter_m",
+                  "valve.rated_flow_m3ps")
+#: A flow curve read from the logs replaces the chosen form only if it predicts the held-out windows this much
+#: better (a form's few parameters are the simpler answer where the curve gains little).
+CURVE_GAIN = 0.9
+
+
+def _with_curve(ev: _Evidence, best: dict, tried: list[dict], options: FitOptions,
+                notify: Callable[[str], None]) -> dict:
+    """The chosen form's machine with its valve's opening read from the logs' flows
+    (:func:`hexsim.measured.flow_curve.fit_flow_curve`: a table at :data:`TABLE_KNOTS`, held towards the form's
+    curve where the logs do not reach), then the form's other parameters (less :data:`CURVE_REPLACES`) fitted
+    again to the replays from there; kept in place of the form if it predicts the held-out windows
+    :data:`CURVE_GAIN` better (its cost added to ``tried``). Returns the chosen (as :func:`_choose_form`'s, with
+    ``curve``: the :class:`~hexsim.measured.flow_curve.FlowCurve`, ``form``: the form it started from)."""
+    from hexsim.measured.flow_curve import fit_flow_curve
+    from hexsim.plant.machine import with_keys
+
+    start = table_from(best["machine"])
+    table = start.hydraulics.opening_table
+    notify(f"reading the valve's flow curve from the logs' flows ({len(table)} points)")
+    curve = fit_flow_curve([r.log for r in ev.replays], start, np.array([u for u, _ in table]),
+                           np.array([f for _, f in table]))
+    doc = json.loads(json.dumps(start.document()))
+    doc["valve"]["opening_table"] = curve.table()
+    start = with_keys(dataclasses.replace(machine_from_document(doc, start.label), path=start.path),
+                      {"valve.edge_gain_AT": curve.edge_gain_at, "oil.bulk_modulus_Pa": curve.bulk_modulus,
+                       "cylinder.dead_volume_cap_m3": curve.pipeline_volume})
+    params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
+    notify(f"calibrating {len(params)} parameters with the flow curve read from the logs")
+    fit = fit_parameters(ev.residual(), start, params, independent_share=ev.independent_share, options=options,
+                         notify=notify)
+    result = params.apply(start, fit.values)
+    cost = sum(r.errors(result)["held_out_cost"] for r in ev.replays)
+    form_cost = sum(r.errors(best["machine"])["held_out_cost"] for r in ev.replays)
+    tried.append({"flow_area": "table (read from the logs' flows)", "held_out_cost": cost})
+    if cost >= CURVE_GAIN * form_cost:
+        notify(f"kept the {best['flow_area']} flow area: the curve read from the logs predicts the held-out windows "
+               f"at {cost / form_cost:.2f} of its cost (it replaces the form below {CURVE_GAIN:g})")
+        return best
+    return {"flow_area": "table", "start": start, "params": params, "fit": fit, "machine": result, "curve": curve,
+            "form": best["flow_area"]}
 
 
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
@@ -464,7 +551,9 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
         report["flow_area"] = {"chosen": best["flow_area"], "prior": machine.hydraulics.flow_area,
                                "held_out_cost": sum(e["held_out_cost"] for e in after),
                                "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
-                                         if "fit" in t else {"refused": t["refused"]})} for t in tried]}
+                                         if "held_out_cost" in t else {"refused": t["refused"]})} for t in tried]}
+        if "curve" in best:
+            report["flow_area"]["curve"] = _curve_report(best["curve"], best["form"])
         report["transients"] = [{"before": r.errors(machine), "after": a} for r, a in zip(ev.replays, after)]
     elif ev.steady:
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
@@ -535,6 +624,18 @@ def _leave_one_log_out(ev: _Evidence, best: dict) -> list[dict]:
     return rows
 
 
+def _curve_report(curve, form: str) -> dict:
+    """The report's account of a flow curve read from the logs' flows (:func:`_with_curve`)."""
+    return {"from_form": form, "table": curve.table(), "edge_gain_AT": curve.edge_gain_at,
+            "bulk_modulus_Pa": curve.bulk_modulus, "dead_volume_cap_m3": curve.pipeline_volume,
+            "regularisation": curve.weight, "held_out_flow_rms_m3ps": {f"{w:g}": v for w, v in curve.held_out.items()},
+            "flow_rms_m3ps": curve.rms, "measured_flow_rms_m3ps": curve.flow_rms,
+            "commands_measured_V": [round(v, 4) for v in curve.reached],
+            "note": "openings, return-edge gain, bulk modulus and dead volume read from the flow balance "
+                    "(continuity against the orifice equation); the last three then refitted with the others to "
+                    "the replays"}
+
+
 def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: str, n_logs: int) -> Machine:
     """The calibrated machine with its provenance: the report (without the feature rows) as its
     ``calibration``, each fitted key's source (value ± standard error, the prior), the chosen flow-area form's
@@ -543,6 +644,12 @@ def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: st
     if form != prior.hydraulics.flow_area:
         sources["valve.flow_area"] = (f"hexsim calibrate from {n_logs} log(s): {form} predicts the held-out windows "
                                       f"best (prior {prior.hydraulics.flow_area})")
+    curve = report.get("flow_area", {}).get("curve")
+    if curve:
+        sources["valve.opening_table"] = (f"hexsim calibrate from {n_logs} log(s): read from the logs' flows "
+                                          f"(continuity against the orifice equation), held towards the "
+                                          f"{curve['from_form']} form's curve with weight {curve['regularisation']:g} "
+                                          f"chosen by held-out windows")
     for row in report["parameters"]:
         if row["status"] != "held at its prior":
             key, _, index = row["key"].partition("[")  # a table point's source is its table's

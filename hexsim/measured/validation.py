@@ -353,6 +353,31 @@ def summary(ident: Identification) -> dict:
     }
 
 
+#: A log's commands beyond the calibrated flow curve's by more than this fraction of its range are reported.
+CURVE_MARGIN = 0.05
+
+
+def beyond_curve(log: MeasurementLog) -> dict | None:
+    """Where a single-actuator ``log``'s valve commands (at the spool, u_v - u_0) go beyond those its machine's
+    flow curve was read from (the calibration report's ``flow_area.curve.commands_measured_V``,
+    :func:`hexsim.measured.flow_curve.fit_flow_curve`) by more than :data:`CURVE_MARGIN` of that range: the
+    commands, the calibrated range and a sentence (a misfit there is the calibration's envelope, not an
+    effect); None where the machine's curve was not read from logs or the log stays inside it."""
+    curve = ((log.machine.calibration or {}).get("flow_area") or {}).get("curve")
+    if log.system != "single-actuator" or not curve or "commands_measured_V" not in curve:
+        return None
+    lo, hi = curve["commands_measured_V"]
+    u = log.columns["valve_cmd_V"] - log.machine.hydraulics.null_offset
+    margin = CURVE_MARGIN * (hi - lo)
+    if u.min() >= lo - margin and u.max() <= hi + margin:
+        return None
+    return {"commands_V": [float(u.min()), float(u.max())], "calibrated_V": [lo, hi],
+            "sentence": f"The log's valve commands reach {u.min():.3g}…{u.max():.3g} V; the machine's flow curve was "
+                        f"read from logs that reached {lo:.3g}…{hi:.3g} V (beyond, its table is the "
+                        f"{curve.get('from_form', 'prior')} form's): a misfit at the larger commands is the "
+                        f"calibration's envelope before it is an effect. Calibrate with a log that reaches them."}
+
+
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
              without: tuple[str, ...] = (), model: str = "platform") -> dict:
     """Identify (see :func:`hexsim.measured.identify.identify`) on ``log`` (a :class:`MeasurementLog` or the path of
@@ -383,6 +408,11 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
         doc["nominal_check"] = check
         if check["off"] and ident.verdict != "none":
             doc["conclusions"].insert(0, check["sentence"])
+    beyond = beyond_curve(log)
+    if beyond is not None:
+        doc["beyond_calibrated_curve"] = beyond
+        if ident.verdict != "none":
+            doc["conclusions"].insert(0, beyond["sentence"])
     if report is not None:
         report.mkdir(parents=True, exist_ok=True)
         plot(ident, report / "residuals.png")

@@ -101,6 +101,10 @@ class LegParams(NamedTuple):
     tu5: float
     tu6: float
     tu7: float
+    tu8: float
+    tu9: float
+    tu10: float
+    tu11: float
     tf0: float
     tf1: float
     tf2: float
@@ -109,6 +113,10 @@ class LegParams(NamedTuple):
     tf5: float
     tf6: float
     tf7: float
+    tf8: float
+    tf9: float
+    tf10: float
+    tf11: float
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -133,12 +141,12 @@ def _blend(hyd: HydraulicParams) -> tuple[float, float]:
 
 
 def _table_fields(hyd: HydraulicParams) -> tuple[float, ...]:
-    """tab_n and the eight (u, f) points of :class:`LegParams`: the origin unless the table starts at or below
+    """tab_n and the twelve (u, f) points of :class:`LegParams`: the origin unless the table starts at or below
     null (an underlap: the edge opens at that command), the table, the last point repeated."""
     table = [(float(u), float(f)) for u, f in hyd.opening_table]
     points = table if table and table[0][0] <= 0.0 else [(0.0, 0.0), *table]
     n = len(points) - 1
-    points += [points[-1]] * (8 - len(points))
+    points += [points[-1]] * (12 - len(points))
     return (float(n), *(u for u, _ in points), *(f for _, f in points))
 
 
@@ -246,23 +254,14 @@ def _lerp(u, ua, fa, ub, fb):
 def table_opening(u, P):
     """The opening fraction of an edge at the command u [V] that opens it: closed at and below the table's
     first point (tu0, tf0 = 0) of :class:`LegParams`, linear between its points, beyond the last its value."""
-    if u <= P.tu0:
+    us = (P.tu0, P.tu1, P.tu2, P.tu3, P.tu4, P.tu5, P.tu6, P.tu7, P.tu8, P.tu9, P.tu10, P.tu11)
+    fs = (P.tf0, P.tf1, P.tf2, P.tf3, P.tf4, P.tf5, P.tf6, P.tf7, P.tf8, P.tf9, P.tf10, P.tf11)
+    if u <= us[0]:
         return 0.0
-    if u <= P.tu1:
-        return _lerp(u, P.tu0, P.tf0, P.tu1, P.tf1)
-    if u <= P.tu2:
-        return _lerp(u, P.tu1, P.tf1, P.tu2, P.tf2)
-    if u <= P.tu3:
-        return _lerp(u, P.tu2, P.tf2, P.tu3, P.tf3)
-    if u <= P.tu4:
-        return _lerp(u, P.tu3, P.tf3, P.tu4, P.tf4)
-    if u <= P.tu5:
-        return _lerp(u, P.tu4, P.tf4, P.tu5, P.tf5)
-    if u <= P.tu6:
-        return _lerp(u, P.tu5, P.tf5, P.tu6, P.tf6)
-    if u <= P.tu7:
-        return _lerp(u, P.tu6, P.tf6, P.tu7, P.tf7)
-    return P.tf7
+    for i in range(1, 12):
+        if u <= us[i]:
+            return _lerp(u, us[i - 1], fs[i - 1], us[i], fs[i])
+    return fs[11]
 
 
 @_inline

@@ -21,8 +21,8 @@ from hexsim.errors import InputError
 
 FlowArea = Literal["smooth", "quadratic", "port", "sharp", "table"]
 #: Most points an opening table may have above null (besides the origin, or the one point below null where an
-#: underlapped edge opens): the compiled leg step holds eight as fields.
-MAX_TABLE_POINTS = 7
+#: underlapped edge opens): the compiled leg step holds twelve as fields.
+MAX_TABLE_POINTS = 11
 ValveType = Literal["3-way", "4-way"]
 
 
