@@ -330,6 +330,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
     ``machine``; every form tried, with its held-out cost or why it was refused). Raises InputError if no
     form could be calibrated."""
     forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
+    curve = _wants_curve(ev, machine, flow_areas)  # refused before any fit where it cannot be read
     options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01,
                          max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV) if ev.replays else FitOptions()
     share = ev.independent_share if ev.replays else None
@@ -361,7 +362,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
         best["fit"] = fit_parameters(ev.residual(), best["start"], best["params"], independent_share=share,
                                      initial=best["machine"], options=options, notify=notify)
         best["machine"] = best["params"].apply(best["start"], best["fit"].values)
-    if _wants_curve(ev, machine, flow_areas):
+    if curve:
         best = _with_curve(ev, best, tried, options, notify)
     return best, tried
 
