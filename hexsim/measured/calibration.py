@@ -242,12 +242,12 @@ def _wants_curve(ev: "_Evidence", machine: Machine, flow_areas: tuple[str, ...] 
     return True
 
 
-def table_from(machine: Machine, curve: Machine | None = None) -> Machine:
-    """``machine`` with its valve's opening as a table (flow area "table") at :data:`TABLE_KNOTS`: the form's
-    opening of the P→A edge of ``curve`` (default ``machine``) sampled there times its flow gain k_PA, as a
+def table_from(machine: Machine) -> Machine:
+    """``machine`` with its valve's opening as a table (flow area "table") at :data:`TABLE_KNOTS`: its form's
+    opening of the P→A edge sampled there times its flow gain k_PA, as a
     fraction of pi d x_v,max (at most 2, not decreasing; closed at the first knot below null), k_PA then 1 and
     the return edge's k_AT relative to it (the edges' ratio kept), the overlap 0 (the table carries it)."""
-    hyd, eff = (curve or machine).hydraulics, (curve or machine).effects
+    hyd, eff = machine.hydraulics, machine.effects
     u = np.array(TABLE_KNOTS) * hyd.u_v_max
     a1, _ = hydraulics.flow_areas(u / hyd.u_v_max * hyd.x_v_max, hyd)
     f = np.minimum(np.maximum.accumulate(eff.edge_gain_pa * a1 / (math.pi * hyd.spool_diameter * hyd.x_v_max)), 2.0)
@@ -394,10 +394,12 @@ def _with_curve(ev: _Evidence, best: dict, tried: list[dict], options: FitOption
                            np.array([f for _, f in table]))
     doc = json.loads(json.dumps(start.document()))
     doc["valve"]["opening_table"] = curve.table()
-    start = with_keys(dataclasses.replace(machine_from_document(doc, start.label), path=start.path),
-                      {"valve.edge_gain_AT": curve.edge_gain_at, "oil.bulk_modulus_Pa": curve.bulk_modulus,
-                       "cylinder.dead_volume_cap_m3": curve.pipeline_volume})
     params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
+    bounds = {p.key: (p.lower, p.upper) for p in params}
+    read = {"valve.edge_gain_AT": curve.edge_gain_at, "oil.bulk_modulus_Pa": curve.bulk_modulus,
+            "cylinder.dead_volume_cap_m3": curve.pipeline_volume}  # the replay fit's start, inside its brackets
+    start = with_keys(dataclasses.replace(machine_from_document(doc, start.label), path=start.path),
+                      {k: float(np.clip(v, *bounds.get(k, (v, v)))) for k, v in read.items()})
     notify(f"calibrating {len(params)} parameters with the flow curve read from the logs")
     fit = fit_parameters(ev.residual(), start, params, independent_share=ev.independent_share, options=options,
                          notify=notify)
