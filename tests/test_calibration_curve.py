@@ -23,19 +23,16 @@ from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import dump, load_machine
-from independent_actuator import Actuator, motion, write
+from independent_actuator import Actuator, _pack, motion, spool_edge, write
 
 TRUTH = Actuator(area="spool", flow_gain=1.0, k_at=0.95, bulk=1.2e9, v_pl=1.0e-6, mass=44.0, coulomb=(75.0, 52.0),
                  viscous=(2600.0, 1500.0), underlap=4e-6, rounding=8e-6)
 
 
 def truth_opening(u: float) -> float:
-    """The truth's P→A opening at command u [V] as a fraction of pi d x_v,max, from its own parameters
-    (softplus of the underlapped edge, limited by the port: the "spool" valve of independent_actuator)."""
-    s = TRUTH
-    x = u / s.u_max * s.x_max
-    soft = s.rounding * math.log1p(math.exp((x + s.underlap) / s.rounding))
-    return s.port_width * min(soft, s.port_open * s.x_max) / s.x_max
+    """The truth's P→A opening at command u [V] as a fraction of pi d x_v,max: its own edge
+    (independent_actuator.spool_edge) at the spool position the command sets."""
+    return spool_edge(_pack(TRUTH), u / TRUTH.u_max * TRUTH.x_max) / (math.pi * TRUTH.spool_d * TRUTH.x_max)
 
 
 @pytest.fixture(scope="module")

@@ -49,7 +49,7 @@ from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.parameters import ParameterSet, default_parameters
 from hexsim.plant import hydraulics
-from hexsim.plant.machine import Machine, machine_from_document
+from hexsim.plant.machine import Machine, machine_from_document, with_keys
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.simulation.metrics import steady_segments
 
@@ -252,21 +252,23 @@ def table_from(machine: Machine) -> Machine:
     a1, _ = hydraulics.flow_areas(u / hyd.u_v_max * hyd.x_v_max, hyd)
     f = np.minimum(np.maximum.accumulate(eff.edge_gain_pa * a1 / (math.pi * hyd.spool_diameter * hyd.x_v_max)), 2.0)
     f[0] = 0.0
+    return _with_valve(machine, flow_area="table", overlap_m=0.0, edge_gain_PA=1.0,
+                       edge_gain_AT=eff.edge_gain_at / eff.edge_gain_pa,
+                       opening_table=[[round(float(a), 6), float(b)] for a, b in zip(u, f)])
+
+
+def _with_valve(machine: Machine, **valve) -> Machine:
+    """``machine`` with the ``valve`` section's entries ``valve`` set (any value, a table too), checked again as
+    any machine file."""
     doc = json.loads(json.dumps(machine.document()))
-    doc["valve"].update(flow_area="table", overlap_m=0.0, edge_gain_PA=1.0,
-                        edge_gain_AT=eff.edge_gain_at / eff.edge_gain_pa,
-                        opening_table=[[round(float(a), 6), float(b)] for a, b in zip(u, f)])
+    doc["valve"].update(valve)
     return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 
 def with_flow_area(machine: Machine, form: str) -> Machine:
     """``machine`` with its valve's flow-area form set to ``form`` (checked as any machine file: an underlap
     needs the sharp area). Raises InputError for a form the machine's valve cannot take."""
-    doc = json.loads(json.dumps(machine.document()))
-    doc["valve"]["flow_area"] = form
-    if form != "table":
-        doc["valve"]["opening_table"] = []
-    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
+    return _with_valve(machine, flow_area=form, **({} if form == "table" else {"opening_table": []}))
 
 
 @dataclass
@@ -385,20 +387,17 @@ def _with_curve(ev: _Evidence, best: dict, tried: list[dict], options: FitOption
     :data:`CURVE_GAIN` better (its cost added to ``tried``). Returns the chosen (as :func:`_choose_form`'s, with
     ``curve``: the :class:`~hexsim.measured.flow_curve.FlowCurve`, ``form``: the form it started from)."""
     from hexsim.measured.flow_curve import fit_flow_curve
-    from hexsim.plant.machine import with_keys
 
     start = table_from(best["machine"])
     table = start.hydraulics.opening_table
     notify(f"reading the valve's flow curve from the logs' flows ({len(table)} points)")
     curve = fit_flow_curve([r.log for r in ev.replays], start, np.array([u for u, _ in table]),
                            np.array([f for _, f in table]))
-    doc = json.loads(json.dumps(start.document()))
-    doc["valve"]["opening_table"] = curve.table()
     params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
     bounds = {p.key: (p.lower, p.upper) for p in params}
     read = {"valve.edge_gain_AT": curve.edge_gain_at, "oil.bulk_modulus_Pa": curve.bulk_modulus,
             "cylinder.dead_volume_cap_m3": curve.pipeline_volume}  # the replay fit's start, inside its brackets
-    start = with_keys(dataclasses.replace(machine_from_document(doc, start.label), path=start.path),
+    start = with_keys(_with_valve(start, opening_table=curve.table()),
                       {k: float(np.clip(v, *bounds.get(k, (v, v)))) for k, v in read.items()})
     notify(f"calibrating {len(params)} parameters with the flow curve read from the logs")
     fit = fit_parameters(ev.residual(), start, params, independent_share=ev.independent_share, options=options,
@@ -461,8 +460,6 @@ def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Mach
     report row (status ``from the logs``); the machine unchanged and None where a log lacks ``ps_Pa``."""
     from scipy.stats import median_abs_deviation
 
-    from hexsim.plant.machine import with_keys
-
     if not logs or any("ps_Pa" not in log.columns for log in logs):
         return machine, None
     samples = np.concatenate([log.columns["ps_Pa"] for log in logs])
@@ -502,7 +499,6 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
     command range: beyond it the report says "at a bound") and the parameter rows for the report."""
     from hexsim.measured.identify import position_offsets
     from hexsim.measured.residuals import effective_n
-    from hexsim.plant.machine import with_keys
 
     u_max = machine.hydraulics.u_v_max
     offsets, variances = [], []

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 from scipy.signal import lti, lsim, savgol_filter
+from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
@@ -45,7 +46,7 @@ WINDOW_S = 0.011
 STOP_MARGIN = 0.002
 #: Contiguous windows per log for the blocked cross-validation of the regularisation weight.
 FOLDS = 5
-#: Regularisation weights tried (:func:`_penalty`): a point's deviation from the prior curve by its scale costs
+#: Regularisation weights tried (:func:`_solve`): a point's deviation from the prior curve by its scale costs
 #: this fraction of the data's robust sum of squares.
 WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: The return edge's gain is searched within this range of the prior's.
@@ -164,18 +165,17 @@ def _basis(u: np.ndarray, commands: np.ndarray) -> np.ndarray:
     return np.cumsum(hats[:, ::-1], axis=1)[:, ::-1]  # a rise at point j lifts every point from j on
 
 
-def _design(samples: list[FlowSamples], commands: np.ndarray, gain: float) -> tuple[np.ndarray, np.ndarray]:
-    """The linear system (A (n, k + 1), b (n,)) of the unknowns (the k - 1 rises, 1/E, V_pl/E): the valve's flow
-    through both edges (the return edges' gains ``gain`` times the prior's) less the compressibility flow
-    equals the displacement flow."""
-    rows, flows = [], []
+def _design(samples: list[FlowSamples], commands: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The linear system of the unknowns (the k - 1 rises, 1/E, V_pl/E): (A (n, k + 1), R (n, k + 1), b (n,)),
+    A the supply edges' flow less the compressibility flow, R the return edges' flow (the prior's gains), so that
+    with the return edges' gains ``g`` times the prior's (A + g R) x = b, the displacement flow."""
+    supply, ret, flows = [], [], []
     for s in samples:
         at_in, at_out = (-s.u, s.u) if s.mirror else (s.u, -s.u)
-        rows.append(np.column_stack([_basis(at_in, commands) * s.supply[:, None]
-                                     + gain * _basis(at_out, commands) * s.ret[:, None],
-                                     -s.stored_swept, -s.stored_dead]))
+        supply.append(np.column_stack([_basis(at_in, commands) * s.supply[:, None], -s.stored_swept, -s.stored_dead]))
+        ret.append(np.column_stack([_basis(at_out, commands) * s.ret[:, None], np.zeros((len(s.u), 2))]))
         flows.append(s.flow)
-    return np.vstack(rows), np.concatenate(flows)
+    return np.vstack(supply), np.vstack(ret), np.concatenate(flows)
 
 
 @dataclass(frozen=True)
@@ -223,12 +223,12 @@ def _solve(A: np.ndarray, b: np.ndarray, prior: _Prior, weight: float, scale: fl
                          method="trf", x_scale="jac").x
 
 
-def _gain(samples: list[FlowSamples], commands: np.ndarray, prior: "_Prior", scale: float) -> float:
-    """The return edges' gain factor: a bounded scalar search of the soft-L1 flow error, the other unknowns
-    solved (:func:`_solve`, the smallest regularisation weight) at each trial."""
+def _gain(A: np.ndarray, R: np.ndarray, b: np.ndarray, prior: "_Prior", scale: float) -> float:
+    """The return edges' gain factor g of the system (A + g R) x = b (:func:`_design`): a bounded scalar search
+    of the soft-L1 flow error, the unknowns solved (:func:`_solve`, the smallest regularisation weight) at each
+    trial."""
     def cost(g: float) -> float:
-        A, b = _design(samples, commands, g)
-        e = (A @ _solve(A, b, prior, WEIGHTS[0], scale) - b) / scale
+        e = ((A + g * R) @ _solve(A + g * R, b, prior, WEIGHTS[0], scale) - b) / scale
         return float(np.sum(2.0 * (np.sqrt(1.0 + e * e) - 1.0)))
 
     return float(minimize_scalar(cost, bounds=EDGE_GAIN_RANGE, method="bounded", options={"xatol": 2e-3}).x)
@@ -247,12 +247,12 @@ def fit_flow_curve(logs: list[MeasurementLog], machine: Machine, commands: np.nd
     samples = [s for log in logs for s in flow_samples(log, machine)]
     if sum(len(s.flow) for s in samples) < 200:
         raise InputError("a flow curve needs at least 200 samples away from the stroke's ends; the logs have fewer")
-    b = np.concatenate([s.flow for s in samples])
-    scale = max(0.05 * 1.4826 * float(np.median(np.abs(b - np.median(b)))), 1e-9)
+    supply, ret, b = _design(samples, commands)
+    scale = max(0.05 * float(median_abs_deviation(b, scale="normal")), 1e-9)
     block = np.concatenate([s.block for s in samples])
     held = _Prior.of(np.asarray(prior, float), machine)
-    g = _gain(samples, commands, held, scale)
-    A, b = _design(samples, commands, g)
+    g = _gain(supply, ret, b, held, scale)
+    A = supply + g * ret
     held_out = {}
     for weight in WEIGHTS:
         err = [(A[block == k] @ _solve(A[block != k], b[block != k], held, weight, scale) - b[block == k]) ** 2
