@@ -472,8 +472,12 @@ def _payload(text: str) -> tuple[float, tuple[float, float, float]]:
 
 
 def _scenario_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw, file:PATH (platform setpoints) "
-                   "or valve:PATH (valve commands, open loop; a measurement log's CSV replays as it is)")
+    p.add_argument("scenario", help="actuator, heave, surge, sway, roll, pitch, yaw, file:PATH (platform setpoints), "
+                   "vehicle:PATH (a vehicle's motion at the driver's head, through the classical washout; "
+                   "docs/motion-cueing.md) or valve:PATH (valve commands, open loop; a measurement log's CSV replays "
+                   "as it is)")
+    p.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
+                   help="vehicle:PATH: the classical washout's parameters (any subset; default: docs/motion-cueing.md)")
     p.add_argument("--duration", type=_number, help="simulated time [s] (default: max(20 s, 6 periods); file: its length)")
     p.add_argument("--amplitude", type=_number,
                    help=f"sine amplitude [m for actuator/heave/surge/sway, rad for roll/pitch/yaw] "
@@ -545,7 +549,8 @@ def _run_config(args: argparse.Namespace, compensator: str):
     if args.payload is not None:
         effects = effects.replace(payload_kg=args.payload[0], payload_at_m=args.payload[1])
     scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
-                             frequency=args.frequency, controller_rate_hz=controller.rate_hz)
+                             frequency=args.frequency, controller_rate_hz=controller.rate_hz,
+                             washout=getattr(args, "washout", None))
     _check_machine_scenario(machine, scenario)
     try:
         settings = CompensatorSettings(
@@ -581,7 +586,15 @@ def _check_machine_scenario(machine, scenario) -> None:
 def cmd_machine(args: argparse.Namespace) -> int:
     import json
 
-    from hexsim.plant.machine import builtin_names, dump, load_machine, machine_from_document, parse_assignment, set_keys
+    from hexsim.plant.machine import (
+        OCCUPANT_KEYS,
+        builtin_names,
+        dump,
+        load_machine,
+        machine_from_document,
+        parse_assignment,
+        set_keys,
+    )
 
     if args.action == "list":
         for name in builtin_names():
@@ -610,7 +623,8 @@ def cmd_machine(args: argparse.Namespace) -> int:
     if any(key == "hexapod.mjcf" and value is not None for key, value in assignments):
         # an MJCF is the hexapod now: the built hexapod's numbers a shown file carries go, unless set here
         given = {key for key, _ in assignments}
-        dropped = [k for k in new.get("hexapod", {}) if not k.startswith("mjcf") and f"hexapod.{k}" not in given]
+        dropped = [k for k in new.get("hexapod", {})
+                   if not k.startswith("mjcf") and k not in OCCUPANT_KEYS and f"hexapod.{k}" not in given]
         for k in dropped:
             del new["hexapod"][k]
         if dropped:
@@ -648,6 +662,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.simulation.runner import simulate
 
     result = simulate(config)
+    if config.scenario.cueing is not None:
+        return _vehicle_outputs(args, result)
     if config.scenario.open_loop:
         from hexsim.outputs.plotting import plot_open_loop
         from hexsim.outputs.report import open_loop_report, open_loop_table
@@ -656,7 +672,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(open_loop_table(report))
     else:
         sm = run_smoothness(result)
-        report = run_report(result, sm)
+        perception = None
+        if config.scenario.system == "hexapod":
+            from hexsim.simulation.perception import bump_perception
+
+            perception = bump_perception(result, sm)
+        report = run_report(result, sm, perception)
         print(summary_table(report))
     written = []
     if args.json:  # without the wall time, so the same command writes the same bytes
@@ -666,10 +687,41 @@ def cmd_run(args: argparse.Namespace) -> int:
         if sm is None:
             plot_open_loop(args.plot, result)
         else:
-            plot_run(args.plot, result, sm)
+            plot_run(args.plot, result, sm, perception)
         written.append(args.plot)
     if args.rrd:
-        write_rrd(args.rrd, result, sm)
+        write_rrd(args.rrd, result, sm, perception if sm is not None else None)
+        written.append(args.rrd)
+    if args.log:
+        written.extend(write_log(args.log, result))
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+def _vehicle_outputs(args: argparse.Namespace, result) -> int:
+    """``hexsim run vehicle:PATH``: the cue report on stdout, and the files asked for."""
+    from hexsim.outputs.logio import write_log
+    from hexsim.outputs.plotting import plot_cueing
+    from hexsim.outputs.rerun_log import write_rrd
+    from hexsim.simulation.cueing import cue_report, cue_table
+
+    cfg = result.config
+    report = cue_report(result)
+    print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, washout {report['washout']}, "
+          f"compensator {cfg.compensator_name})\nmachine   {cfg.machine_label}")
+    print(cue_table(report))
+    written = []
+    if args.json:
+        doc = {"scenario": cfg.scenario.name, "machine": cfg.machine_label, "compensator": cfg.compensator_name,
+               "duration_s": cfg.scenario.duration, **{k: v for k, v in report.items() if k != "traces"}}
+        write_json(args.json, doc)
+        written.append(args.json)
+    if args.plot:
+        plot_cueing(args.plot, result, report)
+        written.append(args.plot)
+    if args.rrd:
+        write_rrd(args.rrd, result, None, cueing=report)
         written.append(args.rrd)
     if args.log:
         written.extend(write_log(args.log, result))

@@ -1,9 +1,12 @@
 """Small signal helpers shared by scenarios, metrics and replays: fundamental fit, zero crossings,
-zero-order hold, Savitzky–Golay smoothing and derivatives."""
+zero-order hold, Savitzky–Golay smoothing and derivatives, continuous linear models run on samples."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from scipy import signal
 from scipy.optimize import minimize_scalar
 from scipy.signal import savgol_filter
 
@@ -71,3 +74,31 @@ def near_reversals(t: np.ndarray, velocity: np.ndarray, half_width: float = 0.05
     for tr in zero_crossings(t, velocity):
         near |= np.abs(t - tr) < half_width
     return near
+
+
+@dataclass(frozen=True)
+class LinearModel:
+    """A continuous linear model ``num(s)/den(s)`` (polynomial coefficients, highest power first) with the
+    source of its form and numbers; ``unit`` of its input and output."""
+
+    name: str
+    num: tuple[float, ...]
+    den: tuple[float, ...]
+    unit: str
+    source: str
+
+    def response(self, f_hz) -> np.ndarray:
+        """Complex frequency response at ``f_hz`` (M,) [Hz] (scipy.signal.freqs)."""
+        _, h = signal.freqs(self.num, self.den, worN=2 * np.pi * np.atleast_1d(np.asarray(f_hz, dtype=float)))
+        return h
+
+    def sos(self, fs: float) -> np.ndarray:
+        """Second-order sections of the model discretised at ``fs`` [Hz] by the bilinear transform."""
+        z, p, k = signal.tf2zpk(self.num, self.den)
+        zd, pd, kd = signal.bilinear_zpk(z, p, k, fs)
+        return signal.zpk2sos(zd, pd, kd)
+
+    def apply(self, x: np.ndarray, fs: float) -> np.ndarray:
+        """The model's output to ``x`` (N,) or (N, k) sampled at ``fs`` [Hz] from rest (zero state), along
+        axis 0 (scipy.signal.sosfilt)."""
+        return signal.sosfilt(self.sos(fs), np.asarray(x, dtype=float), axis=0)

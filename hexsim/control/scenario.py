@@ -7,6 +7,9 @@
 - ``file:PATH``: a CSV of platform setpoints relative to the neutral pose with ``time_s`` and any of
   ``dof_ref_{x,y,z}_m`` and ``dof_ref_{roll,pitch,yaw}_rad`` (the measurement-log column names),
   linearly interpolated.
+- ``vehicle:PATH``: a vehicle's motion at the driver's head (specific force and body rates, vehicle axes;
+  :mod:`hexsim.control.washout`) turned into platform setpoints by the classical washout, with its
+  parameters from a JSON file (``washout=``) or the defaults.
 - ``valve:PATH``: an open-loop experiment: a CSV with ``time_s`` and the valve setpoints u_v [V],
   ``valve_cmd_V`` (single actuator) or ``leg{i}_valve_cmd_V`` (hexapod, i = 1…6), each held until the next
   row; the measurement-log column names, so a measured log's CSV replays as it is (its other columns are
@@ -67,6 +70,9 @@ class Scenario:
     valve: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False, compare=False)
     #: piston positions (n_legs,) [m] to start from (a valve file's first ``pos_m``); None: the neutral pose
     start: np.ndarray | None = field(default=None, repr=False, compare=False)
+    #: a ``vehicle:`` scenario's cueing: (VehicleMotion, WashoutParams, WashoutOutput) of
+    #: :mod:`hexsim.control.washout`; None for other scenarios
+    cueing: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def open_loop(self) -> bool:
@@ -122,8 +128,16 @@ class Scenario:
 
 
 def make_scenario(name: str, *, duration: float | None = None, amplitude: float | None = None,
-                  frequency: float | None = None, controller_rate_hz: float = 500.0) -> Scenario:
-    """Build a scenario by name (see module doc). Raises InputError for an unknown name or bad option."""
+                  frequency: float | None = None, controller_rate_hz: float = 500.0, washout=None) -> Scenario:
+    """Build a scenario by name (see module doc); ``washout``: a washout parameter file (path) or
+    :class:`~hexsim.control.washout.WashoutParams` for a ``vehicle:`` scenario. Raises InputError for an
+    unknown name or bad option."""
+    if washout is not None and not name.startswith("vehicle:"):
+        raise InputError(f"--washout applies to a vehicle:PATH scenario, not {name}")
+    if name.startswith("vehicle:"):
+        if amplitude is not None or frequency is not None:
+            raise InputError("--amplitude and --frequency do not apply to a vehicle: scenario")
+        return vehicle_scenario(name[8:], washout, duration=duration, controller_rate_hz=controller_rate_hz)
     if name.startswith(("file:", "valve:")):
         if amplitude is not None or frequency is not None:
             raise InputError(f"--amplitude and --frequency do not apply to a {name.split(':')[0]}: scenario")
@@ -192,6 +206,30 @@ def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
     _check_duration(duration, 3 * period, f"{path.name} (dominant {frequency:.3g} Hz on {DOF_NAMES[axis]})")
     return Scenario(f"file:{path}", "hexapod", duration, axis, frequency, period, None, (times, values))
 
+
+
+def vehicle_scenario(vehicle, washout=None, *, duration: float | None = None,
+                     controller_rate_hz: float = 500.0) -> Scenario:
+    """The platform setpoints the classical washout makes of ``vehicle`` (a vehicle-motion CSV's path or a
+    :class:`~hexsim.control.washout.VehicleMotion`) with ``washout`` (a JSON file's path, WashoutParams, or
+    None for the defaults), at the controller's rate. The metrics' axis is the one that moves most (as for
+    a setpoint file). Raises InputError naming the file, column, row or key that is wrong."""
+    from hexsim.control.washout import VehicleMotion, WashoutParams, read_vehicle
+    from hexsim.control.washout import washout as run_washout
+
+    motion = vehicle if isinstance(vehicle, VehicleMotion) else read_vehicle(vehicle)
+    params = washout if isinstance(washout, WashoutParams) else (
+        WashoutParams() if washout is None else WashoutParams.from_file(washout))
+    end = float(motion.t[-1])
+    duration = end if duration is None else duration
+    _check_duration(duration, 1.0, "a vehicle motion")
+    if duration > end + 1e-9:
+        raise InputError(f"{motion.source}: --duration {duration:g} s is longer than the vehicle motion ({end:g} s)")
+    out = run_washout(motion, params, controller_rate_hz, duration)
+    weights = np.array([1, 1, 1, 0.5, 0.5, 0.5])
+    axis = int(np.argmax(np.ptp(out.poses, axis=0) * weights))
+    return Scenario(f"vehicle:{motion.source}", "hexapod", duration, axis, 1.0 / duration, 0.0, None,
+                    (out.t, out.poses), cueing=(motion, params, out))
 
 
 def _valve_scenario(path: pathlib.Path, duration: float | None) -> Scenario:

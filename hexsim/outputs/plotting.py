@@ -29,14 +29,16 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: float) -> None:
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt if fmt in PLOT_FORMATS else "png"))
 
 
-def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) -> None:
+def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness, perception=None) -> None:
     """Write the run's figure to ``path`` (atomically; .png, .pdf or .svg): the analysed acceleration
     against its fundamental and its noise with the reversal peaks, the flow curve (seed Fig. 3.10),
-    pressures, tracking errors, the spectrum and, for a compensated run, the compensator's parameters
-    and compensation curve. Every time panel spans the whole run."""
+    pressures, tracking errors, the spectrum, for a compensated run the compensator's parameters
+    and compensation curve and, with ``perception`` (a hexapod's
+    :class:`~hexsim.simulation.perception.BumpPerception`), the false cue as the occupant senses it against
+    the thresholds. Every time panel spans the whole run."""
     sc = result.config.scenario
     compensated = result.config.compensator_name != "none"
-    rows = 4 if compensated else 3
+    rows = 3 + compensated + (perception is not None)
     fig = Figure(figsize=(13, 3.7 * rows), layout="constrained")
     ax = fig.subplots(rows, 2)
     fig.suptitle(f"hexsim {sc.name}: {sc.system}, {sc.frequency:g} Hz, compensator {result.config.compensator_name}")
@@ -46,6 +48,8 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness) 
     _spectrum_panel(ax[2, 1], sm)
     if compensated:
         time_axes.append(_compensator_panels(ax[3, 0], ax[3, 1], result))
+    if perception is not None:
+        time_axes.extend(_perception_panels(ax[rows - 1, 0], ax[rows - 1, 1], perception))
     for a in time_axes:
         a.set_xlim(0.0, result.t[-1])
     save_figure(fig, path, dpi=90)
@@ -69,6 +73,67 @@ def plot_open_loop(path: str | os.PathLike, result: SimulationResult) -> None:
     for a in ax.flat:
         a.set_xlim(0.0, result.t[-1])
     save_figure(fig, path, dpi=90)
+
+
+def plot_cueing(path: str | os.PathLike, result: SimulationResult, report: dict) -> None:
+    """The figure of a ``vehicle:`` run (atomically; .png, .pdf or .svg): per axis the sensed cue of the
+    vehicle, the ideal platform (the washout alone) and the simulator with the sensed threshold, then the
+    platform's pose against its setpoint."""
+    from hexsim.simulation.perception import AXES
+
+    tr = report["traces"]
+    fig = Figure(figsize=(13, 12), layout="constrained")
+    ax = fig.subplots(4, 2)
+    fig.suptitle(f"hexsim {pathlib.Path(result.config.scenario.name[8:]).name}: motion cueing, compensator "
+                 f"{result.config.compensator_name}, machine {result.config.machine_label}")
+    for k, axis in enumerate(AXES):
+        a = ax.flat[k]
+        unit = "m/s^2" if k < 3 else "rad/s"
+        for who, style in (("vehicle", "-"), ("ideal", "--"), ("simulator", "-")):
+            a.plot(tr["t"], tr[who][:, k], ls=style, lw=0.9, label=who if who != "ideal" else "ideal platform")
+        thr = report["axes"][axis]["sensed_threshold"]
+        a.axhspan(-thr, thr, color="0.9", lw=0, label="below threshold")
+        fc = report["axes"][axis]["false_cues"]
+        a.set(title=f"{axis}: sensed cue (false cues: washout {fc['washout']}, hardware {fc['hardware']}, "
+                    f"bumps {fc['reversal_bump']})", xlabel="time [s]", ylabel=f"[{unit}]")
+        a.title.set_fontsize("medium")
+        a.legend(loc="upper right", fontsize=7)
+    t = result.t
+    ref = result.config.scenario.poses(t)
+    for k, name in enumerate(("x", "y", "z")):
+        ax[3, 0].plot(t, result.pose[:, k] * 1e3, lw=0.9, label=f"{name}")
+        ax[3, 0].plot(t, ref[:, k] * 1e3, lw=0.7, ls="--", color="0.4")
+    for k, name in enumerate(("roll", "pitch", "yaw")):
+        ax[3, 1].plot(t, np.degrees(result.pose[:, 3 + k]), lw=0.9, label=name)
+        ax[3, 1].plot(t, np.degrees(ref[:, 3 + k]), lw=0.7, ls="--", color="0.4")
+    ax[3, 0].set(title="platform position (dashed: setpoint)", xlabel="time [s]", ylabel="[mm]")
+    ax[3, 1].set(title="platform attitude (dashed: setpoint)", xlabel="time [s]", ylabel="[deg]")
+    for a in ax[3]:
+        a.legend(loc="upper right", fontsize=7)
+    save_figure(fig, path, dpi=90)
+
+
+def _perception_panels(a, b, p) -> tuple:
+    """The false cue at the seat, ISO 2631-1 weighted, against the Annex C threshold (a), and the vestibular
+    models' output at the head as a multiple of each axis' sensed threshold (b)."""
+    from hexsim.simulation.perception import AXES, ISO_PERCEPTION_THRESHOLD, ISO_WEIGHTINGS
+
+    for k, axis in enumerate("xyz"):
+        a.plot(p.t, p.weighted[:, k], lw=0.8, label=f"{axis} ({ISO_WEIGHTINGS[axis]})")
+    for sign in (1, -1):
+        a.axhline(sign * ISO_PERCEPTION_THRESHOLD, color="k", ls="--", lw=0.8,
+                  label="perception threshold (ISO 2631-1 Annex C)" if sign > 0 else None)
+    a.set(title=f"seat: weighted false cue, {int(np.sum(p.seat.max(axis=1) > 1))} of {len(p.reversal_times)} "
+                f"bumps above threshold", xlabel="time [s]", ylabel="[m/s^2]")
+    for k, axis in enumerate(AXES):
+        b.plot(p.t, np.abs(p.sensed[:, k]) / p.thresholds[axis], lw=0.8, label=axis)
+    b.axhline(1.0, color="k", ls="--", lw=0.8, label="threshold")
+    b.set(title=f"head: vestibular sensed false cue / threshold, "
+                f"{int(np.sum(p.vestibular.max(axis=1) > 1))} bumps above", xlabel="time [s]", ylabel="[-]")
+    for axis in (a, b):
+        axis.title.set_fontsize("medium")
+        axis.legend(loc="upper right", fontsize=7, ncol=2)
+    return a, b
 
 
 def _acceleration_panels(a, b, sm: Smoothness) -> tuple:

@@ -8,8 +8,10 @@ from hexsim.simulation.config import SimulationResult
 from hexsim.simulation.metrics import Smoothness, max_tracking_error, steady_segments
 
 
-def run_report(result: SimulationResult, sm: Smoothness) -> dict:
-    """The metrics of a run (JSON keys documented in README.md "Outputs"). SI units throughout."""
+def run_report(result: SimulationResult, sm: Smoothness, perception=None) -> dict:
+    """The metrics of a run (JSON keys documented in README.md "Outputs"). SI units throughout.
+    ``perception``: the run's :class:`~hexsim.simulation.perception.BumpPerception` (a hexapod's), reported
+    under ``"perception"``; None: the key is null."""
     sc, cfg = result.config.scenario, result.config
     return {
         "scenario": sc.name,
@@ -46,6 +48,7 @@ def run_report(result: SimulationResult, sm: Smoothness) -> dict:
         "compensator_parameters": {k: v[-1].tolist() for k, v in result.compensator_state.items()},
         "oil_temperature_C": [float(result.oil_temperature[0]), float(result.oil_temperature[-1])],
         "faults": fault_outcomes(result),
+        "perception": None if perception is None else perception.figures(),
         "realtime_factor": result.realtime_factor,
         "wall_time_s": result.wall_time_s,
     }
@@ -133,6 +136,7 @@ def summary_table(report: dict) -> str:
         ("peak_noise", f"{report['peak_noise']:.4f} {unit}{g}"),
         ("reversal_peaks", f"{len(peaks)} reversals, mean {report['mean_reversal_peak']:.4f} {unit}, "
                            f"max {max(peaks, default=float('nan')):.4f} {unit}; noise floor {report['noise_floor']:.4f} {unit}"),
+        *((("perceptible", _perception_line(report["perception"])),) if report.get("perception") else ()),
         ("max_tracking_error", f"{report['max_tracking_error_m'] * 1e3:.2f} mm"),
         *((("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (connects)"),)
           if connects else ()),
@@ -142,6 +146,15 @@ def summary_table(report: dict) -> str:
     ]
     width = max(len(k) for k, _ in rows)
     return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+
+def _perception_line(p: dict) -> str:
+    """How many bumps the occupant feels, on which path, and the worst axis of each (its ratio to threshold)."""
+    seat = max(("xyz"), key=lambda a: p["axes"][a]["seat_max_ratio"] or 0)
+    vest = max(p["axes"], key=lambda a: p["axes"][a]["vestibular_max_ratio"] or 0)
+    return (f"{p['perceptible']} of {p['reversals']} bumps (seat: {p['perceptible_seat']}, worst {seat} "
+            f"{p['axes'][seat]['seat_max_ratio']:.2f}x the ISO 2631-1 threshold; vestibular: "
+            f"{p['perceptible_vestibular']}, worst {vest} {p['axes'][vest]['vestibular_max_ratio']:.2f}x)")
 
 
 def _fault_line(f: dict, connects: bool) -> str:

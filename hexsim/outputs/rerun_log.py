@@ -41,7 +41,8 @@ def _eye(scale: float) -> rrb.EyeControls3D:
                              look_target=[0.0, 0.0, 0.45 * scale], eye_up=[0.0, 0.0, 1.0])
 
 
-def _blueprint(compensated: bool, analysis: str, system: str = "hexapod", scale: float = 1.0) -> rrb.Blueprint:
+def _blueprint(compensated: bool, analysis: str, system: str = "hexapod", scale: float = 1.0,
+               perception: bool = False, cueing: bool = False) -> rrb.Blueprint:
     """Time series beside the 3D view: the reversal bump (signal minus its fundamental fit) on its own
     axis, then the signal with its fit, positions, valve, pressures and, for a compensated run only,
     the compensator's parameters. The hexapod's 3D view starts at :data:`HEXAPOD_EYE`."""
@@ -54,6 +55,13 @@ def _blueprint(compensated: bool, analysis: str, system: str = "hexapod", scale:
     ]
     if compensated:
         panels.append(rrb.TimeSeriesView(origin="/compensator", name="compensator parameters a, b, c, s"))
+    if perception:
+        panels.insert(1, rrb.TimeSeriesView(origin="/perception/seat",
+                                            name="seat: ISO 2631-1 weighted false cue and threshold [m/s^2]"))
+        panels.insert(2, rrb.TimeSeriesView(origin="/perception/head", name="head: vestibular sensed / threshold"))
+    if cueing:
+        panels[:0] = [rrb.TimeSeriesView(origin=f"/cueing/{axis}", name=f"sensed cue {axis}: vehicle, ideal platform, "
+                                                                           f"simulator") for axis in ("x", "y", "z", "pitch")]
     return rrb.Blueprint(
         rrb.Horizontal(rrb.Spatial3DView(origin="/world", name=system if system == "hexapod" else "single actuator",
                                          eye_controls=(HEXAPOD_EYE if scale == 1.0 else _eye(scale))
@@ -185,17 +193,59 @@ def _geom_shape(m: mujoco.MjModel, g: int):
     return None
 
 
-def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness | None) -> None:
-    """Write the recording of a run to ``path`` (atomically); ``sm`` None (an open-loop run): no
-    smoothness analysis in it."""
-    write_atomic(path, lambda tmp: _write(tmp, result, sm))
+def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness | None, perception=None,
+              cueing: dict | None = None) -> None:
+    """Write the recording of a run to ``path`` (atomically); ``sm`` None (an open-loop or vehicle run): no
+    smoothness analysis in it; ``perception`` (a :class:`~hexsim.simulation.perception.BumpPerception`):
+    the sensed false cue under ``/perception`` with its thresholds; ``cueing`` (a vehicle run's
+    :func:`~hexsim.simulation.cueing.cue_report`): the sensed cues of vehicle, ideal platform and simulator
+    per axis under ``/cueing``."""
+    write_atomic(path, lambda tmp: _write(tmp, result, sm, perception, cueing))
 
 
-def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None) -> None:
+def _cueing(rec, report: dict) -> None:
+    """Per axis the sensed cue of the vehicle, the ideal platform and the simulator, and the threshold."""
+    from hexsim.simulation.perception import AXES
+
+    tr = report["traces"]
+    times = rr.TimeColumn("time", duration=tr["t"])
+    colours = {"vehicle": [40, 90, 170], "ideal": [230, 150, 30], "simulator": [200, 40, 40]}
+    for k, axis in enumerate(AXES):
+        for who, colour in colours.items():
+            _scalars(rec, f"/cueing/{axis}/{who}", times, tr[who][:, k])
+            rec.log(f"/cueing/{axis}/{who}", rr.SeriesLines(names=f"{axis} sensed, {who}", colors=[colour]),
+                    static=True)
+        _scalars(rec, f"/cueing/{axis}/threshold", times, np.full(tr["t"].size, report["axes"][axis]["sensed_threshold"]))
+        rec.log(f"/cueing/{axis}/threshold", rr.SeriesLines(names="threshold", colors=[[0, 0, 0]]), static=True)
+
+
+def _perception(rec, p) -> None:
+    """The seat's ISO-weighted false cue per axis with the Annex C threshold, and the head's vestibular output
+    per axis as a multiple of its sensed threshold."""
+    from hexsim.simulation.perception import AXES, ISO_PERCEPTION_THRESHOLD
+
+    times = rr.TimeColumn("time", duration=p.t)
+    for k, axis in enumerate("xyz"):
+        _scalars(rec, f"/perception/seat/{axis}", times, p.weighted[:, k])
+        rec.log(f"/perception/seat/{axis}", rr.SeriesLines(names=f"seat {axis}, ISO 2631-1 weighted [m/s^2]"),
+                static=True)
+    _scalars(rec, "/perception/seat/threshold", times, np.full(p.t.size, ISO_PERCEPTION_THRESHOLD))
+    rec.log("/perception/seat/threshold", rr.SeriesLines(names="threshold 0.015 m/s^2", colors=[[0, 0, 0]]),
+            static=True)
+    for k, axis in enumerate(AXES):
+        _scalars(rec, f"/perception/head/{axis}", times, np.abs(p.sensed[:, k]) / p.thresholds[axis])
+        rec.log(f"/perception/head/{axis}", rr.SeriesLines(names=f"head {axis}, sensed / threshold"), static=True)
+    _scalars(rec, "/perception/head/threshold", times, np.ones(p.t.size))
+    rec.log("/perception/head/threshold", rr.SeriesLines(names="threshold", colors=[[0, 0, 0]]), static=True)
+
+
+def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None, perception=None,
+           cueing: dict | None = None) -> None:
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
     m = _scene_model(result)
     rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal if sm else "acceleration",
-                                               result.config.scenario.system, float(m.stat.extent) / 1.6))
+                                               result.config.scenario.system, float(m.stat.extent) / 1.6,
+                                               perception is not None, cueing is not None))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     cfg = result.config
     rec.log("/run", rr.TextDocument(f"scenario {cfg.scenario.name}, machine {cfg.machine_label} "
@@ -234,6 +284,10 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None) -
                             (f"/pressure/leg{i + 1}/p1", "P1"), (f"/pressure/leg{i + 1}/p2", "P2")):
             rec.log(path, rr.SeriesLines(names=f"leg{i + 1} {label}"), static=True)
     rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
+    if perception is not None:
+        _perception(rec, perception)
+    if cueing is not None:
+        _cueing(rec, cueing)
 
     step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
     rows = np.arange(0, len(result.t), step)

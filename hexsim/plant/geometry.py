@@ -46,6 +46,11 @@ def joint_coordinates(g: Geometry) -> tuple[np.ndarray, np.ndarray, float]:
     return base, plat, h
 
 
+#: default seated occupant (:attr:`Geometry.seat_point`, :attr:`Geometry.head_point`) [m]
+SEAT_ABOVE_DECK_M = 0.30
+HEAD_ABOVE_SEAT_M = 0.77
+
+
 @dataclass(frozen=True)
 class Geometry:
     """A Stewart platform as simulation tools describe it: two joint circles, the legs' length and stroke,
@@ -67,6 +72,9 @@ class Geometry:
     ``rod_com_m`` [m] from the platform joint back along the rod. Platform (frame and payload): mass,
     principal inertia (3,) about its centre of mass ``platform_com_m`` (3,) [m, platform frame];
     ``sensor_at_m`` (3,) [m, platform frame]: the accelerometer and gyro (site ``platform_centre``).
+    The occupant (:mod:`hexsim.simulation.perception`): ``head_at_m`` (3,) [m, platform frame], the head's
+    vestibular organs, and ``seat_at_m``, the seat's cushion where whole-body vibration enters; None: a
+    seated occupant above the platform's centre (:attr:`seat_point`, :attr:`head_point`).
     Drawing only: ``platform_size_m`` (the platform's box), ``barrel_length_m``, ``rod_length_m``
     (the cylinders drawn), ``base_plate_m`` (radius of the base plate; None: 0.1 m beyond the base joints).
 
@@ -100,6 +108,8 @@ class Geometry:
     rod_length_m: float = 0.4
     base_plate_m: float | None = None
     sensor_at_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    head_at_m: tuple[float, float, float] | None = None
+    seat_at_m: tuple[float, float, float] | None = None
     mjcf: str | None = None
     mjcf_legs: tuple[str, ...] | None = None
     mjcf_platform: str | None = None
@@ -118,6 +128,10 @@ class Geometry:
         for name in ("base_angles_deg", "platform_angles_deg"):
             if len(getattr(self, name)) != 6 or not np.all(np.isfinite(getattr(self, name))):
                 raise InputError(f"Geometry.{name} must be six angles in degrees, got {getattr(self, name)!r}")
+        for name in ("head_at_m", "seat_at_m"):
+            value = getattr(self, name)
+            if value is not None and (np.shape(value) != (3,) or not np.all(np.isfinite(value))):
+                raise InputError(f"Geometry.{name} must be one [x, y, z] point in metres, got {value!r}")
         for name in ("base_joints_m", "platform_joints_m"):
             value = getattr(self, name)
             if value is not None and np.shape(value) != (6, 3):
@@ -153,6 +167,29 @@ class Geometry:
     def neutral_length(self) -> float:
         """Joint-to-joint leg length at the neutral pose [m]."""
         return self.retracted_length_m + self.neutral_piston
+
+    @property
+    def deck_height(self) -> float:
+        """Height of the platform's deck above its frame's origin [m]: the top of the drawn box
+        (``platform_size_m``), 0 for a user's MJCF (its deck is not known)."""
+        return 0.0 if self.is_mjcf else float(self.platform_size_m[2])
+
+    @property
+    def seat_point(self) -> np.ndarray:
+        """The seat cushion (3,) [m, platform frame]: ``seat_at_m``, or 0.30 m above the deck's centre (a car
+        seat's H-point height above its floor, SAE J1100 H30: 0.25-0.30 m)."""
+        if self.seat_at_m is not None:
+            return np.asarray(self.seat_at_m, dtype=float)
+        return np.array([0.0, 0.0, self.deck_height + SEAT_ABOVE_DECK_M])
+
+    @property
+    def head_point(self) -> np.ndarray:
+        """The head's vestibular organs (3,) [m, platform frame]: ``head_at_m``, or 0.77 m above the seat
+        point (sitting eye height of adults, about 0.79 m at the 50th percentile (DINED, Tilley 2002), the
+        labyrinths about 2 cm lower)."""
+        if self.head_at_m is not None:
+            return np.asarray(self.head_at_m, dtype=float)
+        return self.seat_point + np.array([0.0, 0.0, HEAD_ABOVE_SEAT_M])
 
     @property
     def scale(self) -> float:

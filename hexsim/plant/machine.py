@@ -201,6 +201,10 @@ KEYS: tuple[Key, ...] = (
          _MMS, {"nullable": True}),
         ("sensor_at_m", "m", "accelerometer and gyro (site platform_centre), platform frame", "seed §2.2",
          {"kind": "vector"}),
+        ("head_at_m", "m", "the occupant's head (vestibular organs), platform frame (null: 0.77 m above the seat)",
+         "sitting eye height, DINED / Tilley (2002)", {"kind": "vector", "nullable": True}),
+        ("seat_at_m", "m", "the occupant's seat cushion, platform frame (null: 0.30 m above the deck's centre)",
+         "SAE J1100 H30", {"kind": "vector", "nullable": True}),
         ("mjcf", "-", "a user's own MJCF of the hexapod (path, relative to this file) instead of the numbers "
          "above (docs/your-hexapod.md)", "the user", {"kind": "text", "nullable": True}),
         ("mjcf_legs", "-", "its six leg slide joints, legs 1…6 (null: joints leg1…leg6, or its only six slide "
@@ -213,6 +217,8 @@ KEYS: tuple[Key, ...] = (
 )
 _BY_PATH = {k.path: k for k in KEYS}
 _META = ("format", "version", "name", "description", "system", "sources", "calibration", "legs")
+#: hexapod keys of the occupant, not of the machine's build: kept beside a user's MJCF
+OCCUPANT_KEYS = ("head_at_m", "seat_at_m")
 #: Legs of a hexapod machine file's ``legs`` section: ``leg1`` … ``leg6``.
 LEG_NAMES = tuple(f"leg{i}" for i in range(1, 7))
 
@@ -316,6 +322,8 @@ class Machine:
             return True
         if name.startswith("mjcf"):
             return not g.is_mjcf and name != "mjcf"
+        if name in OCCUPANT_KEYS:  # the occupant sits on either kind of hexapod
+            return False
         if g.is_mjcf:
             return True
         if name in ("base_radius_m", "base_height_m", "base_angles_deg"):
@@ -520,7 +528,7 @@ def _geometry(values: dict, system: str, stroke: float, name: str, where: str) -
     if values and system != "hexapod":
         raise InputError(f"{where}: hexapod.{next(iter(values))} describes a hexapod; this machine is a {system}")
     if values.get("mjcf") is not None:
-        built = [name for name in values if not name.startswith("mjcf")]  # a built hexapod's numbers
+        built = [name for name in values if not name.startswith("mjcf") and name not in OCCUPANT_KEYS]
         if built:
             raise InputError(f"{where}: hexapod.mjcf names the hexapod's model; hexapod.{built[0]} describes one "
                              f"hexsim builds: give one or the other")

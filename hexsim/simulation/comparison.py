@@ -16,6 +16,7 @@ import numpy as np
 from compensation import COMPENSATORS
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import Smoothness, run_smoothness
+from hexsim.simulation.perception import bump_perception
 from hexsim.simulation.runner import simulate
 from hexsim.simulation.workers import in_workers, worker_pool
 
@@ -69,6 +70,8 @@ class Entry:
     saturated_samples: int
     unit: str
     reduction_pct: float | None = None
+    # the final window's bumps as the occupant senses them (hexapod only): perception.BumpPerception.figures()
+    perception: dict | None = None
     final_parameters: dict[str, list[float]] = field(default_factory=dict)
     traces: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
@@ -83,6 +86,7 @@ class Entry:
             "settling_time_s": self.settling_time_s,
             "valve_saturated_samples": self.saturated_samples,
             "final_parameters": self.final_parameters,
+            "perception": self.perception,
         }
 
 
@@ -109,7 +113,8 @@ def evaluate(config: RunConfig) -> Entry:
     if s_est is None:  # the chord of the flow curve, as the seed estimates s (§5.3)
         s_est = np.full((1, 1), np.ptp(result.ydot[:, 0]) / max(np.ptp(result.u_v[:, 0]), 1e-9))
     traces["s"] = float(s_est[-1, 0])
-    return Entry(
+    perception = bump_perception(result, final).figures() if sc.system == "hexapod" else None
+    return Entry(perception=perception,
         compensator=config.compensator_name, noise_ratio=final.noise_ratio, peak_noise_g=final.peak_noise_g,
         peak_noise=final.peak_noise, mean_reversal_peak=final.mean_reversal_peak,
         settling_time_s=settling_time(times, levels, final_level), saturated_samples=result.saturated_samples,
@@ -140,13 +145,22 @@ def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2) -> l
 def league_table(entries: list[Entry]) -> str:
     """The league table as aligned text."""
     unit = entries[0].unit
+    felt = entries[0].perception is not None
     head = (f"{'compensator':<12} {'noise_ratio':>11} {'peak_noise':>14} {'mean rev. peak [' + unit + ']':>22} "
-            f"{'reduction':>9} {'settled after':>13} {'saturated':>9}")
+            f"{'reduction':>9} {'settled after':>13} {'saturated':>9}" + (f" {'felt (seat ratio)':>18}" if felt else ""))
     rows = [head, "-" * len(head)]
     for e in entries:
         peak = f"{e.peak_noise_g:.4f} g" if e.peak_noise_g is not None else f"{e.peak_noise:.3f} {unit}"
         red = f"{e.reduction_pct:.0f} %" if e.reduction_pct is not None else "—"
         settle = f"{e.settling_time_s:.1f} s" if e.settling_time_s is not None else "not settled"
         rows.append(f"{e.compensator:<12} {e.noise_ratio:>11.4f} {peak:>14} {e.mean_reversal_peak:>22.4f} "
-                    f"{red:>9} {settle:>13} {e.saturated_samples:>9}")
-    return "\n".join(rows)
+                    f"{red:>9} {settle:>13} {e.saturated_samples:>9}" + (f" {_felt(e.perception):>18}" if felt else ""))
+    rows.append("felt: bumps of the final window perceptible to a seated occupant (ISO 2631-1 at the seat or the "
+                "vestibular models at the head) and the worst seat ratio to the threshold" if felt else "")
+    return "\n".join(rows).rstrip()
+
+
+def _felt(p: dict) -> str:
+    """'n/R (ratio x)': the perceptible bumps of the final window and the largest seat ratio."""
+    worst = max(p["axes"][a]["seat_max_ratio"] or 0.0 for a in "xyz")
+    return f"{p['perceptible']}/{p['reversals']} ({worst:.2f}x)"

@@ -172,6 +172,10 @@ class SimulationResult:
     gravity: float
     stroke: np.ndarray  # (n_legs, 2) joint range of each piston [m]
     timestep: float  # physics step [s]
+    # the platform sensor site's orientation in the world (N, 4) [w, x, y, z] (hexapod only)
+    platform_quat: np.ndarray | None = None
+    # the sensor site in the platform body: position (3,) [m] and orientation (4,) [w, x, y, z] (hexapod only)
+    sensor_site: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def n_legs(self) -> int:

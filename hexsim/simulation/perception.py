@@ -1,0 +1,298 @@
+"""What the occupant senses: the head's and seat's motion, the vestibular organs, whole-body vibration.
+
+The reversal bump matters because a driver feels it (seed ch. 1). This module follows the platform's
+motion to the occupant and says whether each bump is above the threshold of perception, on two paths:
+
+* **Vestibular** (at the head): the otoliths sense specific force, the semicircular canals angular
+  velocity. Both are linear models in the field's standard forms, normalised to unit gain where the
+  organ transmits its stimulus (the otoliths at DC, the canals in their mid band), so their output is in
+  the stimulus' own unit:
+
+  - otolith (Young & Meiry 1968, with the parameters Telban & Cardullo 2005, NASA/CR-2005-213747, use):
+    ``H(s) = (tau_a s + 1) / ((tau_L s + 1)(tau_s s + 1))``, tau_a = 13.2 s, tau_L = 5.33 s, tau_s = 0.66 s;
+  - canal (Fernandez & Goldberg 1971's torsion pendulum with its rate sensitivity and adaptation, the
+    form and parameters of Telban & Cardullo 2005):
+    ``H(s) = tau_a s/(tau_a s + 1) * tau_1 s/(tau_1 s + 1) * (tau_L s + 1)/(tau_2 s + 1)``,
+    tau_a = 80 s, tau_1 = 5.73 s, tau_L = 0.06 s, tau_2 = 0.005 s.
+
+  Detection thresholds (:data:`VESTIBULAR_THRESHOLDS`) are those measured by Benson et al. (1986: surge
+  0.063, sway 0.057, heave 0.154 m/s^2) and Benson et al. (1989: about 2 deg/s in roll and pitch, 1.6 in
+  yaw), with stimuli of a few seconds (a single cycle of sinusoidal acceleration, 3 s). A reversal bump
+  lasts tens of milliseconds, far inside the otoliths' tau_s: the organ integrates it, and what it senses
+  is roughly the bump's velocity change times tau_a / (tau_L tau_s) (2.5 s^-1) -- a 0.5 m/s^2 bump of
+  30 ms is sensed as about 0.04 m/s^2. So the threshold is not compared with the raw acceleration but
+  with the model's output: :func:`sensed_threshold` is the model's peak response to Benson's threshold
+  stimulus, and a bump is vestibularly perceptible when the model's response to it is larger.
+
+* **Seat** (whole-body vibration, ISO 2631-1:1997): a short bump lies mostly above the vestibular
+  bandwidth, and a seated person feels it through the seat. The standard's frequency weightings
+  (Annex A: band limiting 0.4-100 Hz, W_k for z, W_d for x and y; :data:`ISO_WEIGHTINGS`) are applied to
+  the specific force at the seat, and the weighted peak is compared with the perception threshold of
+  Annex C: 50 % of alert, fit persons detect a W_k-weighted peak of 0.015 m/s^2 (interquartile
+  0.01-0.02). Annex C gives it for vertical vibration; hexsim applies the same figure to W_d-weighted
+  horizontal vibration, where the seated body is no less sensitive below 2 Hz and less above.
+
+A bump is perceptible when either path exceeds its threshold; the report says which. Axes: the head's
+axes are the platform frame's (x forward, y left, z up; seated occupant facing +x).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from hexsim.signals import LinearModel, fit_fundamental
+
+#: the head's and the seat's axes, in the order of :class:`PointMotion` (translations, then rotations)
+AXES = ("x", "y", "z", "roll", "pitch", "yaw")
+#: how long after a reversal the sensed peak is looked for [s] (before: the metrics' 0.1 s window)
+SENSED_TAIL = 0.25
+
+
+def _poly(*factors) -> tuple[float, ...]:
+    out = np.array([1.0])
+    for f in factors:
+        out = np.polymul(out, f)
+    return tuple(float(c) for c in out)
+
+
+def otolith(tau_a: float = 13.2, tau_l: float = 5.33, tau_s: float = 0.66) -> LinearModel:
+    """Otolith model of specific force (module doc), unit DC gain."""
+    return LinearModel("otolith", _poly([tau_a, 1.0]), _poly([tau_l, 1.0], [tau_s, 1.0]), "m/s^2",
+                       "Young & Meiry (1968); parameters as in Telban & Cardullo (2005), NASA/CR-2005-213747")
+
+
+def canal(tau_a: float = 80.0, tau_1: float = 5.73, tau_l: float = 0.06, tau_2: float = 0.005) -> LinearModel:
+    """Semicircular-canal model of angular velocity (module doc), unit mid-band gain."""
+    return LinearModel("semicircular canal", _poly([tau_a, 0.0], [tau_1, 0.0], [tau_l, 1.0]),
+                       _poly([tau_a, 1.0], [tau_1, 1.0], [tau_2, 1.0]), "rad/s",
+                       "Fernandez & Goldberg (1971); form and parameters as in Telban & Cardullo (2005)")
+
+
+def _second_order(f: float, q: float) -> np.ndarray:
+    w = 2 * np.pi * f
+    return np.array([1.0, w / q, w * w])
+
+
+def iso2631(weighting: str) -> LinearModel:
+    """ISO 2631-1:1997 Annex A frequency weighting ``"Wk"`` (vertical) or ``"Wd"`` (horizontal), the band
+    limiting included: H = H_h H_l H_t H_s with the standard's Table A.2 parameters (f1 0.4 Hz, f2 100 Hz,
+    Q1 = Q2 = 1/sqrt 2; W_k: f3 = f4 = 12.5 Hz, Q4 0.63, f5 2.37 Hz, Q5 0.91, f6 3.35 Hz, Q6 0.91;
+    W_d: f3 = f4 = 2 Hz, Q4 0.63). Raises ValueError for another name."""
+    params = {"Wk": (12.5, 12.5, 0.63, (2.37, 0.91, 3.35, 0.91)), "Wd": (2.0, 2.0, 0.63, None)}
+    if weighting not in params:
+        raise ValueError(f"unknown ISO 2631-1 weighting {weighting!r}; Wk or Wd")
+    f3, f4, q4, step = params[weighting]
+    q12 = 1 / math.sqrt(2)
+    w2, w3, w4 = (2 * np.pi * f for f in (100.0, f3, f4))
+    # high pass s^2/(s^2 + w1 s/Q + w1^2); low pass w2^2/(…); transition (1 + s/w3)/(1 + s/(Q4 w4) + s^2/w4^2)
+    num = _poly([1.0, 0.0, 0.0], [w2 * w2], [w4 * w4 / w3, w4 * w4])
+    den = _poly(_second_order(0.4, q12), _second_order(100.0, q12), _second_order(f4, q4))
+    if step is not None:  # upward step (s^2 + w5 s/Q5 + w5^2)/(s^2 + w6 s/Q6 + w6^2): (f5/f6)^2 at DC, 1 above
+        f5, q5, f6, q6 = step
+        num = _poly(num, _second_order(f5, q5))
+        den = _poly(den, _second_order(f6, q6))
+    return LinearModel(f"ISO 2631-1 {weighting}", num, den, "m/s^2", "ISO 2631-1:1997 Annex A, Table A.2")
+
+
+#: ISO 2631-1 weighting per seat axis (x, y: W_d; z: W_k; seated person, health and comfort, 4.2 / Annex A)
+ISO_WEIGHTINGS = {"x": "Wd", "y": "Wd", "z": "Wk"}
+#: ISO 2631-1:1997 Annex C: weighted peak acceleration that 50 % of alert, fit persons just detect [m/s^2]
+ISO_PERCEPTION_THRESHOLD = 0.015
+#: detection thresholds of the stimulus (module doc): m/s^2 (x, y, z), rad/s (roll, pitch, yaw)
+VESTIBULAR_THRESHOLDS = {"x": 0.063, "y": 0.057, "z": 0.154,
+                         "roll": math.radians(2.0), "pitch": math.radians(2.0), "yaw": math.radians(1.6)}
+#: duration of the threshold experiments' stimulus [s] (a single cycle of sinusoidal acceleration)
+THRESHOLD_STIMULUS_S = 3.0
+
+
+def threshold_stimulus(axis: str, amplitude: float, fs: float) -> np.ndarray:
+    """The threshold experiments' stimulus on ``axis`` with peak ``amplitude`` sampled at ``fs`` [Hz] and
+    followed by as long at rest: for a translation the specific force of one cycle of a sinusoidal
+    acceleration of :data:`THRESHOLD_STIMULUS_S`; for a rotation the angular velocity of that profile
+    (a raised cosine, its peak the threshold's rate)."""
+    t = np.arange(int(round(2 * THRESHOLD_STIMULUS_S * fs))) / fs
+    phase = 2 * np.pi * np.clip(t / THRESHOLD_STIMULUS_S, 0, 1)
+    if AXES.index(axis) < 3:
+        return amplitude * np.sin(phase)
+    return amplitude * 0.5 * (1 - np.cos(phase))
+
+
+def vestibular_model(axis: str) -> LinearModel:
+    """The organ that senses ``axis``: the otolith for x, y, z, the canal for roll, pitch, yaw."""
+    return otolith() if AXES.index(axis) < 3 else canal()
+
+
+def sensed_threshold(axis: str, fs: float = 1000.0) -> float:
+    """The vestibular model's peak output to the threshold stimulus of ``axis`` (:func:`threshold_stimulus`
+    at :data:`VESTIBULAR_THRESHOLDS`), in the stimulus' unit: the level the model's output must exceed to be
+    perceived (module doc)."""
+    x = threshold_stimulus(axis, VESTIBULAR_THRESHOLDS[axis], fs)
+    return float(np.max(np.abs(vestibular_model(axis).apply(x, fs))))
+
+
+# --------------------------------------------------------------------------------------------- kinematics
+def rigid_point_specific_force(f_ref: np.ndarray, omega: np.ndarray, alpha: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Specific force (N, 3) [m/s^2] at a point ``r`` (3,) [m] of a rigid body from the specific force at its
+    reference point ``f_ref`` (N, 3), its angular velocity ``omega`` (N, 3) [rad/s] and angular acceleration
+    ``alpha`` (N, 3) [rad/s^2], all in one body-fixed frame: f = f_ref + alpha x r + omega x (omega x r)
+    (the acceleration of a point of a rigid body; gravity is the same at both points)."""
+    r = np.broadcast_to(np.asarray(r, dtype=float), np.shape(omega))
+    return f_ref + np.cross(alpha, r) + np.cross(omega, np.cross(omega, r))
+
+
+@dataclass(frozen=True)
+class PointMotion:
+    """What an occupant's point senses, in the platform's axes (x forward, y left, z up): t (N,) [s];
+    specific_force (N, 3) [m/s^2] (gravity included: +9.81 on z at rest); angular_velocity (N, 3) [rad/s];
+    angular_acceleration (N, 3) [rad/s^2]; point (3,) [m, platform frame]."""
+
+    t: np.ndarray
+    specific_force: np.ndarray
+    angular_velocity: np.ndarray
+    angular_acceleration: np.ndarray
+    point: np.ndarray
+
+    @property
+    def channels(self) -> np.ndarray:
+        """(N, 6): specific force x, y, z, then angular velocity roll, pitch, yaw (:data:`AXES`)."""
+        return np.concatenate([self.specific_force, self.angular_velocity], axis=1)
+
+
+def point_motion(result, point_m) -> PointMotion:
+    """The motion at ``point_m`` (3,) [m, platform frame] of a hexapod run ``result``
+    (:class:`~hexsim.simulation.config.SimulationResult`), from the platform's recorded rigid-body state:
+    the accelerometer's specific force, the gyro's angular velocity (both in the sensor site's frame) and the
+    angular acceleration (world frame, rotated into the site's frame with the site's recorded orientation),
+    carried to the point with :func:`rigid_point_specific_force` and expressed in the platform's axes.
+    Raises ValueError for a single-actuator run (it has no platform)."""
+    if result.angacc is None or result.gyro is None or result.sensor_site is None:
+        raise ValueError("the occupant's motion needs a hexapod run (platform gyro, angular acceleration, site)")
+    site_pos, site_quat = result.sensor_site
+    body_from_site = Rotation.from_quat(np.asarray(site_quat)[[1, 2, 3, 0]])
+    world_from_site = Rotation.from_quat(result.platform_quat[:, [1, 2, 3, 0]])
+    alpha_site = world_from_site.inv().apply(result.angacc)
+    r_site = body_from_site.inv().apply(np.asarray(point_m, dtype=float) - np.asarray(site_pos))
+    f_site = rigid_point_specific_force(result.acc, result.gyro, alpha_site, r_site)
+    return PointMotion(result.t, body_from_site.apply(f_site), body_from_site.apply(result.gyro),
+                       body_from_site.apply(alpha_site), np.asarray(point_m, dtype=float))
+
+
+# --------------------------------------------------------------------------------------------- bumps
+@dataclass(frozen=True)
+class BumpPerception:
+    """How each reversal bump of a sine run is sensed (module doc).
+
+    reversal_times (R,) [s]; vestibular (R, 6): the vestibular model's peak response to the bump at the
+    head within -0.1…+0.25 s of each reversal, per axis of :data:`AXES`, as a multiple of its sensed
+    threshold; seat (R, 3): the ISO 2631-1 weighted peak at the seat (x, y, z) as a multiple of 0.015
+    m/s^2; vestibular_peak, seat_peak: the same in m/s^2 or rad/s; thresholds: axis -> sensed threshold;
+    head_m, seat_m (3,) [m, platform frame]; t, sensed (N, 6) and weighted (N, 3): the sensed and weighted
+    false cue over the analysis window (for plots)."""
+
+    reversal_times: np.ndarray
+    vestibular: np.ndarray
+    seat: np.ndarray
+    vestibular_peak: np.ndarray
+    seat_peak: np.ndarray
+    thresholds: dict
+    head_m: np.ndarray
+    seat_m: np.ndarray
+    t: np.ndarray = field(repr=False)
+    sensed: np.ndarray = field(repr=False)
+    weighted: np.ndarray = field(repr=False)
+
+    @property
+    def perceptible(self) -> np.ndarray:
+        """(R,) True where either path exceeds its threshold on some axis."""
+        return (self.vestibular.max(axis=1, initial=0) > 1) | (self.seat.max(axis=1, initial=0) > 1)
+
+    def figures(self) -> dict:
+        """The JSON-ready summary: counts per path and axis, the largest ratios, the thresholds used."""
+        n = len(self.reversal_times)
+        axes = {}
+        for k, axis in enumerate(AXES):
+            row = {"vestibular_max_ratio": _max(self.vestibular[:, k]),
+                   "vestibular_perceptible": int(np.sum(self.vestibular[:, k] > 1)),
+                   "sensed_threshold": self.thresholds[axis]}
+            if k < 3:
+                row.update(seat_max_ratio=_max(self.seat[:, k]), seat_perceptible=int(np.sum(self.seat[:, k] > 1)),
+                           seat_weighting=ISO_WEIGHTINGS[axis], seat_max_weighted_mps2=_max(self.seat_peak[:, k]))
+            axes[axis] = row
+        return {
+            "reversals": n,
+            "perceptible": int(np.sum(self.perceptible)),
+            "perceptible_vestibular": int(np.sum(self.vestibular.max(axis=1, initial=0) > 1)),
+            "perceptible_seat": int(np.sum(self.seat.max(axis=1, initial=0) > 1)),
+            "head_at_m": self.head_m.tolist(), "seat_at_m": self.seat_m.tolist(),
+            "seat_threshold_mps2": ISO_PERCEPTION_THRESHOLD,
+            "axes": axes,
+            "per_reversal": [{"t_s": float(tr), "vestibular_ratio": [round(float(v), 4) for v in self.vestibular[i]],
+                              "seat_ratio": [round(float(v), 4) for v in self.seat[i]]}
+                             for i, tr in enumerate(self.reversal_times)],
+        }
+
+    def summary(self) -> str:
+        """One line: how many bumps are felt, on which path, and the worst axis of each."""
+        n, felt = len(self.reversal_times), int(np.sum(self.perceptible))
+        parts = []
+        if self.seat.size:
+            k = int(np.argmax(self.seat.max(axis=0)))
+            parts.append(f"seat {AXES[k]} {self.seat[:, k].max():.2f}x threshold")
+        if self.vestibular.size:
+            k = int(np.argmax(self.vestibular.max(axis=0)))
+            parts.append(f"vestibular {AXES[k]} {self.vestibular[:, k].max():.2f}x")
+        return f"{felt} of {n} bumps perceptible ({'; '.join(parts)} at most)"
+
+
+def _max(x: np.ndarray) -> float | None:
+    return float(np.max(x)) if x.size else None
+
+
+def bump_perception(result, sm, head_m=None, seat_m=None) -> BumpPerception:
+    """Each reversal bump of a sine run as the occupant senses it (module doc). ``result``: a hexapod
+    :class:`~hexsim.simulation.config.SimulationResult`; ``sm``: its
+    :class:`~hexsim.simulation.metrics.Smoothness` (window, frequency, reversal times). ``head_m``, ``seat_m``
+    (3,) [m, platform frame]: default the machine's (:attr:`hexsim.plant.geometry.Geometry.head_point`).
+    The false cue on each axis is the signal minus its offset and fundamental at the drive frequency over
+    the analysis window (as the seed's acceleration noise, §2.3.1). Raises ValueError for a single-actuator
+    run."""
+    from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
+
+    geometry = result.config.geometry or MICRO_MOTION_SYSTEM
+    head_m = geometry.head_point if head_m is None else np.asarray(head_m, dtype=float)
+    seat_m = geometry.seat_point if seat_m is None else np.asarray(seat_m, dtype=float)
+    head, seat = point_motion(result, head_m), point_motion(result, seat_m)
+    sel = (result.t >= sm.window[0]) & (result.t <= sm.window[1])
+    t = result.t[sel]
+
+    def false_cue(x: np.ndarray) -> np.ndarray:
+        return np.stack([x[:, k] - fit_fundamental(t, x[:, k], sm.frequency)[3] for k in range(x.shape[1])], axis=1)
+
+    return sense_bumps(t, false_cue(head.channels[sel]), false_cue(seat.specific_force[sel]),
+                       np.asarray(sm.reversal_times), head_m, seat_m)
+
+
+def sense_bumps(t: np.ndarray, head_cue: np.ndarray, seat_cue: np.ndarray, reversal_times: np.ndarray,
+                head_m=(0.0, 0.0, 0.0), seat_m=(0.0, 0.0, 0.0)) -> BumpPerception:
+    """The sensing of false cues around reversals: ``head_cue`` (N, 6) (specific force [m/s^2] and angular
+    velocity [rad/s] at the head, :data:`AXES`) through the vestibular models, ``seat_cue`` (N, 3) [m/s^2]
+    through the ISO 2631-1 weightings, both sampled at t (N,) [s] (uniform) from rest; each reversal's
+    peak within -0.1…+0.25 s (:data:`SENSED_TAIL`: the models' lag) against the thresholds."""
+    fs = 1.0 / float(np.median(np.diff(t)))
+    sensed = np.stack([vestibular_model(axis).apply(head_cue[:, k], fs) for k, axis in enumerate(AXES)], axis=1)
+    weighted = np.stack([iso2631(ISO_WEIGHTINGS[a]).apply(seat_cue[:, k], fs) for k, a in enumerate("xyz")], axis=1)
+    thresholds = {axis: sensed_threshold(axis, fs) for axis in AXES}
+    rev = np.asarray(reversal_times, dtype=float)
+    v_peak, s_peak = np.zeros((rev.size, 6)), np.zeros((rev.size, 3))
+    for i, tr in enumerate(rev):
+        win = (t >= tr - 0.1) & (t <= tr + SENSED_TAIL)
+        if np.any(win):
+            v_peak[i] = np.max(np.abs(sensed[win]), axis=0)
+            s_peak[i] = np.max(np.abs(weighted[win]), axis=0)
+    v_ratio = v_peak / np.array([thresholds[a] for a in AXES])
+    return BumpPerception(rev, v_ratio, s_peak / ISO_PERCEPTION_THRESHOLD, v_peak, s_peak, thresholds,
+                          np.asarray(head_m, dtype=float), np.asarray(seat_m, dtype=float), t, sensed, weighted)

@@ -1,0 +1,119 @@
+"""Motion cueing (issue 43): the classical washout on a sustained deceleration, a vehicle run's cue report,
+and bad vehicle and washout files refused with one line."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import hexsim
+from hexsim.control.scenario import vehicle_scenario
+from hexsim.control.washout import VEHICLE_COLUMNS, VehicleMotion, WashoutParams, read_vehicle, washout
+from hexsim.errors import InputError
+from hexsim.simulation.cueing import cue_report, pose_motion
+
+
+def _stop(duration=14.0, decel=2.0, fs=100.0):
+    """A sustained deceleration from 1 s (0.5 s onset) that never ends within ``duration``."""
+    t = np.arange(int(duration * fs) + 1) / fs
+    f = np.zeros((t.size, 3))
+    f[:, 0] = -decel * np.clip((t - 1.0) / 0.5, 0, 1)
+    f[:, 2] = 9.81
+    return VehicleMotion(t, f, np.zeros((t.size, 3)), "stop")
+
+
+def test_a_sustained_deceleration_is_tilt_coordinated_within_the_rate_limit_and_the_platform_returns():
+    params = WashoutParams()
+    out = washout(_stop(), params, rate_hz=500.0)
+    pitch = out.poses[:, 4]
+    rate = np.abs(np.diff(out.tilt[:, 1])) * 500.0
+    assert np.max(rate) <= math.radians(params.tilt_rate_limit_degps) * (1 + 1e-9)
+    # the sustained -1 m/s^2 (scaled) is cued by tilting nose down: gravity gives -g sin(pitch) = f_x
+    target = math.asin(0.5 * 2.0 / 9.81)
+    assert pitch[-1] == pytest.approx(target, rel=0.02) and pitch[-1] > 0
+    assert out.tilt_rate_limited > 0
+    # the translational channel washes out: the onset moved the platform back, the end returns it to neutral
+    x = out.translation[:, 0]
+    assert x.min() < -0.02 and abs(x[-1]) < 0.05 * abs(x.min())
+    assert np.all(np.abs(out.poses[-1, [1, 2, 3, 5]]) < 1e-9)
+
+
+def test_a_rotation_is_high_passed_back_to_neutral():
+    t = np.arange(1001) / 100.0
+    w = np.zeros((t.size, 3))
+    w[(t > 1) & (t < 3), 2] = 0.2  # a 2 s yaw rate pulse
+    f = np.tile([0.0, 0.0, 9.81], (t.size, 1))
+    out = washout(VehicleMotion(t, f, w), WashoutParams(), 500.0)
+    yaw = out.poses[:, 5]
+    assert yaw.max() > 0.02 and abs(yaw[-1]) < 0.05 * yaw.max()
+
+
+def test_pose_motion_of_a_tilted_platform_reads_gravity():
+    t = np.linspace(0, 2, 1001)
+    poses = np.zeros((t.size, 6))
+    poses[:, 4] = 0.1  # pitched nose down, still
+    pm = pose_motion(t, poses, (0.0, 0.0, 1.0))
+    np.testing.assert_allclose(pm.specific_force[500], [-9.81 * math.sin(0.1), 0, 9.81 * math.cos(0.1)], atol=1e-9)
+
+
+def test_a_vehicle_run_reports_its_cues(tmp_path):
+    csv = tmp_path / "stop.csv"
+    m = _stop(duration=6.0)
+    cols = np.column_stack([m.t, m.specific_force, m.angular_velocity])
+    np.savetxt(csv, cols, delimiter=",", header=",".join(VEHICLE_COLUMNS), comments="")
+    result = hexsim.simulate(hexsim.RunConfig(vehicle_scenario(csv)))
+    report = cue_report(result)
+    x = report["axes"]["x"]
+    assert x["correlation"] > 0.3  # the onset and the tilt follow the car's deceleration
+    assert x["rms_error"] < x["rms_vehicle"]
+    assert report["legs"]["min_stroke_margin_m"] > 0 and report["washout_limiting"]["max_tilt_deg"][1] > 0.5
+    # the simulated hardware follows the ideal platform closely: its seat difference is a fraction of the cue
+    assert report["seat"]["x"]["max_weighted_mps2"] < 0.5 * np.max(np.abs(report["traces"]["vehicle"][:, 0]))
+    out = subprocess.run([sys.executable, "-m", "hexsim", "run", f"vehicle:{csv}", "--json", "cue.json", "--quiet"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    doc = json.loads((tmp_path / "cue.json").read_text())
+    assert set(doc["axes"]) == {"x", "y", "z", "roll", "pitch", "yaw"} and "traces" not in doc
+    assert "false cues" in out.stdout
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("time_s,f_x_mps2\n0,0\n1,0\n2,0\n", "missing column 'f_y_mps2'"),
+    ("time_s,f_x_mps2,f_y_mps2,f_z_mps2,p_radps,q_radps,r_radps\n0,0,0,9.81,0,0,0\n1,500,0,9.81,0,0,0\n"
+     "2,0,0,9.81,0,0,0\n", "row 3, column f_x_mps2"),
+    ("time_s,f_x_mps2,f_y_mps2,f_z_mps2,p_radps,q_radps,r_radps\n0,0,0,9.81,0,0,0\n0.1,0,0,9.81,0,0,0\n"
+     "0.2,0,0,9.81,0,0,0\n", "at least 1 s"),
+])
+def test_bad_vehicle_files_are_refused_with_one_line(tmp_path, text, expected):
+    path = tmp_path / "car.csv"
+    path.write_text(text)
+    with pytest.raises(InputError, match=expected):
+        read_vehicle(path)
+    out = subprocess.run([sys.executable, "-m", "hexsim", "run", f"vehicle:{path}"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and expected in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+@pytest.mark.parametrize("doc, expected", [
+    ({"tilt_rate": 2}, "unknown washout key 'tilt_rate'"),
+    ({"hp_omega_radps": [4, 4]}, "hp_omega_radps: expected three numbers"),
+    ({"tilt_rate_limit_degps": -1}, "tilt_rate_limit_degps: expected a positive number"),
+    ({"tilt_limit_deg": 45}, "tilt_limit_deg"),
+])
+def test_bad_washout_files_are_refused_with_one_line(tmp_path, doc, expected):
+    path = tmp_path / "washout.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=expected):
+        WashoutParams.from_file(path)
+
+
+def test_washout_applies_only_to_vehicle_scenarios(tmp_path):
+    path = tmp_path / "w.json"
+    path.write_text("{}")
+    out = subprocess.run([sys.executable, "-m", "hexsim", "run", "heave", "--washout", str(path)], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and "--washout applies to a vehicle:PATH scenario" in out.stderr
