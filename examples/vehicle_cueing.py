@@ -6,7 +6,8 @@ kinematics, the hydraulics and the compensator (``hexsim run vehicle:PATH`` does
 report says per axis how well the simulator's sensed cue follows the car's, and which false cues come
 from the washout and which from the hardware (the reversal bumps).
 
-Usage: python examples/vehicle_cueing.py [--out DIR] [--compensator NAME] [--manoeuvre braking|lane-change]
+Usage: python examples/vehicle_cueing.py [--out FIGURE.png] [--compensator NAME] [--manoeuvre braking|lane-change]
+(the vehicle CSV and the cue report's JSON are written beside the figure)
 
 The vehicle model (a textbook one, e.g. Gillespie 1992, "Fundamentals of Vehicle Dynamics", ch. 5-6, and
 Rajamani 2012, "Vehicle Dynamics and Control", ch. 2):
@@ -98,17 +99,18 @@ def write_vehicle_csv(path: pathlib.Path, columns: dict[str, np.ndarray]) -> Non
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("vehicle_cueing_out"))
+    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("vehicle_cueing.png"),
+                        help="the figure (.png); the vehicle CSV and the report's JSON beside it")
     parser.add_argument("--compensator", default="none")
     parser.add_argument("--manoeuvre", choices=("braking", "lane-change"), default="braking")
     args = parser.parse_args(argv)
-    args.out.mkdir(parents=True, exist_ok=True)
-    csv = args.out / f"{args.manoeuvre}.csv"
+    csv = args.out.with_name(f"{args.out.stem}_{args.manoeuvre}.csv")
     write_vehicle_csv(csv, braking() if args.manoeuvre == "braking" else lane_change())
+    print(f"wrote {csv} (the vehicle model's motion at the driver's head)")
     from hexsim.cli import main as hexsim
 
     return hexsim(["run", f"vehicle:{csv}", "--compensator", args.compensator, "--quiet",
-                   "--json", str(args.out / f"{args.manoeuvre}.json"), "--plot", str(args.out / f"{args.manoeuvre}.png")])
+                   "--json", str(args.out.with_suffix(".json")), "--plot", str(args.out)])
 
 
 if __name__ == "__main__":

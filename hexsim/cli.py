@@ -44,7 +44,7 @@ def _number(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line: ``hexsim run|compare|validate|friction|calibrate|sweep|modes|bench|machine`` (``--help``
+    """The command line: ``hexsim run|compare|validate|friction|calibrate|sweep|modes|accept|bench|machine`` (``--help``
     on each)."""
     parser = argparse.ArgumentParser(
         prog="hexsim",
@@ -59,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate(sub)
     _add_sweep(sub)
     _add_modes(sub)
+    _add_accept(sub)
     _add_bench(sub)
     _add_machine(sub)
     return parser
@@ -254,6 +255,67 @@ def _add_modes(sub) -> None:
                     help="a payload of KG kg added to the platform (600 kg built in) at X,Y,Z m (platform frame), as for run")
     mo.add_argument("--json", type=pathlib.Path, help="write the modes as JSON; - for stdout")
     _machine_option(mo)
+
+
+def _add_accept(sub) -> None:
+    """The ``accept`` command's options."""
+    ac = sub.add_parser(
+        "accept",
+        help="run the objective motion tests (frequency response, turn-around, leg balance, repeatability, envelope, "
+             "OMCT) against your tolerance file",
+        description="The motion tests simulators are qualified with (14 CFR Part 60 app. A/C, ICAO 9625, the OMCT; "
+        "docs/acceptance.md) on the simulated machine: the sections of the tolerance file are the tests run, each "
+        "measured figure is checked against its limits, and the report (report.md with figures, acceptance.json) "
+        "gives figure, tolerance and pass/fail; with --compensator, beside the uncompensated machine's. Exit code 1 "
+        "when a check fails.",
+    )
+    ac.add_argument("--tolerances", type=pathlib.Path, required=True, metavar="TOLERANCES.json",
+                    help="your tolerance file (docs/acceptance.md; examples/acceptance_tolerances.json)")
+    ac.add_argument("--report", type=pathlib.Path, required=True, metavar="DIR",
+                    help="write report.md, acceptance.json and the figures here")
+    ac.add_argument("--compensator", choices=sorted(COMPENSATORS), default="none",
+                    help="also run the tests with this compensator, beside none (default: none only)")
+    ac.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
+                    help="the classical washout of the OMCT (default: docs/motion-cueing.md)")
+    _machine_option(ac)
+    _worker_options(ac, "worker processes for the sine runs")
+    ac.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def cmd_accept(args: argparse.Namespace) -> int:
+    from hexsim.control.washout import WashoutParams
+    from hexsim.simulation.acceptance import Tolerances
+
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    if not args.report.parent.exists():
+        raise InputError(f"--report {args.report}: folder {args.report.parent} does not exist")
+    if args.report.exists() and not args.report.is_dir():
+        raise InputError(f"--report {args.report}: exists and is not a folder")
+    tol = Tolerances.read(args.tolerances)
+    washout = WashoutParams.from_file(args.washout) if args.washout else None
+    from hexsim.plant.machine import load_machine
+
+    machine = load_machine(args.machine)
+    if machine.system != "hexapod":
+        raise InputError(f"--machine {machine.label}: the motion tests are a hexapod's; this machine is a {machine.system}")
+    from hexsim.outputs.acceptance_report import write_report
+    from hexsim.simulation.acceptance import run_acceptance
+    from hexsim.simulation.config import RunConfig
+
+    results = []
+    for name in dict.fromkeys(("none", args.compensator)):
+        base = RunConfig.from_machine(machine, "heave", compensator=name)
+        say = None if args.quiet else (lambda text, n=name: _progress_line(f"compensator {n}: {text}"))
+        results.append(run_acceptance(base, tol, washout, jobs=args.jobs, progress=say))
+    for r in results:
+        judged = [c for c in r.checks if c.passed is not None]
+        failed = [c for c in judged if not c.passed]
+        print(f"compensator {r.compensator}: {len(judged) - len(failed)} of {len(judged)} checks passed"
+              + "".join(f"\n  FAIL {c.test}: {c.item} = {c.value:.4g} {c.unit} (tolerance {c.limit})" for c in failed))
+    for path in write_report(args.report, results, tol):
+        print(f"wrote {path}")
+    return 1 if any(r.passed is False for r in results) else 0
 
 
 def _add_bench(sub) -> None:
@@ -878,7 +940,7 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _show_note
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                         "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine,
-                        "calibrate": cmd_calibrate}
+                        "calibrate": cmd_calibrate, "accept": cmd_accept}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

@@ -17,6 +17,7 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples"
     ("seed_single_actuator.py", ["--duration", "6"]),
     ("buffered_compensation.py", ["--duration", "10"]),
     ("servo_cylinder.py", ["--only", "3V_s1"]),
+    ("vehicle_cueing.py", ["--manoeuvre", "lane-change"]),
 ])
 def test_example_runs(script, args, tmp_path):
     out = tmp_path / "out.png"
