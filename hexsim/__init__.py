@@ -17,11 +17,15 @@ The Python face, everything a notebook needs (imported on first use, so ``import
 * compensation: :class:`Compensator` (subclass it and pass the class as ``RunConfig(compensator=...)``),
   :class:`CompensatorSettings`;
 * judging: :func:`smoothness` (of a result), :func:`compare`, :func:`sweep`;
+* the driver's view: :func:`perception` (each bump of a run against the perception thresholds),
+  :func:`vehicle_scenario` (a vehicle's motion through the classical washout, :class:`WashoutParams`),
+  :func:`cue_report` (of a vehicle run), :func:`acceptance` with :class:`Tolerances` (the motion tests);
 * measured data: :func:`read_log`, :func:`validate`.
 
 The chain, one module per stage: :mod:`hexsim.control.scenario` → :mod:`hexsim.control.kinematics` →
 :mod:`hexsim.control.controller` → :mod:`compensation` → :mod:`hexsim.plant.legs` (valve, chamber, friction,
-effects) → :mod:`hexsim.simulation.runner` (MuJoCo) → :mod:`hexsim.simulation.metrics` → outputs.
+effects) → :mod:`hexsim.simulation.runner` (MuJoCo) → :mod:`hexsim.simulation.metrics` and
+:mod:`hexsim.simulation.perception` → outputs; a vehicle's motion enters through :mod:`hexsim.control.washout`.
 """
 
 from __future__ import annotations
@@ -49,6 +53,12 @@ _FACE = {
     "smoothness": ("hexsim.simulation.metrics", "run_smoothness"),
     "compare": ("hexsim.simulation.comparison", "compare"),
     "sweep": ("hexsim.simulation.sweeps", "sweep"),
+    "perception": ("hexsim.simulation.perception", "bump_perception"),
+    "vehicle_scenario": ("hexsim.control.scenario", "vehicle_scenario"),
+    "WashoutParams": ("hexsim.control.washout", "WashoutParams"),
+    "cue_report": ("hexsim.simulation.cueing", "cue_report"),
+    "acceptance": ("hexsim.simulation.acceptance", "run_acceptance"),
+    "Tolerances": ("hexsim.simulation.acceptance", "Tolerances"),
     "read_log": ("hexsim.measured.measurement", "read_log"),
     "validate": ("hexsim.measured.validation", "validate"),
 }

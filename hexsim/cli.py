@@ -770,13 +770,13 @@ def _vehicle_outputs(args: argparse.Namespace, result) -> int:
 
     cfg = result.config
     report = cue_report(result)
-    print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, washout {report['washout']}, "
+    print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, washout {report.washout}, "
           f"compensator {cfg.compensator_name})\nmachine   {cfg.machine_label}")
     print(cue_table(report))
     written = []
     if args.json:
         doc = {"scenario": cfg.scenario.name, "machine": cfg.machine_label, "compensator": cfg.compensator_name,
-               "duration_s": cfg.scenario.duration, **{k: v for k, v in report.items() if k != "traces"}}
+               "duration_s": cfg.scenario.duration, **report.document()}
         write_json(args.json, doc)
         written.append(args.json)
     if args.plot:

@@ -66,12 +66,12 @@ def test_a_vehicle_run_reports_its_cues(tmp_path):
     np.savetxt(csv, cols, delimiter=",", header=",".join(VEHICLE_COLUMNS), comments="")
     result = hexsim.simulate(hexsim.RunConfig(vehicle_scenario(csv)))
     report = cue_report(result)
-    x = report["axes"]["x"]
-    assert x["correlation"] > 0.3  # the onset and the tilt follow the car's deceleration
-    assert x["rms_error"] < x["rms_vehicle"]
-    assert report["legs"]["min_stroke_margin_m"] > 0 and report["washout_limiting"]["max_tilt_deg"][1] > 0.5
+    x = report.axes["x"]
+    assert x.correlation > 0.3  # the onset and the tilt follow the car's deceleration
+    assert x.rms_error < x.rms_vehicle
+    assert report.stroke_margin_m.min() > 0 and report.max_tilt_deg[1] > 0.5
     # the simulated hardware follows the ideal platform closely: its seat difference is a fraction of the cue
-    assert report["seat"]["x"]["max_weighted_mps2"] < 0.5 * np.max(np.abs(report["traces"]["vehicle"][:, 0]))
+    assert report.seat["x"].max_weighted_mps2 < 0.5 * np.max(np.abs(report.sensed_vehicle[:, 0]))
     out = subprocess.run([sys.executable, "-m", "hexsim", "run", f"vehicle:{csv}", "--json", "cue.json", "--quiet"],
                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr
@@ -117,3 +117,16 @@ def test_washout_applies_only_to_vehicle_scenarios(tmp_path):
     out = subprocess.run([sys.executable, "-m", "hexsim", "run", "heave", "--washout", str(path)], cwd=tmp_path,
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and "--washout applies to a vehicle:PATH scenario" in out.stderr
+
+
+def test_rotations_turn_about_the_washouts_rotation_centre():
+    """With the rotation centre at the driver's head, the head moves only by the translational channel:
+    the platform's origin makes up for the tilt (p_origin + R c - c = translation)."""
+    from scipy.spatial.transform import Rotation
+
+    centre = np.array([0.0, 0.0, 1.47])
+    out = washout(_stop(duration=8.0), WashoutParams(rotation_centre_m=(0.0, 0.0, 1.47), tilt_limit_deg=4.0), 500.0)
+    turn = Rotation.from_euler("ZYX", out.poses[:, [5, 4, 3]])
+    head = out.poses[:, :3] + turn.apply(centre) - centre
+    np.testing.assert_allclose(head, out.translation, atol=1e-12)
+    assert np.max(np.abs(out.poses[:, 0] - out.translation[:, 0])) > 0.05  # the tilt's share, made up in surge

@@ -58,9 +58,9 @@ def _bode(path: pathlib.Path, results: list, attr: str, title: str) -> None:
             style = ("-", "--", ":")[j % 3]
             label = f"{name}" + (f" ({r.compensator})" if len(results) > 1 else "")
             gain.semilogx(f, g, style, marker="o", ms=3, color=f"C{k}", label=label)
-            phase.semilogx(f, p, style, marker="o", ms=3, color=f"C{k}")
+            phase.semilogx(f, np.degrees(np.unwrap(np.radians(p))), style, marker="o", ms=3, color=f"C{k}")
     gain.set(title=title, ylabel="gain [dB]")
-    phase.set(xlabel="frequency [Hz]", ylabel="phase [deg]")
+    phase.set(xlabel="frequency [Hz]", ylabel="phase [deg] (unwrapped)")
     gain.legend(fontsize=7, ncol=2)
     for a in (gain, phase):
         a.grid(True, which="both", lw=0.3)

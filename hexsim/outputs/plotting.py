@@ -75,13 +75,13 @@ def plot_open_loop(path: str | os.PathLike, result: SimulationResult) -> None:
     save_figure(fig, path, dpi=90)
 
 
-def plot_cueing(path: str | os.PathLike, result: SimulationResult, report: dict) -> None:
+def plot_cueing(path: str | os.PathLike, result: SimulationResult, report) -> None:
     """The figure of a ``vehicle:`` run (atomically; .png, .pdf or .svg): per axis the sensed cue of the
     vehicle, the ideal platform (the washout alone) and the simulator with the sensed threshold, then the
-    platform's pose against its setpoint."""
+    platform's pose against its setpoint; ``report``: the run's :class:`~hexsim.simulation.cueing.CueReport`."""
     from hexsim.simulation.perception import AXES
 
-    tr = report["traces"]
+    traces = {"vehicle": report.sensed_vehicle, "ideal": report.sensed_ideal, "simulator": report.sensed_simulator}
     fig = Figure(figsize=(13, 12), layout="constrained")
     ax = fig.subplots(4, 2)
     fig.suptitle(f"hexsim {pathlib.Path(result.config.scenario.name[8:]).name}: motion cueing, compensator "
@@ -90,10 +90,10 @@ def plot_cueing(path: str | os.PathLike, result: SimulationResult, report: dict)
         a = ax.flat[k]
         unit = "m/s^2" if k < 3 else "rad/s"
         for who, style in (("vehicle", "-"), ("ideal", "--"), ("simulator", "-")):
-            a.plot(tr["t"], tr[who][:, k], ls=style, lw=0.9, label=who if who != "ideal" else "ideal platform")
-        thr = report["axes"][axis]["sensed_threshold"]
+            a.plot(report.t, traces[who][:, k], ls=style, lw=0.9, label=who if who != "ideal" else "ideal platform")
+        thr = report.axes[axis].sensed_threshold
         a.axhspan(-thr, thr, color="0.9", lw=0, label="below threshold")
-        fc = report["axes"][axis]["false_cues"]
+        fc = report.axes[axis].false_cues
         a.set(title=f"{axis}: sensed cue (false cues: washout {fc['washout']}, hardware {fc['hardware']}, "
                     f"bumps {fc['reversal_bump']})", xlabel="time [s]", ylabel=f"[{unit}]")
         a.title.set_fontsize("medium")

@@ -194,7 +194,7 @@ def _geom_shape(m: mujoco.MjModel, g: int):
 
 
 def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness | None, perception=None,
-              cueing: dict | None = None) -> None:
+              cueing=None) -> None:
     """Write the recording of a run to ``path`` (atomically); ``sm`` None (an open-loop or vehicle run): no
     smoothness analysis in it; ``perception`` (a :class:`~hexsim.simulation.perception.BumpPerception`):
     the sensed false cue under ``/perception`` with its thresholds; ``cueing`` (a vehicle run's
@@ -203,19 +203,20 @@ def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness 
     write_atomic(path, lambda tmp: _write(tmp, result, sm, perception, cueing))
 
 
-def _cueing(rec, report: dict) -> None:
-    """Per axis the sensed cue of the vehicle, the ideal platform and the simulator, and the threshold."""
+def _cueing(rec, report) -> None:
+    """Per axis the sensed cue of the vehicle, the ideal platform and the simulator, and the threshold
+    (``report``: a :class:`~hexsim.simulation.cueing.CueReport`)."""
     from hexsim.simulation.perception import AXES
 
-    tr = report["traces"]
-    times = rr.TimeColumn("time", duration=tr["t"])
-    colours = {"vehicle": [40, 90, 170], "ideal": [230, 150, 30], "simulator": [200, 40, 40]}
+    times = rr.TimeColumn("time", duration=report.t)
+    series = {"vehicle": (report.sensed_vehicle, [40, 90, 170]), "ideal": (report.sensed_ideal, [230, 150, 30]),
+              "simulator": (report.sensed_simulator, [200, 40, 40])}
     for k, axis in enumerate(AXES):
-        for who, colour in colours.items():
-            _scalars(rec, f"/cueing/{axis}/{who}", times, tr[who][:, k])
+        for who, (values, colour) in series.items():
+            _scalars(rec, f"/cueing/{axis}/{who}", times, values[:, k])
             rec.log(f"/cueing/{axis}/{who}", rr.SeriesLines(names=f"{axis} sensed, {who}", colors=[colour]),
                     static=True)
-        _scalars(rec, f"/cueing/{axis}/threshold", times, np.full(tr["t"].size, report["axes"][axis]["sensed_threshold"]))
+        _scalars(rec, f"/cueing/{axis}/threshold", times, np.full(report.t.size, report.axes[axis].sensed_threshold))
         rec.log(f"/cueing/{axis}/threshold", rr.SeriesLines(names="threshold", colors=[[0, 0, 0]]), static=True)
 
 
@@ -240,7 +241,7 @@ def _perception(rec, p) -> None:
 
 
 def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None, perception=None,
-           cueing: dict | None = None) -> None:
+           cueing=None) -> None:
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
     m = _scene_model(result)
     rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal if sm else "acceleration",

@@ -19,8 +19,8 @@ motion to the occupant and says whether each bump is above the threshold of perc
   0.063, sway 0.057, heave 0.154 m/s^2) and Benson et al. (1989: about 2 deg/s in roll and pitch, 1.6 in
   yaw), with stimuli of a few seconds (a single cycle of sinusoidal acceleration, 3 s). A reversal bump
   lasts tens of milliseconds, far inside the otoliths' tau_s: the organ integrates it, and what it senses
-  is roughly the bump's velocity change times tau_a / (tau_L tau_s) (2.5 s^-1) -- a 0.5 m/s^2 bump of
-  30 ms is sensed as about 0.04 m/s^2. So the threshold is not compared with the raw acceleration but
+  is roughly the bump's velocity change times tau_a / (tau_L tau_s) (3.75 s^-1) -- a 0.5 m/s^2 bump of
+  30 ms is sensed as a few hundredths of a m/s^2. So the threshold is not compared with the raw acceleration but
   with the model's output: :func:`sensed_threshold` is the model's peak response to Benson's threshold
   stimulus, and a bump is vestibularly perceptible when the model's response to it is larger.
 
@@ -252,16 +252,19 @@ def _max(x: np.ndarray) -> float | None:
     return float(np.max(x)) if x.size else None
 
 
-def bump_perception(result, sm, head_m=None, seat_m=None) -> BumpPerception:
+def bump_perception(result, sm=None, head_m=None, seat_m=None) -> BumpPerception:
     """Each reversal bump of a sine run as the occupant senses it (module doc). ``result``: a hexapod
     :class:`~hexsim.simulation.config.SimulationResult`; ``sm``: its
-    :class:`~hexsim.simulation.metrics.Smoothness` (window, frequency, reversal times). ``head_m``, ``seat_m``
+    :class:`~hexsim.simulation.metrics.Smoothness` (window, frequency, reversal times; None:
+    :func:`~hexsim.simulation.metrics.run_smoothness` of the result). ``head_m``, ``seat_m``
     (3,) [m, platform frame]: default the machine's (:attr:`hexsim.plant.geometry.Geometry.head_point`).
     The false cue on each axis is the signal minus its offset and fundamental at the drive frequency over
     the analysis window (as the seed's acceleration noise, §2.3.1). Raises ValueError for a single-actuator
     run."""
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
+    from hexsim.simulation.metrics import run_smoothness
 
+    sm = run_smoothness(result) if sm is None else sm
     geometry = result.config.geometry or MICRO_MOTION_SYSTEM
     head_m = geometry.head_point if head_m is None else np.asarray(head_m, dtype=float)
     seat_m = geometry.seat_point if seat_m is None else np.asarray(seat_m, dtype=float)
