@@ -277,6 +277,9 @@ def _add_accept(sub) -> None:
                     help="also run the tests with this compensator, beside none (default: none only)")
     ac.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
                     help="the classical washout of the OMCT (default: docs/motion-cueing.md)")
+    ac.add_argument("--log", type=pathlib.Path, action="append", default=[], metavar="LOG.csv",
+                    help="a measured log of a test motion (dof_ref_* and leg positions; repeatable): its frequency-"
+                         "response point and turn-around bump, measured and simulated, checked beside the tests")
     _machine_option(ac)
     _worker_options(ac, "worker processes for the sine runs")
     ac.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -293,6 +296,9 @@ def cmd_accept(args: argparse.Namespace) -> int:
     if args.report.exists() and not args.report.is_dir():
         raise InputError(f"--report {args.report}: exists and is not a folder")
     tol = Tolerances.read(args.tolerances)
+    for path in args.log:
+        if not path.is_file():
+            raise InputError(f"--log {path}: no such file")
     washout = WashoutParams.from_file(args.washout) if args.washout else None
     from hexsim.plant.machine import load_machine
 
@@ -308,6 +314,12 @@ def cmd_accept(args: argparse.Namespace) -> int:
         base = RunConfig.from_machine(machine, "heave", compensator=name)
         say = None if args.quiet else (lambda text, n=name: _progress_line(f"compensator {n}: {text}"))
         results.append(run_acceptance(base, tol, washout, jobs=args.jobs, progress=say))
+        if args.log:
+            from hexsim.measured.acceptance_logs import add_log_tests
+
+            if say:
+                say(f"{len(args.log)} measured log(s)")
+            add_log_tests(results[-1], args.log, base, tol)
     for r in results:
         judged = [c for c in r.checks if c.passed is not None]
         failed = [c for c in judged if not c.passed]

@@ -100,3 +100,36 @@ def test_accept_refuses_a_bad_file_before_running(tmp_path):
                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and out.stderr.startswith("hexsim: error:") and "not valid JSON" in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1 and not (tmp_path / "acc").exists()
+
+
+def _independent_log(tmp_path, kp: float):
+    """A 5 s, 1 Hz, 10 mm heave of the independent hexapod (tests/independent_hexapod.py, its own equations)
+    with its P gain ``kp``, logged with the platform setpoint."""
+    import independent_hexapod as ih
+
+    def poses(t):
+        p = np.zeros(6)
+        p[2] = 0.01 * min(t, 1.0) * math.sin(2 * math.pi * t)
+        return p
+
+    cols = ih.motion(ih.Hexapod(kp=kp), 5.0, poses, np.random.default_rng(3))
+    ref = np.array([poses(t) for t in cols["time_s"]])
+    for k, name in enumerate(("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")):
+        cols[f"dof_ref_{name}"] = ref[:, k]
+    return ih.write(cols, tmp_path / f"heave_kp{kp:g}.csv", "1 Hz heave for the acceptance test", kp=kp)
+
+
+def test_a_logged_test_gives_its_measured_figures_beside_the_simulated(tmp_path):
+    """The frequency-response point and turn-around bump read from a log of the independent hexapod: with the
+    machine file's K_p the log and the simulation agree; with half the gain the log shows the slower loop."""
+    from hexsim.measured.acceptance_logs import log_test
+
+    base = hexsim.RunConfig("heave")
+    same = log_test(_independent_log(tmp_path, 200.0), base)
+    assert same["dof"] == "heave" and same["frequency_hz"] == pytest.approx(1.0, rel=0.01)
+    assert same["measured"]["gain_db"] == pytest.approx(same["simulated"]["gain_db"], abs=0.5)
+    assert same["measured"]["phase_deg"] == pytest.approx(same["simulated"]["phase_deg"], abs=5.0)
+    assert same["measured"]["bump_g"] > 0 and same["simulated"]["bump_g"] > 0
+    slow = log_test(_independent_log(tmp_path, 100.0), base)
+    assert slow["measured"]["phase_deg"] < same["measured"]["phase_deg"] - 10.0
+    assert slow["simulated"]["phase_deg"] == pytest.approx(same["simulated"]["phase_deg"], abs=1.0)

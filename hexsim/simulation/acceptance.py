@@ -205,7 +205,8 @@ def _at_least(test: str, item: str, value: float, unit: str, limit: float | None
 class AcceptanceResult:
     """The tests' figures and checks for one compensator: ``bode`` dof -> (frequencies (F,) [Hz], gain (F,)
     [dB], phase (F,) [deg]); ``omct`` "in->out" -> the same; ``turn_around`` dof -> figures; ``leg_balance``,
-    ``repeatability``, ``envelope``: figures; ``checks``: every figure against its tolerance."""
+    ``repeatability``, ``envelope``: figures; ``logs``: each measured log's test, measured and simulated;
+    ``checks``: every figure against its tolerance."""
 
     machine: str
     compensator: str
@@ -215,6 +216,7 @@ class AcceptanceResult:
     leg_balance: dict = field(default_factory=dict)
     repeatability: dict = field(default_factory=dict)
     envelope: dict = field(default_factory=dict)
+    logs: list[dict] = field(default_factory=list)  # measured logs' tests (hexsim.measured.acceptance_logs)
     checks: list[Check] = field(default_factory=list)
 
     @property
@@ -231,6 +233,7 @@ class AcceptanceResult:
         return {"machine": self.machine, "compensator": self.compensator, "passed": self.passed,
                 "frequency_response": arrays(self.bode), "omct": arrays(self.omct), "turn_around": self.turn_around,
                 "leg_balance": self.leg_balance, "repeatability": self.repeatability, "envelope": self.envelope,
+                "logs": self.logs,
                 "checks": [dataclasses.asdict(c) for c in self.checks]}
 
 
