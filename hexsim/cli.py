@@ -113,6 +113,7 @@ def _add_run(sub) -> None:
     run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON; - for stdout")
     run.add_argument("--log", type=pathlib.Path, help="write the run as a measurement log (CSV + JSON sidecar)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    _thresholds_option(run)
 
 
 def _add_compare(sub) -> None:
@@ -130,6 +131,7 @@ def _add_compare(sub) -> None:
     _worker_options(cmp, "worker processes")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison figure (seed Fig. 5.12 layout; .png, .pdf or .svg)")
     cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON; - for stdout")
+    _thresholds_option(cmp)
 
 
 def _add_validate(sub) -> None:
@@ -257,6 +259,19 @@ def _add_modes(sub) -> None:
     _machine_option(mo)
 
 
+def _thresholds_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--thresholds", type=pathlib.Path, metavar="THRESHOLDS.json",
+                   help="your perception thresholds (any of x_mps2, y_mps2, z_mps2, roll_degps, pitch_degps, "
+                        "yaw_degps, stimulus_s, seat_mps2; default Benson et al. and ISO 2631-1 Annex C; "
+                        "docs/perception.md)")
+
+
+def _thresholds(args: argparse.Namespace):
+    from hexsim.simulation.perception import DEFAULT_THRESHOLDS, Thresholds
+
+    return DEFAULT_THRESHOLDS if getattr(args, "thresholds", None) is None else Thresholds.from_file(args.thresholds)
+
+
 def _add_accept(sub) -> None:
     """The ``accept`` command's options."""
     ac = sub.add_parser(
@@ -281,6 +296,7 @@ def _add_accept(sub) -> None:
                     help="a measured log of a test motion (dof_ref_* and leg positions; repeatable): its frequency-"
                          "response point and turn-around bump, measured and simulated, checked beside the tests")
     _machine_option(ac)
+    _thresholds_option(ac)
     _worker_options(ac, "worker processes for the sine runs")
     ac.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -296,6 +312,7 @@ def cmd_accept(args: argparse.Namespace) -> int:
     if args.report.exists() and not args.report.is_dir():
         raise InputError(f"--report {args.report}: exists and is not a folder")
     tol = Tolerances.read(args.tolerances)
+    thresholds = _thresholds(args)
     for path in args.log:
         if not path.is_file():
             raise InputError(f"--log {path}: no such file")
@@ -313,7 +330,7 @@ def cmd_accept(args: argparse.Namespace) -> int:
     for name in dict.fromkeys(("none", args.compensator)):
         base = RunConfig.from_machine(machine, "heave", compensator=name)
         say = None if args.quiet else (lambda text, n=name: _progress_line(f"compensator {n}: {text}"))
-        results.append(run_acceptance(base, tol, washout, jobs=args.jobs, progress=say))
+        results.append(run_acceptance(base, tol, washout, jobs=args.jobs, progress=say, thresholds=thresholds))
         if args.log:
             from hexsim.measured.acceptance_logs import add_log_tests
 
@@ -728,6 +745,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     _check_outputs(args)
     config = _run_config(args, args.compensator)  # every option checked before the heavy imports
+    thresholds = _thresholds(args)
     from hexsim.outputs.logio import write_log
     from hexsim.outputs.plotting import plot_run
     from hexsim.outputs.report import run_report, summary_table
@@ -737,7 +755,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     result = simulate(config)
     if config.scenario.cueing is not None:
-        return _vehicle_outputs(args, result)
+        return _vehicle_outputs(args, result, thresholds)
     if config.scenario.open_loop:
         from hexsim.outputs.plotting import plot_open_loop
         from hexsim.outputs.report import open_loop_report, open_loop_table
@@ -750,7 +768,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         if config.scenario.system == "hexapod":
             from hexsim.simulation.perception import bump_perception
 
-            perception = bump_perception(result, sm)
+            perception = bump_perception(result, sm, thresholds=thresholds)
         report = run_report(result, sm, perception)
         print(summary_table(report))
     written = []
@@ -773,7 +791,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _vehicle_outputs(args: argparse.Namespace, result) -> int:
+def _vehicle_outputs(args: argparse.Namespace, result, thresholds) -> int:
     """``hexsim run vehicle:PATH``: the cue report on stdout, and the files asked for."""
     from hexsim.outputs.logio import write_log
     from hexsim.outputs.plotting import plot_cueing
@@ -781,7 +799,7 @@ def _vehicle_outputs(args: argparse.Namespace, result) -> int:
     from hexsim.simulation.cueing import cue_report, cue_table
 
     cfg = result.config
-    report = cue_report(result)
+    report = cue_report(result, thresholds)
     print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, washout {report.washout}, "
           f"compensator {cfg.compensator_name})\nmachine   {cfg.machine_label}")
     print(cue_table(report))
@@ -816,10 +834,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     base = _run_config(args, "none")
+    thresholds = _thresholds(args)
     print(f"comparing {', '.join(dict.fromkeys(('none', *names)))} on {base.scenario.name} "
           f"({base.scenario.duration:g} s, machine {base.machine_label}) with {worker_count(args.jobs)} worker(s)…",
           flush=True)
-    entries = compare(base, names, jobs=args.jobs)
+    entries = compare(base, names, jobs=args.jobs, thresholds=thresholds)
     print(league_table(entries))
     written = []
     if args.json:

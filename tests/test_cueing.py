@@ -130,3 +130,16 @@ def test_rotations_turn_about_the_washouts_rotation_centre():
     head = out.poses[:, :3] + turn.apply(centre) - centre
     np.testing.assert_allclose(head, out.translation, atol=1e-12)
     assert np.max(np.abs(out.poses[:, 0] - out.translation[:, 0])) > 0.05  # the tilt's share, made up in surge
+
+
+def test_after_a_stop_the_platform_returns_to_neutral():
+    """A 4 s deceleration, then none: the tilt comes back at no more than its rate limit and every degree of
+    freedom returns to the neutral pose."""
+    m = _stop(duration=25.0)
+    f = m.specific_force.copy()
+    f[m.t > 5.0, 0] = 0.0
+    out = washout(VehicleMotion(m.t, f, m.angular_velocity), WashoutParams(), 500.0)
+    params = WashoutParams()
+    assert np.max(np.abs(np.diff(out.tilt[:, 1]))) * 500.0 <= math.radians(params.tilt_rate_limit_degps) * (1 + 1e-9)
+    assert np.max(np.abs(out.poses[:, 4])) > 0.05
+    np.testing.assert_allclose(out.poses[-1], 0.0, atol=2e-3)

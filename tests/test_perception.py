@@ -140,3 +140,26 @@ def test_heave_bumps_are_felt_through_the_seat_and_the_oracle_leaves_far_less():
     assert none.figures()["axes"]["z"]["seat_max_weighted_mps2"] == pytest.approx(none.seat[:, 2].max()
                                                                                    * ISO_PERCEPTION_THRESHOLD)
     assert len(none.figures()["per_reversal"]) == len(none.reversal_times) and set(none.thresholds) == set(AXES)
+
+
+def test_a_users_thresholds_override_the_defaults(tmp_path):
+    from hexsim.errors import InputError
+    from hexsim.simulation.perception import Thresholds
+
+    path = tmp_path / "thr.json"
+    path.write_text('{"z_mps2": 0.05, "yaw_degps": 3.0, "seat_mps2": 0.5, "source": "our drivers"}')
+    th = Thresholds.from_file(path)
+    assert th.stimulus("z") == 0.05 and th.stimulus("yaw") == pytest.approx(math.radians(3.0))
+    assert th.stimulus("x") == 0.063 and th.source == "our drivers"
+    assert sensed_threshold("z", thresholds=th) == pytest.approx(sensed_threshold("z") * 0.05 / 0.154)
+    fs = 1000.0
+    t = np.arange(int(6 * fs)) / fs
+    seat = np.zeros((t.size, 3))
+    seat[:, 2] = _pulse(t, 2.0, 0.5)
+    default, stiff = sense_bumps(t, np.zeros((t.size, 6)), seat, np.array([2.0])), \
+        sense_bumps(t, np.zeros((t.size, 6)), seat, np.array([2.0]), thresholds=th)
+    assert stiff.seat[0, 2] == pytest.approx(default.seat[0, 2] * 0.015 / 0.5)
+    for text, expected in (('{"seat": 1}', "unknown threshold key 'seat'"), ('{"x_mps2": -1}', "x_mps2: expected a positive")):
+        path.write_text(text)
+        with pytest.raises(InputError, match=expected):
+            Thresholds.from_file(path)

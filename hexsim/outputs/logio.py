@@ -44,6 +44,14 @@ def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
         cols[f"platform_acc_{axis}_mps2"] = result.acc[:, k]
     for k, axis in enumerate("xyz"):
         cols[f"platform_gyro_{axis}_radps"] = result.gyro[:, k]
+    from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
+    from hexsim.simulation.perception import point_motion
+
+    head = point_motion(result, (result.config.geometry or MICRO_MOTION_SYSTEM).head_point)
+    for k, axis in enumerate("xyz"):
+        cols[f"head_f_{axis}_mps2"] = head.specific_force[:, k]
+    for k, axis in enumerate("xyz"):
+        cols[f"head_omega_{axis}_radps"] = head.angular_velocity[:, k]
     return cols
 
 

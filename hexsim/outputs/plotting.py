@@ -116,12 +116,12 @@ def plot_cueing(path: str | os.PathLike, result: SimulationResult, report) -> No
 def _perception_panels(a, b, p) -> tuple:
     """The false cue at the seat, ISO 2631-1 weighted, against the Annex C threshold (a), and the vestibular
     models' output at the head as a multiple of each axis' sensed threshold (b)."""
-    from hexsim.simulation.perception import AXES, ISO_PERCEPTION_THRESHOLD, ISO_WEIGHTINGS
+    from hexsim.simulation.perception import AXES, ISO_WEIGHTINGS
 
     for k, axis in enumerate("xyz"):
         a.plot(p.t, p.weighted[:, k], lw=0.8, label=f"{axis} ({ISO_WEIGHTINGS[axis]})")
     for sign in (1, -1):
-        a.axhline(sign * ISO_PERCEPTION_THRESHOLD, color="k", ls="--", lw=0.8,
+        a.axhline(sign * p.seat_threshold, color="k", ls="--", lw=0.8,
                   label="perception threshold (ISO 2631-1 Annex C)" if sign > 0 else None)
     a.set(title=f"seat: weighted false cue, {int(np.sum(p.seat.max(axis=1) > 1))} of {len(p.reversal_times)} "
                 f"bumps above threshold", xlabel="time [s]", ylabel="[m/s^2]")

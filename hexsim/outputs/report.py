@@ -153,7 +153,7 @@ def _perception_line(p: dict) -> str:
     seat = max(("xyz"), key=lambda a: p["axes"][a]["seat_max_ratio"] or 0)
     vest = max(p["axes"], key=lambda a: p["axes"][a]["vestibular_max_ratio"] or 0)
     return (f"{p['perceptible']} of {p['reversals']} bumps (seat: {p['perceptible_seat']}, worst {seat} "
-            f"{p['axes'][seat]['seat_max_ratio']:.2f}x the ISO 2631-1 threshold; vestibular: "
+            f"{p['axes'][seat]['seat_max_ratio']:.2f}x the seat threshold; vestibular: "
             f"{p['perceptible_vestibular']}, worst {vest} {p['axes'][vest]['vestibular_max_ratio']:.2f}x)")
 
 

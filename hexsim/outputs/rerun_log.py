@@ -55,6 +55,9 @@ def _blueprint(compensated: bool, analysis: str, system: str = "hexapod", scale:
     ]
     if compensated:
         panels.append(rrb.TimeSeriesView(origin="/compensator", name="compensator parameters a, b, c, s"))
+    if system == "hexapod":
+        panels.append(rrb.TimeSeriesView(origin="/head", name="the occupant's head: specific force [m/s^2], "
+                                                                "angular velocity [rad/s]"))
     if perception:
         panels.insert(1, rrb.TimeSeriesView(origin="/perception/seat",
                                             name="seat: ISO 2631-1 weighted false cue and threshold [m/s^2]"))
@@ -203,6 +206,20 @@ def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness 
     write_atomic(path, lambda tmp: _write(tmp, result, sm, perception, cueing))
 
 
+def _head(rec, result: SimulationResult, times) -> None:
+    """The occupant's head: specific force [m/s^2] and angular velocity [rad/s], head axes (the platform's),
+    from the platform's rigid-body state (:func:`hexsim.simulation.perception.point_motion`)."""
+    from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
+    from hexsim.simulation.perception import point_motion
+
+    head = point_motion(result, (result.config.geometry or MICRO_MOTION_SYSTEM).head_point)
+    for k, axis in enumerate("xyz"):
+        _scalars(rec, f"/head/specific_force/{axis}", times, head.specific_force[:, k])
+        rec.log(f"/head/specific_force/{axis}", rr.SeriesLines(names=f"head f_{axis} [m/s^2]"), static=True)
+        _scalars(rec, f"/head/angular_velocity/{axis}", times, head.angular_velocity[:, k])
+        rec.log(f"/head/angular_velocity/{axis}", rr.SeriesLines(names=f"head omega_{axis} [rad/s]"), static=True)
+
+
 def _cueing(rec, report) -> None:
     """Per axis the sensed cue of the vehicle, the ideal platform and the simulator, and the threshold
     (``report``: a :class:`~hexsim.simulation.cueing.CueReport`)."""
@@ -223,15 +240,15 @@ def _cueing(rec, report) -> None:
 def _perception(rec, p) -> None:
     """The seat's ISO-weighted false cue per axis with the Annex C threshold, and the head's vestibular output
     per axis as a multiple of its sensed threshold."""
-    from hexsim.simulation.perception import AXES, ISO_PERCEPTION_THRESHOLD
+    from hexsim.simulation.perception import AXES
 
     times = rr.TimeColumn("time", duration=p.t)
     for k, axis in enumerate("xyz"):
         _scalars(rec, f"/perception/seat/{axis}", times, p.weighted[:, k])
         rec.log(f"/perception/seat/{axis}", rr.SeriesLines(names=f"seat {axis}, ISO 2631-1 weighted [m/s^2]"),
                 static=True)
-    _scalars(rec, "/perception/seat/threshold", times, np.full(p.t.size, ISO_PERCEPTION_THRESHOLD))
-    rec.log("/perception/seat/threshold", rr.SeriesLines(names="threshold 0.015 m/s^2", colors=[[0, 0, 0]]),
+    _scalars(rec, "/perception/seat/threshold", times, np.full(p.t.size, p.seat_threshold))
+    rec.log("/perception/seat/threshold", rr.SeriesLines(names=f"threshold {p.seat_threshold:g} m/s^2", colors=[[0, 0, 0]]),
             static=True)
     for k, axis in enumerate(AXES):
         _scalars(rec, f"/perception/head/{axis}", times, np.abs(p.sensed[:, k]) / p.thresholds[axis])
@@ -285,6 +302,8 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None, p
                             (f"/pressure/leg{i + 1}/p1", "P1"), (f"/pressure/leg{i + 1}/p2", "P2")):
             rec.log(path, rr.SeriesLines(names=f"leg{i + 1} {label}"), static=True)
     rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
+    if result.sensor_site is not None:
+        _head(rec, result, times)
     if perception is not None:
         _perception(rec, perception)
     if cueing is not None:

@@ -39,7 +39,7 @@ from hexsim.errors import InputError
 from hexsim.signals import fit_fundamental
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import STANDARD_GRAVITY, run_smoothness
-from hexsim.simulation.perception import AXES, bump_perception, point_motion
+from hexsim.simulation.perception import DEFAULT_THRESHOLDS, AXES, Thresholds, bump_perception, point_motion
 from hexsim.simulation.runner import Simulator, simulate
 from hexsim.simulation.workers import in_workers, worker_pool
 
@@ -310,14 +310,15 @@ def _bode_checks(test: str, name: str, freqs, gains, phases, band: Band | None) 
     return out
 
 
-def turn_around(base: RunConfig, dof: str, frequency: float = 0.5, seed: int = 0):
+def turn_around(base: RunConfig, dof: str, frequency: float = 0.5, seed: int = 0,
+                thresholds: Thresholds = DEFAULT_THRESHOLDS):
     """The seed's sine in ``dof`` at ``frequency`` (default amplitude), 4 periods: the run, its smoothness
     and its bumps' perception."""
     sc = make_scenario(dof, frequency=frequency, duration=4.0 / frequency + 1.0 / frequency,
                        controller_rate_hz=base.controller.rate_hz)
     r = simulate(dataclasses.replace(base, scenario=sc, seed=seed, progress=False))
     sm = run_smoothness(r)
-    return r, sm, bump_perception(r, sm)
+    return r, sm, bump_perception(r, sm, thresholds=thresholds)
 
 
 def envelope(base: RunConfig, dof: str) -> dict:
@@ -362,11 +363,13 @@ def envelope(base: RunConfig, dof: str) -> dict:
             "unit": "m" if k < 3 else "rad"}
 
 
-def run_acceptance(base: RunConfig, tol: Tolerances, washout=None, jobs: int = 1, progress=None) -> AcceptanceResult:
+def run_acceptance(base: RunConfig, tol: Tolerances, washout=None, jobs: int = 1, progress=None,
+                   thresholds: Thresholds = DEFAULT_THRESHOLDS) -> AcceptanceResult:
     """Every test the tolerance file asks for (its sections) on the machine and compensator of ``base`` (a
     hexapod's RunConfig; its scenario is replaced), the OMCT with ``washout`` (WashoutParams, None: the
     defaults); ``jobs`` worker processes for the sine runs; ``progress(text)`` is told each test as it
-    starts. Raises InputError for a single actuator."""
+    starts; the turn-around's bumps felt judged with the perception ``thresholds``. Raises InputError for a
+    single actuator."""
     if base.scenario.system != "hexapod":
         raise InputError("the motion acceptance tests need a hexapod machine")
     say = progress or (lambda text: None)
@@ -396,7 +399,7 @@ def run_acceptance(base: RunConfig, tol: Tolerances, washout=None, jobs: int = 1
         say("turn-around check")
         lim = tol.turn_around
         for dof in tol.dofs:
-            r, sm, bp = turn_around(base, dof)
+            r, sm, bp = turn_around(base, dof, thresholds=thresholds)
             rotational = SINE_DOFS[dof] >= 3
             peak = float(np.max(sm.reversal_peaks))
             felt = int(np.sum(bp.perceptible))

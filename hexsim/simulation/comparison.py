@@ -16,7 +16,7 @@ import numpy as np
 from compensation import COMPENSATORS
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import Smoothness, run_smoothness
-from hexsim.simulation.perception import bump_perception
+from hexsim.simulation.perception import DEFAULT_THRESHOLDS, Thresholds, bump_perception
 from hexsim.simulation.runner import simulate
 from hexsim.simulation.workers import in_workers, worker_pool
 
@@ -90,8 +90,9 @@ class Entry:
         }
 
 
-def evaluate(config: RunConfig) -> Entry:
-    """Run one configuration and reduce it to an :class:`Entry` (runs in a worker process)."""
+def evaluate(config: RunConfig, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> Entry:
+    """Run one configuration and reduce it to an :class:`Entry`, its bumps judged with the perception
+    ``thresholds`` (runs in a worker process)."""
     result = simulate(config)
     sc = config.scenario
     t_final = final_window_start(sc.duration, sc.frequency)
@@ -113,7 +114,7 @@ def evaluate(config: RunConfig) -> Entry:
     if s_est is None:  # the chord of the flow curve, as the seed estimates s (§5.3)
         s_est = np.full((1, 1), np.ptp(result.ydot[:, 0]) / max(np.ptp(result.u_v[:, 0]), 1e-9))
     traces["s"] = float(s_est[-1, 0])
-    perception = bump_perception(result, final).figures() if sc.system == "hexapod" else None
+    perception = bump_perception(result, final, thresholds=thresholds).figures() if sc.system == "hexapod" else None
     return Entry(perception=perception,
         compensator=config.compensator_name, noise_ratio=final.noise_ratio, peak_noise_g=final.peak_noise_g,
         peak_noise=final.peak_noise, mean_reversal_peak=final.mean_reversal_peak,
@@ -123,19 +124,21 @@ def evaluate(config: RunConfig) -> Entry:
     )
 
 
-def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2) -> list[Entry]:
+def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2,
+            thresholds: Thresholds = DEFAULT_THRESHOLDS) -> list[Entry]:
     """Run ``base`` once per compensator in ``names`` (``none`` is always included) with ``jobs`` worker
-    processes; returns the entries in league order with the reduction of the mean reversal peak vs none."""
+    processes; returns the entries in league order with the reduction of the mean reversal peak vs none
+    and, for a hexapod, the bumps felt with the perception ``thresholds``."""
     names = tuple(dict.fromkeys(("none", *names)))
     unknown = [n for n in names if n not in COMPENSATORS]
     if unknown:
         raise ValueError(f"unknown compensator {unknown[0]!r}; choose from {', '.join(COMPENSATORS)}")
     configs = [dataclasses.replace(base, compensator=n, progress=False) for n in names]
     if not in_workers(jobs):
-        entries = [evaluate(c) for c in configs]
+        entries = [evaluate(c, thresholds) for c in configs]
     else:
         with worker_pool(jobs) as pool:
-            entries = list(pool.map(evaluate, configs))
+            entries = list(pool.map(evaluate, configs, [thresholds] * len(configs)))
     baseline = entries[0].mean_reversal_peak
     for e in entries:
         e.reduction_pct = 100.0 * (1.0 - e.mean_reversal_peak / baseline) if baseline > 0 else None

@@ -34,9 +34,10 @@ from scipy.spatial.transform import Rotation
 from hexsim.signals import zero_crossings
 from hexsim.simulation.perception import (
     AXES,
-    ISO_PERCEPTION_THRESHOLD,
+    DEFAULT_THRESHOLDS,
     ISO_WEIGHTINGS,
     PointMotion,
+    Thresholds,
     iso2631,
     point_motion,
     sensed_threshold,
@@ -174,8 +175,9 @@ def leg_reversals(t: np.ndarray, ydot: np.ndarray, min_speed: float = 2e-3) -> n
     return np.unique(np.round(np.array(out), 4))
 
 
-def cue_report(result) -> CueReport:
-    """The cue report of a ``vehicle:`` run (module doc). Raises ValueError for a run of another scenario."""
+def cue_report(result, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> CueReport:
+    """The cue report of a ``vehicle:`` run (module doc) with the perception ``thresholds`` (default
+    Benson's and ISO 2631-1's). Raises ValueError for a run of another scenario."""
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 
     sc = result.config.scenario
@@ -194,9 +196,9 @@ def cue_report(result) -> CueReport:
     reversals = leg_reversals(t, result.ydot)
     axes = {}
     for k, axis in enumerate(AXES):
-        thr = sensed_threshold(axis, fs)
+        thr = sensed_threshold(axis, fs, thresholds)
         axes[axis] = _axis_figures(t, s_veh[:, k], s_sim[:, k], s_ideal[:, k], thr, reversals)
-    seat = _seat_figures(result, geometry.seat_point, sc, fs, reversals)
+    seat = _seat_figures(result, geometry.seat_point, sc, fs, reversals, thresholds.seat_mps2)
     margin = np.minimum(result.y.min(axis=0) - result.stroke[:, 0], result.stroke[:, 1] - result.y.max(axis=0))
     return CueReport(
         vehicle=vehicle.source, washout=params.source, washout_parameters=params.document(), head_m=head,
@@ -244,7 +246,7 @@ def _axis_figures(t, veh, sim, ideal, thr, reversals) -> AxisCue:
                    float(np.sum(false_sim) * np.median(np.diff(t))), counts)
 
 
-def _seat_figures(result, seat_m, sc, fs, reversals) -> dict[str, SeatCue]:
+def _seat_figures(result, seat_m, sc, fs, reversals, threshold: float) -> dict[str, SeatCue]:
     """The hardware's cues at the seat: the ISO 2631-1 weighted specific force of the simulator where the
     ideal platform's, weighted alike, stays below the perception threshold within 0.1 s; its peaks above the
     threshold (0.2 s apart) counted near leg reversals and elsewhere."""
@@ -256,8 +258,8 @@ def _seat_figures(result, seat_m, sc, fs, reversals) -> dict[str, SeatCue]:
     for k, axis in enumerate("xyz"):
         weighting = iso2631(ISO_WEIGHTINGS[axis])
         w_sim, w_ideal = weighting.apply(sim[:, k], fs), weighting.apply(ideal[:, k], fs)
-        quiet = maximum_filter1d(np.abs(w_ideal), 2 * half + 1) < ISO_PERCEPTION_THRESHOLD
-        peaks, _ = find_peaks(np.where(quiet, np.abs(w_sim), 0.0), height=ISO_PERCEPTION_THRESHOLD,
+        quiet = maximum_filter1d(np.abs(w_ideal), 2 * half + 1) < threshold
+        peaks, _ = find_peaks(np.where(quiet, np.abs(w_sim), 0.0), height=threshold,
                               distance=max(1, int(0.2 * fs)))
         near = [p for p in peaks if reversals.size and np.min(np.abs(reversals - t[p])) <= REVERSAL_NEAR_S]
         largest = float(np.max(np.abs(w_sim[quiet]))) if np.any(quiet) else 0.0

@@ -109,13 +109,69 @@ VESTIBULAR_THRESHOLDS = {"x": 0.063, "y": 0.057, "z": 0.154,
 THRESHOLD_STIMULUS_S = 3.0
 
 
-def threshold_stimulus(axis: str, amplitude: float, fs: float) -> np.ndarray:
+@dataclass(frozen=True)
+class Thresholds:
+    """The perception thresholds a judgement uses: ``vestibular`` axis -> the stimulus' threshold (m/s^2 for
+    x, y, z; rad/s for roll, pitch, yaw), ``stimulus_s`` the duration of the stimulus they were measured
+    with, ``seat_mps2`` the weighted peak at the seat; defaults Benson et al. (1986, 1989) and ISO 2631-1
+    Annex C (module doc); ``source``: whose they are. A user's file overrides any of them
+    (:meth:`from_file`)."""
+
+    vestibular: tuple[tuple[str, float], ...] = tuple(VESTIBULAR_THRESHOLDS.items())
+    stimulus_s: float = THRESHOLD_STIMULUS_S
+    seat_mps2: float = ISO_PERCEPTION_THRESHOLD
+    source: str = "Benson et al. (1986, 1989); ISO 2631-1:1997 Annex C"
+
+    def stimulus(self, axis: str) -> float:
+        return dict(self.vestibular)[axis]
+
+    @classmethod
+    def from_file(cls, path) -> "Thresholds":
+        """A JSON object with any of ``x_mps2``, ``y_mps2``, ``z_mps2``, ``roll_degps``, ``pitch_degps``,
+        ``yaw_degps``, ``stimulus_s``, ``seat_mps2`` and ``source``; the rest default. Raises InputError
+        naming the file and the key for an unknown key or a value that is not a positive number."""
+        import json
+        import pathlib
+
+        from hexsim.errors import InputError
+
+        path = pathlib.Path(path)
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(f"{path}: no such file") from None
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{path}: not valid JSON ({exc})") from None
+        if not isinstance(doc, dict):
+            raise InputError(f"{path}: expected a JSON object of perception thresholds")
+        keys = {f"{a}_mps2": a for a in AXES[:3]} | {f"{a}_degps": a for a in AXES[3:]}
+        vestibular = dict(VESTIBULAR_THRESHOLDS)
+        out = {"source": str(doc.get("source", f"{path}"))}
+        for key, value in doc.items():
+            if key == "source":
+                continue
+            if key not in (*keys, "stimulus_s", "seat_mps2"):
+                raise InputError(f"{path}: unknown threshold key {key!r} ({', '.join(keys)}, stimulus_s, seat_mps2)")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                raise InputError(f"{path}: {key}: expected a positive number, got {value!r}")
+            if key in keys:
+                vestibular[keys[key]] = math.radians(value) if key.endswith("degps") else float(value)
+            else:
+                out[key] = float(value)
+        return cls(vestibular=tuple(vestibular.items()), **out)
+
+
+#: the defaults
+DEFAULT_THRESHOLDS = Thresholds()
+
+
+def threshold_stimulus(axis: str, amplitude: float, fs: float, duration: float = THRESHOLD_STIMULUS_S) -> np.ndarray:
     """The threshold experiments' stimulus on ``axis`` with peak ``amplitude`` sampled at ``fs`` [Hz] and
     followed by as long at rest: for a translation the specific force of one cycle of a sinusoidal
-    acceleration of :data:`THRESHOLD_STIMULUS_S`; for a rotation the angular velocity of that profile
-    (a raised cosine, its peak the threshold's rate)."""
-    t = np.arange(int(round(2 * THRESHOLD_STIMULUS_S * fs))) / fs
-    phase = 2 * np.pi * np.clip(t / THRESHOLD_STIMULUS_S, 0, 1)
+    acceleration of ``duration`` [s]; for a rotation the angular velocity of that profile (a raised cosine,
+    its peak the threshold's rate)."""
+    t = np.arange(int(round(2 * duration * fs))) / fs
+    phase = 2 * np.pi * np.clip(t / duration, 0, 1)
     if AXES.index(axis) < 3:
         return amplitude * np.sin(phase)
     return amplitude * 0.5 * (1 - np.cos(phase))
@@ -126,11 +182,11 @@ def vestibular_model(axis: str) -> LinearModel:
     return otolith() if AXES.index(axis) < 3 else canal()
 
 
-def sensed_threshold(axis: str, fs: float = 1000.0) -> float:
+def sensed_threshold(axis: str, fs: float = 1000.0, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> float:
     """The vestibular model's peak output to the threshold stimulus of ``axis`` (:func:`threshold_stimulus`
-    at :data:`VESTIBULAR_THRESHOLDS`), in the stimulus' unit: the level the model's output must exceed to be
+    at the ``thresholds``' level), in the stimulus' unit: the level the model's output must exceed to be
     perceived (module doc)."""
-    x = threshold_stimulus(axis, VESTIBULAR_THRESHOLDS[axis], fs)
+    x = threshold_stimulus(axis, thresholds.stimulus(axis), fs, thresholds.stimulus_s)
     return float(np.max(np.abs(vestibular_model(axis).apply(x, fs))))
 
 
@@ -202,8 +258,9 @@ class BumpPerception:
     head_m: np.ndarray
     seat_m: np.ndarray
     t: np.ndarray = field(repr=False)
-    sensed: np.ndarray = field(repr=False)
-    weighted: np.ndarray = field(repr=False)
+    seat_threshold: float = ISO_PERCEPTION_THRESHOLD
+    sensed: np.ndarray = field(repr=False, default=None)
+    weighted: np.ndarray = field(repr=False, default=None)
 
     @property
     def perceptible(self) -> np.ndarray:
@@ -228,7 +285,7 @@ class BumpPerception:
             "perceptible_vestibular": int(np.sum(self.vestibular.max(axis=1, initial=0) > 1)),
             "perceptible_seat": int(np.sum(self.seat.max(axis=1, initial=0) > 1)),
             "head_at_m": self.head_m.tolist(), "seat_at_m": self.seat_m.tolist(),
-            "seat_threshold_mps2": ISO_PERCEPTION_THRESHOLD,
+            "seat_threshold_mps2": self.seat_threshold,
             "axes": axes,
             "per_reversal": [{"t_s": float(tr), "vestibular_ratio": [round(float(v), 4) for v in self.vestibular[i]],
                               "seat_ratio": [round(float(v), 4) for v in self.seat[i]]}
@@ -252,12 +309,13 @@ def _max(x: np.ndarray) -> float | None:
     return float(np.max(x)) if x.size else None
 
 
-def bump_perception(result, sm=None, head_m=None, seat_m=None) -> BumpPerception:
+def bump_perception(result, sm=None, head_m=None, seat_m=None, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> BumpPerception:
     """Each reversal bump of a sine run as the occupant senses it (module doc). ``result``: a hexapod
     :class:`~hexsim.simulation.config.SimulationResult`; ``sm``: its
     :class:`~hexsim.simulation.metrics.Smoothness` (window, frequency, reversal times; None:
     :func:`~hexsim.simulation.metrics.run_smoothness` of the result). ``head_m``, ``seat_m``
-    (3,) [m, platform frame]: default the machine's (:attr:`hexsim.plant.geometry.Geometry.head_point`).
+    (3,) [m, platform frame]: default the machine's (:attr:`hexsim.plant.geometry.Geometry.head_point`);
+    ``thresholds``: :class:`Thresholds` (default Benson's and ISO 2631-1's).
     The false cue on each axis is the signal minus its offset and fundamental at the drive frequency over
     the analysis window (as the seed's acceleration noise, §2.3.1). Raises ValueError for a single-actuator
     run."""
@@ -276,11 +334,12 @@ def bump_perception(result, sm=None, head_m=None, seat_m=None) -> BumpPerception
         return np.stack([x[:, k] - fit_fundamental(t, x[:, k], sm.frequency)[3] for k in range(x.shape[1])], axis=1)
 
     return sense_bumps(t, false_cue(head.channels[sel]), false_cue(seat.specific_force[sel]),
-                       np.asarray(sm.reversal_times), head_m, seat_m)
+                       np.asarray(sm.reversal_times), head_m, seat_m, thresholds)
 
 
 def sense_bumps(t: np.ndarray, head_cue: np.ndarray, seat_cue: np.ndarray, reversal_times: np.ndarray,
-                head_m=(0.0, 0.0, 0.0), seat_m=(0.0, 0.0, 0.0)) -> BumpPerception:
+                head_m=(0.0, 0.0, 0.0), seat_m=(0.0, 0.0, 0.0),
+                thresholds: Thresholds = DEFAULT_THRESHOLDS) -> BumpPerception:
     """The sensing of false cues around reversals: ``head_cue`` (N, 6) (specific force [m/s^2] and angular
     velocity [rad/s] at the head, :data:`AXES`) through the vestibular models, ``seat_cue`` (N, 3) [m/s^2]
     through the ISO 2631-1 weightings, both sampled at t (N,) [s] (uniform) from rest; each reversal's
@@ -288,7 +347,7 @@ def sense_bumps(t: np.ndarray, head_cue: np.ndarray, seat_cue: np.ndarray, rever
     fs = 1.0 / float(np.median(np.diff(t)))
     sensed = np.stack([vestibular_model(axis).apply(head_cue[:, k], fs) for k, axis in enumerate(AXES)], axis=1)
     weighted = np.stack([iso2631(ISO_WEIGHTINGS[a]).apply(seat_cue[:, k], fs) for k, a in enumerate("xyz")], axis=1)
-    thresholds = {axis: sensed_threshold(axis, fs) for axis in AXES}
+    sensed_at = {axis: sensed_threshold(axis, fs, thresholds) for axis in AXES}
     rev = np.asarray(reversal_times, dtype=float)
     v_peak, s_peak = np.zeros((rev.size, 6)), np.zeros((rev.size, 3))
     for i, tr in enumerate(rev):
@@ -296,6 +355,7 @@ def sense_bumps(t: np.ndarray, head_cue: np.ndarray, seat_cue: np.ndarray, rever
         if np.any(win):
             v_peak[i] = np.max(np.abs(sensed[win]), axis=0)
             s_peak[i] = np.max(np.abs(weighted[win]), axis=0)
-    v_ratio = v_peak / np.array([thresholds[a] for a in AXES])
-    return BumpPerception(rev, v_ratio, s_peak / ISO_PERCEPTION_THRESHOLD, v_peak, s_peak, thresholds,
-                          np.asarray(head_m, dtype=float), np.asarray(seat_m, dtype=float), t, sensed, weighted)
+    v_ratio = v_peak / np.array([sensed_at[a] for a in AXES])
+    return BumpPerception(rev, v_ratio, s_peak / thresholds.seat_mps2, v_peak, s_peak, sensed_at,
+                          np.asarray(head_m, dtype=float), np.asarray(seat_m, dtype=float), t, thresholds.seat_mps2,
+                          sensed, weighted)
