@@ -150,3 +150,20 @@ def write_json(path: str | os.PathLike | StdoutTarget, doc: dict) -> None:
         path.stream.flush()
         return
     write_atomic(path, lambda tmp: tmp.write_text(text))
+
+
+def read_json_object(path: str | os.PathLike, what: str) -> dict:
+    """The JSON object in ``path``: the settings file of ``what`` (e.g. "washout parameters"). Raises
+    InputError naming the file when it is missing, not UTF-8 JSON, or not an object."""
+    import json
+
+    path = pathlib.Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"{path}: expected a JSON object of {what}")
+    return doc

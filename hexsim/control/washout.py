@@ -22,7 +22,6 @@ System's ±0.1 m of stroke.
 
 from __future__ import annotations
 
-import json
 import math
 import pathlib
 from dataclasses import asdict, dataclass, field, fields
@@ -32,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from hexsim.errors import InputError
 from hexsim.signals import LinearModel
-from hexsim.tables import read_numeric_csv
+from hexsim.tables import read_json_object, read_numeric_csv
 
 G = 9.81  # [m/s^2] the vehicle's 1 g (the models' gravity)
 #: the vehicle-motion CSV's columns: time, specific force (vehicle axes) and body rates at the head
@@ -144,14 +143,7 @@ class WashoutParams:
         """The parameters a JSON object gives (any subset of the fields; the rest default). Raises
         InputError naming the file and the key for an unknown key or a bad value."""
         path = pathlib.Path(path)
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"{path}: no such file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(doc, dict):
-            raise InputError(f"{path}: expected a JSON object of washout parameters")
+        doc = read_json_object(path, "washout parameters")
         known = {f.name for f in fields(cls)} - {"source"}
         unknown = sorted(set(doc) - known)
         if unknown:

@@ -27,7 +27,6 @@ measured figure against a tolerance file the user writes (:class:`Tolerances`, `
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import pathlib
 from dataclasses import dataclass, field
@@ -37,6 +36,7 @@ import numpy as np
 from hexsim.control.scenario import SINE_DOFS, make_scenario, vehicle_scenario
 from hexsim.errors import InputError
 from hexsim.signals import fit_fundamental
+from hexsim.tables import read_json_object
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import STANDARD_GRAVITY, run_smoothness
 from hexsim.simulation.perception import DEFAULT_THRESHOLDS, AXES, Thresholds, bump_perception, point_motion
@@ -86,13 +86,8 @@ class Tolerances:
         """Read a tolerance file. Raises InputError naming the file and the key for a file that is not
         JSON, an unknown section or key, a bad degree of freedom, frequency or limit."""
         path = pathlib.Path(path)
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"{path}: no such file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(doc, dict) or doc.get("format") != "hexsim-acceptance" or doc.get("version") != 1:
+        doc = read_json_object(path, "acceptance tolerances")
+        if doc.get("format") != "hexsim-acceptance" or doc.get("version") != 1:
             raise InputError(f"{path}: not a hexsim acceptance tolerance file (format \"hexsim-acceptance\", version 1)")
         unknown = sorted(set(doc) - {"format", "version", "source", "dofs", "frequencies_hz", *SECTIONS})
         if unknown:

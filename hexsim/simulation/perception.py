@@ -130,20 +130,10 @@ class Thresholds:
         """A JSON object with any of ``x_mps2``, ``y_mps2``, ``z_mps2``, ``roll_degps``, ``pitch_degps``,
         ``yaw_degps``, ``stimulus_s``, ``seat_mps2`` and ``source``; the rest default. Raises InputError
         naming the file and the key for an unknown key or a value that is not a positive number."""
-        import json
-        import pathlib
-
         from hexsim.errors import InputError
+        from hexsim.tables import read_json_object
 
-        path = pathlib.Path(path)
-        try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(f"{path}: no such file") from None
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{path}: not valid JSON ({exc})") from None
-        if not isinstance(doc, dict):
-            raise InputError(f"{path}: expected a JSON object of perception thresholds")
+        doc = read_json_object(path, "perception thresholds")
         keys = {f"{a}_mps2": a for a in AXES[:3]} | {f"{a}_degps": a for a in AXES[3:]}
         vestibular = dict(VESTIBULAR_THRESHOLDS)
         out = {"source": str(doc.get("source", f"{path}"))}
