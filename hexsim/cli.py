@@ -23,7 +23,7 @@ from hexsim.control.scenario import (
     SCENARIOS,
     make_scenario,
 )
-from hexsim.errors import HexsimError, InputError, ModelNote
+from hexsim.errors import HexsimError, InputError, ModelNote, WorkspaceError
 from hexsim.plant.params import ControllerParams
 from hexsim.plant.temperature import WarmUp
 from hexsim.simulation.workers import START_METHODS, worker_count
@@ -643,6 +643,9 @@ def _run_config(args: argparse.Namespace, compensator: str):
                              frequency=args.frequency, controller_rate_hz=controller.rate_hz,
                              washout=getattr(args, "washout", None))
     _check_machine_scenario(machine, scenario)
+    if scenario.cueing is not None and getattr(args, "command", "run") in ("compare", "sweep"):
+        raise InputError(f"{args.command} judges the smoothness of periodic motions; a vehicle: scenario's figures are "
+                         f"its cue report: hexsim run {args.scenario} [--compensator NAME]")
     try:
         settings = CompensatorSettings(
             velocity_cutoff_hz=args.velocity_cutoff, velocity_band=args.velocity_band, q_threshold=args.q_threshold,
@@ -753,7 +756,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     from hexsim.simulation.metrics import run_smoothness
     from hexsim.simulation.runner import simulate
 
-    result = simulate(config)
+    try:
+        result = simulate(config)
+    except WorkspaceError as exc:
+        if config.scenario.cueing is None:
+            raise
+        raise WorkspaceError(f"{exc}: the washout's setpoints leave the workspace; lower its scale_specific_force or "
+                             f"raise its hp_omega_radps / hp_break_radps (--washout FILE, docs/motion-cueing.md)") from None
     if config.scenario.cueing is not None:
         return _vehicle_outputs(args, result, thresholds)
     if config.scenario.open_loop:

@@ -111,6 +111,19 @@ def test_bad_washout_files_are_refused_with_one_line(tmp_path, doc, expected):
         WashoutParams.from_file(path)
 
 
+def test_a_vehicle_motion_beyond_the_workspace_or_in_compare_is_refused_with_one_line(tmp_path):
+    csv = tmp_path / "stop.csv"
+    m = _stop(duration=4.0, decel=8.0)
+    np.savetxt(csv, np.column_stack([m.t, m.specific_force, m.angular_velocity]), delimiter=",",
+               header=",".join(VEHICLE_COLUMNS), comments="")
+    (tmp_path / "w.json").write_text('{"scale_specific_force": [1, 1, 1], "limit_specific_force_mps2": [9, 9, 9]}')
+    for args, expected in ((["run", f"vehicle:{csv}", "--washout", "w.json"], "the washout's setpoints leave the workspace"),
+                           (["compare", f"vehicle:{csv}"], "a vehicle: scenario's figures are its cue report")):
+        out = subprocess.run([sys.executable, "-m", "hexsim", *args], cwd=tmp_path, capture_output=True, text=True,
+                             timeout=300)
+        assert out.returncode == 2 and expected in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
 def test_washout_applies_only_to_vehicle_scenarios(tmp_path):
     path = tmp_path / "w.json"
     path.write_text("{}")
