@@ -313,9 +313,6 @@ def cmd_accept(args: argparse.Namespace) -> int:
         raise InputError(f"--report {args.report}: exists and is not a folder")
     tol = Tolerances.read(args.tolerances)
     thresholds = _thresholds(args)
-    for path in args.log:
-        if not path.is_file():
-            raise InputError(f"--log {path}: no such file")
     washout = WashoutParams.from_file(args.washout) if args.washout else None
     from hexsim.plant.machine import load_machine
 
@@ -326,6 +323,11 @@ def cmd_accept(args: argparse.Namespace) -> int:
     from hexsim.simulation.acceptance import run_acceptance
     from hexsim.simulation.config import RunConfig
 
+    if args.log:  # every log checked before the tests run
+        from hexsim.measured.acceptance_logs import read_test_log
+
+        for path in args.log:
+            read_test_log(path, RunConfig.from_machine(machine, "heave"))
     results = []
     for name in dict.fromkeys(("none", args.compensator)):
         base = RunConfig.from_machine(machine, "heave", compensator=name)

@@ -133,3 +133,17 @@ def test_a_logged_test_gives_its_measured_figures_beside_the_simulated(tmp_path)
     slow = log_test(_independent_log(tmp_path, 100.0), base)
     assert slow["measured"]["phase_deg"] < same["measured"]["phase_deg"] - 10.0
     assert slow["simulated"]["phase_deg"] == pytest.approx(same["simulated"]["phase_deg"], abs=1.0)
+
+
+def test_accept_checks_its_logs_before_any_test_runs(tmp_path):
+    """A log without the platform setpoint is refused with one line before the tests run (nothing written)."""
+    t = np.arange(100) / 1000.0
+    cols = {"time_s": t, **{f"leg{i}_pos_m": np.full(t.size, 0.1) for i in range(1, 7)}}
+    np.savetxt(tmp_path / "test.csv", np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols),
+               comments="")
+    (tmp_path / "test.json").write_text('{"system": "hexapod", "sample_rate_hz": 1000.0}')
+    tol = _tolerances(tmp_path, frequency_response={})
+    out = subprocess.run([sys.executable, "-m", "hexsim", "accept", "--tolerances", str(tol), "--report", "acc",
+                          "--log", "test.csv"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and "no dof_ref_* column" in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1 and not (tmp_path / "acc").exists()

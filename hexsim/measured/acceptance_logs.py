@@ -50,11 +50,11 @@ def _figures(t: np.ndarray, ref: np.ndarray, pose: np.ndarray, acc: np.ndarray |
     return out
 
 
-def log_test(path: pathlib.Path, base: RunConfig) -> dict:
-    """One log's test figures, measured and simulated (module doc): {"log", "dof", "frequency_hz",
-    "amplitude", "measured": figures, "simulated": figures}. Raises InputError naming the log for a
-    single-actuator log, one without a ``dof_ref_*`` column or leg positions, or a setpoint that does not
-    move."""
+def read_test_log(path: pathlib.Path, base: RunConfig):
+    """A log of a test motion, checked (module doc): (the log, times (N,) [s] from 0, the setpoint (N, 6), the
+    test's pose axis, its frequency [Hz]). Raises InputError naming the log for a single-actuator log, one
+    without a ``dof_ref_*`` column or leg positions, a setpoint that does not move, or fewer than three
+    periods of it."""
     log = read_log(path, base.machine or None, needs=("pos_m",))
     if log.system != "hexapod":
         raise InputError(f"{path}: a single actuator's log; the motion tests are a hexapod's")
@@ -72,6 +72,13 @@ def log_test(path: pathlib.Path, base: RunConfig) -> dict:
         raise InputError(f"{path}: the platform setpoint does not move") from None
     if t[-1] < 3.0 / frequency:
         raise InputError(f"{path}: {t[-1]:.3g} s hold less than three periods of its {frequency:.3g} Hz test motion")
+    return log, t, ref, axis, frequency
+
+
+def log_test(path: pathlib.Path, base: RunConfig) -> dict:
+    """One log's test figures, measured and simulated (module doc): {"log", "dof", "frequency_hz",
+    "amplitude", "measured": figures, "simulated": figures}. Raises InputError as :func:`read_test_log`."""
+    log, t, ref, axis, frequency = read_test_log(path, base)
     geo = HexapodGeometry.from_model(load_model("hexapod", base.model, base.effects, base.geometry))
     y = log.leg_array("pos_m")
     pose = np.empty_like(ref)
