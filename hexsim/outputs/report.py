@@ -150,7 +150,9 @@ def summary_table(report: dict) -> str:
 
 def _perception_line(p: dict) -> str:
     """How many bumps the occupant feels, on which path, and the worst axis of each (its ratio to threshold)."""
-    seat = max(("xyz"), key=lambda a: p["axes"][a]["seat_max_ratio"] or 0)
+    if not p["reversals"]:
+        return "no reversal in the analysis window"
+    seat = max("xyz", key=lambda a: p["axes"][a]["seat_max_ratio"] or 0)
     vest = max(p["axes"], key=lambda a: p["axes"][a]["vestibular_max_ratio"] or 0)
     return (f"{p['perceptible']} of {p['reversals']} bumps (seat: {p['perceptible_seat']}, worst {seat} "
             f"{p['axes'][seat]['seat_max_ratio']:.2f}x the seat threshold; vestibular: "

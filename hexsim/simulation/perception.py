@@ -285,6 +285,8 @@ class BumpPerception:
     def summary(self) -> str:
         """One line: how many bumps are felt, on which path, and the worst axis of each."""
         n, felt = len(self.reversal_times), int(np.sum(self.perceptible))
+        if n == 0:
+            return "no reversal in the analysis window"
         parts = []
         if self.seat.size:
             k = int(np.argmax(self.seat.max(axis=0)))
