@@ -38,7 +38,7 @@ def test_heave_frequency_response_matches_the_linearised_position_loop():
 
 def test_envelope_excursion_puts_a_leg_at_its_stroke_end():
     base = hexsim.RunConfig("heave")
-    env = envelope(base, "roll")
+    env = envelope(base, ("roll",))["roll"]
     geo = HexapodGeometry.from_model(load_model("hexapod", "platform"))
     for sign, reach in ((-1, env["excursion"][0]), (1, env["excursion"][1])):
         pose = np.zeros(6)

@@ -70,9 +70,13 @@ def test_canal_passes_its_mid_band_and_washes_out_a_sustained_rate():
 
 
 def test_sensed_thresholds_exceed_the_stimulus_thresholds_by_the_models_gain():
-    """Benson's 3 s stimulus lies where the otolith's lead lifts it: its sensed threshold is above the
-    stimulus' peak; the canal passes it at about unit gain."""
-    assert 1.2 < sensed_threshold("z") / 0.154 < 1.8
+    """Benson's 3 s stimulus lies where the otolith's lead lifts it: the sensed threshold (the discrete filter's
+    peak response to one cycle of it) is the stimulus' peak times the transfer function's gain at 1/3 Hz,
+    |H| = 1.45, within the 10 % one cycle's transient adds; the canal passes it at about unit gain."""
+    gain = abs(otolith().response([1 / 3.0])[0])
+    assert gain == pytest.approx(1.447, abs=1e-3)  # |(13.2 jw + 1)/((5.33 jw + 1)(0.66 jw + 1))|, w = 2 pi / 3
+    assert sensed_threshold("z") / 0.154 == pytest.approx(gain, rel=0.1)
+    assert sensed_threshold("x") / 0.063 == pytest.approx(gain, rel=0.1)
     assert 0.8 < sensed_threshold("yaw") / math.radians(1.6) < 1.1
 
 

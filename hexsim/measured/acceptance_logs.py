@@ -24,7 +24,7 @@ from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
 from hexsim.plant.model import load_model
 from hexsim.signals import dominant_frequency, fit_fundamental
-from hexsim.simulation.acceptance import AcceptanceResult, Tolerances, _at_most, _wrap_deg, _within
+from hexsim.simulation.acceptance import AcceptanceResult, Tolerances, at_most, within, wrap_deg
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import STANDARD_GRAVITY, smoothness
 from hexsim.simulation.runner import simulate
@@ -40,7 +40,7 @@ def _figures(t: np.ndarray, ref: np.ndarray, pose: np.ndarray, acc: np.ndarray |
     sel = t >= t[0] + 2.0 / frequency
     _, a_out, ph_out, _ = fit_fundamental(t[sel], pose[sel, axis], frequency)
     _, a_in, ph_in, _ = fit_fundamental(t[sel], ref[sel, axis], frequency)
-    out = {"gain_db": 20 * math.log10(a_out / a_in), "phase_deg": _wrap_deg(math.degrees(ph_out - ph_in)),
+    out = {"gain_db": 20 * math.log10(a_out / a_in), "phase_deg": wrap_deg(math.degrees(ph_out - ph_in)),
            "bump_g": None}
     if acc is not None and axis < 3:
         sm = smoothness(t, acc[:, axis], frequency, t[0] + 2.0 / frequency, ref[:, axis], name="log", unit="m/s^2",
@@ -108,9 +108,9 @@ def add_log_tests(result: AcceptanceResult, logs: list[pathlib.Path], base: RunC
         for source in ("measured", "simulated"):
             values = fig[source]
             item = f"{fig['dof']} at {f:.3g} Hz ({name}, {source})"
-            result.checks.append(_within("log", f"{item}, gain", values["gain_db"], "dB",
+            result.checks.append(within("log", f"{item}, gain", values["gain_db"], "dB",
                                          band.gain_db if inside else None))
-            result.checks.append(_within("log", f"{item}, phase", values["phase_deg"], "deg",
+            result.checks.append(within("log", f"{item}, phase", values["phase_deg"], "deg",
                                          band.phase_deg if inside else None))
             if values["bump_g"] is not None:
-                result.checks.append(_at_most("log", f"{item}, largest bump", values["bump_g"], "g", limit))
+                result.checks.append(at_most("log", f"{item}, largest bump", values["bump_g"], "g", limit))

@@ -177,20 +177,23 @@ class Check:
     passed: bool | None = None
 
 
-def _within(test: str, item: str, value: float, unit: str, bounds: tuple[float, float] | None) -> Check:
+def within(test: str, item: str, value: float, unit: str, bounds: tuple[float, float] | None) -> Check:
+    """``value`` checked to lie within ``bounds`` (lower, upper) in ``unit``; None: reported only."""
     if bounds is None:
         return Check(test, item, value, unit)
     lo, hi = bounds
     return Check(test, item, value, unit, f"{lo:g} … {hi:g} {unit}", bool(lo <= value <= hi))
 
 
-def _at_most(test: str, item: str, value: float, unit: str, limit: float | None) -> Check:
+def at_most(test: str, item: str, value: float, unit: str, limit: float | None) -> Check:
+    """``value`` checked to be at most ``limit`` in ``unit``; None: reported only."""
     if limit is None:
         return Check(test, item, value, unit)
     return Check(test, item, value, unit, f"≤ {limit:g} {unit}", bool(value <= limit))
 
 
-def _at_least(test: str, item: str, value: float, unit: str, limit: float | None) -> Check:
+def at_least(test: str, item: str, value: float, unit: str, limit: float | None) -> Check:
+    """``value`` checked to be at least ``limit`` in ``unit``; None: reported only."""
     if limit is None:
         return Check(test, item, value, unit)
     return Check(test, item, value, unit, f"≥ {limit:g} {unit}", bool(value >= limit))
@@ -256,10 +259,11 @@ def describing_function(base: RunConfig, dof: str, frequency: float) -> tuple[fl
     sel = r.t >= 2.0 / frequency
     _, a_out, ph_out, _ = fit_fundamental(r.t[sel], r.pose[sel, k], frequency)
     _, a_in, ph_in, _ = fit_fundamental(r.t[sel], r.pose_ref[sel, k], frequency)
-    return 20 * math.log10(a_out / a_in), _wrap_deg(math.degrees(ph_out - ph_in))
+    return 20 * math.log10(a_out / a_in), wrap_deg(math.degrees(ph_out - ph_in))
 
 
-def _wrap_deg(x: float) -> float:
+def wrap_deg(x: float) -> float:
+    """An angle [deg] wrapped into -180 … 180."""
     return (x + 180.0) % 360.0 - 180.0
 
 
@@ -286,7 +290,7 @@ def omct_response(base: RunConfig, washout, channel: tuple[str, str], frequency:
     sel = r.t >= 2.0 / frequency
     _, a_out, ph_out, _ = fit_fundamental(r.t[sel], y[sel], frequency)
     _, a_in, ph_in, _ = fit_fundamental(r.t[sel], np.interp(r.t[sel], t, x), frequency)
-    return 20 * math.log10(max(a_out, 1e-12) / a_in), _wrap_deg(math.degrees(ph_out - ph_in))
+    return 20 * math.log10(max(a_out, 1e-12) / a_in), wrap_deg(math.degrees(ph_out - ph_in))
 
 
 def _task(args):
@@ -300,8 +304,8 @@ def _bode_checks(test: str, name: str, freqs, gains, phases, band: Band | None) 
     out = []
     for f, g, p in zip(freqs, gains, phases):
         inside = band is not None and band.from_hz <= f <= band.to_hz
-        out.append(_within(test, f"{name} at {f:g} Hz, gain", g, "dB", band.gain_db if inside else None))
-        out.append(_within(test, f"{name} at {f:g} Hz, phase", p, "deg", band.phase_deg if inside else None))
+        out.append(within(test, f"{name} at {f:g} Hz, gain", g, "dB", band.gain_db if inside else None))
+        out.append(within(test, f"{name} at {f:g} Hz, phase", p, "deg", band.phase_deg if inside else None))
     return out
 
 
@@ -316,19 +320,25 @@ def turn_around(base: RunConfig, dof: str, frequency: float = 0.5, seed: int = 0
     return r, sm, bump_perception(r, sm, thresholds=thresholds)
 
 
-def envelope(base: RunConfig, dof: str) -> dict:
-    """The motion envelope of ``dof`` at the neutral pose (module doc): excursion [m or rad] each way,
-    velocity [m/s or rad/s] and acceleration [m/s^2 or rad/s^2] (the smaller of the two directions)."""
+def envelope(base: RunConfig, dofs: tuple[str, ...]) -> dict[str, dict]:
+    """The motion envelope of each of ``dofs`` at the neutral pose (module doc): excursion [m or rad] each way,
+    velocity [m/s or rad/s] and acceleration [m/s^2 or rad/s^2] (the smaller of the two directions). The
+    model, its rest pressures and the legs' inertia are set up once for all of them."""
     from hexsim.control.kinematics import HexapodGeometry
     from hexsim.plant import hydraulics
     from hexsim.simulation.config import leg_mobility
 
     sim = Simulator(dataclasses.replace(base, scenario=make_scenario("heave", duration=6.0), progress=False))
     geo = HexapodGeometry.from_model(sim.model)
-    k = SINE_DOFS[dof]
     lo, hi = geo.stroke[:, 0], geo.stroke[:, 1]
+    hyd, p1 = base.hydraulics, sim.p1_initial
+    v_ext = hydraulics.static_velocity(hyd.u_v_max, p1, hyd)
+    v_ret = -hydraulics.static_velocity(-hyd.u_v_max, p1, hyd)
+    mobility, _ = leg_mobility(sim.model, sim.data, sim.idx)
+    up = (hyd.supply_pressure - p1) * hyd.area_bottom  # force each leg can add, and take away [N]
+    down = (p1 - hyd.tank_pressure) * hyd.area_bottom
 
-    def reach(sign: float) -> float:
+    def reach(k: int, sign: float) -> float:
         a, b = 0.0, 1.0 if k < 3 else math.radians(60)
         for _ in range(50):
             mid = 0.5 * (a + b)
@@ -338,24 +348,20 @@ def envelope(base: RunConfig, dof: str) -> dict:
             a, b = (mid, b) if np.all((y >= lo) & (y <= hi)) else (a, mid)
         return a
 
-    eps = 1e-6
-    dp = np.zeros(6)
-    dp[k] = eps
-    jac = (geo.inverse(dp, check=False) - geo.inverse(-dp, check=False)) / (2 * eps)  # dy/dq (6,)
-    hyd = base.hydraulics
-    p1 = sim.p1_initial
-    v_ext = hydraulics.static_velocity(hyd.u_v_max, p1, hyd)
-    v_ret = -hydraulics.static_velocity(-hyd.u_v_max, p1, hyd)
-    speed = np.where(jac > 0, v_ext, v_ret)
-    velocity = float(np.min(speed / np.maximum(np.abs(jac), 1e-12)))
-    mobility, _ = leg_mobility(sim.model, sim.data, sim.idx)
-    force = np.linalg.solve(mobility, jac)  # leg forces per unit acceleration of the DOF [N/(m/s^2)]
-    up = (hyd.supply_pressure - p1) * hyd.area_bottom
-    down = (p1 - hyd.tank_pressure) * hyd.area_bottom
-    accel = min(float(np.min(np.where(force > 0, up, down) / np.maximum(np.abs(force), 1e-12))),
-                float(np.min(np.where(force > 0, down, up) / np.maximum(np.abs(force), 1e-12))))
-    return {"excursion": [-reach(-1.0), reach(1.0)], "velocity": velocity, "acceleration": accel,
-            "unit": "m" if k < 3 else "rad"}
+    out = {}
+    for dof in dofs:
+        k = SINE_DOFS[dof]
+        dp = np.zeros(6)
+        dp[k] = 1e-6
+        jac = (geo.inverse(dp, check=False) - geo.inverse(-dp, check=False)) / 2e-6  # dy/dq (6,)
+        speed = np.where(jac > 0, v_ext, v_ret)
+        force = np.linalg.solve(mobility, jac)  # leg forces per unit acceleration of the DOF [N/(m/s^2)]
+        accel = min(float(np.min(np.where(force > 0, up, down) / np.maximum(np.abs(force), 1e-12))),
+                    float(np.min(np.where(force > 0, down, up) / np.maximum(np.abs(force), 1e-12))))
+        out[dof] = {"excursion": [-reach(k, -1.0), reach(k, 1.0)],
+                    "velocity": float(np.min(speed / np.maximum(np.abs(jac), 1e-12))), "acceleration": accel,
+                    "unit": "m" if k < 3 else "rad"}
+    return out
 
 
 def run_acceptance(base: RunConfig, tol: Tolerances, washout=None, jobs: int = 1, progress=None,
@@ -363,81 +369,98 @@ def run_acceptance(base: RunConfig, tol: Tolerances, washout=None, jobs: int = 1
     """Every test the tolerance file asks for (its sections) on the machine and compensator of ``base`` (a
     hexapod's RunConfig; its scenario is replaced), the OMCT with ``washout`` (WashoutParams, None: the
     defaults); ``jobs`` worker processes for the sine runs; ``progress(text)`` is told each test as it
-    starts; the turn-around's bumps felt judged with the perception ``thresholds``. Raises InputError for a
-    single actuator."""
+    starts; the turn-around's bumps felt judged with the perception ``thresholds``. The heave turn-around
+    run serves the turn-around check, leg balance and repeatability alike. Raises InputError for a single
+    actuator."""
     if base.scenario.system != "hexapod":
         raise InputError("the motion acceptance tests need a hexapod machine")
     say = progress or (lambda text: None)
     res = AcceptanceResult(base.machine_label, base.compensator_name)
+    runs: dict[str, tuple] = {}
+
+    def turn(dof: str):
+        if dof not in runs:
+            runs[dof] = turn_around(base, dof, thresholds=thresholds)
+        return runs[dof]
+
+    if tol.frequency_response is not None or tol.omct is not None:
+        _sine_tests(res, base, tol, washout, jobs, say)
+    if tol.turn_around is not None:
+        say("turn-around check")
+        for dof in tol.dofs:
+            _turn_around_checks(res, dof, *turn(dof)[1:], tol.turn_around)
+    if tol.leg_balance is not None or tol.repeatability is not None:
+        say("leg balance and repeatability (heave)")
+        _balance_checks(res, base, tol, *turn("heave")[:2])
+    if tol.envelope is not None:
+        say("motion envelope")
+        for dof, env in envelope(base, tol.dofs).items():
+            res.envelope[dof] = env
+            lim, unit = tol.envelope.get(dof, {}), env["unit"]
+            res.checks += [at_least("envelope", f"{dof}, excursion", min(-env["excursion"][0], env["excursion"][1]),
+                                    unit, lim.get("excursion")),
+                           at_least("envelope", f"{dof}, velocity", env["velocity"], f"{unit}/s", lim.get("velocity")),
+                           at_least("envelope", f"{dof}, acceleration", env["acceleration"], f"{unit}/s^2",
+                                    lim.get("acceleration"))]
+    return res
+
+
+def _sine_tests(res: AcceptanceResult, base: RunConfig, tol: Tolerances, washout, jobs: int, say) -> None:
+    """The frequency response and the OMCT: every (test, frequency) sine run, in ``jobs`` workers."""
     tasks = []
     if tol.frequency_response is not None:
         tasks += [("fr", base, dof, f, None) for dof in tol.dofs for f in tol.frequencies_hz]
     if tol.omct is not None:
         tasks += [("omct", base, ch, f, washout) for ch in OMCT_CHANNELS for f in tol.frequencies_hz]
-    if tasks:
-        say(f"{len(tasks)} sine runs (frequency response{', OMCT' if tol.omct is not None else ''})")
-        if in_workers(jobs):
-            with worker_pool(jobs) as pool:
-                answers = list(pool.map(_task, tasks))
-        else:
-            answers = [_task(t) for t in tasks]
-        freqs = np.array(tol.frequencies_hz)
-        for i, (kind, _, key, _, _) in enumerate(tasks[::len(freqs)]):
-            gp = np.array(answers[i * len(freqs):(i + 1) * len(freqs)])
-            name = key if kind == "fr" else f"{key[0]}->{key[1]}"
-            target = res.bode if kind == "fr" else res.omct
-            target[name] = (freqs, gp[:, 0], gp[:, 1])
-            band = tol.frequency_response if kind == "fr" else tol.omct
-            res.checks += _bode_checks("frequency_response" if kind == "fr" else "omct", name, freqs, gp[:, 0],
-                                       gp[:, 1], band)
-    if tol.turn_around is not None:
-        say("turn-around check")
-        lim = tol.turn_around
-        for dof in tol.dofs:
-            r, sm, bp = turn_around(base, dof, thresholds=thresholds)
-            rotational = SINE_DOFS[dof] >= 3
-            peak = float(np.max(sm.reversal_peaks))
-            felt = int(np.sum(bp.perceptible))
-            res.turn_around[dof] = {"max_bump": peak, "unit": sm.unit, "mean_bump": sm.mean_reversal_peak,
-                                    "perceptible": felt, "reversals": int(len(sm.reversal_peaks)),
-                                    "seat_max_ratio": float(bp.seat.max())}
-            if rotational:
-                res.checks.append(_at_most("turn_around", f"{dof}, largest bump", peak, "rad/s^2",
-                                           lim.get("max_bump_radps2")))
-            else:
-                res.checks.append(_at_most("turn_around", f"{dof}, largest bump", peak / STANDARD_GRAVITY, "g",
-                                           lim.get("max_bump_g")))
-            res.checks.append(_at_most("turn_around", f"{dof}, bumps felt (of {len(sm.reversal_peaks)})", felt, "",
-                                       lim.get("max_perceptible")))
-    if tol.leg_balance is not None or tol.repeatability is not None:
-        say("leg balance and repeatability (heave)")
-        r0, sm0, _ = turn_around(base, "heave")
-        sel = r0.t >= sm0.window[0]
-        fits = [fit_fundamental(r0.t[sel], r0.force[sel, i], sm0.frequency) for i in range(r0.n_legs)]
-        mean_f = np.array([f[0] for f in fits])
-        amp_f = np.array([f[1] for f in fits])
-        dev = 100 * np.maximum(np.abs(mean_f / mean_f.mean() - 1), np.abs(amp_f / amp_f.mean() - 1))
-        if tol.leg_balance is not None:
-            res.leg_balance = {"force_mean_N": mean_f.tolist(), "force_amplitude_N": amp_f.tolist(),
-                               "deviation_pct": dev.tolist()}
-            res.checks.append(_at_most("leg_balance", f"largest leg deviation (leg {int(np.argmax(dev)) + 1})",
-                                       float(dev.max()), "%", tol.leg_balance.get("max_deviation_pct")))
-        if tol.repeatability is not None:
-            r1, _, _ = turn_around(base, "heave", seed=1)
-            diff = float(np.max(np.abs(r0.acc[sel, 2] - r1.acc[sel, 2]))) / STANDARD_GRAVITY
-            res.repeatability = {"max_difference_g": diff, "runs": 2, "differ_by": "position-sensor noise seed"}
-            res.checks.append(_at_most("repeatability", "heave, largest acceleration difference", diff, "g",
-                                       tol.repeatability.get("max_difference_g")))
-    if tol.envelope is not None:
-        say("motion envelope")
-        for dof in tol.dofs:
-            env = envelope(base, dof)
-            res.envelope[dof] = env
-            lim = tol.envelope.get(dof, {})
-            unit = env["unit"]
-            res.checks.append(_at_least("envelope", f"{dof}, excursion", min(-env["excursion"][0], env["excursion"][1]),
-                                        unit, lim.get("excursion")))
-            res.checks.append(_at_least("envelope", f"{dof}, velocity", env["velocity"], f"{unit}/s", lim.get("velocity")))
-            res.checks.append(_at_least("envelope", f"{dof}, acceleration", env["acceleration"], f"{unit}/s^2",
-                                        lim.get("acceleration")))
-    return res
+    say(f"{len(tasks)} sine runs (frequency response{', OMCT' if tol.omct is not None else ''})")
+    if in_workers(jobs):
+        with worker_pool(jobs) as pool:
+            answers = list(pool.map(_task, tasks))
+    else:
+        answers = [_task(t) for t in tasks]
+    freqs = np.array(tol.frequencies_hz)
+    for i, (kind, _, key, _, _) in enumerate(tasks[::len(freqs)]):
+        gp = np.array(answers[i * len(freqs):(i + 1) * len(freqs)])
+        name = key if kind == "fr" else f"{key[0]}->{key[1]}"
+        target = res.bode if kind == "fr" else res.omct
+        target[name] = (freqs, gp[:, 0], gp[:, 1])
+        band = tol.frequency_response if kind == "fr" else tol.omct
+        res.checks += _bode_checks("frequency_response" if kind == "fr" else "omct", name, freqs, gp[:, 0],
+                                   gp[:, 1], band)
+
+
+def _turn_around_checks(res: AcceptanceResult, dof: str, sm, bp, lim: dict) -> None:
+    """One DOF's turn-around figures (its smoothness ``sm`` and bumps' perception ``bp``) and checks."""
+    peak = float(np.max(sm.reversal_peaks))
+    felt = int(np.sum(bp.perceptible))
+    res.turn_around[dof] = {"max_bump": peak, "unit": sm.unit, "mean_bump": sm.mean_reversal_peak,
+                            "perceptible": felt, "reversals": int(len(sm.reversal_peaks)),
+                            "seat_max_ratio": float(bp.seat.max())}
+    if SINE_DOFS[dof] >= 3:
+        res.checks.append(at_most("turn_around", f"{dof}, largest bump", peak, "rad/s^2", lim.get("max_bump_radps2")))
+    else:
+        res.checks.append(at_most("turn_around", f"{dof}, largest bump", peak / STANDARD_GRAVITY, "g",
+                                  lim.get("max_bump_g")))
+    res.checks.append(at_most("turn_around", f"{dof}, bumps felt (of {len(sm.reversal_peaks)})", felt, "",
+                              lim.get("max_perceptible")))
+
+
+def _balance_checks(res: AcceptanceResult, base: RunConfig, tol: Tolerances, r0, sm0) -> None:
+    """Leg balance from the heave turn-around run ``r0`` (its smoothness ``sm0``), and repeatability: the same
+    run with another noise seed against it."""
+    sel = r0.t >= sm0.window[0]
+    fits = [fit_fundamental(r0.t[sel], r0.force[sel, i], sm0.frequency) for i in range(r0.n_legs)]
+    mean_f = np.array([f[0] for f in fits])
+    amp_f = np.array([f[1] for f in fits])
+    dev = 100 * np.maximum(np.abs(mean_f / mean_f.mean() - 1), np.abs(amp_f / amp_f.mean() - 1))
+    if tol.leg_balance is not None:
+        res.leg_balance = {"force_mean_N": mean_f.tolist(), "force_amplitude_N": amp_f.tolist(),
+                           "deviation_pct": dev.tolist()}
+        res.checks.append(at_most("leg_balance", f"largest leg deviation (leg {int(np.argmax(dev)) + 1})",
+                                  float(dev.max()), "%", tol.leg_balance.get("max_deviation_pct")))
+    if tol.repeatability is not None:
+        r1, _, _ = turn_around(base, "heave", seed=1)
+        diff = float(np.max(np.abs(r0.acc[sel, 2] - r1.acc[sel, 2]))) / STANDARD_GRAVITY
+        res.repeatability = {"max_difference_g": diff, "runs": 2, "differ_by": "position-sensor noise seed"}
+        res.checks.append(at_most("repeatability", "heave, largest acceleration difference", diff, "g",
+                                  tol.repeatability.get("max_difference_g")))
