@@ -113,6 +113,8 @@ def _add_run(sub) -> None:
     run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON; - for stdout")
     run.add_argument("--log", type=pathlib.Path, help="write the run as a measurement log (CSV + JSON sidecar)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
+                     help="vehicle:PATH: the classical washout's parameters (any subset; default: docs/motion-cueing.md)")
     _thresholds_option(run)
 
 
@@ -569,8 +571,6 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
                    "vehicle:PATH (a vehicle's motion at the driver's head, through the classical washout; "
                    "docs/motion-cueing.md) or valve:PATH (valve commands, open loop; a measurement log's CSV replays "
                    "as it is)")
-    p.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
-                   help="vehicle:PATH: the classical washout's parameters (any subset; default: docs/motion-cueing.md)")
     p.add_argument("--duration", type=_number, help="simulated time [s] (default: max(20 s, 6 periods); file: its length)")
     p.add_argument("--amplitude", type=_number,
                    help=f"sine amplitude [m for actuator/heave/surge/sway, rad for roll/pitch/yaw] "
