@@ -29,7 +29,8 @@ class Compensator(abc.ABC):
     """Per-leg compensation voltage U_c [V] from the P controller's output u_p [V] and the measured
     position [m]; the controller sends u_v = sat(u_p + U_c, ±u_v,max) to the valve (seed Fig. 5.3).
 
-    Subclasses implement :meth:`update` (and optionally :meth:`state`); a user's class is passed to the
+    Subclasses implement :meth:`update` (and optionally :meth:`state` and :meth:`observe`, which receives
+    the reference's derivatives and measured pressure before each update); a user's class is passed to the
     simulator as ``RunConfig(compensator=cls)`` and built as ``cls(n_legs, rate_hz, u_v_max, settings)``. ``n_legs`` legs, called at ``rate_hz`` [Hz] (the motion
     computer's 500 Hz, seed §2.2.4). A compensator never sees the simulator's true velocity: velocity,
     if needed, comes from differentiating the measured position with a filter (seed §4.4, §5.1).
@@ -44,6 +45,11 @@ class Compensator(abc.ABC):
         self.u_v_max = float(u_v_max)
         self.settings = settings or CompensatorSettings()
 
+    def observe(self, reference) -> None:
+        """What the motion computer knows before this sample's :meth:`update`: a
+        :class:`compensation.model_based.Reference` (the piston setpoints and their derivatives, the
+        measured pressures where fitted). The seed's compensators do not use it (default: ignored)."""
+
     @abc.abstractmethod
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         """U_c (n_legs,) [V] for this controller sample; u_p and y_measured are (n_legs,)."""
@@ -57,7 +63,7 @@ class Compensator(abc.ABC):
 #: Units of the compensators' logged parameters (seed §5.3, :mod:`compensation.functions`): a the
 #: largest U_c, b the inverse of the valve range covered, c the shift (b times the null setpoint), s the
 #: slope of the desired linear flow curve s u_v.
-STATE_UNITS = {"a": "V", "a_neg": "V", "b": "1/V", "c": "-", "s": "m/(s V)"}
+STATE_UNITS = {"a": "V", "a_neg": "V", "b": "1/V", "c": "-", "s": "m/(s V)", "null_shift": "V", "guard": "-"}
 
 
 class NoCompensator(Compensator):

@@ -34,7 +34,16 @@ class CompensatorSettings:
         curves (tanh scale);
     oracle_u_ref: [V] valve setpoint at which the oracle's linear flow curve meets the true one;
     held_maximum: how the iterative compensators read a off their table, ``"per-side"`` (default) or the
-        seed's ``"seed"`` (see :mod:`compensation.iterative`).
+        seed's ``"seed"`` (see :mod:`compensation.iterative`);
+    feedforward_pressure: the pressure the model-based feedforward scales its flow curve to,
+        ``"measured"`` (the leg's transducer where the controller has one, default; else the reference's)
+        or ``"reference"`` (the P1 the reference needs) (see :mod:`compensation.model_based`);
+    loop_filter_hz: [Hz] the model-based feedforward's low-pass (2nd-order Butterworth) on the P output
+        before it enters the inverse: the position sensor's noise, through K_p and the inverse's high gain
+        near zero velocity, is otherwise most of what is left of the bump (see :mod:`compensation.model_based`);
+    adapt_time: [s] time constant with which the adaptive feedforward's correction table follows the
+        volts the P loop adds; adapt_rate: [V/s] its largest step rate; adapt_limit: [V] its largest
+        correction (a drifting null, a changed flow gain; beyond it the model is wrong, not drifting).
     """
 
     velocity_cutoff_hz: float = 20.0
@@ -48,14 +57,23 @@ class CompensatorSettings:
     direction_rate: float = 0.5
     oracle_u_ref: float = 1.0
     held_maximum: str = "per-side"
+    feedforward_pressure: str = "measured"
+    loop_filter_hz: float = 20.0
+    adapt_time: float = 0.3
+    adapt_rate: float = 0.5
+    adapt_limit: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("velocity_cutoff_hz", "velocity_band", "q_threshold", "iterative_gain", "buffer_time",
-                     "buffer_filter_tau", "fade_time", "direction_rate", "oracle_u_ref"):
+                     "buffer_filter_tau", "fade_time", "direction_rate", "oracle_u_ref", "loop_filter_hz", "adapt_time", "adapt_rate",
+                     "adapt_limit"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise SettingsError(f"compensator setting {name} must be a finite positive number, got {value!r}")
         if self.held_maximum not in ("per-side", "seed"):
             raise SettingsError(f"compensator setting held_maximum must be 'per-side' or 'seed', got {self.held_maximum!r}")
+        if self.feedforward_pressure not in ("reference", "measured"):
+            raise SettingsError("compensator setting feedforward_pressure must be 'reference' or 'measured', got "
+                                f"{self.feedforward_pressure!r}")
         if self.table_size < 3 or self.table_size % 2 == 0:
             raise SettingsError(f"compensator setting table_size must be an odd number >= 3, got {self.table_size}")

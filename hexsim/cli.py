@@ -54,6 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     _add_run(sub)
     _add_compare(sub)
+    _add_tune(sub)
     _add_validate(sub)
     _add_friction(sub)
     _add_calibrate(sub)
@@ -106,8 +107,9 @@ def _add_run(sub) -> None:
         + ", or file:PATH (CSV with time_s and dof_ref_{x,y,z}_m / dof_ref_{roll,pitch,yaw}_rad).",
     )
     _scenario_options(run)
-    run.add_argument("--compensator", choices=sorted(COMPENSATORS), default="none",
-                     help="reversal-bump compensator per leg (default none)")
+    run.add_argument("--compensator", type=_compensator_arg, default="none", metavar="NAME|FILE.json",
+                     help=f"reversal-bump compensator per leg: {', '.join(COMPENSATORS)} (default none), or a tuned "
+                          "file written by hexsim tune")
     run.add_argument("--rrd", type=pathlib.Path, help="write a rerun recording (.rrd)")
     run.add_argument("--plot", type=pathlib.Path, help="write a figure of acceleration, flow curve, pressures, tracking (.png, .pdf or .svg)")
     run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON; - for stdout")
@@ -116,6 +118,35 @@ def _add_run(sub) -> None:
     run.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
                      help="vehicle:PATH: the classical washout's parameters (any subset; default: docs/motion-cueing.md)")
     _thresholds_option(run)
+
+
+def _compensator_arg(text: str) -> str:
+    """A built-in compensator's name or a tuned file's path (``*.json``), for argparse."""
+    if text in COMPENSATORS or text.endswith(".json"):
+        return text
+    raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {', '.join(COMPENSATORS)}, or a tuned "
+                                     "file FILE.json)")
+
+
+def _add_tune(sub) -> None:
+    """The ``tune`` command's options."""
+    tu = sub.add_parser(
+        "tune",
+        help="choose and tune the reversal-bump compensator for a machine; write its file",
+        description="Run every candidate compensator (the seed's buffered and directional, the model-based "
+        "feedforward and its adaptive version, at several settings) on the motions of interest on the machine, "
+        "choose the one whose worst motion keeps the smallest reversal bump against none, print the predicted "
+        "smoothness of none, the seed's buffered and the tuned one, and write the tuned file that "
+        "hexsim run --compensator FILE loads (docs/compensation.md).",
+    )
+    tu.add_argument("motions", nargs="?", default=None,
+                    help="comma-separated scenarios to tune on (default: heave,roll,surge on a hexapod, actuator on "
+                         "a single actuator)")
+    tu.add_argument("--machine", metavar="NAME|FILE.json", help="the machine (a calibrated machine file or a built-in)")
+    tu.add_argument("--duration", type=_number, default=20.0, help="simulated time of each run [s] (default 20)")
+    tu.add_argument("--out", type=pathlib.Path, required=True, help="the tuned compensator file to write (.json)")
+    tu.add_argument("--json", type=pathlib.Path, help="also write every candidate's figures as JSON; - for stdout")
+    _worker_options(tu, "worker processes")
 
 
 def _add_compare(sub) -> None:
@@ -655,6 +686,11 @@ def _run_config(args: argparse.Namespace, compensator: str):
             held_maximum=args.held_maximum)
     except SettingsError as exc:
         raise InputError(str(exc)) from None
+    model = None
+    if compensator.endswith(".json"):
+        from hexsim.simulation.tuning import read_tuned
+
+        compensator, settings, model = read_tuned(compensator)
     warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
     faults = tuple(Fault.parse(text) for text in args.fault)
     from hexsim.simulation.config import (
@@ -664,7 +700,8 @@ def _run_config(args: argparse.Namespace, compensator: str):
     return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
                      machine=machine.name if machine.path is None else str(machine.path),
                      geometry=machine.geometry if machine.system == "hexapod" else None,
-                     leg_changes=machine.leg_changes, compensator_settings=settings, warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
+                     leg_changes=machine.leg_changes, compensator_settings=settings, compensator_model=model,
+                     warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 
@@ -866,6 +903,41 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    from hexsim.plant.machine import load_machine
+
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    if args.out.suffix != ".json":
+        raise InputError(f"--out {args.out}: the tuned file is JSON (.json)")
+    if not args.out.parent.exists():
+        raise InputError(f"--out {args.out}: folder {args.out.parent} does not exist")
+    _check_outputs(args)
+    machine = load_machine(args.machine)
+    default = "heave,roll,surge" if machine.system == "hexapod" else "actuator"
+    motions = tuple(m.strip() for m in (args.motions or default).split(",") if m.strip())
+    for m in motions:
+        _check_machine_scenario(machine, make_scenario(m, duration=args.duration))
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.tuning import CANDIDATES, tune, tune_table, write_tuned
+
+    base = RunConfig.from_machine(machine, make_scenario(motions[0], duration=args.duration))
+    print(f"tuning on {', '.join(motions)} ({args.duration:g} s each, machine {base.machine_label}): "
+          f"{len(CANDIDATES)} candidates with {worker_count(args.jobs)} worker(s)…", flush=True)
+    result = tune(base, motions, jobs=args.jobs, progress=sys.stderr.isatty())
+    for label, why in result.refused.items():
+        print(f"refused {label}: {why}")
+    print(tune_table(result))
+    print(f"tuned: {result.chosen.label} (worst motion {100 * (1 - result.worst_ratio):.0f} % below none)")
+    write_tuned(args.out, result, base, motions)
+    print(f"wrote {args.out}")
+    if args.json:
+        write_json(args.json, {"motions": list(motions), "machine": base.machine_label, "chosen": result.chosen.label,
+                               "refused": result.refused, "candidates": result.rows})
+        print(f"wrote {args.json}")
+    return 0
+
+
 #: Options a sweep grid may vary (argparse dest names).
 GRID_OPTIONS = ("scenario", "machine", "duration", "amplitude", "frequency", "seed", "kp", "flow_area", "sensor_noise", "engine", "model",
                 "timestep", "warm_up", "compensator", "buffer_time", "velocity_band", "q_threshold", "iterative_gain",
@@ -982,7 +1054,7 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _show_note
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                         "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine,
-                        "calibrate": cmd_calibrate, "accept": cmd_accept}
+                        "calibrate": cmd_calibrate, "accept": cmd_accept, "tune": cmd_tune}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

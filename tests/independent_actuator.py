@@ -82,6 +82,11 @@ class Actuator:
     pump_band: float = 3e5
     accumulator: float = 5e-11
     inclination_deg: float = 0.0  # the cylinder's axis from vertical
+    # a machine that drifts during the run: the valve's null moves at null_rate [V/s]; the oil warms at
+    # warm_rate [K/s], its viscosity (the viscous friction) falling as exp(-0.045 dT) (ISO VG 46 between
+    # 40 and 50 °C: 46 -> 30 mm^2/s) and its density as 1 - 7e-4 dT
+    null_rate: float = 0.0
+    warm_rate: float = 0.0
 
     def replace(self, **kw) -> "Actuator":
         return replace(self, **kw)
@@ -178,12 +183,26 @@ def _advance(z, u, c, h, n):
     return z
 
 
+def _drifted(c0: np.ndarray, s: Actuator, t: float) -> np.ndarray:
+    """The packed cylinder at time t [s] of a drifting run (null, viscosity, density)."""
+    c = c0.copy()
+    warm = s.warm_rate * t
+    c[10] = s.null_offset + s.null_rate * t
+    c[15] = s.rho * (1.0 - 7e-4 * warm)
+    c[20:22] = np.asarray(s.viscous) * math.exp(-0.045 * warm)
+    return c
+
+
 def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng: np.random.Generator,
-           noise: tuple[float, float, float] = (2e-6, 2e3, 0.02)) -> dict[str, np.ndarray]:
+           noise: tuple[float, float, float] = (2e-6, 2e3, 0.02), compensate=None) -> dict[str, np.ndarray]:
     """A closed-loop run of ``duration`` s tracking amplitude sin(2 pi f t) faded in over one period around
     mid-stroke (seed eq. 3.10): the log's columns at 1 kHz, noise (position m, pressure Pa, acceleration
-    m/s^2) on the measured channels (the controller sees the noisy position). Integrated by RK4 at 2 µs."""
-    c = _pack(s)
+    m/s^2) on the measured channels (the controller sees the noisy position). Integrated by RK4 at 2 µs.
+    ``compensate(u_p, y, r, r_dot, r_ddot, r_dddot, p1) -> U_c`` [V], called at each controller sample with
+    the P output, the measured position, the reference and its derivatives (central differences at the
+    controller rate) and the measured cap pressure, adds U_c to the valve setpoint (before saturation);
+    its sum is logged as ``comp_V``."""
+    c0 = c = _pack(s)
     a1, a2 = c[0], c[1]
     g = 9.81
     dt = 1e-3
@@ -193,27 +212,40 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
     g_axis = g * math.cos(math.radians(s.inclination_deg))  # gravity along the cylinder's axis
     z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g_axis) / a1, -s.null_offset / s.u_max * s.x_max,
                   0.0, s.supply])
-    out = {k: np.empty(len(t)) for k in ("pos", "p1", "u", "acc", "ps")}
+    out = {k: np.empty(len(t)) for k in ("pos", "p1", "u", "acc", "ps", "uc")}
     y_meas = rng.normal(0.0, noise[0], len(t))
-    u = spool_u = 0.0
+    p1_noise = rng.normal(0.0, noise[1], len(t))
+    derivatives = [np.gradient(ref[::2], 2 * dt)]
+    for _ in range(2):
+        derivatives.append(np.gradient(derivatives[-1], 2 * dt))
+    u = spool_u = u_c = 0.0
     v_prev = 0.0
     for j in range(len(t)):
         out["pos"][j] = z[0]
         y_meas[j] += float(np.interp(t[j] - s.sensor_delay, t[:j + 1], out["pos"][:j + 1])) if s.sensor_delay else z[0]
         if j % 2 == 0:  # the 500 Hz controller on the measured position
-            u = float(np.clip(s.kp * (ref[j] - y_meas[j]), -s.u_max, s.u_max))
+            if s.null_rate or s.warm_rate:
+                c = _drifted(c0, s, t[j])
+            u_p = s.kp * (ref[j] - y_meas[j])
+            if compensate is not None:
+                d1, d2, d3 = (d[j // 2] for d in derivatives)
+                u_c = float(compensate(u_p, y_meas[j], ref[j], d1, d2, d3, z[2] + p1_noise[j]))
+            u = float(np.clip(u_p + u_c, -s.u_max, s.u_max))
             spool_u = min(max(spool_u, u - s.play), u + s.play)  # the play operator (backlash)
-        out["p1"][j], out["u"][j], out["ps"][j] = z[2], u, z[5]
+        out["p1"][j], out["u"][j], out["ps"][j], out["uc"][j] = z[2], u, z[5], u_c
         out["acc"][j] = (z[1] - v_prev) / dt + g_axis if j else g_axis
         v_prev = z[1]
         z = _advance(z, spool_u, c, 2e-6, 500)
         assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
-    p1 = out["p1"] + rng.normal(0.0, noise[1], len(t))
+    p1 = out["p1"] + p1_noise
     acc = out["acc"] + rng.normal(0.0, noise[2], len(t))
     sags = s.supply_resistance > 0 or s.pump_flow > 0
     ps = out["ps"] + rng.normal(0.0, noise[1], len(t)) if sags else out["ps"]
-    return {"time_s": t, "ref_m": ref, "valve_cmd_V": out["u"], "pos_m": y_meas, "p1_Pa": p1, "ps_Pa": ps,
-            "acc_mps2": acc}
+    columns = {"time_s": t, "ref_m": ref, "valve_cmd_V": out["u"], "pos_m": y_meas, "p1_Pa": p1, "ps_Pa": ps,
+               "acc_mps2": acc}
+    if compensate is not None:
+        columns["comp_V"] = out["uc"]
+    return columns
 
 
 def write(columns: dict[str, np.ndarray], path: pathlib.Path, description: str, kp: float = 200.0,

@@ -41,9 +41,13 @@ class PController:
         self.compensator = compensator
         self.saturated_samples = 0
 
-    def sample(self, r: np.ndarray, y_measured: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(u_v, U_c), each (n_legs,) [V], from setpoints r and measured positions y_measured (n_legs,) [m]."""
+    def sample(self, r: np.ndarray, y_measured: np.ndarray, reference=None) -> tuple[np.ndarray, np.ndarray]:
+        """(u_v, U_c), each (n_legs,) [V], from setpoints r and measured positions y_measured (n_legs,) [m];
+        ``reference`` (a :class:`compensation.model_based.Reference`) is handed to the compensator's
+        ``observe`` first."""
         u_p = p_output.py_func(self.params.kp, r, y_measured)
+        if reference is not None:
+            self.compensator.observe(reference)
         u_c = self.compensator.update(u_p, y_measured)
         u_v = valve_setpoint.py_func(u_p, u_c, self.u_v_max)
         if (u_v != u_p + u_c).any():

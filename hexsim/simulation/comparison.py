@@ -21,7 +21,7 @@ from hexsim.simulation.runner import simulate
 from hexsim.simulation.workers import in_workers, worker_pool
 
 #: Order of the league table: the baseline first, the yardstick last.
-ORDER = ("none", "iterative-1", "iterative-2", "buffered", "directional", "oracle")
+ORDER = ("none", "iterative-1", "iterative-2", "buffered", "directional", "feedforward", "adaptive", "oracle")
 SETTLE_BAND = 0.10  # "within 10 % of their final value"
 
 

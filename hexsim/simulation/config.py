@@ -15,7 +15,9 @@ import numpy as np
 
 from compensation import CompensatorSettings, PlantTruth
 from compensation.base import Compensator
+from compensation.model_based import LegModel, Reference
 from hexsim.control.controller import PController
+from hexsim.control.feedforward import setpoint_derivatives
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import Scenario, make_scenario
 from hexsim.errors import InputError, WorkspaceError
@@ -49,6 +51,9 @@ class RunConfig:
     # cls(n_legs, rate_hz, u_v_max, settings) returning a compensation.Compensator (runs in Python)
     compensator: str | Callable[..., Compensator] = "none"
     compensator_settings: CompensatorSettings = field(default_factory=CompensatorSettings)
+    # the leg model a model-based compensator inverts (a tuned file's, compensation.model_based.read_model);
+    # None: built from the machine (hexsim.control.feedforward.leg_model)
+    compensator_model: LegModel | None = field(default=None, repr=False, compare=False)
     warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C
     effects: Effects = field(default_factory=Effects)  # extensions of the seed model; default: none
     seed: int = 0
@@ -227,6 +232,8 @@ class HydraulicCoupling:
         self.temperature = float(warm_up.temperature(0.0)) if warm_up else 35.0
         self.controller = controller
         self.setpoints, self.noise, self.ctrl_div, self.valve = schedule
+        # the reference's derivatives, for the compensators that use them (compensation.model_based)
+        self.derivatives = setpoint_derivatives(self.setpoints, self.ctrl_div * idx.dt)
         self.dt = idx.dt
         self.effects = config.effects
         self.faults = faults
@@ -258,7 +265,7 @@ class HydraulicCoupling:
                 hist[k % len(hist)] = y
                 self.y_measured = hist[(k + 1) % len(hist)]  # y(t_k - tau_y); itself without delay
                 if k % self.ctrl_div == 0:
-                    self.hyd = self.tick(k, self.y_measured)
+                    self.hyd = self.tick(k, self.y_measured, self.state.p1)
                     if self.supply_level is not None:
                         self.state.p_s[:] = self.supply_level
                 self.state, self.force = advance_legs(self.state, self.u_v, y, ydot, self.dt, self.leg_table(),
@@ -277,9 +284,10 @@ class HydraulicCoupling:
             self._table_of = self.hyd
         return self._table
 
-    def tick(self, k: int, y_measured: np.ndarray) -> HydraulicParams:
+    def tick(self, k: int, y_measured: np.ndarray, p1: np.ndarray | None = None) -> HydraulicParams:
         """The controller sample at step ``k`` (both engines): oil temperature, setpoint, P control with
-        the compensator, faults. Sets :attr:`r`, :attr:`u_v`, :attr:`u_c`, :attr:`supply_level` (P_s
+        the compensator (handed the reference's derivatives and the bottom pressures ``p1`` (n_legs,) [Pa]
+        as the pressure transducers read them), faults. Sets :attr:`r`, :attr:`u_v`, :attr:`u_c`, :attr:`supply_level` (P_s
         imposed by a supply-loss fault, else None); returns the hydraulic parameters now in force."""
         t_k = k * self.dt
         hyd = self.hyd
@@ -296,7 +304,9 @@ class HydraulicCoupling:
             self.r = inj.setpoint(t_k, self.r)
             seen = inj.measured(t_k, seen)
         if self.valve is None:
-            self.u_v, self.u_c = self.controller.sample(self.r, seen)
+            d1, d2, d3 = self.derivatives
+            reference = Reference(self.r, d1[j], d2[j], d3[j], None if p1 is None else p1.copy())
+            self.u_v, self.u_c = self.controller.sample(self.r, seen, reference)
         else:  # open loop: the given command, saturated like the controller's
             u_max = hyd.u_v_max
             self.u_v, self.u_c = np.clip(self.valve[j], -u_max, u_max), np.zeros(self.idx.n_legs)

@@ -27,9 +27,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from compensation import PlantTruth, SettingsError, make_compensator
+from compensation import MODEL_BASED, PlantTruth, SettingsError, make_compensator
 from compensation.base import Compensator, ReplayedCompensation
 from hexsim.control.controller import PController
+from hexsim.control.feedforward import check_loop, leg_model
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.errors import InputError, PhysicsError, WorkspaceError
 from hexsim.plant import hydraulics
@@ -141,7 +142,7 @@ class Simulator:
                         f"tank…supply ({hyd.tank_pressure / 1e5:g}…{hyd.supply_pressure / 1e5:g} bar)")
         self.p1_initial, self.p2_initial = p1_0, p2_0
         plant = PlantTruth(params=hyd, p1_static=p1_0.copy(), flow_curve=hydraulics.static_velocity)
-        self.compensator = _make_compensator(cfg, idx.n_legs, plant)
+        self.compensator = _make_compensator(cfg, idx.n_legs, plant, lambda: _leg_model(cfg, mobility, p1_0, m, d, idx))
         controller = PController(cp, hyd.u_v_max, self.compensator)
         injector = FaultInjector(cfg.faults, idx.n_legs, idx.stroke, hyd.supply_pressure, hyd.tank_pressure)
         self.coupling = HydraulicCoupling(idx, cfg, controller, ControlSchedule(setpoints, noise, self.ctrl_div, valve),
@@ -333,7 +334,7 @@ class Simulator:
         while self.k < k_end:
             k = self.k
             hist[k % L] = idx.positions(self.data)[0]
-            hyd = coupling.tick(k, hist[(k + 1) % L].copy())
+            hyd = coupling.tick(k, hist[(k + 1) % L].copy(), legs.state.p1)
             if hyd is not self._hyd:  # the oil warmed: new parameters
                 self._hyd = coupling.hyd = hyd
                 legs = self.legs = legs._replace(params=coupling.leg_table())
@@ -415,16 +416,30 @@ def simulate(config: RunConfig) -> SimulationResult:
     return Simulator(config).run()
 
 
-def _make_compensator(cfg: RunConfig, n_legs: int, plant: PlantTruth) -> Compensator:
+def _leg_model(cfg: RunConfig, mobility: np.ndarray, p1_0: np.ndarray, m, d, idx: PlantIndex):
+    """The machine's leg model at the run's start (hexsim.control.feedforward.leg_model): its hydraulics and
+    effects, the rest pressures, the legs' inertia (the inverse of their mobility)."""
+    model = leg_model(cfg.hydraulics, p1_0, np.linalg.inv(mobility), eff=cfg.effects,
+                      load=static_leg_forces(m, d, idx) if cfg.hydraulics.four_way else None,
+                      u_ref=cfg.compensator_settings.oracle_u_ref, source=f"machine {cfg.machine_label}")
+    check_loop(model, cfg.controller.kp, cfg.controller.rate_hz)
+    return model
+
+
+def _make_compensator(cfg: RunConfig, n_legs: int, plant: PlantTruth, model) -> Compensator:
     """The run's compensator: a replayed U_c table, a built-in by name, or the user's class (called as
-    ``cls(n_legs, rate_hz, u_v_max, settings)``). Raises InputError for a bad name or setting."""
+    ``cls(n_legs, rate_hz, u_v_max, settings)``). A model-based one gets the config's leg model (a tuned
+    file's) or ``model()``, the machine's. Raises InputError for a bad name or setting."""
     cp, hyd = cfg.controller, cfg.hydraulics
     try:
         if cfg.feedforward is not None:
             return ReplayedCompensation(np.ascontiguousarray(cfg.feedforward, dtype=float), cp.rate_hz, hyd.u_v_max)
         if isinstance(cfg.compensator, str):
+            if cfg.compensator in MODEL_BASED:
+                model = cfg.compensator_model or model()
             return make_compensator(cfg.compensator, n_legs, cp.rate_hz, u_v_max=hyd.u_v_max,
-                                    settings=cfg.compensator_settings, plant=plant)
+                                    settings=cfg.compensator_settings, plant=plant,
+                                    model=model if cfg.compensator in MODEL_BASED else None)
         return cfg.compensator(n_legs, cp.rate_hz, hyd.u_v_max, cfg.compensator_settings)
     except SettingsError as exc:
         raise InputError(str(exc)) from None

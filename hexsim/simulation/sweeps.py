@@ -54,12 +54,13 @@ def expand(grid: dict[str, list], make_config) -> list[Point]:
     return points
 
 
-def evaluate_point(config: RunConfig) -> dict:
-    """Run one configuration and reduce it to the :data:`METRICS` (runs in a worker process).
+def evaluate_point(config: RunConfig, result=None) -> dict:
+    """Run one configuration (or take its ``result``) and reduce it to the :data:`METRICS` (runs in a
+    worker process).
 
     Whole run: smoothness of the platform (or load) acceleration from the second period on; final: the
     last quarter of the run (at least two periods), where adaptive compensators have settled."""
-    result = simulate(config)
+    result = simulate(config) if result is None else result
     sc = config.scenario
     whole = run_smoothness(result)
     final = run_smoothness(result, t_start=final_window_start(sc.duration, sc.frequency))
@@ -78,21 +79,22 @@ def evaluate_point(config: RunConfig) -> dict:
 
 
 def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
-              start_method: str | None = None) -> tuple[list[dict], float]:
+              start_method: str | None = None, evaluate=evaluate_point) -> tuple[list[dict], float]:
     """Run every point with ``jobs`` worker processes (1: in this process) started by ``start_method``,
     or on the active Dask client's workers (see :func:`hexsim.simulation.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
-    grid order) and the wall time [s] of the whole sweep, start-up included. Raises InputError for a
-    start method the platform does not have."""
+    grid order) and the wall time [s] of the whole sweep, start-up included. ``evaluate(config) -> dict``
+    (a module-level function, sent to the workers) reduces a run; default the :data:`METRICS`. Raises
+    InputError for a start method the platform does not have."""
     start = time.perf_counter()
     results: list[dict | None] = [None] * len(points)
     if not in_workers(jobs):
         bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
         for p in points:
-            results[p.index] = evaluate_point(p.config)
+            results[p.index] = evaluate(p.config)
             bar.update()
     else:
         with worker_pool(jobs, start_method) as pool:
-            futures = {pool.submit(evaluate_point, p.config): p.index for p in points}
+            futures = {pool.submit(evaluate, p.config): p.index for p in points}
             bar = tqdm(total=len(points), unit="run", disable=not progress, leave=False)
             for fut in as_completed(futures):
                 results[futures[fut]] = fut.result()

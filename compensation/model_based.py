@@ -1,0 +1,403 @@
+"""Model-based feedforward: the valve command the leg needs to follow its reference, from the inverse of
+the calibrated leg model, beside the P loop (seed ch. 6's "model-based" direction; hydraulic motion
+control's velocity, pressure and friction feedforward).
+
+The seed's compensators (ch. 5) linearise the *static* flow curve u_v -> ẏ (eq. 5.1) and leave the P loop
+to make the velocity: the piston lags its reference by ẏ / (K_p s) and, at a reversal, crosses the
+overlap and the friction's flip late. What remains of the bump under the exact static inverse (the
+oracle) is dynamics: the chamber pressure must change by the friction's flip, ΔF_f / A1, and that takes
+oil, V / E · ΔP1 (seed eq. 3.7). The feedforward gives the valve, per leg and controller sample,
+
+    φ_1 = A1 (ṙ + s LP(u_p)) + V(r) / E · dP1_ref/dt,                    (seed eq. 3.7 solved for φ_1)
+    P1_ref = P1_rest + ((M r̈)_i + F_f(ṙ)) / A1,                         (seed eq. 3.8 about the rest load)
+    u_v = F^-1(φ_1 / A1; P1_ref),    U_c = u_v - u_p,
+
+with F the leg's static flow curve (seed eq. 5.1) from the machine file, at the rest pressure, scaled to
+P1_ref by the orifice law (seed eq. 3.4: flow ∝ sqrt(Δp) of the edge that opens), r the piston
+setpoint and its derivatives (the motion computer's reference), LP a low-pass on the P output
+(``loop_filter_hz``), s the slope of the linear curve the P loop sees (the machine's chord at ±``oracle_u_ref``, as the oracle's), F_f the friction curve (seed
+eq. 3.9, or the machine's table), M the legs' inertia matrix, V(r) = r A1 + V_pl. With a perfect
+model and reference the P output stays at the sensor noise; what it still carries is the model's error,
+which :class:`AdaptiveFeedforward` learns.
+
+The low-pass matters as much as the model: the position sensor's noise (2 µm rms on the Micro Motion
+System) times K_p is white at the controller rate, and the inverse's gain is highest near zero velocity,
+where the flow curve is flat. On the built-in heave (``hexsim run heave``) the feedforward without the
+filter leaves a mean reversal peak of 0.042 m/s² (0.008 with a noiseless sensor); with a 20 Hz filter,
+about 0.009. The filter's phase lag at the loop's crossover (K_p s ≈ 30 rad/s) is about 20°.
+
+What the compensator knows of the machine is a :class:`LegModel`: built by hexsim from a machine file
+(:func:`hexsim.control.feedforward.leg_model`) or read from a tuned file (``hexsim tune``), never the
+simulator's truth.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import MISSING, dataclass, fields
+from typing import NamedTuple
+
+import numpy as np
+from scipy.signal import butter, sosfilt
+
+from compensation.base import Compensator
+from compensation.settings import CompensatorSettings, SettingsError
+
+#: Version of the tuned-compensator file (:meth:`LegModel.write`).
+FILE_FORMAT = "hexsim-compensator/1"
+
+
+class Reference(NamedTuple):
+    """What the motion computer knows of each leg at a controller sample, arrays (n_legs,): the piston
+    setpoint r [m] and its first three time derivatives [m/s, m/s², m/s³] (from the setpoint table by
+    central differences: a one-sample preview, 2 ms at 500 Hz), and the measured bottom-chamber pressure
+    p1 [Pa] where a pressure transducer is fitted (None otherwise)."""
+
+    r: np.ndarray
+    r_dot: np.ndarray
+    r_ddot: np.ndarray
+    r_dddot: np.ndarray
+    p1: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class LegModel:
+    """The calibrated leg as a feedforward sees it, per leg i of n (what a tuned file holds).
+
+    u: valve setpoints of the flow curve [V], (G,), increasing over ±u_v,max;
+    velocity: the static flow curve F_i(u) [m/s] at the rest pressure, (n, G), non-decreasing
+        (seed eq. 5.1; its overlap is the flat part around null);
+    p_rest: the bottom-chamber pressure holding the leg's rest load [Pa], (n,);
+    supply_pressure, tank_pressure: P_s, P_t [Pa] (seed app. A);
+    area_bottom: A1 [m²]; bulk_modulus: E [Pa]; pipeline_volume: V_pl [m³] (seed eq. 3.7);
+    mass: the legs' inertia matrix M [kg], (n, n): the leg forces that accelerate the legs by ÿ are M ÿ
+        (the platform's inertia seen along the legs, coupled: a heave moves every leg);
+    friction_v, friction_f: the friction curve F_f(ẏ) [m/s -> N] as a table, (F,) each (seed eq. 3.9);
+    pressure_scaling: scale the flow curve to P1_ref by the orifice law (3-way valves; off for 4-way,
+        whose two chambers share the load);
+    slope: s_i, the linear curve's slope [m/(s V)], (n,): the machine's chord at ±u_ref;
+    source: where the model came from (machine file, tuned file).
+    """
+
+    u: np.ndarray
+    velocity: np.ndarray
+    p_rest: np.ndarray
+    supply_pressure: float
+    tank_pressure: float
+    area_bottom: float
+    bulk_modulus: float
+    pipeline_volume: float
+    mass: np.ndarray
+    friction_v: np.ndarray
+    friction_f: np.ndarray
+    slope: np.ndarray
+    pressure_scaling: bool = True
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        check_model(self)
+
+    @property
+    def n_legs(self) -> int:
+        return len(self.p_rest)
+
+    def friction(self, v: np.ndarray) -> np.ndarray:
+        """F_f(v) [N], v (n,) [m/s], from the table (held constant beyond its ends)."""
+        return np.interp(v, self.friction_v, self.friction_f)
+
+    def to_dict(self) -> dict:
+        """The model as JSON-ready data (arrays as lists), :data:`FILE_FORMAT`."""
+        out = {"format": FILE_FORMAT}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = value.tolist() if isinstance(value, np.ndarray) else value
+        return out
+
+    @classmethod
+    def from_dict(cls, doc: dict, where: str = "compensator file") -> "LegModel":
+        """The model of :meth:`to_dict`. Raises SettingsError naming the missing or bad entry."""
+        if doc.get("format") != FILE_FORMAT:
+            raise SettingsError(f"{where}: format must be {FILE_FORMAT!r}, got {doc.get('format')!r}")
+        values = {}
+        for f in fields(cls):
+            if f.name not in doc:
+                if f.default is not MISSING:
+                    continue
+                raise SettingsError(f"{where}: missing {f.name!r}")
+            value = doc[f.name]
+            if isinstance(value, list):
+                try:
+                    value = np.asarray(value, dtype=float)
+                except (TypeError, ValueError):
+                    raise SettingsError(f"{where}: {f.name} must be numbers") from None
+            values[f.name] = value
+        return cls(**values)
+
+
+def check_model(m: LegModel) -> None:
+    """Refuse a model whose inverse would give an extreme or unstable compensation, naming the leg and the
+    reason: a flow curve that falls, does not cross zero, or whose dead band (the overlap seen from the
+    flow curve) is wider than 2 V; a slope not positive; a rest pressure outside tank…supply; a negative
+    mass, friction that does not oppose motion, a non-positive area or bulk modulus."""
+    u, v = np.asarray(m.u, dtype=float), np.atleast_2d(np.asarray(m.velocity, dtype=float))
+    n = len(np.atleast_1d(m.p_rest))
+    if u.ndim != 1 or len(u) < 3 or np.any(np.diff(u) <= 0):
+        raise SettingsError("flow curve: u must be at least 3 increasing valve setpoints [V]")
+    if v.shape != (n, len(u)) or not np.all(np.isfinite(v)):
+        raise SettingsError(f"flow curve: velocity must be finite, shape ({n}, {len(u)}), got {v.shape}")
+    for name in ("area_bottom", "bulk_modulus"):
+        if not (math.isfinite(getattr(m, name)) and getattr(m, name) > 0):
+            raise SettingsError(f"{name} must be positive, got {getattr(m, name)!r}")
+    if not m.supply_pressure > m.tank_pressure:
+        raise SettingsError(f"supply pressure {m.supply_pressure:g} Pa must exceed the tank's {m.tank_pressure:g} Pa")
+    for i in range(n):
+        leg = f"leg{i + 1}"
+        row = v[i]
+        if np.any(np.diff(row) < -1e-9 * np.ptp(row)):
+            k = int(np.argmin(np.diff(row)))
+            raise SettingsError(f"{leg}: the flow curve falls at u_v = {u[k]:.3f} V: its inverse is not unique")
+        if not (row[0] < 0 < row[-1]):
+            raise SettingsError(f"{leg}: the flow curve does not cross zero velocity (from {row[0]:.3g} to "
+                                f"{row[-1]:.3g} m/s): the valve cannot reverse the leg")
+        band = u[np.abs(row) <= 1e-6 * max(abs(row[0]), row[-1])]
+        if band.size and band[-1] - band[0] > 2.0:
+            raise SettingsError(f"{leg}: the flow curve's dead band is {band[-1] - band[0]:.2f} V wide (more than "
+                                "2 V): its inverse would jump the valve across it at every reversal")
+        if not m.slope[i] > 0:
+            raise SettingsError(f"{leg}: slope of the linear flow curve must be positive, got {m.slope[i]!r}")
+        if not m.tank_pressure < m.p_rest[i] < m.supply_pressure:
+            raise SettingsError(f"{leg}: rest pressure {m.p_rest[i] / 1e5:.1f} bar outside tank…supply")
+        if m.mass.shape != (n, n) or not np.all(np.isfinite(m.mass)) or m.mass[i, i] < 0:
+            raise SettingsError(f"{leg}: the inertia matrix must be finite, ({n}, {n}), with a non-negative "
+                                f"diagonal, got shape {m.mass.shape}")
+    fv, ff = np.asarray(m.friction_v), np.asarray(m.friction_f)
+    if fv.shape != ff.shape or len(fv) < 2 or np.any(np.diff(fv) <= 0):
+        raise SettingsError("friction table: friction_v must increase and match friction_f")
+    if np.any(ff * fv < 0):
+        raise SettingsError("friction table: friction must oppose the motion (F_f(v) v >= 0)")
+
+
+class FeedforwardCompensator(Compensator):
+    """The model-based feedforward of this module's docstring, per leg, at the controller rate.
+
+    Built as ``cls(n_legs, rate_hz, u_v_max, settings, model=LegModel)``; the simulator hands it each
+    sample's :class:`Reference` through :meth:`observe` before :meth:`update`. Without a reference (a
+    controller that gives none) it falls back to the static inverse of the oracle's form on its model,
+    U_c = F^-1(s u_p) - u_p. ``settings.feedforward_pressure``: ``"reference"`` (P1_ref) or ``"measured"``
+    (the transducer's p1, where the reference carries it). Raises SettingsError for a model of another
+    number of legs or one :func:`check_model` refuses.
+    """
+
+    name = "feedforward"
+
+    def __init__(self, n_legs: int, rate_hz: float, u_v_max: float = 10.0,
+                 settings: CompensatorSettings | None = None, plant=None, model: LegModel | None = None) -> None:
+        super().__init__(n_legs, rate_hz, u_v_max, settings)
+        if model is None:
+            raise SettingsError(f"the {self.name} compensator needs the machine's leg model (a machine file or a "
+                                "tuned file)")
+        if model.n_legs != self.n_legs:
+            raise SettingsError(f"the leg model has {model.n_legs} legs, the machine {self.n_legs}")
+        self.model = model
+        self.reference: Reference | None = None
+        self.dt = 1.0 / self.rate_hz
+        u, v = model.u, model.velocity
+        self._rest_drop = (model.supply_pressure - model.p_rest, model.p_rest - model.tank_pressure)
+        # the inverse, per leg: velocity strictly increasing (a vanishing slope inside the overlap)
+        self._v = v + 1e-12 * u[None, :]
+        self._u = u
+        self.feedforward = np.zeros(self.n_legs)
+        nyquist = self.rate_hz / 2
+        if self.settings.loop_filter_hz >= nyquist:
+            raise SettingsError(f"loop_filter_hz {self.settings.loop_filter_hz} must be below the Nyquist rate {nyquist}")
+        self._sos = butter(2, self.settings.loop_filter_hz / nyquist, output="sos")
+        self._zi = np.zeros((self._sos.shape[0], 2, self.n_legs))
+
+    def observe(self, reference: Reference) -> None:
+        self.reference = reference
+
+    def demand(self) -> tuple[np.ndarray, np.ndarray]:
+        """(the reference's velocity demand [m/s]: ṙ plus the flow that changes the chamber's pressure, over
+        A1; P1_ref [Pa]), each (n_legs,); zeros and the rest pressure without a reference."""
+        m, ref = self.model, self.reference
+        if ref is None:
+            return np.zeros(self.n_legs), m.p_rest.copy()
+        a1 = m.area_bottom
+        f_now = m.friction(ref.r_dot)
+        p1_ref = m.p_rest + (m.mass @ ref.r_ddot + f_now) / a1
+        if ref.p1 is not None and self.settings.feedforward_pressure == "measured":
+            p1_ref = np.asarray(ref.p1, dtype=float)
+        # dP1_ref/dt: inertia's jerk and the friction's change along the reference (seed eq. 3.8)
+        f_next = m.friction(ref.r_dot + ref.r_ddot * self.dt)
+        dp1 = (m.mass @ ref.r_dddot + (f_next - f_now) / self.dt) / a1
+        volume = np.maximum(ref.r, 0.0) * a1 + m.pipeline_volume
+        return ref.r_dot + volume / m.bulk_modulus * dp1 / a1, p1_ref
+
+    def inverse(self, velocity: np.ndarray, p1: np.ndarray) -> np.ndarray:
+        """u_v [V] (n_legs,) giving the static ``velocity`` [m/s] at bottom pressure ``p1`` [Pa]: the flow
+        curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted."""
+        m = self.model
+        target = np.asarray(velocity, dtype=float)
+        if m.pressure_scaling:
+            up = np.maximum(m.supply_pressure - p1, 1.0) / self._rest_drop[0]
+            down = np.maximum(p1 - m.tank_pressure, 1.0) / self._rest_drop[1]
+            target = target / np.sqrt(np.where(target >= 0, up, down))
+        return np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
+
+    def loop_filter(self, u_p: np.ndarray) -> np.ndarray:
+        """LP(u_p) [V] (n_legs,): one sample of the 2nd-order Butterworth (``scipy.signal.sosfilt``, state kept)."""
+        out, self._zi = sosfilt(self._sos, np.asarray(u_p, dtype=float)[None, :], axis=0, zi=self._zi)
+        return out[0]
+
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        velocity, p1 = self.demand()
+        u_v = self.inverse(velocity + self.model.slope * self.loop_filter(u_p), p1)
+        self.feedforward = u_v - u_p
+        return self.feedforward
+
+    def state(self) -> dict[str, np.ndarray]:
+        return {"s": self.model.slope.copy()}
+
+
+class AdaptiveFeedforward(FeedforwardCompensator):
+    """The feedforward with an inverse that follows the machine as it drifts (oil temperature, wear, a
+    drifting null), under a guard that falls back rather than make a bump worse.
+
+    Learning: an adaptive inverse of the dead band in the line of Tao & Kokotović (*Adaptive control of
+    systems with actuator and sensor nonlinearities*, Wiley 1996, ch. 3): per leg and direction d of the
+    reference velocity v, a shift of both breakpoints c [V] and a slope correction g_d [V at the largest
+    speed] are added to the inverse, u_v = F^-1(v + s LP(u_p)) + c + g_d |v| / v_s (v_s the flow
+    curve's largest speed). A drifting null is c; a changed flow gain (viscosity, density, wear) or a worn
+    edge the g's. (One c for both sides: learned per side, the two breakpoints split on the asymmetry of
+    the P loop's lag and the jump between them at every reversal was itself a bump.) With a right model the P loop adds no volts beyond the sensor
+    noise; what it adds, e = F^-1(v + s LP(u_p)) - F^-1(v), is the model's error at that speed, and each
+    sample moves (c, g_d) by normalised least mean squares, Δθ = dt / ``adapt_time`` e φ / |φ|², φ =
+    (1, |v| / v_s). The seed's safety principles (§5.5): no learning below the velocity band k (where
+    the inverse's gain is highest), e clipped to ±0.25 V per sample, steps bounded to ``adapt_rate``
+    [V/s], each term bounded to ±``adapt_limit`` [V], the correction faded in over ``fade_time``.
+
+    Guard: at each reversal of the reference (per leg), the largest |LP(u_p)| within ±0.1 s is the
+    bump's footprint in the loop (a leg that stalls in the dead band makes the P output climb across it).
+    A footprint more than twice its running level (an exponential mean over the last reversals, which
+    follows a slow drift) on two reversals running restores the last tables that did not, and learning
+    pauses for four reversals. A footprint as large as the flow curve's dead band, the P output an
+    uncompensated reversal needs, on two reversals running, fades the leg's compensation out (U_c -> 0,
+    logged as ``guard`` = 1): the leg runs uncompensated rather than worse.
+    """
+
+    name = "adaptive"
+    WINDOW_S = 0.1
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        st, n, m = self.settings, self.n_legs, self.model
+        self.null = np.zeros(n)  # c [V]
+        self.slope_gain = np.zeros((2, n))  # g_+, g_- [V]
+        self.good = (self.null.copy(), self.slope_gain.copy())
+        half = self.WINDOW_S * self.rate_hz
+        self._ring = np.zeros((int(2 * half) + 1, n))
+        self._k = 0
+        self._since = np.full(n, -1)  # samples since the last reversal, -1: none pending
+        self._last_sign = np.zeros(n)
+        self.level = np.full(n, np.nan)  # the footprint's running level [V]
+        self._strikes = np.zeros(n, dtype=int)
+        self._outside = np.zeros(n, dtype=int)
+        self._pause = np.zeros(n, dtype=int)
+        self.off = np.zeros(n, dtype=bool)
+        self._scale = np.ones(n)  # 1: compensating, fading to 0 once the guard turns a leg off
+        self._fade = 1.0 - math.exp(-self.dt / st.fade_time)
+        self._applied = 0.0
+        self.dead_band = np.array([_dead_band(m.u, row) for row in m.velocity])
+
+    def correction(self, v: np.ndarray, u_static: np.ndarray) -> np.ndarray:
+        """c + g_d u [V] (n_legs,): d the direction of v [m/s], u = F^-1(v) [V] the model's inverse, (n_legs,)."""
+        return self.null + self.slope_gain[(v < 0).astype(int), np.arange(self.n_legs)] * u_static
+
+    def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        velocity, p1 = self.demand()
+        loop = self.loop_filter(u_p)
+        static = self.inverse(velocity, p1)
+        u_v = self.inverse(velocity + self.model.slope * loop, p1)
+        if self.reference is not None:
+            self._learn(np.clip(u_v - static, -0.25, 0.25), velocity, static)
+            self._guard(loop, self.reference.r_dot)
+        self._applied += self._fade * (1.0 - self._applied)
+        u_v = u_v + self._applied * self.correction(velocity, static)
+        self._scale += self._fade * (np.where(self.off, 0.0, 1.0) - self._scale)
+        self.feedforward = self._scale * (u_v - u_p)
+        return self.feedforward
+
+    def _learn(self, error: np.ndarray, v: np.ndarray, u_static: np.ndarray) -> None:
+        """One NLMS step of (c, g_d) towards the loop's volts ``error`` (n_legs,) at velocity v, where the
+        model's inverse gives ``u_static`` [V]."""
+        st = self.settings
+        legs = np.flatnonzero((np.abs(v) >= st.velocity_band) & (self._pause == 0) & ~self.off)
+        x = u_static[legs]
+        gain = self.dt / st.adapt_time * error[legs] / (1.0 + x**2)
+        bound = st.adapt_rate * self.dt
+        d = (v[legs] < 0).astype(int)
+        self.null[legs] = np.clip(self.null[legs] + np.clip(gain, -bound, bound), -st.adapt_limit, st.adapt_limit)
+        self.slope_gain[d, legs] = np.clip(self.slope_gain[d, legs] + np.clip(gain * x, -bound, bound),
+                                           -st.adapt_limit, st.adapt_limit)
+
+    def _guard(self, loop: np.ndarray, r_dot: np.ndarray) -> None:
+        ring = self._ring
+        ring[self._k % len(ring)] = np.abs(loop)
+        self._k += 1
+        sign = np.sign(r_dot)
+        turned = (sign != 0) & (self._last_sign != 0) & (sign != self._last_sign)
+        self._last_sign = np.where(sign != 0, sign, self._last_sign)
+        self._since[turned] = 0
+        pending = self._since >= 0
+        self._since[pending & ~turned] += 1
+        for i in np.flatnonzero(self._since >= len(ring) // 2):
+            self._since[i] = -1
+            self._judge(i, float(ring[:, i].max()))
+
+    def _judge(self, i: int, footprint: float) -> None:
+        """One reversal's footprint [V] on leg i: keep, restore or turn off (the class docstring)."""
+        self._pause[i] = max(self._pause[i] - 1, 0)
+        self._outside[i] = self._outside[i] + 1 if footprint >= self.dead_band[i] > 0 else 0
+        if self._outside[i] >= 2:
+            self.off[i] = True
+        level = self.level[i]
+        if np.isnan(level) or footprint <= 2.0 * level:
+            self._strikes[i] = 0
+            self.good[0][i], self.good[1][:, i] = self.null[i], self.slope_gain[:, i]
+        else:
+            self._strikes[i] += 1
+            if self._strikes[i] >= 2:
+                self.null[i], self.slope_gain[:, i] = self.good[0][i], self.good[1][:, i]
+                self._strikes[i], self._pause[i] = 0, 4
+        self.level[i] = footprint if np.isnan(level) else level + 0.25 * (min(footprint, 2.0 * level) - level)
+
+    def state(self) -> dict[str, np.ndarray]:
+        """s, the learned null shift c [V], and the guard (0 compensating, 1 turned
+        off)."""
+        return {"s": self.model.slope.copy(), "null_shift": self.null.copy(),
+                "guard": self.off.astype(float)}
+
+
+def _dead_band(u: np.ndarray, velocity: np.ndarray) -> float:
+    """Width [V] of the flow curve's flat part around null (its overlap): the commands whose speed is
+    within 1e-6 of the largest; 0 for an underlapped valve."""
+    flat = u[np.abs(velocity) <= 1e-6 * np.max(np.abs(velocity))]
+    return float(flat[-1] - flat[0]) if flat.size else 0.0
+
+
+def read_model(path: str | pathlib.Path) -> tuple[LegModel, dict]:
+    """(model, document) of a tuned compensator file (``hexsim tune --out``). Raises SettingsError naming
+    the file for one that cannot be read or is not such a file."""
+    path = pathlib.Path(path)
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SettingsError(f"{path}: cannot read a compensator file ({exc})") from None
+    if not isinstance(doc, dict) or "model" not in doc:
+        raise SettingsError(f"{path}: not a tuned compensator file (no 'model' entry)")
+    return LegModel.from_dict(doc["model"], str(path)), doc
+
+
+__all__ = ["FILE_FORMAT", "AdaptiveFeedforward", "FeedforwardCompensator", "LegModel", "Reference", "check_model", "read_model"]

@@ -1,0 +1,103 @@
+"""The leg model a model-based compensator inverts, built from a machine file (never the simulator's truth).
+
+:func:`leg_model` evaluates the machine's static flow curve (seed eq. 5.1, with the machine's flow area,
+overlap, null offset, edge gains and leakage), its friction curve (seed eq. 3.9) and its chamber
+(seed eq. 3.7) into a :class:`compensation.model_based.LegModel`, the record a tuned compensator file
+holds and :class:`~compensation.model_based.FeedforwardCompensator` inverts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from compensation.model_based import LegModel
+from compensation.settings import SettingsError
+from hexsim.plant import hydraulics
+from hexsim.plant.effects import NOMINAL, Effects
+from hexsim.plant.params import HydraulicParams
+
+#: Points of the flow curve over ±u_v,max (5 mV apart at ±10 V; the seed's overlap is 45 mV wide).
+GRID_POINTS = 4001
+#: Points of the 4-way valve's steady-state curve (each a root search), denser near null.
+GRID_POINTS_4WAY = 401
+#: Points of the friction table over ± the flow curve's largest speed.
+FRICTION_POINTS = 4001
+
+
+def static_flow_curve(u: np.ndarray, p_rest: np.ndarray, hyd: HydraulicParams, eff: Effects = NOMINAL,
+                      load: np.ndarray | None = None) -> np.ndarray:
+    """Static piston velocity [m/s], (n_legs, len(u)), at valve setpoints u [V] (G,). 3-way valve: the
+    bottom chamber's flow at the leg's rest pressure p_rest (n_legs,) [Pa] plus the leakage into it, over A1
+    (seed eq. 5.1). 4-way valve: the steady motion against the leg's rest ``load`` [N] (both chambers'
+    continuity and the force balance, :func:`hexsim.plant.hydraulics.steady_state`)."""
+    if not hyd.four_way:
+        x_v = hydraulics.spool_position(u[None, :], hyd)
+        p1 = np.asarray(p_rest, dtype=float)[:, None]
+        flow = hydraulics.valve_flow(x_v, p1, hyd, eff=eff) + eff.leakage * (hyd.supply_pressure - p1)
+        return flow / hyd.area_bottom
+    rows = []
+    for f in np.asarray(load, dtype=float):
+        row = []
+        for v in u:
+            try:
+                row.append(hydraulics.steady_state(float(v), float(f), hyd, eff=eff).velocity)
+            except ValueError:  # stalled: no motion at this command against this load
+                row.append(0.0)
+        rows.append(np.maximum.accumulate(row))
+    return np.asarray(rows)
+
+
+def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, eff: Effects = NOMINAL,
+              load: np.ndarray | None = None, u_ref: float = 1.0, source: str = "") -> LegModel:
+    """The :class:`~compensation.model_based.LegModel` of a machine: ``hyd`` and ``eff`` its hydraulics and
+    effects (a machine file's), ``p_rest`` (n,) [Pa] each leg's bottom-chamber pressure at rest,
+    ``inertia`` (n, n) [kg] the legs' inertia matrix (leg forces = inertia @ leg accelerations; the
+    inverse of :func:`hexsim.simulation.config.leg_mobility`'s A), ``load`` (n,) [N] the rest loads (4-way
+    valves), ``u_ref`` [V] where the linear curve meets the flow curve (its slope is the mean chord at
+    ±u_ref, as the oracle's). Raises SettingsError (a ValueError) for a model whose inverse
+    :func:`compensation.model_based.check_model` refuses."""
+    u_max = hyd.u_v_max
+    if hyd.four_way:
+        s = np.linspace(-1.0, 1.0, GRID_POINTS_4WAY)
+        u = u_max * np.sign(s) * s**2  # dense near null, where the overlap is
+    else:
+        u = np.linspace(-u_max, u_max, GRID_POINTS)
+    velocity = static_flow_curve(u, p_rest, hyd, eff, load)
+    ends = np.stack([np.interp([-u_ref, u_ref], u, row) for row in velocity])
+    slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)
+    v_max = 1.2 * float(np.max(np.abs(velocity[:, [0, -1]])))
+    friction_v = np.linspace(-v_max, v_max, FRICTION_POINTS)
+    return LegModel(u=u, velocity=velocity, p_rest=np.asarray(p_rest, dtype=float),
+                    supply_pressure=float(hyd.supply_pressure), tank_pressure=float(hyd.tank_pressure),
+                    area_bottom=float(hyd.area_bottom), bulk_modulus=float(hyd.bulk_modulus),
+                    pipeline_volume=float(hyd.pipeline_volume), mass=np.atleast_2d(np.asarray(inertia, dtype=float)),
+                    friction_v=friction_v, friction_f=np.asarray(hydraulics.friction_force(friction_v, hyd)),
+                    slope=slope, pressure_scaling=not hyd.four_way, source=source)
+
+
+#: Largest K_p s / f_c of the P loop through the inverse: the discrete loop's pole 1 - K_p s / f_c stays
+#: within 0.5…1 (a well-damped integrator; at 2 it is unstable).
+LOOP_GAIN_LIMIT = 0.5
+
+
+def check_loop(model: LegModel, kp: float, rate_hz: float) -> None:
+    """Refuse a leg model on which the P loop through the inverse would ring: K_p s_i / f_c above
+    :data:`LOOP_GAIN_LIMIT` (K_p [V/m], s_i the linear curve's slope [m/(s V)], f_c the controller rate
+    [Hz]). Raises SettingsError naming the leg and the figure."""
+    ratio = kp * np.asarray(model.slope) / rate_hz
+    if np.any(ratio > LOOP_GAIN_LIMIT):
+        i = int(np.argmax(ratio))
+        raise SettingsError(f"leg{i + 1}: K_p s / f_c = {ratio[i]:.2f} (K_p {kp:g} V/m, s {model.slope[i]:.3g} m/(s V)): "
+                            f"above {LOOP_GAIN_LIMIT}, the P loop through the model's inverse would ring")
+
+
+def setpoint_derivatives(setpoints: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ṙ, r̈, r⃛) [m/s, m/s², m/s³], each shaped like ``setpoints`` (n_ticks, n_legs) [m] sampled every ``dt``
+    [s]: central differences (``numpy.gradient``, second order at the ends), the derivatives a motion
+    computer has with a one-sample preview of its reference. Zeros for a table of fewer than 3 rows."""
+    if len(setpoints) < 3:
+        z = np.zeros_like(setpoints, dtype=float)
+        return z, z.copy(), z.copy()
+    d1 = np.gradient(setpoints, dt, axis=0, edge_order=2)
+    d2 = np.gradient(d1, dt, axis=0, edge_order=2)
+    return d1, d2, np.gradient(d2, dt, axis=0, edge_order=2)
