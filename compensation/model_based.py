@@ -40,12 +40,18 @@ from dataclasses import MISSING, dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
-from scipy.signal import butter, sosfilt
+from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from compensation.base import Compensator
 from compensation.settings import CompensatorSettings, SettingsError
 
-#: Version of the tuned-compensator file (:meth:`LegModel.write`).
+#: Low-pass [Hz] on a measured pressure before the feedforward scales its flow curve to it: the leg's
+#: load (the pose, the payload, friction at speed) passes, the oil spring's swing (~100 Hz on the Micro
+#: Motion System) does not. Unfiltered, the inverse's gain follows P1 and P1 follows the inverse: on a
+#: drifting null that loop rang between tank and supply pressure.
+PRESSURE_FILTER_HZ = 5.0
+
+#: Version of the tuned-compensator file (:meth:`LegModel.to_dict`).
 FILE_FORMAT = "hexsim-compensator/1"
 
 
@@ -214,6 +220,8 @@ class FeedforwardCompensator(Compensator):
             raise SettingsError(f"loop_filter_hz {self.settings.loop_filter_hz} must be below the Nyquist rate {nyquist}")
         self._sos = butter(2, self.settings.loop_filter_hz / nyquist, output="sos")
         self._zi = np.zeros((self._sos.shape[0], 2, self.n_legs))
+        self._psos = butter(2, min(PRESSURE_FILTER_HZ / nyquist, 0.9), output="sos")
+        self._pzi = None
 
     def observe(self, reference: Reference) -> None:
         self.reference = reference
@@ -228,7 +236,7 @@ class FeedforwardCompensator(Compensator):
         f_now = m.friction(ref.r_dot)
         p1_ref = m.p_rest + (m.mass @ ref.r_ddot + f_now) / a1
         if ref.p1 is not None and self.settings.feedforward_pressure == "measured":
-            p1_ref = np.asarray(ref.p1, dtype=float)
+            p1_ref = p1_ref + self.pressure_filter(np.asarray(ref.p1, dtype=float) - p1_ref)
         # dP1_ref/dt: inertia's jerk and the friction's change along the reference (seed eq. 3.8)
         f_next = m.friction(ref.r_dot + ref.r_ddot * self.dt)
         dp1 = (m.mass @ ref.r_dddot + (f_next - f_now) / self.dt) / a1
@@ -237,14 +245,27 @@ class FeedforwardCompensator(Compensator):
 
     def inverse(self, velocity: np.ndarray, p1: np.ndarray) -> np.ndarray:
         """u_v [V] (n_legs,) giving the static ``velocity`` [m/s] at bottom pressure ``p1`` [Pa]: the flow
-        curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted."""
+        curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted; the
+        scale held within 0.5…2 (a chamber near supply or tank pressure would otherwise ask for the whole
+        valve)."""
         m = self.model
         target = np.asarray(velocity, dtype=float)
         if m.pressure_scaling:
-            up = np.maximum(m.supply_pressure - p1, 1.0) / self._rest_drop[0]
-            down = np.maximum(p1 - m.tank_pressure, 1.0) / self._rest_drop[1]
-            target = target / np.sqrt(np.where(target >= 0, up, down))
+            up = (m.supply_pressure - p1) / self._rest_drop[0]
+            down = (p1 - m.tank_pressure) / self._rest_drop[1]
+            target = target / np.sqrt(np.clip(np.where(target >= 0, up, down), 0.25, 4.0))
         return np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
+
+    def pressure_filter(self, p1: np.ndarray) -> np.ndarray:
+        """The measured p1's departure from P1_ref [Pa] (n_legs,) low-passed at :data:`PRESSURE_FILTER_HZ`
+        (2nd-order Butterworth, started at the first sample): the load the model does not know (the pose,
+        the payload, friction that changed), without the oil spring's swing; the fast part (the friction's
+        flip, the inertia) stays the reference's."""
+        p1 = np.asarray(p1, dtype=float)
+        if self._pzi is None:
+            self._pzi = sosfilt_zi(self._psos)[:, :, None] * p1[None, None, :]
+        out, self._pzi = sosfilt(self._psos, p1[None, :], axis=0, zi=self._pzi)
+        return out[0]
 
     def loop_filter(self, u_p: np.ndarray) -> np.ndarray:
         """LP(u_p) [V] (n_legs,): one sample of the 2nd-order Butterworth (``scipy.signal.sosfilt``, state kept)."""

@@ -92,6 +92,25 @@ def changed(machine: Actuator, change: dict) -> Actuator:
     return machine.replace(**out)
 
 
+def calibrated(name: str, truth: Actuator, out: pathlib.Path, prior) -> pathlib.Path:
+    """The machine file of ``truth`` calibrated on its two calibration experiments (the logs and the file
+    written into ``out`` as ``NAME_calibration_{1,2}.csv``, ``NAME_calibrated.json``; kept if there)."""
+    cal_logs = []
+    for i, (duration, freq, amp) in enumerate(((8.0, 0.5, 0.06), (6.0, 1.5, 0.03))):
+        path = out / f"{name}_calibration_{i + 1}.csv"
+        if not path.exists():
+            write(motion(truth, duration, freq, amp, np.random.default_rng(100 + i)), path, f"{name} calibration")
+        cal_logs.append(read_log(path, machine=prior))
+    cal_path = out / f"{name}_calibrated.json"
+    if not cal_path.exists():
+        start = time.perf_counter()
+        machine, report = calibrate(cal_logs, prior)
+        cal_path.write_text(dump(machine.document()))
+        print(f"<!-- {name}: calibrated in {time.perf_counter() - start:.0f} s, flow area "
+              f"{report['flow_area']['chosen']} -->", flush=True)
+    return cal_path
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="calibrate_then_validate", help="folder for the logs and answers")
@@ -112,19 +131,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     for name in args.machines.split(","):
         truth = MACHINES[name] if name in MACHINES else drawn(int(name[5:]))
-        cal_logs = []
-        for i, (duration, freq, amp) in enumerate(((8.0, 0.5, 0.06), (6.0, 1.5, 0.03))):
-            path = out / f"{name}_calibration_{i + 1}.csv"
-            if not path.exists():
-                write(motion(truth, duration, freq, amp, np.random.default_rng(100 + i)), path, f"{name} calibration")
-            cal_logs.append(read_log(path, machine=prior))
-        cal_path = out / f"{name}_calibrated.json"
-        if not cal_path.exists():
-            start = time.perf_counter()
-            calibrated, report = calibrate(cal_logs, prior)
-            cal_path.write_text(dump(calibrated.document()))
-            print(f"<!-- {name}: calibrated in {time.perf_counter() - start:.0f} s, flow area "
-                  f"{report['flow_area']['chosen']} -->", flush=True)
+        cal_path = calibrated(name, truth, out, prior)
         for seed, effect in enumerate(args.only or EFFECTS):
             what, change = EFFECTS[effect]
             log = out / f"{name}_{effect}.csv"

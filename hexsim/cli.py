@@ -144,7 +144,12 @@ def _add_tune(sub) -> None:
                          "a single actuator)")
     tu.add_argument("--machine", metavar="NAME|FILE.json", help="the machine (a calibrated machine file or a built-in)")
     tu.add_argument("--duration", type=_number, default=20.0, help="simulated time of each run [s] (default 20)")
-    tu.add_argument("--out", type=pathlib.Path, required=True, help="the tuned compensator file to write (.json)")
+    tu.add_argument("--out", type=pathlib.Path, help="the tuned compensator file to write (.json)")
+    tu.add_argument("--check", type=pathlib.Path, nargs="+", metavar="LOG.csv",
+                    help="proof instead of tuning: logs of the machine running with --compensator, beside the machine "
+                         "simulated with it on each log's setpoints (measured and predicted smoothness)")
+    tu.add_argument("--compensator", type=_compensator_arg, metavar="NAME|FILE.json",
+                    help="--check: the compensator the logs ran with (a tuned file, or a built-in's name)")
     tu.add_argument("--json", type=pathlib.Path, help="also write every candidate's figures as JSON; - for stdout")
     _worker_options(tu, "worker processes")
 
@@ -906,6 +911,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_tune(args: argparse.Namespace) -> int:
     from hexsim.plant.machine import load_machine
 
+    if args.check:
+        return _tune_check(args)
+    if args.out is None:
+        raise InputError("tune: --out FILE.json is needed (or --check LOG.csv … --compensator FILE.json)")
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.out.suffix != ".json":
@@ -934,6 +943,41 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if args.json:
         write_json(args.json, {"motions": list(motions), "machine": base.machine_label, "chosen": result.chosen.label,
                                "refused": result.refused, "candidates": result.rows})
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _tune_check(args: argparse.Namespace) -> int:
+    """``hexsim tune --check LOG… --compensator FILE``: measured and predicted smoothness side by side."""
+    if args.compensator is None:
+        raise InputError("tune --check: --compensator NAME|FILE.json (the compensator the logs ran with) is needed")
+    for path in args.check:
+        if not path.exists():
+            raise InputError(f"--check {path}: no such file")
+    from hexsim.plant.machine import load_machine
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.tuning import proof, read_tuned
+
+    machine = load_machine(args.machine)
+    options = {}
+    name = args.compensator
+    if name.endswith(".json"):
+        name, settings, model = read_tuned(name)
+        options = {"compensator_settings": settings, "compensator_model": model}
+    scenario = "heave" if machine.system == "hexapod" else "actuator"
+    base = RunConfig.from_machine(machine, scenario, compensator=name, **options)
+    rows = [proof(path, base) for path in args.check]
+    print(f"{'log':<28} {'':<10} {'mean rev. peak':>14} {'max rev. peak':>13} {'noise ratio':>11}")
+    for r in rows:
+        for what in ("measured", "predicted"):
+            f = r[what]
+            peak = f"{f['max_reversal_peak']:.4f}" if f["max_reversal_peak"] is not None else "—"
+            print(f"{pathlib.Path(r['log']).name:<28} {what:<10} {f['mean_reversal_peak']:>14.4f} {peak:>13} "
+                  f"{f['noise_ratio']:>11.4f}")
+    print(f"predicted: {base.machine_label} with {base.compensator_name} on each log's setpoints (m/s², from the "
+          "third period)")
+    if args.json:
+        write_json(args.json, {"machine": base.machine_label, "proofs": rows})
         print(f"wrote {args.json}")
     return 0
 

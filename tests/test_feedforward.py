@@ -21,13 +21,12 @@ from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.plant.machine import dump, load_machine
 from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import smoothness
 from hexsim.simulation.tuning import leg_model_of, read_tuned
+from helpers import in_the_loop, reversal_peaks
 from independent_actuator import Actuator, motion, write
 
 TRUTH = Actuator(area="port", flow_gain=1.07, k_at=0.95, overlap=8e-6, bulk=1.2e9, v_pl=1.0e-6, mass=44.0,
                  coulomb=(75.0, 52.0), viscous=(2600.0, 1500.0))
-FREQUENCY, AMPLITUDE = 0.5, 0.05
 
 
 @pytest.fixture(scope="module")
@@ -52,36 +51,15 @@ def model(machine) -> LegModel:
 @pytest.fixture(scope="module")
 def none_peaks() -> np.ndarray:
     """TRUTH uncompensated, 20 s."""
-    return peaks(TRUTH, 20.0)
-
-
-def in_the_loop(name: str, model: LegModel, settings: CompensatorSettings | None = None):
-    """hexsim's compensator ``name`` as the independent actuator's ``compensate`` callback."""
-    comp = make_compensator(name, 1, 500.0, settings=settings, model=model)
-
-    def compensate(u_p, y, r, r_dot, r_ddot, r_dddot, p1):
-        comp.observe(Reference(*(np.array([x]) for x in (r, r_dot, r_ddot, r_dddot, p1))))
-        return comp.update(np.array([u_p]), np.array([y]))[0]
-
-    compensate.compensator = comp
-    return compensate
-
-
-def peaks(truth: Actuator, duration: float, compensate=None) -> np.ndarray:
-    """The truth's reversal peaks [m/s²] (its acceleration without sensor noise, from the third period)."""
-    cols = motion(truth, duration, FREQUENCY, AMPLITUDE, np.random.default_rng(1), noise=(2e-6, 2e3, 0.0),
-                  compensate=compensate)
-    t = cols["time_s"]
-    return smoothness(t, cols["acc_mps2"], FREQUENCY, 2.0 / FREQUENCY, cols["ref_m"], name="acc", unit="m/s^2",
-                      velocity=np.gradient(cols["pos_m"], t)).reversal_peaks
+    return reversal_peaks(TRUTH, 20.0)
 
 
 def test_the_feedforward_on_the_calibrated_machine_removes_the_bump_the_seed_leaves(model, none_peaks):
     """On the calibrated file's leg model the feedforward takes at least 85 % off the truth's mean
     reversal peak (measured 91 %), the seed's buffered compensator far less (measured 17 %)."""
     none = none_peaks
-    seed = peaks(TRUTH, 20.0, in_the_loop("buffered", model))
-    fed = peaks(TRUTH, 20.0, in_the_loop("feedforward", model))
+    seed = reversal_peaks(TRUTH, 20.0, in_the_loop("buffered", model))
+    fed = reversal_peaks(TRUTH, 20.0, in_the_loop("feedforward", model))
     assert fed.mean() < 0.15 * none.mean()
     assert fed.mean() < 0.3 * seed.mean()
     assert fed.max() < 0.25 * none.min()
@@ -93,10 +71,10 @@ def test_on_a_drifting_machine_the_adaptive_version_keeps_the_gain_and_is_never_
     keeps at least 70 % off (measured 75 %), no reversal worse than uncompensated (measured at most 0.46
     of it), and from the third period on every reversal below half of none's (converged within 10 s)."""
     drifting = TRUTH.replace(null_rate=0.05 / 60, warm_rate=15.0 / 60)
-    none = peaks(drifting, 60.0)
-    fixed = peaks(drifting, 60.0, in_the_loop("feedforward", model))
+    none = reversal_peaks(drifting, 60.0)
+    fixed = reversal_peaks(drifting, 60.0, in_the_loop("feedforward", model))
     loop = in_the_loop("adaptive", model)
-    adaptive = peaks(drifting, 60.0, loop)
+    adaptive = reversal_peaks(drifting, 60.0, loop)
     n = min(len(none), len(fixed), len(adaptive))
     assert np.max(fixed[:n] / none[:n]) > 1.0
     assert np.max(adaptive[:n] / none[:n]) < 0.7
@@ -111,7 +89,7 @@ def test_the_guard_turns_a_leg_off_rather_than_keep_a_compensation_worse_than_no
     compensation off, and the bump ends no worse than uncompensated (within the scatter of 10 %)."""
     shifted = LegModel(**{**model.__dict__, "velocity": np.interp(model.u - 0.4, model.u, model.velocity[0])[None, :]})
     loop = in_the_loop("adaptive", shifted, CompensatorSettings(adapt_limit=0.05))
-    guarded = peaks(TRUTH, 20.0, loop)
+    guarded = reversal_peaks(TRUTH, 20.0, loop)
     assert loop.compensator.off[0]
     assert guarded[-4:].mean() < 1.1 * none_peaks[-4:].mean()
 
