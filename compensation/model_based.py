@@ -10,21 +10,24 @@ oil, V / E · ΔP1 (seed eq. 3.7). The feedforward gives the valve, per leg and 
 
     φ_1 = A1 (ṙ + s LP(u_p)) + V(r) / E · dP1_ref/dt,                    (seed eq. 3.7 solved for φ_1)
     P1_ref = P1_rest + ((M r̈)_i + F_f(ṙ)) / A1,                         (seed eq. 3.8 about the rest load)
-    u_v = F^-1(φ_1 / A1; P1_ref),    U_c = u_v - u_p,
+    P1 = P1_ref + LP_5Hz(p1 - P1_ref)                                     (the measured p1, where logged)
+    u_v = F^-1(φ_1 / A1; P1),    U_c = u_v - u_p,
 
 with F the leg's static flow curve (seed eq. 5.1) from the machine file, at the rest pressure, scaled to
-P1_ref by the orifice law (seed eq. 3.4: flow ∝ sqrt(Δp) of the edge that opens), r the piston
+P1 by the orifice law (seed eq. 3.4: flow ∝ sqrt(Δp) of the edge that opens), r the piston
 setpoint and its derivatives (the motion computer's reference), LP a low-pass on the P output
-(``loop_filter_hz``), s the slope of the linear curve the P loop sees (the machine's chord at ±``oracle_u_ref``, as the oracle's), F_f the friction curve (seed
+(``loop_filter_hz``), s the slope of the linear curve the P loop sees (the machine's chord at
+±``oracle_u_ref``, as the oracle's), F_f the friction curve (seed
 eq. 3.9, or the machine's table), M the legs' inertia matrix, V(r) = r A1 + V_pl. With a perfect
 model and reference the P output stays at the sensor noise; what it still carries is the model's error,
 which :class:`AdaptiveFeedforward` learns.
 
 The low-pass matters as much as the model: the position sensor's noise (2 µm rms on the Micro Motion
 System) times K_p is white at the controller rate, and the inverse's gain is highest near zero velocity,
-where the flow curve is flat. On the built-in heave (``hexsim run heave``) the feedforward without the
-filter leaves a mean reversal peak of 0.042 m/s² (0.008 with a noiseless sensor); with a 20 Hz filter,
-about 0.009. The filter's phase lag at the loop's crossover (K_p s ≈ 30 rad/s) is about 20°.
+where the flow curve is flat. On the built-in 20 s heave (``hexsim run heave --compensator
+feedforward``) the feedforward with the filter at 240 Hz (none, in effect) leaves a mean reversal peak of
+0.041 m/s² (0.0029 with a noiseless sensor); with the default 20 Hz filter, 0.0051 (none: 0.497). The
+filter's phase lag at the loop's crossover (K_p s ≈ 30 rad/s) is about 20°.
 
 What the compensator knows of the machine is a :class:`LegModel`: built by hexsim from a machine file
 (:func:`hexsim.control.feedforward.leg_model`) or read from a tuned file (``hexsim tune``), never the
@@ -33,9 +36,7 @@ simulator's truth.
 
 from __future__ import annotations
 
-import json
 import math
-import pathlib
 from dataclasses import MISSING, dataclass, fields
 from typing import NamedTuple
 
@@ -124,8 +125,9 @@ class LegModel:
     @classmethod
     def from_dict(cls, doc: dict, where: str = "compensator file") -> "LegModel":
         """The model of :meth:`to_dict`. Raises SettingsError naming the missing or bad entry."""
-        if doc.get("format") != FILE_FORMAT:
-            raise SettingsError(f"{where}: format must be {FILE_FORMAT!r}, got {doc.get('format')!r}")
+        if not isinstance(doc, dict) or doc.get("format") != FILE_FORMAT:
+            got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+            raise SettingsError(f"{where}: format must be {FILE_FORMAT!r}, got {got!r}")
         values = {}
         for f in fields(cls):
             if f.name not in doc:
@@ -287,17 +289,19 @@ class AdaptiveFeedforward(FeedforwardCompensator):
     drifting null), under a guard that falls back rather than make a bump worse.
 
     Learning: an adaptive inverse of the dead band in the line of Tao & Kokotović (*Adaptive control of
-    systems with actuator and sensor nonlinearities*, Wiley 1996, ch. 3): per leg and direction d of the
-    reference velocity v, a shift of both breakpoints c [V] and a slope correction g_d [V at the largest
-    speed] are added to the inverse, u_v = F^-1(v + s LP(u_p)) + c + g_d |v| / v_s (v_s the flow
-    curve's largest speed). A drifting null is c; a changed flow gain (viscosity, density, wear) or a worn
-    edge the g's. (One c for both sides: learned per side, the two breakpoints split on the asymmetry of
-    the P loop's lag and the jump between them at every reversal was itself a bump.) With a right model the P loop adds no volts beyond the sensor
-    noise; what it adds, e = F^-1(v + s LP(u_p)) - F^-1(v), is the model's error at that speed, and each
-    sample moves (c, g_d) by normalised least mean squares, Δθ = dt / ``adapt_time`` e φ / |φ|², φ =
-    (1, |v| / v_s). The seed's safety principles (§5.5): no learning below the velocity band k (where
-    the inverse's gain is highest), e clipped to ±0.25 V per sample, steps bounded to ``adapt_rate``
-    [V/s], each term bounded to ±``adapt_limit`` [V], the correction faded in over ``fade_time``.
+    systems with actuator and sensor nonlinearities*, Wiley 1996, ch. 3): per leg, a shift c [V] of both
+    breakpoints and per direction d of the reference velocity v a slope correction g_d [-] of the inverse
+    beyond its breakpoint b_d (the model's F^-1(0±): the overlap's edge), u_v = F^-1(v + s LP(u_p)) + c +
+    g_d (F^-1(v) - b_d). A drifting null is c; a changed flow gain (viscosity, density, wear) or a worn
+    edge the g's, which leave the breakpoints where c puts them. (One c for both sides: learned per side,
+    the two breakpoints split on the asymmetry of the P loop's lag and the jump between them at every
+    reversal was itself a bump. The slope acting on F^-1(v) itself moved the breakpoints of a sharp-edged
+    valve with the flow gain: a few mV there doubled its bump.) With a right model the P loop adds no volts
+    beyond the sensor noise; what it adds, e = F^-1(v + s LP(u_p)) - F^-1(v), is the model's error at
+    that speed, and each sample moves (c, g_d) by normalised least mean squares, Δθ = dt / ``adapt_time``
+    e φ / |φ|², φ = (1, F^-1(v) - b_d). The seed's safety principles (§5.5): no learning below the velocity
+    band k (where the inverse's gain is highest), e clipped to ±0.25 V per sample, steps bounded to
+    ``adapt_rate`` [V/s], each term bounded to ±``adapt_limit``, the correction faded in over ``fade_time``.
 
     Guard: at each reversal of the reference (per leg), the largest |LP(u_p)| within ±0.1 s is the
     bump's footprint in the loop (a leg that stalls in the dead band makes the P output climb across it).
@@ -331,10 +335,15 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         self._fade = 1.0 - math.exp(-self.dt / st.fade_time)
         self._applied = 0.0
         self.dead_band = np.array([_dead_band(m.u, row) for row in m.velocity])
+        # each side's breakpoint [V] (2, n): where the model's inverse starts, F^-1(0+) and F^-1(0-)
+        self.breakpoints = np.stack([self.inverse(np.full(n, 1e-9), m.p_rest), self.inverse(np.full(n, -1e-9), m.p_rest)])
 
     def correction(self, v: np.ndarray, u_static: np.ndarray) -> np.ndarray:
-        """c + g_d u [V] (n_legs,): d the direction of v [m/s], u = F^-1(v) [V] the model's inverse, (n_legs,)."""
-        return self.null + self.slope_gain[(v < 0).astype(int), np.arange(self.n_legs)] * u_static
+        """c + g_d (u - b_d) [V] (n_legs,): d the direction of v [m/s], u = F^-1(v) [V] the model's inverse
+        (n_legs,), b_d its breakpoint on that side."""
+        d = (v < 0).astype(int)
+        legs = np.arange(self.n_legs)
+        return self.null + self.slope_gain[d, legs] * (u_static - self.breakpoints[d, legs])
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         velocity, p1 = self.demand()
@@ -355,10 +364,10 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         model's inverse gives ``u_static`` [V]."""
         st = self.settings
         legs = np.flatnonzero((np.abs(v) >= st.velocity_band) & (self._pause == 0) & ~self.off)
-        x = u_static[legs]
+        d = (v[legs] < 0).astype(int)
+        x = u_static[legs] - self.breakpoints[d, legs]
         gain = self.dt / st.adapt_time * error[legs] / (1.0 + x**2)
         bound = st.adapt_rate * self.dt
-        d = (v[legs] < 0).astype(int)
         self.null[legs] = np.clip(self.null[legs] + np.clip(gain, -bound, bound), -st.adapt_limit, st.adapt_limit)
         self.slope_gain[d, legs] = np.clip(self.slope_gain[d, legs] + np.clip(gain * x, -bound, bound),
                                            -st.adapt_limit, st.adapt_limit)
@@ -408,17 +417,4 @@ def _dead_band(u: np.ndarray, velocity: np.ndarray) -> float:
     return float(flat[-1] - flat[0]) if flat.size else 0.0
 
 
-def read_model(path: str | pathlib.Path) -> tuple[LegModel, dict]:
-    """(model, document) of a tuned compensator file (``hexsim tune --out``). Raises SettingsError naming
-    the file for one that cannot be read or is not such a file."""
-    path = pathlib.Path(path)
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise SettingsError(f"{path}: cannot read a compensator file ({exc})") from None
-    if not isinstance(doc, dict) or "model" not in doc:
-        raise SettingsError(f"{path}: not a tuned compensator file (no 'model' entry)")
-    return LegModel.from_dict(doc["model"], str(path)), doc
-
-
-__all__ = ["FILE_FORMAT", "AdaptiveFeedforward", "FeedforwardCompensator", "LegModel", "Reference", "check_model", "read_model"]
+__all__ = ["FILE_FORMAT", "AdaptiveFeedforward", "FeedforwardCompensator", "LegModel", "Reference", "check_model"]

@@ -51,7 +51,7 @@ class RunConfig:
     # cls(n_legs, rate_hz, u_v_max, settings) returning a compensation.Compensator (runs in Python)
     compensator: str | Callable[..., Compensator] = "none"
     compensator_settings: CompensatorSettings = field(default_factory=CompensatorSettings)
-    # the leg model a model-based compensator inverts (a tuned file's, compensation.model_based.read_model);
+    # the leg model a model-based compensator inverts (a tuned file's, hexsim.simulation.tuning.read_tuned);
     # None: built from the machine (hexsim.control.feedforward.leg_model)
     compensator_model: LegModel | None = field(default=None, repr=False, compare=False)
     warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C

@@ -182,7 +182,7 @@ def read_tuned(path: str | pathlib.Path) -> tuple[str, CompensatorSettings, LegM
     if not isinstance(settings, dict) or set(settings) - known:
         raise InputError(f"{path}: settings: unknown {sorted(set(settings) - known) if isinstance(settings, dict) else settings!r}")
     try:
-        model = LegModel.from_dict(doc["model"], str(path)) if name in MODEL_BASED else None
+        model = LegModel.from_dict(doc["model"], "model") if name in MODEL_BASED else None
         return name, CompensatorSettings(**settings), model
     except KeyError:
         raise InputError(f"{path}: the {name} compensator needs its 'model'") from None
