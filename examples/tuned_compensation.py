@@ -141,7 +141,7 @@ def figure(path: pathlib.Path, dofs: dict, machines: dict) -> None:
         a.set_yscale("log")
         a.set_ylabel("mean reversal peak [m/s² or rad/s²]")
         a.set_title(title)
-    ax[0].legend()
+    ax[0].legend(loc="lower left", fontsize=8, ncol=2)
     fig.savefig(path, dpi=110)
     print(f"\nwrote {path}")
 

@@ -5,7 +5,7 @@ model (legs as bodies, closing constraints) at a 5e-5 s step, validated on the d
 model at 1e-4 s; the single actuator's at 5e-5 s. All carry the sensor noise of
 ``hexsim.outputs.logio.SENSOR_NOISE`` (2 µm, 0.02 bar, 0.02 m/s^2). The identifier sees only the CSV and
 its sidecar; the script then prints, per log, the hidden truth beside the verdict and the named effects.
-This is how the README's table of the measured-data loop was made.
+This is how the table of the measured-data loop in docs/validation.md was made.
 
     python examples/validate_generated_logs.py [--out DIR] [--jobs 2] [--only NAME ...]
 """

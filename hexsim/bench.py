@@ -15,7 +15,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``hexapod_uncompensated``: heave without a compensator;
 * ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/test_convergence.py):
   dt = 1e-3 s, uncompensated heave — (c); with a compensator the 1e-3 s step misses the 2 % bound on
-  single reversal peaks (README "Speed");
+  single reversal peaks (docs/performance.md);
 * ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator — (d);
 * ``actuator_bare_fast``: bare ``mj_step`` of the single-actuator model at dt = 1e-3 s, no callback: the
   floor under ``actuator_fast``;

@@ -638,10 +638,10 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", choices=("platform", "full"), default="platform",
                    help="the hexapod's formulation: 'platform' (default), the platform as the only body with the "
                         "legs as geometry, lumped masses and end stops (about 4x faster), or 'full', the multi-body "
-                        "MJCF with leg bodies and closing constraints, the reference (see README 'Speed')")
+                        "MJCF with leg bodies and closing constraints, the reference (see docs/performance.md)")
     p.add_argument("--timestep", type=_number, default=1e-4,
                    help="physics step [s] (default 1e-4, the seed's 10 kHz; must divide the 2 ms controller "
-                        "period and the 1 ms record period; see README 'Speed' for the accuracy of larger steps)")
+                        "period and the 1 ms record period; see docs/performance.md for the accuracy of larger steps)")
     p.add_argument("--warm-up", type=_number, metavar="DELTA_C",
                    help="warm the oil by DELTA_C °C over the run (seed §5.5 uses 15): density, viscous friction "
                         "and valve null change (see hexsim/plant/temperature.py)")
@@ -956,7 +956,8 @@ def _tune_check(args: argparse.Namespace) -> int:
             raise InputError(f"--check {path}: no such file")
     from hexsim.plant.machine import load_machine
     from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import proof, read_tuned
+    from hexsim.measured.proof import proof
+    from hexsim.simulation.tuning import read_tuned
 
     machine = load_machine(args.machine)
     options = {}

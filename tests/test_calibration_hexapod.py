@@ -13,7 +13,6 @@ one leg's piston, and one leg's valve null drifted.
 from __future__ import annotations
 
 import dataclasses
-import re
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The package layout the README's "Layout" section describes: each sub-package of hexsim imports only
+"""The package layout docs/architecture.md describes: each sub-package of hexsim imports only
 the shared modules and the packages before it on the data path, and compensation imports nothing of
 hexsim. Read from the source (every import statement, also those inside functions), not from a run."""
 
@@ -22,7 +22,7 @@ def _layer(parts: list[str]) -> str:
         return "shared"
     if head in COMMANDS:
         return "commands"
-    assert head in ORDER, f"hexsim.{head} is in no layer of the README's layout"
+    assert head in ORDER, f"hexsim.{head} is in no layer of the layout (docs/architecture.md)"
     return head
 
 

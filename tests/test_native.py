@@ -122,7 +122,7 @@ def test_the_mujoco_adapter_the_kernels_rely_on():
     from hexsim.simulation import native
 
     hint = (f"MuJoCo {mujoco.__version__} changed what hexsim/simulation/native.py relies on to step MuJoCo from compiled "
-            "code; update the adapter there (see README, Speed)")
+            "code; update the adapter there (see docs/performance.md, The compiled loop)")
     m = load_model("hexapod")
     runs = [mujoco.MjData(m), mujoco.MjData(m)]
     assert all(hasattr(x, "_address") for x in (m, *runs)), hint

@@ -9,7 +9,7 @@ from hexsim.simulation.metrics import Smoothness, max_tracking_error, steady_seg
 
 
 def run_report(result: SimulationResult, sm: Smoothness, perception=None) -> dict:
-    """The metrics of a run (JSON keys documented in README.md "Outputs"). SI units throughout.
+    """The metrics of a run (JSON keys documented in docs/outputs.md). SI units throughout.
     ``perception``: the run's :class:`~hexsim.simulation.perception.BumpPerception` (a hexapod's), reported
     under ``"perception"``; None: the key is null."""
     sc, cfg = result.config.scenario, result.config
