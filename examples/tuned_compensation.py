@@ -139,9 +139,10 @@ def figure(path: pathlib.Path, dofs: dict, machines: dict) -> None:
             a.bar(np.arange(len(labels)) + 0.16 * k, [table[x].get(n, np.nan) for x in labels], 0.16, label=n)
         a.set_xticks(np.arange(len(labels)) + 0.32, labels)
         a.set_yscale("log")
+        a.set_ylim(top=a.get_ylim()[1] * 10)  # room for the legend above the bars
         a.set_ylabel("mean reversal peak [m/s² or rad/s²]")
         a.set_title(title)
-    ax[0].legend(loc="lower left", fontsize=8, ncol=2)
+    ax[0].legend(loc="upper center", fontsize=8, ncol=5)
     fig.savefig(path, dpi=110)
     print(f"\nwrote {path}")
 
