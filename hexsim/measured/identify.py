@@ -974,14 +974,7 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
         legs: list[int] = []
         bar = tqdm(desc="fitting effects", unit="fit", disable=not progress, leave=False)
         while len(accepted) < MAX_EFFECTS:
-            # the legs that stand out of what the model so far leaves: a leak on one leg hides under a
-            # sagging supply's error on all six until the supply is in (then its leg stands out)
-            new = [leg for leg in standout_legs(problem, current, budget) if leg not in legs]
-            if new:
-                notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in new))
-                if not legs:
-                    problem.focus_leg = new[0]  # the report's residual analysis looks at it
-                legs += new
+            legs += _new_standout_legs(problem, current, budget, legs, notify)
             keys = _round_keys(problem, candidates, accepted, legs)
             if not keys:
                 break
@@ -1004,14 +997,7 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
                     accepted.append(max(edge, key=lambda f: f.held_out_gain))
                     current, model = accepted[-1].scored, accepted[-1].model
                 break
-            best = max(passed, key=lambda f: f.held_out_gain)
-            accepted.append(best)
-            if len(accepted) > 1:
-                accepted = refit_jointly(search, accepted, budget)
-                if search is not problem:
-                    joint = score(problem, problem.simulate(accepted[-1].model), budget)
-                    for a in accepted:
-                        a.scored = joint
+            accepted = _accept(problem, search, accepted, max(passed, key=lambda f: f.held_out_gain), budget)
             current, model = accepted[-1].scored, accepted[-1].model
             if max(within_budget(current, budget).values()) <= WITHIN:
                 break
@@ -1021,6 +1007,31 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
                 break
         bar.close()
     return rounds, screening, accepted, current, model, budget
+
+
+def _new_standout_legs(problem: Problem, current: Scored, budget, legs: list[int], notify) -> list[int]:
+    """The legs that stand out of what the model so far leaves and were not yet looked at (a leak on one leg
+    hides under a sagging supply's error on all six until the supply is in; then its leg stands out). The
+    first ever found becomes the report's focus leg."""
+    new = [leg for leg in standout_legs(problem, current, budget) if leg not in legs]
+    if new:
+        notify("legs standing out of the others: " + ", ".join(f"leg{leg}" for leg in new))
+        if not legs:
+            problem.focus_leg = new[0]  # the report's residual analysis looks at it
+    return new
+
+
+def _accept(problem: Problem, search, accepted: list[FitResult], best: FitResult, budget) -> list[FitResult]:
+    """``accepted`` with ``best`` added; from the second effect on all refitted jointly (on the search's
+    problem), each then scored on the whole problem."""
+    accepted = [*accepted, best]
+    if len(accepted) > 1:
+        accepted = refit_jointly(search, accepted, budget)
+        if search is not problem:
+            joint = score(problem, problem.simulate(accepted[-1].model), budget)
+            for a in accepted:
+                a.scored = joint
+    return accepted
 
 
 def static_offset_limit(problem: ReplayProblem, sim: dict[str, np.ndarray]) -> float:

@@ -1,0 +1,85 @@
+"""The scoring pieces under calibration and identification on small arrays, values worked by hand (issue 42):
+the budget, a sensor's offset and scale within their data-sheet limits, the sensor calibration of a replay,
+the score (window costs and held-out RMS) and the judge's "within budget"."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from hexsim.measured.identify import Budget, _offset_and_scale, calibrate, score, within_budget
+from hexsim.plant.params import SensorSpec
+
+
+def test_the_budget_adds_noise_and_tolerance_in_quadrature():
+    b = Budget({"p1": 3.0, "position": 1e-6}, {"p1": 4.0, "position": 0.0})
+    assert b.total == {"p1": 5.0, "position": 1e-6}
+    assert b.as_dict({"p1": "Pa", "position": "m"})["p1"] == {"noise": 3.0, "tolerance": 4.0, "budget": 5.0,
+                                                              "calibration": 0.0, "unit": "Pa"}
+
+
+def test_offset_and_scale_fitted_and_held_within_their_limits():
+    """measured = sim + 0.5 + 0.1 sim, i.e. the residual sim - measured = -(0.5 + 0.1 x): free, the fit
+    returns both; with the offset limited to 0.2 the offset is clamped, the rest asked is reported, and the
+    scale is refitted on what the offset leaves: sum x (0.3 + 0.1 x) / sum x² = (1.8 + 1.4) / 14."""
+    x = np.array([0.0, 1.0, 2.0, 3.0])
+    r = -(0.5 + 0.1 * x)
+    assert _offset_and_scale(x, r, True, 0.5, None) == pytest.approx((0.5, 0.1, None))
+    offset, beta, asked = _offset_and_scale(x, r, True, 0.5, 0.2)
+    assert (offset, asked) == (pytest.approx(0.2), pytest.approx(0.5))
+    assert beta == pytest.approx(3.2 / 14)
+    # a scale beyond its limit is clamped and the offset refitted: mean of -(r + 0.05 x) = 0.5 + 0.05 * 1.5
+    assert _offset_and_scale(x, r, True, 0.05, None) == pytest.approx((0.575, 0.05, None))
+    # unscaled: the offset is the mean; an accelerometer's offset is taken about ±g (the log's convention)
+    assert _offset_and_scale(x, r, False, None, 1.0) == pytest.approx((0.65, 0.0, None))
+    assert _offset_and_scale(x, np.full(4, -9.9), False, None, 0.2, (0.0, 9.80665, -9.80665))[2] is None
+
+
+def _problem(measured: dict, fit_rows, test_rows, settle: int = 1, noise: float = 1e3):
+    """A replay problem of hand-made arrays: the members calibrate and score read."""
+    log = SimpleNamespace(machine=SimpleNamespace(sensors=SensorSpec()))
+    return SimpleNamespace(settle=settle, channels=list(measured), measured=measured, log=log, windowed=True,
+                           fit_rows=np.asarray(fit_rows), test_rows=np.asarray(test_rows),
+                           log_noise={ch: noise for ch in measured}, position_offset_limit=0.0)
+
+
+def test_a_pressure_transducer_offset_is_calibrated_out_and_a_larger_one_is_left_for_physics():
+    """P1 measured 0.5 bar above the replay: calibrated out (its limit is 1.25 bar); 2 bar above: 1.25 bar
+    calibrated, 0.75 bar left in the residual, and the 2 bar asked reported under "beyond"."""
+    sim = {"p1": np.array([[40e5, 41e5, 42e5], [43e5, 42e5, 41e5]])}
+    rows = np.array([0, 1])
+    res, cal = calibrate(_problem({"p1": sim["p1"] + 0.5e5}, rows, []), sim, rows)
+    assert np.allclose(res["p1"], 0.0, atol=1e-6) and cal["p1"]["offset"] == [pytest.approx(0.5e5)]
+    res, cal = calibrate(_problem({"p1": sim["p1"] + 2e5}, rows, []), sim, rows)
+    assert np.allclose(res["p1"], -0.75e5)
+    assert cal["p1"]["beyond"] == [pytest.approx(2e5)]
+
+
+def test_a_windowed_position_gets_a_scale_on_its_increments_only():
+    """Each window starts at the measured position: a 0.5 % gain error shows on the increments and is
+    calibrated (limit 1 %); the start values themselves are never offset."""
+    sim = np.array([[0.10, 0.11, 0.12, 0.13], [0.10, 0.09, 0.08, 0.07]])
+    measured = sim[:, :1] + 1.005 * (sim - sim[:, :1])
+    rows = np.array([0, 1])
+    res, cal = calibrate(_problem({"position": measured}, rows, [], noise=1e-7), {"position": sim}, rows)
+    assert cal["position"] == {"offset": [0.0], "scale": [pytest.approx(1.005)]}
+    assert np.allclose(res["position"], 0.0, atol=1e-12)
+
+
+def test_the_score_sums_each_window_over_its_budget_and_measures_the_held_out_windows():
+    """Residuals of 2, 0 and 4 Pa after the settle sample in three windows, budget 2 Pa: window costs
+    (2/2)²·2, 0, (4/2)²·2; held out (window 2): RMS 4 Pa; the judge's "within budget", the held-out mean
+    square in budgets squared, (4/2)² = 4."""
+    measured = np.zeros((3, 3))
+    sim = np.array([[99.0, 2.0, -2.0], [7.0, 0.0, 0.0], [-5.0, 4.0, 4.0]])
+    problem = _problem({"p1": measured}, [0, 1], [2], settle=1)
+    problem.measured = {"p1": measured}
+    # no offset fitted: the fit rows' mean residual is 0 (2, -2, 0, 0)
+    scored = score(problem, {"p1": sim}, Budget({"p1": 2.0}, {"p1": 0.0}))
+    assert scored.window_cost == pytest.approx([2.0, 0.0, 8.0])
+    assert scored.held_out_rms == {"p1": pytest.approx(4.0)}
+    assert within_budget(scored, Budget({"p1": 2.0}, {"p1": 0.0})) == {"p1": pytest.approx(4.0)}
+    assert math.isclose(scored.held_out_rms_signals["p1"][0], 4.0)
