@@ -52,6 +52,11 @@ from compensation.settings import CompensatorSettings, SettingsError
 #: drifting null that loop rang between tank and supply pressure.
 PRESSURE_FILTER_HZ = 5.0
 
+#: The smallest footprint [V] at which the adaptive feedforward's guard turns a leg's compensation off (the
+#: P output's largest |LP(u_p)| within ±0.1 s of a reversal): on the Micro Motion System's heave the adaptive
+#: feedforward's footprint runs at 3 mV, an uncompensated reversal's |u_p| at 0.56 V.
+TURN_OFF_FLOOR_V = 0.05
+
 #: Version of the tuned-compensator file (:meth:`LegModel.to_dict`).
 FILE_FORMAT = "hexsim-compensator/1"
 
@@ -306,10 +311,12 @@ class AdaptiveFeedforward(FeedforwardCompensator):
     Guard: at each reversal of the reference (per leg), the largest |LP(u_p)| within ±0.1 s is the
     bump's footprint in the loop (a leg that stalls in the dead band makes the P output climb across it).
     A footprint more than twice its running level (an exponential mean over the last reversals, which
-    follows a slow drift) on two reversals running restores the last tables that did not, and learning
-    pauses for four reversals. A footprint as large as the flow curve's dead band, the P output an
-    uncompensated reversal needs, on two reversals running, fades the leg's compensation out (U_c -> 0,
-    logged as ``guard`` = 1): the leg runs uncompensated rather than worse.
+    follows a slow drift) on two reversals running restores the last parameters that did not, and learning
+    pauses for four reversals. A footprint as large as the P output an uncompensated reversal needs — the
+    flow curve's dead band, and at least :data:`TURN_OFF_FLOOR_V` (some fifteen times a working
+    feedforward's footprint on the Micro Motion System, a tenth of an uncompensated reversal's there) — on two reversals
+    running fades the leg's compensation out (U_c -> 0, logged as ``guard`` = 1): the leg runs
+    uncompensated rather than worse.
     """
 
     name = "adaptive"
@@ -319,7 +326,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         super().__init__(*args, **kwargs)
         st, n, m = self.settings, self.n_legs, self.model
         self.null = np.zeros(n)  # c [V]
-        self.slope_gain = np.zeros((2, n))  # g_+, g_- [V]
+        self.slope_gain = np.zeros((2, n))  # g_+, g_- [-]
         self.good = (self.null.copy(), self.slope_gain.copy())
         half = self.WINDOW_S * self.rate_hz
         self._ring = np.zeros((int(2 * half) + 1, n))
@@ -334,7 +341,8 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         self._scale = np.ones(n)  # 1: compensating, fading to 0 once the guard turns a leg off
         self._fade = 1.0 - math.exp(-self.dt / st.fade_time)
         self._applied = 0.0
-        self.dead_band = np.array([_dead_band(m.u, row) for row in m.velocity])
+        # the footprint an uncompensated reversal leaves [V]: the dead band, at least the floor
+        self.turn_off = np.maximum([_dead_band(m.u, row) for row in m.velocity], TURN_OFF_FLOOR_V)
         # each side's breakpoint [V] (2, n): where the model's inverse starts, F^-1(0+) and F^-1(0-)
         self.breakpoints = np.stack([self.inverse(np.full(n, 1e-9), m.p_rest), self.inverse(np.full(n, -1e-9), m.p_rest)])
 
@@ -389,7 +397,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
     def _judge(self, i: int, footprint: float) -> None:
         """One reversal's footprint [V] on leg i: keep, restore or turn off (the class docstring)."""
         self._pause[i] = max(self._pause[i] - 1, 0)
-        self._outside[i] = self._outside[i] + 1 if footprint >= self.dead_band[i] > 0 else 0
+        self._outside[i] = self._outside[i] + 1 if footprint >= self.turn_off[i] else 0
         if self._outside[i] >= 2:
             self.off[i] = True
         level = self.level[i]
