@@ -428,7 +428,7 @@ def _progress_line(text: str) -> None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    from hexsim.measured.identify import left_out_text
+    from hexsim.measured.scoring import left_out_text
     from hexsim.measured.measurement import read_log
     from hexsim.measured.reports.validation import effect_label, plus_minus
     from hexsim.measured.validation import validate

@@ -16,7 +16,7 @@ from independent_cylinder import Rig, experiment
 from hexsim.cli import main
 from hexsim.measured.calibration import calibrate, features
 from hexsim.measured.discovery import apply_terms, equation_errors, equation_terms
-from hexsim.measured.identify import Problem
+from hexsim.measured.scoring import Problem
 from hexsim.measured.parameters import default_parameters
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import nominal_plant

@@ -19,7 +19,7 @@ from hexsim.cli import main
 from hexsim.errors import InputError
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.candidates import EFFECT_NAMES
-from hexsim.measured.identify import STOP_MARGIN_M, Problem, left_out_text
+from hexsim.measured.scoring import STOP_MARGIN_M, Problem, left_out_text
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import ReplayProblem, Windows
 from hexsim.measured.residuals import clipped

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hexsim.measured.identify import Budget, _offset_and_scale, calibrate, score, within_budget
+from hexsim.measured.scoring import Budget, _offset_and_scale, calibrate, score, within_budget
 from hexsim.plant.params import SensorSpec
 
 

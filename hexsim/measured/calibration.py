@@ -487,7 +487,7 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
     machine as in the model). So u_0,leg = u_0,prior - K_p d_leg, d_leg the mean of measured minus replayed
     position over the fit segments of the ``replays`` (:class:`hexsim.measured.dynamics.ReplayEvidence`, their
     position offsets calibrated freely) less the legs' median of it, averaged over the logs. The common
-    part stays with the sensors, as ``hexsim validate`` leaves it (:func:`hexsim.measured.identify.calibrate`):
+    part stays with the sensors, as ``hexsim validate`` leaves it (:func:`hexsim.measured.scoring.calibrate`):
     all six nulls shifted alike are not told from the model's common mismatch (an unmodelled spool lag on a
     heave offsets all six legs alike), so each null is found relative to the legs' median; its standard
     error from the residual's independent samples (:func:`hexsim.measured.residuals.effective_n`). Without
@@ -497,7 +497,7 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
 
     Returns the machine with ``legs.legN.valve.null_offset_V`` set (clipped to ±:data:`LEG_NULL_RANGE` of the
     command range: beyond it the report says "at a bound") and the parameter rows for the report."""
-    from hexsim.measured.identify import position_offsets
+    from hexsim.measured.scoring import position_offsets
     from hexsim.measured.residuals import effective_n
 
     u_max = machine.hydraulics.u_v_max
@@ -568,11 +568,11 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
 def own_budget(report: dict) -> dict:
     """Whether the calibrated model reaches its own calibration logs' budget: the worst held-out RMS in
     budgets per channel over the logs' windows after the calibration (``transients`` or ``replayed``),
-    ``reached`` when every channel's is within sqrt(:data:`hexsim.measured.identify.WITHIN`), else
+    ``reached`` when every channel's is within sqrt(:data:`hexsim.measured.scoring.WITHIN`), else
     ``short`` (channel -> budgets) and a ``sentence`` saying what that means for a validation on this machine:
     the model leaves structure of its own (form the calibration cannot fit), which ``hexsim validate`` counts
-    as the model's floor (:func:`hexsim.measured.identify.model_floor`) and judges effects against."""
-    from hexsim.measured.identify import WITHIN
+    as the model's floor (:func:`hexsim.measured.scoring.model_floor`) and judges effects against."""
+    from hexsim.measured.scoring import WITHIN
 
     rows = [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t]
     worst: dict[str, float] = {}
@@ -595,7 +595,7 @@ def _replayed(logs: list[MeasurementLog], prior: Machine, calibrated: Machine) -
     """A steady calibration's own logs replayed in windows as ``hexsim validate`` replays a log, none of them
     fitted (``before``/``after``: the prior's and the calibrated machine's RMS per channel in budgets): what
     the calibrated nominal still misses on the logs it was calibrated on, between the steady motions, enters
-    every later validation's budget (:func:`hexsim.measured.identify.model_floor`). A log with fewer than four
+    every later validation's budget (:func:`hexsim.measured.scoring.model_floor`). A log with fewer than four
     windows away from its end stops is left out (``refused``: why)."""
     from hexsim.measured.dynamics import ReplayEvidence
 

@@ -323,7 +323,7 @@ def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, bud
 
 
 def held_out_cost(problem: ReplayProblem, scored) -> float:
-    """The summed cost of ``scored``'s (:class:`hexsim.measured.identify.Scored`) held-out rows."""
+    """The summed cost of ``scored``'s (:class:`hexsim.measured.scoring.Scored`) held-out rows."""
     return float(scored.window_cost[problem.test_rows].sum())
 
 
@@ -464,8 +464,8 @@ def equation_terms(problem: ReplayProblem, errors: dict) -> tuple[list[dict], di
 def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, score=None) -> dict:
     """Fit the sparse correction on the fit windows' samples, add what maps onto the model, replay and
     compare on the held-out windows (see the module doc). ``base``/``base_scored``: the model the verdict
-    stands on and its :class:`hexsim.measured.identify.Scored`; ``score(problem, sim, budget)`` scores a replay the
-    same way (:func:`hexsim.measured.identify.score`, passed in so this module does not import the identifier).
+    stands on and its :class:`hexsim.measured.scoring.Scored`; ``score(problem, sim, budget)`` scores a replay the
+    same way (:func:`hexsim.measured.scoring.score`, passed in so this module does not import the identifier).
     Returns the JSON-ready account; ``terms`` empty
     if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation(s), its terms added to
     that leg (:func:`_discover_legs`; 3-way and 4-way valves)."""

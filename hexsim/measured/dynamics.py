@@ -7,10 +7,10 @@ bulk modulus with the dead volumes (seed eq. 3.7), the moving mass (3.8), the vi
 reversals, is seen in the transients of any log: a closed-loop sine as the seed's (3.10), a step, a chirp,
 or the switches of an open-loop experiment.
 
-:class:`ReplayEvidence` is one log as the identifier replays it (:class:`hexsim.measured.identify.Problem`:
+:class:`ReplayEvidence` is one log as the identifier replays it (:class:`hexsim.measured.scoring.Problem`:
 0.3 s windows, each started from the measured state and driven by the logged valve setpoints u_v, the
 sensors' offsets and scales fitted as nuisance): the even windows are fitted, the odd ones held out. A
-window in which the piston comes within :data:`hexsim.measured.identify.STOP_MARGIN_M` of an end the log
+window in which the piston comes within :data:`hexsim.measured.scoring.STOP_MARGIN_M` of an end the log
 reaches (an end stop, whose stiffness and the transducer's offset there are not the nominal's business) or
 a sensor sits at the end of its range is no window of the problem. Residuals are
 divided by the log's noise budget (sensor noise and the replay's numerical tolerance, measured once on the
@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hexsim.errors import InputError
-from hexsim.measured.identify import Budget, Problem, measure_budget, residual_vector, score, within_budget
-from hexsim.measured.identify import calibrate as sensor_calibration
+from hexsim.measured.scoring import Budget, Problem, measure_budget, residual_vector, score, within_budget
+from hexsim.measured.scoring import calibrate as sensor_calibration
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import PlantModel, Windows, nominal_plant
 from hexsim.measured.residuals import effective_n

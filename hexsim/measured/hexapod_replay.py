@@ -112,7 +112,7 @@ STATIC_SPREAD = 3.0
 
 
 class HexapodProblem:
-    """The identifier's view of a hexapod log (the interface of :class:`hexsim.measured.identify.Problem`): one
+    """The identifier's view of a hexapod log (the interface of :class:`hexsim.measured.scoring.Problem`): one
     closed-loop replay of the whole log per model, its channels cut into consecutive segments of
     :data:`SEGMENT_S` after :data:`SETTLE_S`, each channel an array (segments, samples, signals)
     (signals: the six legs, the supply, the three accelerometer axes). Even segments fit, odd ones are

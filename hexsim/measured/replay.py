@@ -3,7 +3,7 @@
 
 **Valve replay** of a single-actuator log (identification and the per-channel errors): the logged valve
 setpoints u_v drive the model open loop over windows short enough that the integrating position does
-not drift far (:data:`hexsim.measured.identify.WINDOW_S`). Each window starts from the measured state at its first
+not drift far (:data:`hexsim.measured.scoring.WINDOW_S`). Each window starts from the measured state at its first
 sample (position, velocity from a Savitzky–Golay derivative of the position, P1, P_s). The controller
 is out of the loop, so what it would have compensated (a flow offset, a lag) stays in the residual
 where it can be seen. Hexapod logs are replayed closed loop instead (:mod:`hexsim.measured.hexapod_replay`).
@@ -117,7 +117,7 @@ class PlantModel:
 @runtime_checkable
 class ReplayProblem(Protocol):
     """What the identifier (:mod:`hexsim.measured.identify`), the discovery and ``hexsim validate`` read of a
-    log replayed through a model: :class:`hexsim.measured.identify.Problem` (a single actuator's open-loop
+    log replayed through a model: :class:`hexsim.measured.scoring.Problem` (a single actuator's open-loop
     valve replay in windows) and :class:`hexsim.measured.hexapod_replay.HexapodProblem` (a hexapod's
     closed-loop replay of the whole log, cut into segments).
 

@@ -18,18 +18,16 @@ from hexsim.measured.identify import (
     FIT_PER_ROUND,
     MAX_EFFECTS,
     MIN_EXCESS_SHARE,
-    SCALED,
     SEARCH_SEGMENTS,
-    WITHIN,
     WORSE_REL,
     Identification,
     default_candidates,
     identify,
     signal_labels,
-    within_budget,
 )
 from hexsim.measured.calibration import hexapod_hint, nominal_check, transient_check
 from hexsim.measured.measurement import MeasurementLog, read_log
+from hexsim.measured.scoring import SCALED, WITHIN, within_budget
 from hexsim.measured.reports.validation import fit_label, markdown, plot
 from hexsim.measured.residuals import analyse
 from hexsim.plant.machine import KEYS
