@@ -11,7 +11,8 @@ import numpy as np
 from hexsim.control.scenario import Scenario
 from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
-from hexsim.signals import dominant_frequency, savgol
+from hexsim.measured.replay import measured_velocity
+from hexsim.signals import dominant_frequency
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import smoothness
 from hexsim.simulation.runner import simulate
@@ -62,7 +63,7 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
     # the reversals where the piston turns (single actuator); a hexapod's, where its setpoint does
     if axis < 0:
         sim_acc, sim_vel = result.acc[:, 2], result.ydot[:, 0]
-        measured_vel = savgol(pos[:, 0], log.sample_rate_hz, 0.02, deriv=1)
+        measured_vel = measured_velocity(log, pos[:, 0])
     else:
         sim_acc, sim_vel, measured_vel = result.acc[:, axis], None, None
     rows = {}

@@ -19,7 +19,6 @@ real motion computer can read the same tables (``docs/compensation.md``).
 from __future__ import annotations
 
 import dataclasses
-import json
 import pathlib
 from dataclasses import dataclass
 
@@ -32,6 +31,7 @@ from hexsim.simulation.comparison import final_window_start
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import run_smoothness
 from hexsim.simulation.sweeps import Point, evaluate_point, run_sweep
+from hexsim.tables import read_json_object, write_json
 
 #: Version of the tuned-compensator file.
 FORMAT = "hexsim-tuned/1"
@@ -97,13 +97,15 @@ def evaluate_tuning(config: RunConfig) -> dict:
 class TuneResult:
     """Every candidate's rows (one per motion, :func:`evaluate_tuning`'s figures), the chosen candidate and
     the worst ratio of its final mean reversal peak to none's over the motions; ``refused``: candidates
-    whose model the checks refused, with the reason."""
+    whose model the checks refused, with the reason; ``model``: the machine's leg model the model-based
+    candidates ran on (None where it was refused)."""
 
     candidates: tuple[Candidate, ...]
     rows: dict[str, list[dict]]
     chosen: Candidate
     worst_ratio: float
     refused: dict[str, str]
+    model: LegModel | None
 
 
 def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: bool = False) -> TuneResult:
@@ -113,8 +115,9 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     candidates = tuple(Candidate(name, dataclasses.replace(base.compensator_settings, **changes))
                        for name, changes in CANDIDATES)
     refused: dict[str, str] = {}
+    model = None
     try:
-        leg_model_of(base)
+        model = leg_model_of(base)
     except InputError as exc:
         refused.update({c.label: str(exc) for c in candidates if c.compensator in MODEL_BASED})
     tried = [c for c in candidates if c.label not in refused]
@@ -131,7 +134,7 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     label = min(ratios, key=ratios.get)
     if not ratios[label] < 1.0:
         raise InputError("tune: no compensator makes the reversal bump smaller than none on these motions")
-    return TuneResult(tuple(tried), rows, next(c for c in tried if c.label == label), ratios[label], refused)
+    return TuneResult(tuple(tried), rows, next(c for c in tried if c.label == label), ratios[label], refused, model)
 
 
 def _motion(base: RunConfig, name: str):
@@ -150,16 +153,14 @@ def _ratio(row: dict, none: dict) -> float:
 def write_tuned(path: pathlib.Path, result: TuneResult, base: RunConfig, motions: tuple[str, ...]) -> dict:
     """Write the tuned file (:data:`FORMAT`): compensator, settings, the leg model for a model-based one,
     the machine, the motions and the predicted figures of none, the seed's buffered and the tuned one.
-    Returns the document. Written whole or not at all (a temporary file renamed)."""
+    Returns the document. Written whole or not at all (:func:`hexsim.tables.write_json`)."""
     chosen = result.chosen
     doc = {"format": FORMAT, "compensator": chosen.compensator, "settings": dataclasses.asdict(chosen.settings),
            "machine": base.machine_label, "motions": list(motions),
            "predicted": {label: result.rows[label] for label in ("none", "buffered", chosen.label)}}
     if chosen.compensator in MODEL_BASED:
-        doc["model"] = leg_model_of(base).to_dict()
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(doc, indent=1))
-    tmp.replace(path)
+        doc["model"] = result.model.to_dict()
+    write_json(path, doc)
     return doc
 
 
@@ -168,11 +169,8 @@ def read_tuned(path: str | pathlib.Path) -> tuple[str, CompensatorSettings, LegM
     the file and what is wrong (unreadable, not a tuned file, an unknown compensator or setting, a model
     the checks refuse)."""
     path = pathlib.Path(path)
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot read a tuned compensator file ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+    doc = read_json_object(path, "a tuned compensator")
+    if doc.get("format") != FORMAT:
         raise InputError(f"{path}: not a tuned compensator file (format must be {FORMAT!r})")
     name = doc.get("compensator")
     if name not in NAMES or name == "oracle":
