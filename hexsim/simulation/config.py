@@ -232,8 +232,10 @@ class HydraulicCoupling:
         self.temperature = float(warm_up.temperature(0.0)) if warm_up else 35.0
         self.controller = controller
         self.setpoints, self.noise, self.ctrl_div, self.valve = schedule
-        # the reference's derivatives, for the compensators that use them (compensation.model_based)
-        self.derivatives = setpoint_derivatives(self.setpoints, self.ctrl_div * idx.dt)
+        # the reference's derivatives, only for a compensator that observes them (compensation.model_based):
+        # three more arrays the size of the setpoint table on a long run
+        observes = type(controller.compensator).observe is not Compensator.observe
+        self.derivatives = setpoint_derivatives(self.setpoints, self.ctrl_div * idx.dt) if observes else None
         self.dt = idx.dt
         self.effects = config.effects
         self.faults = faults
@@ -304,8 +306,10 @@ class HydraulicCoupling:
             self.r = inj.setpoint(t_k, self.r)
             seen = inj.measured(t_k, seen)
         if self.valve is None:
-            d1, d2, d3 = self.derivatives
-            reference = Reference(self.r, d1[j], d2[j], d3[j], None if p1 is None else p1.copy())
+            reference = None
+            if self.derivatives is not None:
+                d1, d2, d3 = self.derivatives
+                reference = Reference(self.r, d1[j], d2[j], d3[j], None if p1 is None else p1.copy())
             self.u_v, self.u_c = self.controller.sample(self.r, seen, reference)
         else:  # open loop: the given command, saturated like the controller's
             u_max = hyd.u_v_max
