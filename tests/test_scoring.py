@@ -1,6 +1,7 @@
 """The scoring pieces under calibration and identification on small arrays, values worked by hand (issue 42):
 the budget, a sensor's offset and scale within their data-sheet limits, the sensor calibration of a replay,
-the score (window costs and held-out RMS) and the judge's "within budget"."""
+the score (window costs and held-out RMS), "within budget" and the judge (significance, materiality, a worse
+signal, the numerical tolerance's charge, plausibility)."""
 
 from __future__ import annotations
 
@@ -83,3 +84,64 @@ def test_the_score_sums_each_window_over_its_budget_and_measures_the_held_out_wi
     assert scored.held_out_rms == {"p1": pytest.approx(4.0)}
     assert within_budget(scored, Budget({"p1": 2.0}, {"p1": 0.0})) == {"p1": pytest.approx(4.0)}
     assert math.isclose(scored.held_out_rms_signals["p1"][0], 4.0)
+
+
+def _judged(before, after, x, se, rms_before=1.0, rms_after=0.5, tolerance=0.0, tried=1):
+    """The judge (:func:`hexsim.measured.identify.judge`) on hand-made window costs: six windows of five
+    samples (the first not scored), the odd ones held out; a null offset u_0 (plausible -2…2 V, no effect at
+    0) fitted to ``x`` ± ``se`` on a base whose held-out windows cost ``before`` and leave ``rms_before``."""
+    from hexsim.measured.identify import FitResult, judge
+    from hexsim.measured.scoring import Scored
+
+    measured = {"p1": np.zeros((6, 5))}
+    problem = SimpleNamespace(settle=1, channels=["p1"], measured=measured, log=SimpleNamespace(),
+                              fit_rows=np.array([0, 2, 4]), test_rows=np.array([1, 3, 5]))
+    budget = Budget({"p1": 1.0}, {"p1": tolerance})
+
+    def scored(held, rms):
+        cost = np.zeros(6)
+        cost[[1, 3, 5]] = held
+        return Scored({}, {}, cost, {"p1": rms}, {"p1": [rms]})
+
+    fit = FitResult(name="null_offset", on_top_of=(), parameters={"u_0": {"value": x, "std_error": se, "unit": "V"}},
+                    x=np.array([x]), model=None, scored=scored(after, rms_after), nfev=1)
+    judge(problem, scored(before, rms_before), fit, budget, tried)
+    return fit
+
+
+def test_the_judge_accepts_a_significant_material_plausible_improvement():
+    """Held-out costs 40, 50, 60 -> 4, 6, 5: gain 1 - 15/150; per window log ratios ln 10, ln(50/6), ln 12,
+    one-sided t-test against 0 by hand; removed 135 of the 150 - 2 (WITHIN) x 4 samples x 3 windows beyond
+    the budget; u_0 = 0.5 ± 0.01 V is inside -2…2 and 50 standard errors off 0."""
+    from scipy.stats import t as student
+
+    fit = _judged([40.0, 50.0, 60.0], [4.0, 6.0, 5.0], 0.5, 0.01)
+    gains = np.log([10.0, 50.0 / 6.0, 12.0])
+    t_stat = gains.mean() / (gains.std(ddof=1) / math.sqrt(3))
+    assert fit.held_out_gain == pytest.approx(0.9)
+    assert fit.p_value == pytest.approx(student.sf(t_stat, 2))
+    assert fit.accepted and fit.reasons == [] and fit.at_edge == []
+    # the same improvement among 100 candidates: p must beat 0.05 / 100
+    many = _judged([40.0, 50.0, 60.0], [4.0, 6.0, 5.0], 0.5, 0.01, tried=100)
+    assert not many.accepted and "not significant" in many.reasons[0]
+
+
+def test_the_judge_rejects_small_worse_tolerance_and_implausible_fits():
+    # significant but small: removes 6 of the 126 beyond the budget (5 %, 25 % needed)
+    small = _judged([40.0, 50.0, 60.0], [38.0, 48.0, 58.0], 0.5, 0.01)
+    assert [r for r in small.reasons if r.startswith("removes only 5%")] and not small.accepted
+    # a signal worse by more than 10 % and its budget (1.0): 1.0 -> 2.5
+    worse = _judged([40.0, 50.0, 60.0], [4.0, 6.0, 5.0], 0.5, 0.01, rms_before=1.0, rms_after=2.5)
+    assert worse.reasons[0].startswith("p1 worse: held-out RMS 1 -> 2.5")
+    # fitting the numerical tolerance is no improvement: tolerance 0.5 of noise 1 charges each window
+    # 4 x 0.25 / 1.25 = 0.8, so 1 -> 0.2 gains ln(1 / 1.0) = 0 in every window
+    tol = _judged([1.0, 1.0, 1.0], [0.2, 0.2, 0.2], 0.5, 0.01, tolerance=0.5)
+    assert tol.p_value == 1.0 and not tol.accepted
+    # within 4 standard errors of the no-effect value: no finding
+    nothing = _judged([40.0, 50.0, 60.0], [4.0, 6.0, 5.0], 0.03, 0.01)
+    assert nothing.reasons == ["u_0 = 0.03 V is the value without the effect (within 4 standard errors)"]
+    # everything passes but the value sits at a bound of its plausible range (within 1 % of 4 V of 2 V): not
+    # accepted, kept as a partial explanation (at_edge)
+    edge = _judged([40.0, 50.0, 60.0], [4.0, 6.0, 5.0], 1.99, 0.01)
+    assert not edge.accepted and edge.at_edge == edge.reasons and len(edge.reasons) == 1
+    assert "at a bound of its plausible range -2…2" in edge.reasons[0]

@@ -127,6 +127,7 @@ class ReplayProblem(Protocol):
     log: MeasurementLog
     windowed: bool  # each row starts from the measured state (a position offset is then not seen)
     position_offset_limit: float  # [m] most of a position offset calibrated as the sensor's (closed loop)
+    focus_leg: int | None  # hexapod: the leg (1..6) the residual analysis looks at; None on a single actuator
     replay_mode: str  # how the log drives the model, for reports
     scored: str  # which samples are scored, for reports
     fit_rows: np.ndarray

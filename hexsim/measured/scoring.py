@@ -101,6 +101,7 @@ class Problem:
 
     windowed = True  # each window starts from the measured state (position residual 0 at its start)
     position_offset_limit = math.inf  # (unused: a window's position starts at the measured one)
+    focus_leg = None  # one actuator: no leg to look at
 
     def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
         self.log = log

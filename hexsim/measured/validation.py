@@ -342,7 +342,7 @@ def summary(ident: Identification) -> dict:
         "payload_from_statics": hexapod_payload(ident),
         "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
                                                             if not k.startswith("_")},
-        "residuals_leg": getattr(p, "focus_leg", None),  # hexapod: the leg the residual analysis looks at
+        "residuals_leg": p.focus_leg,  # hexapod: the leg the residual analysis looks at
         "residuals_before": before,
         "residuals_after": after,
         "windows": p.window_doc,

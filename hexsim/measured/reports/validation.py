@@ -155,7 +155,7 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
         b, a = before[ch], after[ch]
         ax[i, 0].plot(tw.ravel(), b.ravel(), ",", color="C3", label="before")
         ax[i, 0].plot(tw.ravel(), a.ravel(), ",", color="C0", label="after")
-        leg = f" leg{p.focus_leg}" if getattr(p, "focus_leg", None) and ch in ("position", "p1") else ""
+        leg = f" leg{p.focus_leg}" if p.focus_leg is not None and ch in ("position", "p1") else ""
         ax[i, 0].set_ylabel(f"{ch}{leg} residual [{p.units[ch]}]")
         ax[i, 0].legend(loc="upper right", markerscale=20)
         ax[i, 1].plot(vel.ravel(), b.ravel(), ",", color="C3")
