@@ -237,9 +237,10 @@ def test_validate_says_calibrate_first_when_the_nominal_is_visibly_off_a_constan
 
     log = read_log(DATA / "cyl_1V_s2_pB.csv", machine=NOMINAL)
     check = nominal_check(log)
-    assert check["off"] and check["speed_error_max"] > 0.1
-    assert "calibrate first" in check["sentence"] and "valve.edge_gain_PB" in check["sentence"]
-    assert "supply.tank_pressure_Pa 0 → " in check["sentence"]
+    assert check.off and check.figures["speed_error_max"] > 0.1
+    assert "calibrate first" in check.sentence and "valve.edge_gain_PB" in check.sentence
+    assert "supply.tank_pressure_Pa 0 → " in check.sentence
+    assert check.as_dict()["sentence"] == check.sentence and check.as_dict()["moved"] == list(check.moved)
     calibrated, _ = calibrate([read_log(p, machine=NOMINAL) for p in sorted(DATA.glob("cyl_*V_s1_p*.csv"))], NOMINAL,
                               cross_validate=False)
     assert nominal_check(read_log(DATA / "cyl_1V_s2_pB.csv", machine=calibrated)) is None  # calibrated: judged as is

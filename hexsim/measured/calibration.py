@@ -45,6 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.parameters import ParameterSet, default_parameters
@@ -297,8 +298,10 @@ class _Evidence:
         return float(np.dot(sizes, shares) / max(sum(sizes), 1))
 
 
-def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine: Machine, dynamics: str) -> _Evidence:
-    """The evidence of ``logs`` (see :func:`calibrate`). Raises InputError for an unknown ``dynamics``, logs of a
+def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine: Machine, dynamics: str,
+            built: tuple = ()) -> _Evidence:
+    """The evidence of ``logs`` (see :func:`calibrate`); ``built``: replay evidence already built for some of
+    them (:class:`hexsim.measured.dynamics.ReplayEvidence`, matched by the log's path). Raises InputError for an unknown ``dynamics``, logs of a
     hexapod and a single actuator together, a hexapod with ``dynamics`` "never", or two logs of one file name."""
     from hexsim.measured.dynamics import ReplayEvidence
 
@@ -317,8 +320,9 @@ def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine:
     loads = {log.path.name: axis_load(log) for log in (*logs, *held_out)}
     if len(loads) < len(logs) + len(held_out):
         raise InputError("two logs of the same file name: calibration names features by their log's file name")
+    ready = {ev.log.path: ev for ev in built}
     return _Evidence(steady, [f for log in steady for f in features(log)], loads,
-                     [ReplayEvidence.of(log, machine) for log in moving], hexapod)
+                     [ready.get(log.path) or ReplayEvidence.of(log, machine) for log in moving], hexapod)
 
 
 def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, flow_areas: tuple[str, ...] | None,
@@ -416,14 +420,16 @@ def _with_curve(ev: _Evidence, best: dict, tried: list[dict], options: FitOption
 
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
               params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
-              flow_areas: tuple[str, ...] | None = None, notify=None) -> tuple[Machine, dict]:
+              flow_areas: tuple[str, ...] | None = None, evidence: tuple = (), notify=None) -> tuple[Machine, dict]:
     """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
     doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
     the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
     closed-loop motions, steps), or of hexapod logs (their closed-loop replay); ``dynamics`` "always" adds
     the transients of the constant-command experiments too, "never" reads steady features only. With
     transients the valve's flow-area form is chosen among ``flow_areas`` (default :func:`_forms`) by the
-    held-out windows' cost (:func:`_choose_form`).
+    held-out windows' cost (:func:`_choose_form`). ``evidence``: the replays of some of ``logs`` already built
+    (:meth:`hexsim.measured.dynamics.ReplayEvidence.of_problem`: a validation's problem and budget), used
+    instead of replaying those logs' nominal again.
 
     Returns the calibrated machine (its ``calibration`` the report without the feature rows) and the
     report: per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
@@ -433,7 +439,7 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     Raises InputError for a log that is not evidence of either kind, or an unknown ``dynamics``."""
     notify = notify or (lambda text: None)
     machine, supply = supply_from_logs(logs, machine)
-    ev = _gather(logs, held_out, machine, dynamics)
+    ev = _gather(logs, held_out, machine, dynamics, evidence)
     best, tried = _choose_form(ev, machine, params, flow_areas, notify, fixed=(supply["key"],) if supply else ())
     nulls = []
     if ev.hexapod:
@@ -465,12 +471,12 @@ def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Mach
     samples = np.concatenate([log.columns["ps_Pa"] for log in logs])
     level = float(np.median(samples))
     spread = float(median_abs_deviation(samples, scale="normal"))
-    row = {"key": "supply.pressure_Pa", "unit": "Pa", "value": level,
-           "std_error": spread / math.sqrt(len(samples)), "prior": float(machine.hydraulics.supply_pressure),
-           "lower": float(np.min(samples)), "upper": float(np.max(samples)),
-           "bounds_source": "the logged supply pressure's range", "experiment": "ps_Pa logged",
-           "status": "from the logs", "why": f"every log carries ps_Pa: the median of its {len(samples)} samples "
-           f"(it ranges {np.min(samples) / 1e5:.4g}…{np.max(samples) / 1e5:.4g} bar), the level every replay runs at"}
+    est = Estimate("supply.pressure_Pa", level, spread / math.sqrt(len(samples)), "Pa", FROM_LOGS,
+                   f"every log carries ps_Pa: the median of its {len(samples)} samples (it ranges "
+                   f"{np.min(samples) / 1e5:.4g}…{np.max(samples) / 1e5:.4g} bar), the level every replay runs at",
+                   float(np.min(samples)), float(np.max(samples)))
+    row = est.as_row() | {"prior": float(machine.hydraulics.supply_pressure),
+                          "bounds_source": "the logged supply pressure's range", "experiment": "ps_Pa logged"}
     return with_keys(machine, {"supply.pressure_Pa": level}), row
 
 
@@ -519,12 +525,13 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
         key, lo, hi = f"legs.leg{leg}.valve.null_offset_V", -LEG_NULL_RANGE * u_max, LEG_NULL_RANGE * u_max
         value = float(np.clip(prior - du, lo, hi))
         values[key] = value
-        rows.append({"key": key, "unit": "V", "value": value, "std_error": float(e), "prior": float(prior),
-                     "lower": lo, "upper": hi, "bounds_source": "servo-valve data sheets: zero point within 2–3 % "
-                     "of the command range", "experiment": "closed-loop motion of that leg (its static tracking "
-                     "error)", "status": "fitted" if lo < prior - du < hi else "at a bound",
-                     "why": "the leg's static tracking error asks for more than a valve's zero-point tolerance: a "
-                     "leak or a sensor of that leg, not its null"})
+        est = Estimate.judged(key, value, e, "V", lo, hi)
+        if est.status == AT_A_BOUND:
+            est = replace(est, why="the leg's static tracking error asks for more than a valve's zero-point "
+                                   "tolerance: a leak or a sensor of that leg, not its null")
+        rows.append(est.as_row() | {"prior": float(prior), "bounds_source": "servo-valve data sheets: zero point "
+                                    "within 2–3 % of the command range", "experiment": "closed-loop motion of that "
+                                    "leg (its static tracking error)"})
     return with_keys(machine, values), rows
 
 
@@ -650,7 +657,7 @@ def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: st
                                           f"{curve['from_form']} form's curve with weight {curve['regularisation']:g} "
                                           f"chosen by held-out windows")
     for row in report["parameters"]:
-        if row["status"] != "held at its prior":
+        if row["status"] != HELD:
             key, _, index = row["key"].partition("[")  # a table point's source is its table's
             text = (f"{'point ' + index[:-1] + ': ' if index else ''}{row['value']:.6g} ± {row['std_error']:.2g} "
                     f"{row['unit']} (prior {row['prior']:.6g})")
@@ -685,22 +692,12 @@ def _free_block(fit: Fit) -> np.ndarray:
 
 
 def _parameter_rows(fit: Fit) -> list[dict]:
-    rows = []
-    for p, value, se in zip(fit.params, fit.values, fit.std_errors):
-        row = {"key": p.key, "unit": p.unit, "value": float(value), "std_error": float(se),
-               "lower": p.lower, "upper": p.upper, "bounds_source": p.source, "experiment": p.experiment}
-        span = p.upper - p.lower
-        if p.key in fit.held:
-            row.update(status="held at its prior", why=fit.held[p.key])
-        elif p.limit and value - p.lower <= 1e-3 * span:
-            row.update(status="at its physical limit", why=p.limit)
-        elif min(value - p.lower, p.upper - value) <= 1e-3 * span:
-            row.update(status="at a bound", why="the fit ran into the bound: the data asks for more than the "
-                       "bracket allows, a hint that the model lacks an effect or the bracket is wrong")
-        else:
-            row["status"] = "fitted"
-        rows.append(row)
-    return rows
+    """Each parameter's :class:`~hexsim.measured.estimates.Estimate` (held at its prior, at its physical limit,
+    at a bound or fitted: :meth:`~hexsim.measured.estimates.Estimate.judged`) as a report row, with where its
+    bounds come from and the experiment that identifies it."""
+    return [Estimate.judged(p.key, value, se, p.unit, p.lower, p.upper, held=fit.held.get(p.key), limit=p.limit).as_row()
+            | {"bounds_source": p.source, "experiment": p.experiment}
+            for p, value, se in zip(fit.params, fit.values, fit.std_errors)]
 
 
 def _add_priors(report: dict, machine: Machine, params: ParameterSet) -> None:
@@ -713,13 +710,30 @@ def _add_priors(report: dict, machine: Machine, params: ParameterSet) -> None:
 OFF_SPEED, OFF_PRESSURE = 0.03, 1e5
 
 
-def nominal_check(log: MeasurementLog) -> dict | None:
-    """How far an uncalibrated machine is from an open-loop constant-command log's steady motions, and, if
-    visibly off (speeds beyond :data:`OFF_SPEED` or pressures beyond :data:`OFF_PRESSURE` [Pa]), which
-    parameters a calibration on this log alone moves beyond two standard errors and 5 % of their
-    bracket: the ``sentence`` that
-    ``hexsim validate`` puts first ("calibrate first"). None for a machine that was calibrated, or a
-    log without a steady motion."""
+@dataclass(frozen=True)
+class CalibrationAdvice:
+    """What ``hexsim validate`` says of an uncalibrated machine's nominal before any effect: whether it is
+    ``off`` the log, the ``sentence`` put first among the conclusions ("calibrate first"; empty when there is
+    nothing to say), the parameters a calibration on this log alone ``moved`` (key, prior, value, std_error,
+    unit, status) and the check's own figures (``figures``: steady speed and pressure errors, or the held-out
+    RMS in budgets before and after). :meth:`as_dict` is the validation JSON's ``nominal_check``."""
+
+    off: bool
+    sentence: str = ""
+    moved: tuple[dict, ...] = ()
+    figures: dict = dataclasses.field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return {"off": self.off, **self.figures} | ({"moved": list(self.moved), "sentence": self.sentence}
+                                                   if self.sentence else {})
+
+
+def nominal_check(log: MeasurementLog) -> CalibrationAdvice | None:
+    """How far an uncalibrated machine is from an open-loop constant-command log's steady motions (the
+    advice's figures: :func:`_errors`), and, if visibly off (speeds beyond :data:`OFF_SPEED` or pressures
+    beyond :data:`OFF_PRESSURE` [Pa]), which parameters a calibration on this log alone moves beyond two
+    standard errors and 5 % of their bracket, in the sentence ``hexsim validate`` puts first ("calibrate
+    first"). None for a machine that was calibrated, or a log without a steady motion."""
     if log.machine.calibration is not None or log.system != "single-actuator" or "valve_cmd_V" not in log.columns:
         return None
     try:
@@ -729,47 +743,47 @@ def nominal_check(log: MeasurementLog) -> dict | None:
     loads = {log.path.name: axis_load(log)}
     err = _errors(feats, predict(feats, log.machine, loads))
     off = (err["speed_error_max"] or 0.0) > OFF_SPEED or (err["pressure_error_max_Pa"] or 0.0) > OFF_PRESSURE
-    out = {"off": bool(off), **err}
     if not off:
-        return out
+        return CalibrationAdvice(False, figures=err)
     _, report = calibrate([log], log.machine, cross_validate=False, dynamics="never")
     moved = _moved(report)
-    out["moved"] = moved
     what = []
     if err["speed_error_max"]:
         what.append(f"speeds up to {err['speed_error_max']:.1%} off")
     if err["pressure_error_max_Pa"]:
         what.append(f"pressures up to {err['pressure_error_max_Pa'] / 1e5:.2f} bar off")
     changes = _changes(moved)
-    out["sentence"] = (f"The machine's nominal is visibly off this log's steady motions ({', '.join(what)}): calibrate "
-                       f"first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine"
-                       + (f"; a calibration on this log alone moves {changes}" if changes else "") + ".")
-    return out
+    return CalibrationAdvice(True, f"The machine's nominal is visibly off this log's steady motions ({', '.join(what)}): "
+                             f"calibrate first (hexsim calibrate, docs/calibration.md), then judge effects on the "
+                             f"calibrated machine" + (f"; a calibration on this log alone moves {changes}" if changes
+                                                      else "") + ".", tuple(moved), err)
 
 
 def _moved(report: dict) -> list[dict]:
     """The parameters a calibration moved beyond two standard errors and 5 % of their bracket."""
     return [{k: r[k] for k in ("key", "prior", "value", "std_error", "unit", "status")} for r in report["parameters"]
-            if r["status"] != "held at its prior"
+            if r["status"] != HELD
             and abs(r["value"] - r["prior"]) > max(2.0 * r["std_error"], 0.05 * (r["upper"] - r["lower"]))]
 
 
 def _changes(moved: list[dict]) -> str:
     return ", ".join(f"{r['key']} {r['prior']:.4g} → {r['value']:.4g} {r['unit']}"
-                     + (" (at a bound)" if r["status"] == "at a bound" else "") for r in moved)
+                     + (" (at a bound)" if r["status"] == AT_A_BOUND else "") for r in moved)
 
 
-def transient_check(log: MeasurementLog) -> dict | None:
+def transient_check(log: MeasurementLog, evidence=None) -> CalibrationAdvice | None:
     """For a log that is no constant-command experiment, judged against a machine that was never calibrated:
     what a calibration from this log's own transients (:mod:`hexsim.measured.dynamics`, the machine's own
-    flow-area form) moves and how far it brings the held-out windows, as the ``sentence`` ``hexsim
-    validate`` puts first when its verdict is not ``none``: the nominal may be what is off, not an effect.
-    None for a calibrated machine, a hexapod log, or a log the replay cannot use."""
+    flow-area form) moves and how far it brings the held-out windows, as the sentence ``hexsim validate``
+    puts first when its verdict is not ``none``: the nominal may be what is off, not an effect. ``evidence``:
+    the log's replay already built (:meth:`hexsim.measured.dynamics.ReplayEvidence.of_problem` on a
+    validation's problem and nominal budget), else built here. None for a calibrated machine, a hexapod
+    log, or a log the replay cannot use."""
     if log.machine.calibration is not None or log.system != "single-actuator":
         return None
     try:
         _, report = calibrate([log], log.machine, flow_areas=(log.machine.hydraulics.flow_area,),
-                              cross_validate=False, dynamics="always")
+                              cross_validate=False, dynamics="always", evidence=(evidence,) if evidence else ())
     except (InputError, PhysicsError):  # a log the replay cannot use: validate's own answer stands alone
         return None
     before = report["transients"][0]["before"]["held_out_rms_in_budgets"]
@@ -781,18 +795,17 @@ def transient_check(log: MeasurementLog) -> dict | None:
                 + (f", moving {_changes(moved)}" if moved else "") + ": calibrate on calibration experiments of the "
                 "machine first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine; "
                 "an effect found on the uncalibrated file may be the nominal's error.")
-    return {"off": bool(moved), "moved": moved, "held_out_rms_in_budgets": {"before": before, "after": after},
-            "sentence": sentence}
+    return CalibrationAdvice(bool(moved), sentence, tuple(moved),
+                             {"held_out_rms_in_budgets": {"before": before, "after": after}})
 
 
-def hexapod_hint(log: MeasurementLog) -> dict:
+def hexapod_hint(log: MeasurementLog) -> CalibrationAdvice:
     """For a hexapod log judged against a machine that was never calibrated: the sentence ``hexsim validate``
     puts first when its verdict is not ``none``. Not measured (a hexapod's calibration takes minutes,
     :func:`calibrate`): six valves each within their data sheet's tolerance, a payload and the oil are
     the first suspects of a replay that misses on every leg."""
-    return {"off": True, "moved": {}, "sentence": (
+    return CalibrationAdvice(True, (
         f"The machine {log.machine.label} was never calibrated: each leg's valve (its edges' flow gains within a "
         f"data sheet's ±10 %), the oil's bulk modulus, the seals' friction and the payload may be what is off, not an "
         f"effect. Calibrate it first on a closed-loop log of the machine (hexsim calibrate LOG --out CAL.json, "
-        f"docs/calibration.md), then judge effects with --machine CAL.json.")}
-
+        f"docs/calibration.md), then judge effects with --machine CAL.json."))

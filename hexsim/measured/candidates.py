@@ -8,8 +8,9 @@ rate, a supply set pressure at the top of the logged supply pressure) or floors 
 (:attr:`Candidate.floor`: no sensor delay below one sample period). Everything else is read off these
 declarations: the names (:data:`CANDIDATE_NAMES`, :func:`candidates_for` a system), which effects can act on
 one hexapod leg alone (:data:`LEG_LEVEL`, from the fields the effect changes) and the plausibility of a fit.
-The fit is bounded by the plausible range, and a fitted value at a bound (within :data:`AT_BOUND` of the
-range) is flagged and never reported as a finding.
+The fit is bounded by the plausible range, and a fitted value at its edge (within :data:`PLAUSIBLE_EDGE` of the
+range: a plausibility margin, wider than the optimizer's bound, :func:`hexsim.measured.estimates.at_bound`) is
+flagged and never reported as a finding.
 
 What an effect changes in the plant is the machine's side, not the fit's: its parameters are fields of
 :class:`~hexsim.plant.effects.Effects` or :class:`~hexsim.plant.params.HydraulicParams` (whose zero value
@@ -36,8 +37,11 @@ from hexsim.plant.model import moving_mass
 from hexsim.plant.params import HydraulicParams
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
-#: A fitted value closer than this fraction of its plausible range to a bound is "at the bound".
-AT_BOUND = 0.01
+#: A fitted value closer than this fraction of its plausible range to one of its ends is "at a bound of its
+#: plausible range": no finding, though the optimizer may not have stopped there (its own rule,
+#: :data:`hexsim.measured.estimates.AT_BOUND`, is ten times narrower: a value 0.5 % off the end of what is
+#: plausible is as suspect as one on it).
+PLAUSIBLE_EDGE = 0.01
 #: the words :func:`plausibility` says a value at a bound of its plausible range with
 AT_EDGE_WORDS = "at a bound of its plausible range"
 #: A fitted value within this many standard errors of the value that switches its effect off is no
@@ -353,7 +357,7 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
     plausible range, at the value that means no effect, or finer than the log resolves. ``se``: the
     parameters' standard errors (same units; nan where the fit held a parameter at a bound). A value is
     at the no-effect value when it lies within :data:`NO_EFFECT_SE` standard errors of it (without a
-    standard error: within :data:`AT_BOUND` of the range); a no-effect value that is also a bound of the
+    standard error: within :data:`PLAUSIBLE_EDGE` of the range); a no-effect value that is also a bound of the
     range (R_s >= 0, C_l >= 0) is the physical limit, not a bound the fit ran into."""
     lower, upper = plausible_bounds(cand, log)
     span = upper - lower
@@ -363,12 +367,12 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
         off = cand.no_effect[i] if i < len(cand.no_effect) else None
         v = float(x[i])
         by_se = bool(np.isfinite(se[i]) and se[i] > 0)
-        near = NO_EFFECT_SE * se[i] if by_se else AT_BOUND * span[i]
+        near = NO_EFFECT_SE * se[i] if by_se else PLAUSIBLE_EDGE * span[i]
         if off is not None and abs(v - off) <= near:
             problems.append(f"{name} = {v:.4g} {unit} is the value without the effect"
                             + (f" (within {NO_EFFECT_SE:g} standard errors)" if by_se else ""))
-        elif ((v <= lower[i] + AT_BOUND * span[i] and off != lower[i])
-              or (v >= upper[i] - AT_BOUND * span[i] and off != upper[i])):
+        elif ((v <= lower[i] + PLAUSIBLE_EDGE * span[i] and off != lower[i])
+              or (v >= upper[i] - PLAUSIBLE_EDGE * span[i] and off != upper[i])):
             problems.append(f"{name} = {v:.4g} {unit} {AT_EDGE_WORDS} "
                             f"{lower[i]:.4g}…{upper[i]:.4g}")
     for name, floor in resolution_floor(cand, log).items():

@@ -72,9 +72,16 @@ class ReplayEvidence:
         problem = Problem(log)  # its windows keep away from the end stops and clipped sensors
         if every_window:
             problem.test_rows = np.sort(np.concatenate([problem.fit_rows, problem.test_rows]))
-        budget = measure_budget(problem, problem.simulate(problem.nominal))
+        return cls.of_problem(problem, measure_budget(problem, problem.simulate(problem.nominal)))
+
+    @classmethod
+    def of_problem(cls, problem: Problem, budget: Budget) -> "ReplayEvidence":
+        """The evidence of a single-actuator log whose replay ``problem`` and ``budget`` (measured on the
+        nominal, :func:`hexsim.measured.scoring.measure_budget`) are already built, e.g. by the identification
+        of ``hexsim validate`` (:attr:`hexsim.measured.identify.Identification.nominal_budget`): the same
+        windows, at most :data:`MAX_FIT_WINDOWS` of its fit windows replayed by the residual."""
         fitted = problem.fit_rows[np.unique(np.linspace(0, len(problem.fit_rows) - 1, MAX_FIT_WINDOWS).round().astype(int))]
-        return cls(log, problem, budget, _only(problem, fitted))
+        return cls(problem.log, problem, budget, _only(problem, fitted))
 
     @classmethod
     def _hexapod(cls, log: MeasurementLog, machine: Machine, every_window: bool) -> "ReplayEvidence":

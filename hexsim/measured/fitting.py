@@ -26,6 +26,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.estimates import AT_BOUND
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.machine import Machine
@@ -171,7 +172,7 @@ def _blind(safe: Callable[[np.ndarray], np.ndarray], params: ParameterSet, prior
 def _inside(sol) -> np.ndarray:
     """(k,) bool: the parameters the fit left inside their bounds (normalised coordinates). scipy's trf
     returns the Jacobian column of a parameter at an active bound zeroed: it is not a free variable there."""
-    return (sol.x > 1e-3) & (sol.x < 1 - 1e-3)
+    return (sol.x > AT_BOUND) & (sol.x < 1 - AT_BOUND)  # at_bound's rule on the normalised range [0, 1]
 
 
 def _weak_at_bound(sol, residual: Callable[[np.ndarray], np.ndarray], z_prior: np.ndarray) -> tuple[int | None, str]:
@@ -181,7 +182,7 @@ def _weak_at_bound(sol, residual: Callable[[np.ndarray], np.ndarray], z_prior: n
     if none. ``residual``: of the normalised free values. A prior at the bound (a tank pressure of 0, a
     physical limit) is no move."""
     best, gain = None, MIN_BOUND_GAIN
-    for j in np.flatnonzero(~_inside(sol) & (np.abs(sol.x - z_prior) > 1e-3)):  # a prior at its bound stays
+    for j in np.flatnonzero(~_inside(sol) & (np.abs(sol.x - z_prior) > AT_BOUND)):  # a prior at its bound stays
         z = sol.x.copy()
         z[j] = z_prior[j]
         g = float(np.sum(residual(z) ** 2) - np.sum(sol.fun ** 2))

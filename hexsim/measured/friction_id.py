@@ -37,6 +37,7 @@ from scipy.optimize import least_squares
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
+from hexsim.measured.estimates import FITTED, UNIDENTIFIABLE, at_bound
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.statistics import fit_statistics
@@ -290,19 +291,21 @@ def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = (),
         se = np.zeros(len(PARAMS))
         se[is_free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf)), 0.0, None) * max(1.0, stats.s2))
     for i, (p, x, e, u, a, b) in enumerate(zip(PARAMS, sol.x, se, UNITS, lo, hi)):
-        params[p] = {"value": float(x), "std_error": float(e), "unit": u}
+        params[p] = {"value": float(x), "std_error": float(e), "unit": u, "status": FITTED}
         if i not in free:
             continue
         reason = None
+        bound = at_bound(x, a, b, scale=X_SCALE[i])  # the bounds are limits (>= 0), not brackets: its typical size
         if blind[i]:
             reason = "the data does not depend on it (no samples where it changes the friction)"
-        elif x <= a + 1e-9 * (b - a) or x >= b - 1e-9 * (b - a):
-            reason = f"at the bound {a if x <= a + 1e-9 * (b - a) else b:g} {u} of the fit"
+        elif bound is not None:
+            reason = f"at the bound {bound:g} {u} of the fit"
         elif not np.isfinite(e) or e > abs(x):
             where = ("the speeds in the data do not separate a slope from the level" if p == "sigma" else
                      "too few samples at speeds near c_s, where the Stribeck term changes")
             reason = f"the data cannot separate it (standard error {e:.3g} {u} larger than the value {x:.3g}): {where}"
         if reason:
+            params[p] |= {"status": UNIDENTIFIABLE, "why": reason}
             params[p]["unidentifiable"] = unidentifiable[p] = reason
     return params, unidentifiable, se
 

@@ -62,6 +62,8 @@ from hexsim.measured.candidates import (
     plausible_bounds,
 )
 from hexsim.measured.discovery import discover, held_out_cost
+from hexsim.measured.estimates import at_bound
+from hexsim.measured.fitting import FAILED_RESIDUAL
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import CHANNELS, PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n
@@ -178,7 +180,8 @@ def refit_jointly(problem: ReplayProblem, fits: list[FitResult], budget: Budget)
 def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, budget: Budget):
     """least_squares (trf) inside the bounds on the fit windows, from the best of ``starts``. Standard
     errors from the Jacobian at the optimum, s^2 (J^T J)^-1 with s^2 per independent residual (N_eff,
-    Bartlett: residuals of a dynamic model are not white); none for a parameter at a bound. A model that
+    Bartlett: residuals of a dynamic model are not white); none for a parameter at a bound
+    (:func:`hexsim.measured.estimates.at_bound`). A model that
     cannot run at some parameter value scores as a bad fit there. Returns (x, standard errors, Scored,
     function evaluations)."""
     cache: dict[bytes, dict[str, np.ndarray] | None] = {}
@@ -196,7 +199,7 @@ def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, bud
         sim = sim_at(x)
         if sim is None:
             n = sum(problem.measured[ch][problem.fit_rows, problem.settle:].size for ch in problem.channels)
-            return np.full(n, 1e3)
+            return np.full(n, FAILED_RESIDUAL)
         return residual_vector(problem, sim, budget, problem.fit_rows)
 
     x0 = min(starts, key=lambda x: float(np.sum(resid(x) ** 2)))
@@ -207,7 +210,8 @@ def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, bud
     fit_vec = budget_vector(problem, scored.residuals, budget, problem.fit_rows)  # calibrated on the fit rows
     n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
     # the calibrated fit rows' residuals (not trf's), per independent residual; NaN: no error at a bound
-    se = fit_statistics(sol.jac, fit_vec, free=(x > lower) & (x < upper), n_independent=n_eff, fill=np.nan).std_errors
+    inside = np.array([at_bound(v, a, b) is None for v, a, b in zip(x, lower, upper)], dtype=bool)
+    se = fit_statistics(sol.jac, fit_vec, free=inside, n_independent=n_eff, fill=np.nan).std_errors
     return x, se, scored, int(sol.nfev)
 
 
@@ -418,6 +422,9 @@ class Identification:
     # hexapod: per round, every candidate screened: key, the cost of its best start on the search
     # segments relative to the model it extends, and whether it was fitted
     screening: list[list[dict]] = field(default_factory=list)
+    # the budget measured on the nominal model alone (``budget`` is the accepted model's, its tolerance
+    # widened by the effects): what a calibration of this log's nominal would have measured
+    nominal_budget: Budget | None = None
 
     @property
     def added_effect(self) -> str:
@@ -642,7 +649,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     nominal_sim = problem.simulate(problem.nominal)
     if not problem.windowed:
         problem.position_offset_limit = static_offset_limit(problem, nominal_sim)
-    budget = measure_budget(problem, nominal_sim)
+    budget = nominal_budget = measure_budget(problem, nominal_sim)
     nominal = score(problem, nominal_sim, budget)
     notify("noise budget measured; held-out RMS / budget: " + ", ".join(
         f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
@@ -664,4 +671,5 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     elif verdict == "partial":
         found = _discover_partial(problem, nominal, model, current, budget, accepted)
     return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,
-                          final=current, verdict=verdict, discovery=found, screening=screening)
+                          final=current, verdict=verdict, discovery=found, screening=screening,
+                          nominal_budget=nominal_budget)

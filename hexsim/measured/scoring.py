@@ -28,6 +28,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.records import CalibrationRecord
 from hexsim.measured.replay import (
     CHANNELS,
     PlantModel,
@@ -252,20 +253,21 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     (:func:`model_floor`). Empty for a machine that was not calibrated (nothing fitted, or no standard
     errors, and no transients)."""
 
-    block = problem.log.machine.calibration or {}
-    floor = model_floor(block, problem.channels)
-    keys = block.get("correlation", {}).get("keys", [])
-    rows = {r["key"]: r for r in block.get("parameters", [])}
-    moved = [k for k in keys if k in rows and rows[k].get("status") == "fitted" and rows[k].get("std_error", 0) > 0]
+    record = CalibrationRecord.of(problem.log.machine.calibration, f"{problem.log.machine.label}: calibration")
+    if record is None:
+        return {}
+    floor = model_floor(record, problem.channels)
+    moved = record.identified()
     if not moved:
         return floor
-    corr = np.array(block["correlation"]["matrix"], dtype=float)[np.ix_(*[[keys.index(k) for k in moved]] * 2)]
+    keys = list(record.correlated)
+    corr = record.correlation[np.ix_(*[[keys.index(k) for k in moved]] * 2)]
     machine, s = problem.log.machine, problem.settle
     base = calibrate(problem, nominal_sim, problem.fit_rows)[0]
     deltas = []
     for key in moved:
-        r = rows[key]
-        shifted = with_keys(machine, {key: r["value"] + r["std_error"]})
+        est = record.estimates[key]
+        shifted = with_keys(machine, {key: est.value + est.std_error})
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
         after = calibrate(problem, sim, problem.fit_rows)[0]
         deltas.append({ch: (after[ch] - base[ch])[:, s:] for ch in problem.channels})
@@ -277,19 +279,18 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     return out
 
 
-def model_floor(block: dict, channels) -> dict[str, float]:
+def model_floor(record: CalibrationRecord, channels) -> dict[str, float]:
     """Per channel [SI], what the calibrated model could not reproduce of its own calibration logs' held-out
     windows beyond their budget: b sqrt(max(r^2 - 1, 0)) with r the held-out RMS in budgets b after the
-    calibration (the ``transients`` of the machine file's ``calibration`` block), the root mean square over
-    those logs. A model cannot be held to a closer fit on a new log than on the held-out part of the logs it
+    calibration (the record's own fits, :attr:`hexsim.measured.records.CalibrationRecord.own_fits`), the root
+    mean square over those logs. A model cannot be held to a closer fit on a new log than on the held-out part of the logs it
     was calibrated on (model-form uncertainty, e.g. Kennedy & O'Hagan 2001; ASME V&V 20): a part of the
     calibration's uncertainty. A steady calibration's logs count with every window (``replayed``: none was
     fitted). Empty for a machine that was not calibrated."""
-    rows = [t["after"] for t in (*block.get("transients", []), *block.get("replayed", [])) if "after" in t]
     out = {}
     for ch in channels:
-        excess = [r["budget"][ch] ** 2 * max(r["held_out_rms_in_budgets"][ch] ** 2 - 1.0, 0.0) for r in rows
-                  if ch in r.get("held_out_rms_in_budgets", {}) and ch in r.get("budget", {})]
+        excess = [r.budget[ch] ** 2 * max(r.held_out_rms_in_budgets[ch] ** 2 - 1.0, 0.0) for r in record.own_fits
+                  if ch in r.held_out_rms_in_budgets and ch in r.budget]
         if excess:
             out[ch] = float(math.sqrt(np.mean(excess)))
     return out

@@ -25,15 +25,16 @@ from hexsim.measured.identify import (
     identify,
     signal_labels,
 )
-from hexsim.measured.calibration import hexapod_hint, nominal_check, transient_check
+from hexsim.measured.calibration import CalibrationAdvice, hexapod_hint, nominal_check, transient_check
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.scoring import SCALED, WITHIN, within_budget
-from hexsim.measured.reports.validation import fit_label, markdown, plot
+from hexsim.measured.records import CalibrationRecord
+from hexsim.measured.reports.validation import fit_label, write_folder
 from hexsim.measured.residuals import analyse
 from hexsim.plant.machine import KEYS
 from hexsim.plant.params import OFFSET_FIELDS
 from hexsim.simulation.metrics import STANDARD_GRAVITY
-from hexsim.tables import StdoutTarget, write_atomic, write_json
+from hexsim.tables import StdoutTarget, write_json
 
 
 
@@ -357,14 +358,14 @@ CURVE_MARGIN = 0.05
 
 def beyond_curve(log: MeasurementLog) -> dict | None:
     """Where a single-actuator ``log``'s valve commands (at the spool, u_v - u_0) go beyond those its machine's
-    flow curve was read from (the calibration report's ``flow_area.curve.commands_measured_V``,
+    flow curve was read from (:attr:`hexsim.measured.records.CalibrationRecord.curve_commands_V`,
     :func:`hexsim.measured.flow_curve.fit_flow_curve`) by more than :data:`CURVE_MARGIN` of that range: the
     commands, the calibrated range and a sentence (a misfit there is the calibration's envelope, not an
     effect); None where the machine's curve was not read from logs or the log stays inside it."""
-    curve = ((log.machine.calibration or {}).get("flow_area") or {}).get("curve")
-    if log.system != "single-actuator" or not curve or "commands_measured_V" not in curve:
+    record = CalibrationRecord.of(log.machine.calibration, f"{log.machine.label}: calibration")
+    if log.system != "single-actuator" or record is None or record.curve_commands_V is None:
         return None
-    lo, hi = curve["commands_measured_V"]
+    lo, hi = record.curve_commands_V
     u = log.columns["valve_cmd_V"] - log.machine.hydraulics.null_offset
     margin = CURVE_MARGIN * (hi - lo)
     if u.min() >= lo - margin and u.max() <= hi + margin:
@@ -372,8 +373,28 @@ def beyond_curve(log: MeasurementLog) -> dict | None:
     return {"commands_V": [float(u.min()), float(u.max())], "calibrated_V": [lo, hi],
             "sentence": f"The log's valve commands reach {u.min():.3g}…{u.max():.3g} V; the machine's flow curve was "
                         f"read from logs that reached {lo:.3g}…{hi:.3g} V (beyond, its table is the "
-                        f"{curve.get('from_form', 'prior')} form's): a misfit at the larger commands is the "
+                        f"{record.curve_form} form's): a misfit at the larger commands is the "
                         f"calibration's envelope before it is an effect. Calibrate with a log that reaches them."}
+
+
+def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice | None:
+    """What validate says of the log's machine before any effect, composed from the calibration's checks
+    (:mod:`hexsim.measured.calibration`): an uncalibrated machine visibly off a constant-command log's steady
+    motions (:func:`nominal_check`); where the verdict is not settled on a machine never calibrated, what a
+    calibration from a single actuator's transients moves (:func:`transient_check`, on the identification's
+    own replay problem and nominal budget, not built again) or the hexapod's hint (:func:`hexapod_hint`).
+    None when there is nothing to check."""
+    from hexsim.measured.dynamics import ReplayEvidence
+
+    log = ident.problem.log
+    check = nominal_check(log)
+    if check is not None or ident.verdict not in ("partial", "unexplained") or log.machine.calibration is not None:
+        return check
+    if log.system == "hexapod":
+        return hexapod_hint(log)
+    if notify:
+        notify("the machine was never calibrated: calibrating its nominal on this log's transients")
+    return transient_check(log, ReplayEvidence.of_problem(ident.problem, ident.nominal_budget))
 
 
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
@@ -394,28 +415,18 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
     doc = summary(ident) | {"left_out": list(without),
                             "model": model if log.system == "hexapod" else "single actuator"}
-    check = nominal_check(log)  # an uncalibrated machine visibly off a constant-command log: calibrate first
-    if check is None and ident.verdict in ("partial", "unexplained") and log.machine.calibration is None:
-        if log.system == "hexapod":
-            check = hexapod_hint(log)
-        else:
-            if notify:
-                notify("the machine was never calibrated: calibrating its nominal on this log's transients")
-            check = transient_check(log)  # ... or off any other single-actuator log
+    check = calibration_advice(ident, notify)
     if check is not None:
-        doc["nominal_check"] = check
-        if check["off"] and ident.verdict != "none":
-            doc["conclusions"].insert(0, check["sentence"])
+        doc["nominal_check"] = check.as_dict()
+        if check.off and ident.verdict != "none":
+            doc["conclusions"].insert(0, check.sentence)
     beyond = beyond_curve(log)
     if beyond is not None:
         doc["beyond_calibrated_curve"] = beyond
         if ident.verdict != "none":
             doc["conclusions"].insert(0, beyond["sentence"])
     if report is not None:
-        report.mkdir(parents=True, exist_ok=True)
-        plot(ident, report / "residuals.png")
-        write_atomic(report / "report.md", lambda tmp: tmp.write_text(markdown(doc, ["residuals.png"])))
-        write_json(report / "validation.json", doc)
+        write_folder(report, ident, doc)
     if json_path is not None:
         write_json(json_path, doc)
     return doc

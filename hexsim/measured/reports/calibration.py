@@ -8,13 +8,28 @@ import pathlib
 
 import numpy as np
 
+from hexsim.measured.estimates import FITTED, HELD
+from hexsim.tables import write_atomic
+
+#: The files of a calibration's report folder.
+FIGURE, MARKDOWN = "features.png", "report.md"
+
+
+def write_folder(folder: pathlib.Path, report: dict) -> None:
+    """The report folder of a calibration: :data:`MARKDOWN` (:func:`markdown`) and :data:`FIGURE`
+    (:func:`plot_features`), the folder made if needed, each file written whole. Raises OSError where the
+    folder cannot be made."""
+    folder.mkdir(parents=True, exist_ok=True)
+    plot_features(report, folder / FIGURE)
+    write_atomic(folder / MARKDOWN, lambda tmp: tmp.write_text(markdown(report, FIGURE), encoding="utf-8"))
+
 
 def table(report: dict) -> str:
     """The report as lines for stdout: parameters, then errors before/after, held out, left out."""
     lines = [f"{'parameter':30s} {'prior':>11s} {'calibrated':>11s} {'± s.e.':>9s}  status"]
     for r in report["parameters"]:
-        tail = r["status"] if r["status"] == "fitted" else f"{r['status']}: {r['why']}"
-        if r["status"] == "held at its prior":
+        tail = r["status"] if r["status"] == FITTED else f"{r['status']}: {r['why']}"
+        if r["status"] == HELD:
             tail += f"; identify it with {r['experiment']}"
         lines.append(f"{r['key']:30s} {r['prior']:11.5g} {r['value']:11.5g} {r['std_error']:9.2g}  {tail}")
 
@@ -70,7 +85,7 @@ def markdown(report: dict, figure: str | None = None) -> str:
     lines += ["| key | unit | prior | calibrated | ± s.e. | bounds | bounds from | status |", "|---|---|---|---|---|---|---|---|"]
     for r in report["parameters"]:
         status = r["status"] + (f": {r['why']}" if "why" in r else "")
-        if r["status"] == "held at its prior":
+        if r["status"] == HELD:
             status += f"; identify it with {r['experiment']}"
         lines.append(f"| `{r['key']}` | {r['unit']} | {r['prior']:.5g} | {r['value']:.5g} | {r['std_error']:.2g} | "
                      f"{r['lower']:.4g} … {r['upper']:.4g} | {r['bounds_source']} | {status} |")

@@ -9,6 +9,20 @@ import pathlib
 import numpy as np
 
 from hexsim.measured.identify import Identification
+from hexsim.tables import write_atomic, write_json
+
+#: The files of a validation's report folder.
+FIGURE, MARKDOWN, DOCUMENT = "residuals.png", "report.md", "validation.json"
+
+
+def write_folder(folder: pathlib.Path, ident: Identification, doc: dict) -> None:
+    """The report folder of a validation: :data:`MARKDOWN` (:func:`markdown`), :data:`FIGURE` (:func:`plot`)
+    and :data:`DOCUMENT` (the JSON document ``doc``), the folder made if needed, each file written whole
+    (:func:`hexsim.tables.write_atomic`). Raises OSError where the folder cannot be made."""
+    folder.mkdir(parents=True, exist_ok=True)
+    plot(ident, folder / FIGURE)
+    write_atomic(folder / MARKDOWN, lambda tmp: tmp.write_text(markdown(doc, [FIGURE]), encoding="utf-8"))
+    write_json(folder / DOCUMENT, doc)
 
 
 def plus_minus(v: dict) -> str:

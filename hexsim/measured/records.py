@@ -1,0 +1,84 @@
+"""What one step of the measured-data chain hands the next, typed: the calibration record a validation reads
+(:class:`CalibrationRecord`, from a machine file's ``calibration`` block as :func:`hexsim.measured.calibration.
+calibrate` writes it). The advice a validation gives on an uncalibrated machine is
+:class:`hexsim.measured.calibration.CalibrationAdvice`; the identification's outcome
+:class:`hexsim.measured.identify.Identification`.
+
+The block is read here and only here: the budget's calibration uncertainty and model floor
+(:mod:`hexsim.measured.scoring`) and the validation's "beyond the calibrated curve" read the record's fields.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hexsim.errors import InputError
+from hexsim.measured.estimates import Estimate
+
+
+@dataclass(frozen=True)
+class OwnFit:
+    """How the calibrated model fits one of its own calibration logs' held-out windows (or, after a steady
+    calibration, every window of a constant-command log): held-out RMS per channel in budgets and each
+    channel's budget [SI]."""
+
+    held_out_rms_in_budgets: dict[str, float]
+    budget: dict[str, float]
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """A calibrated machine's record: its parameters' estimates (by key), the correlation matrix of those it
+    fitted (``correlated``: keys, (k, k) matrix), the calibrated model's fit of its own logs (``own_fits``)
+    and, where the valve's flow curve was read from the logs, the commands [V] those logs reached
+    (``curve_commands_V``) and the form the curve was held towards (``curve_form``)."""
+
+    estimates: dict[str, Estimate]
+    correlated: tuple[str, ...]
+    correlation: np.ndarray
+    own_fits: tuple[OwnFit, ...]
+    curve_commands_V: tuple[float, float] | None = None
+    curve_form: str = "prior"
+
+    @classmethod
+    def of(cls, block: dict | None, where: str = "calibration") -> CalibrationRecord | None:
+        """The record of a machine file's ``calibration`` block (None: not calibrated). Raises InputError naming
+        ``where`` and the entry for a malformed parameter row, a correlation matrix that is not k x k for its
+        k keys, or an own-fit row without budgets."""
+        if block is None:
+            return None
+        estimates = {}
+        for row in block.get("parameters", []):
+            est = Estimate.from_row(row, f"{where}.parameters")
+            estimates[est.key] = est
+        corr = block.get("correlation", {})
+        keys = tuple(corr.get("keys", []))
+        try:
+            matrix = np.array(corr.get("matrix", np.eye(len(keys))), dtype=float).reshape(len(keys), len(keys))
+        except ValueError:
+            matrix = None
+        if matrix is None or (keys and not np.all(np.isfinite(matrix))):
+            raise InputError(f"{where}.correlation: the matrix is not a finite {len(keys)} x {len(keys)} one for its "
+                             f"{len(keys)} keys")
+        fits = []
+        for t in (*block.get("transients", []), *block.get("replayed", [])):
+            after = t.get("after") if isinstance(t, dict) else None
+            if not after:
+                continue
+            try:
+                fits.append(OwnFit({ch: float(v) for ch, v in after.get("held_out_rms_in_budgets", {}).items()},
+                                   {ch: float(v) for ch, v in after.get("budget", {}).items()}))
+            except (TypeError, ValueError, AttributeError) as exc:
+                raise InputError(f"{where}: an own-fit row of {t.get('log', '?')}: {exc}") from None
+        curve = (block.get("flow_area") or {}).get("curve") or {}
+        reached = curve.get("commands_measured_V")
+        return cls(estimates, keys, matrix, tuple(fits),
+                   None if reached is None else (float(reached[0]), float(reached[1])),
+                   str(curve.get("from_form", "prior")))
+
+    def identified(self) -> list[str]:
+        """The correlated keys whose estimates are identified (:attr:`Estimate.identified`), in order: those
+        whose uncertainty a replay propagates."""
+        return [k for k in self.correlated if k in self.estimates and self.estimates[k].identified]

@@ -1,0 +1,62 @@
+"""One vocabulary for what a fit says of a parameter (hexsim.measured.estimates) and the typed calibration
+record a validation reads (hexsim.measured.records), on hand-made values (issue 42)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hexsim.errors import InputError
+from hexsim.measured.estimates import AT_A_BOUND, AT_LIMIT, FITTED, HELD, Estimate, at_bound
+from hexsim.measured.records import CalibrationRecord
+from hexsim.measured.scoring import model_floor
+
+
+def test_one_rule_for_at_a_bound():
+    assert at_bound(0.0005, 0.0, 1.0) == 0.0 and at_bound(0.9995, 0.0, 1.0) == 1.0
+    assert at_bound(0.002, 0.0, 1.0) is None and at_bound(0.5, 0.0, 1.0) is None
+    # bounds that are limits (a force >= 0, an upper far beyond anything real): the typical size sets the scale
+    assert at_bound(40.0, 0.0, 1e5) == 0.0 and at_bound(40.0, 0.0, 1e5, scale=50.0) is None
+    assert at_bound(0.04, 0.0, 1e5, scale=50.0) == 0.0
+
+
+def test_an_estimate_is_judged_held_at_its_limit_at_a_bound_or_fitted():
+    judged = lambda v, **kw: Estimate.judged("supply.tank_pressure_Pa", v, 10.0, "Pa", 0.0, 1e5, **kw)  # noqa: E731
+    assert judged(5e4, held="no sensitivity").status == HELD and judged(5e4, held="x").why == "x"
+    assert judged(20.0, limit="the tank at atmosphere").status == AT_LIMIT  # 20 Pa: within 0.1 % of 1e5
+    assert judged(20.0).status == AT_A_BOUND and judged(99_950.0, limit="tank").status == AT_A_BOUND
+    fitted = judged(5e4)
+    assert fitted.status == FITTED and fitted.identified and "why" not in fitted.as_row()
+    assert not judged(20.0).identified and not Estimate("k", 1.0, math.nan, "-").identified
+    assert Estimate.from_row(judged(20.0).as_row()) == judged(20.0)
+    with pytest.raises(InputError, match="k: unknown status 'guessed'"):
+        Estimate.from_row({"key": "k", "value": 1.0, "status": "guessed"})
+    with pytest.raises(InputError, match="needs key, value and status"):
+        Estimate.from_row({"key": "k", "value": 1.0})
+
+
+def _block(after: list[dict]) -> dict:
+    rows = [Estimate("a", 1.0, 0.1, "-").as_row(), Estimate("b", 2.0, 0.0, "-", HELD, "blind").as_row(),
+            Estimate("c", 3.0, 0.2, "-").as_row()]
+    return {"parameters": rows, "correlation": {"keys": ["a", "c"], "matrix": [[1.0, 0.5], [0.5, 1.0]]},
+            "transients": [{"log": f"log{i}", "after": a} for i, a in enumerate(after)],
+            "flow_area": {"curve": {"commands_measured_V": [-4.0, 5.0], "from_form": "port"}}}
+
+
+def test_the_calibration_record_and_the_model_floor_from_it():
+    """Two own logs: position 1.5 budgets of 2 mm and 0.5 budgets (within: no excess): the floor is
+    sqrt(mean(2² (1.5² - 1), 0)) = sqrt(2.5) mm; p1 only on the first log, 3 budgets of 1 bar: sqrt(8) bar."""
+    block = _block([{"held_out_rms_in_budgets": {"position": 1.5, "p1": 3.0}, "budget": {"position": 2e-3, "p1": 1e5}},
+                    {"held_out_rms_in_budgets": {"position": 0.5}, "budget": {"position": 2e-3}}])
+    record = CalibrationRecord.of(block)
+    assert record.identified() == ["a", "c"] and record.estimates["b"].status == HELD
+    assert record.curve_commands_V == (-4.0, 5.0) and record.curve_form == "port"
+    floor = model_floor(record, ["position", "p1", "acceleration"])
+    assert floor == pytest.approx({"position": math.sqrt(2.5) * 1e-3, "p1": math.sqrt(8.0) * 1e5})
+    assert CalibrationRecord.of(None) is None
+    bad = _block([]) | {"correlation": {"keys": ["a", "c"], "matrix": [[1.0, 0.5, 0.0]]}}
+    with pytest.raises(InputError, match="calibration.correlation"):
+        CalibrationRecord.of(bad)
+    assert np.array_equal(record.correlation, [[1.0, 0.5], [0.5, 1.0]])
