@@ -24,7 +24,7 @@ from hexsim.control.scenario import (
     make_scenario,
 )
 from hexsim.errors import HexsimError, InputError, ModelNote, WorkspaceError
-from hexsim.plant.params import ControllerParams
+from hexsim.plant.params import FLOW_AREAS, ControllerParams
 from hexsim.plant.temperature import WarmUp
 from hexsim.simulation.workers import START_METHODS, worker_count
 from hexsim.tables import StdoutTarget, write_atomic, write_json
@@ -216,10 +216,10 @@ def _add_friction(sub) -> None:
 
 def _flow_areas(text: str) -> tuple[str, ...]:
     forms = tuple(f.strip() for f in text.split(",") if f.strip())
-    bad = [f for f in forms if f not in ("smooth", "port", "quadratic", "sharp", "table")]
+    bad = [f for f in forms if f not in FLOW_AREAS]
     if not forms or bad:
         raise argparse.ArgumentTypeError(f"unknown flow-area form {', '.join(bad) or repr(text)} "
-                                         f"(smooth, port, quadratic, sharp, table)")
+                                         f"({', '.join(FLOW_AREAS)})")
     return forms
 
 
@@ -546,12 +546,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     write_atomic(args.out, lambda tmp: tmp.write_text(dump(doc), encoding="utf-8"))
     print(f"wrote {args.out}")
     if args.report is not None:
-        from hexsim.measured.reports.calibration import markdown, plot_features
+        from hexsim.measured.reports.calibration import write_folder
 
-        args.report.mkdir(parents=True, exist_ok=True)
-        plot_features(report, args.report / "features.png")
-        write_atomic(args.report / "report.md", lambda tmp: tmp.write_text(markdown(report, "features.png"),
-                                                                            encoding="utf-8"))
+        write_folder(args.report, report)
         print(f"wrote {args.report}")
     if args.json:
         write_json(args.json, report)
@@ -616,7 +613,7 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     _machine_option(p)
     p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default: the machine's, {ControllerParams.kp:g} built in); "
                    "this and the options below override the machine file")
-    p.add_argument("--flow-area", choices=("smooth", "quadratic", "port", "sharp"),
+    p.add_argument("--flow-area", choices=[f for f in FLOW_AREAS if f != "table"],
                    help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) blended onto the port's "
                         "opening above 0.78 V (default), quadratic (3.11 at every opening, as the seed simulated), "
                         "port (3.11 until the port's opening is smaller, a kink at 0.90 V) or sharp-edged with "

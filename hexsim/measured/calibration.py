@@ -51,6 +51,7 @@ from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.parameters import ParameterSet, default_parameters
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import Machine, machine_from_document, with_keys
+from hexsim.plant.params import FLOW_AREAS
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.simulation.metrics import steady_segments
 
@@ -195,7 +196,7 @@ HEXAPOD_NFEV = 8
 HEXAPOD_SCREEN_SEGMENTS, HEXAPOD_SCREEN_NFEV = 24, 3
 #: The flow-area forms of seed eq. (3.11) and (3.3) a calibration from transients tries for a valve of that
 #: family (the seed's 300 x_v^2 and its port), keeping the one that predicts the held-out windows best.
-SEED_FORMS = ("smooth", "port", "quadratic", "sharp")
+SEED_FORMS = tuple(form for form in FLOW_AREAS if form != "table")
 DYNAMICS = ("auto", "always", "never")
 #: The commands of a calibrated flow curve (:func:`table_from`), as fractions of u_v,max: one below null
 #: where an underlapped edge opens, eight from null to a tenth of the range where reversals happen (the

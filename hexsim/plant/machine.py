@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from hexsim.errors import InputError
 from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.geometry import Geometry
-from hexsim.plant.params import ControllerParams, HydraulicParams, SensorSpec
+from hexsim.plant.params import FLOW_AREAS, ControllerParams, HydraulicParams, SensorSpec
 
 FORMAT = "hexsim-machine"
 VERSION = 1
@@ -78,7 +78,7 @@ KEYS: tuple[Key, ...] = (
     _k("valve.flow_area", "hydraulics.flow_area", "-", "opening against spool position: smooth (3.11 blended onto "
        "the port), quadratic (3.11 everywhere), port ((3.11) until the port's opening is smaller, the port beyond: a kink, a real spool), "
        "sharp (3.3, linear with overlap/underlap), table (opening_table)",
-       "seed eq. 3.3, 3.11", kind="text", choices=("smooth", "quadratic", "port", "sharp", "table")),
+       "seed eq. 3.3, 3.11", kind="text", choices=FLOW_AREAS),
     _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[u_v V, opening as a fraction "
        "of the full opening], …] to u_v,max, linear between points from (0, 0), both edges alike; a first point "
        "[-u V, 0] below null: each edge opens u before null (an underlap)",

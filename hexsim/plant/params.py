@@ -13,13 +13,19 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
 from hexsim.errors import InputError
 
-FlowArea = Literal["smooth", "quadratic", "port", "sharp", "table"]
+FlowArea = Literal["smooth", "port", "quadratic", "sharp", "table"]
+#: The valve's flow-area forms (:func:`hexsim.plant.hydraulics.flow_areas`), declared once: the machine
+#: file's ``valve.flow_area`` choices, the command line's, and (all but the table) the forms a calibration
+#: from transients tries (:data:`hexsim.measured.calibration.SEED_FORMS`). A new form is a name here, its
+#: opening in the compiled leg step (:mod:`hexsim.plant.legs`) and its data-sheet brackets
+#: (:mod:`hexsim.measured.parameters`).
+FLOW_AREAS: tuple[str, ...] = get_args(FlowArea)
 #: Most points an opening table may have above null (besides the origin, or the one point below null where an
 #: underlapped edge opens): the compiled leg step holds twelve as fields.
 MAX_TABLE_POINTS = 11
@@ -171,9 +177,8 @@ class HydraulicParams:
                 f"HydraulicParams.tank_pressure ({self.tank_pressure} Pa) must be below supply_pressure "
                 f"({self.supply_pressure} Pa)"
             )
-        if self.flow_area not in ("smooth", "quadratic", "port", "sharp", "table"):
-            raise InputError(f"HydraulicParams.flow_area must be 'smooth', 'quadratic', 'port', 'sharp' or 'table', got "
-                             f"{self.flow_area!r}")
+        if self.flow_area not in FLOW_AREAS:
+            raise InputError(f"HydraulicParams.flow_area must be one of {', '.join(FLOW_AREAS)}, got {self.flow_area!r}")
         self._check_table()
         limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
         if self.flow_area in ("smooth", "port") and self.overlap >= limit:
