@@ -108,12 +108,12 @@ def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     equation on the measured signals (output error, cheap): the supply flow of the legs,
     phi_s = sum of phi_PA(u_v, P1, P_s) (seed eq. 3.4, nominal valve) - A2 ydot, through the first-order
     supply P_s = P_s0 - R_s phi_s filtered with tau_s, fitted to the logged P_s by
-    ``scipy.optimize.least_squares``. None without the P_s, P1, position or valve columns. The closed-loop
+    :func:`hexsim.measured.fitting.bounded_fit`. None without the P_s, P1, position or valve columns. The closed-loop
     fit decides; this only keeps it from starting in a far valley (a 3 s hexapod log with a true
     1.2 bar/(L/min), 30 ms converged to 1.42 from the generic starts)."""
-    from scipy.optimize import least_squares
     from scipy.signal import lfilter
 
+    from hexsim.measured.fitting import bounded_fit
     from hexsim.plant import hydraulics
     from hexsim.signals import savgol
 
@@ -133,7 +133,7 @@ def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
         return (x[2] * 1e5 - x[0] * BAR_PER_LPM * lag - p_s) / 1e5
 
     x0 = (1.0, 30.0, _supply_set(log))
-    fit = least_squares(resid, x0, bounds=((0.0, 1.0, 20.0), (20.0, 1000.0, 350.0)), x_scale=(1.0, 30.0, 1.0))
+    fit = bounded_fit(resid, [x0], (0.0, 1.0, 20.0), (20.0, 1000.0, 350.0), x_scale=(1.0, 30.0, 1.0))
     return tuple(float(v) for v in fit.x) if fit.success else None
 
 

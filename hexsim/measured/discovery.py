@@ -41,6 +41,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from hexsim.measured.replay import PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n, noise_of
+from hexsim.measured.scoring import score
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant import hydraulics
 from hexsim.plant.model import gravity, moving_mass
@@ -245,7 +246,7 @@ def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[li
     return terms, found, False
 
 
-def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget, score) -> dict:
+def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> dict:
     """The flow equation of each hexapod leg on its own logged signals (with that leg's own parameters):
     a leg-level flow effect (leakage, a null offset, an edge) shows in that leg's equation error only. Legs
     with 4-way valves: the cap side's equation with the leak from the rod side (:data:`FLOW_TERMS_4WAY`, P2
@@ -275,7 +276,7 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
             why = "the valves' flow lags their setpoints: reported, not added to the model (no parameter of its flow " \
                   "equation maps onto a lag; the library's spool_dynamics does)"
         return out | {"why": why}
-    return out | _replay_leg_terms(problem, base, base_scored, budget, score, per_leg)
+    return out | _replay_leg_terms(problem, base, base_scored, budget, per_leg)
 
 
 def _leg_terms(log, base: PlantModel, p_s: np.ndarray, fit: np.ndarray, test: np.ndarray) -> tuple[list, dict, list]:
@@ -301,7 +302,7 @@ def _leg_terms(log, base: PlantModel, p_s: np.ndarray, fit: np.ndarray, test: np
     return terms, per_leg, far
 
 
-def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, budget, score, per_leg: dict) -> dict:
+def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, budget, per_leg: dict) -> dict:
     """The terms of ``per_leg`` (:func:`_leg_terms`) that map onto a parameter, added to their legs and
     replayed: the account's additions if the held-out error falls (:func:`_kept`), else why not."""
     from hexsim.measured.candidates import with_leg
@@ -312,7 +313,7 @@ def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, bud
         if keys:
             model = with_leg(model, leg, changed)
             applied += [f"leg{leg}:{k}" for k in keys]
-    if not applied or score is None:
+    if not applied or budget is None:
         return {"why": "no term maps onto a parameter of its leg: reported, not replayed"}
     scored = score(problem, problem.simulate(model), budget)
     before, after = held_out_cost(problem, base_scored), held_out_cost(problem, scored)
@@ -461,17 +462,17 @@ def equation_terms(problem: ReplayProblem, errors: dict) -> tuple[list[dict], di
     return terms, found, far, not_asked
 
 
-def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, score=None) -> dict:
+def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> dict:
     """Fit the sparse correction on the fit windows' samples, add what maps onto the model, replay and
     compare on the held-out windows (see the module doc). ``base``/``base_scored``: the model the verdict
-    stands on and its :class:`hexsim.measured.scoring.Scored`; ``score(problem, sim, budget)`` scores a replay the
-    same way (:func:`hexsim.measured.scoring.score`, passed in so this module does not import the identifier).
+    stands on and its :class:`hexsim.measured.scoring.Scored`; a replay is scored as the identifier scores one
+    (:func:`hexsim.measured.scoring.score`) against ``budget`` (None: the terms only, none replayed).
     Returns the JSON-ready account; ``terms`` empty
     if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation(s), its terms added to
     that leg (:func:`_discover_legs`; 3-way and 4-way valves)."""
     log = problem.log
     if log.system == "hexapod":
-        return _discover_legs(problem, base, base_scored, budget, score)
+        return _discover_legs(problem, base, base_scored, budget)
     errors = equation_errors(log, base)
     if not errors:
         return {"done": False, "why": "discovery needs a chamber pressure: p1_Pa" +
@@ -486,6 +487,8 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget, scor
     if not found:
         why = (_far_off([]) if far else "no term stands out of the equation noise")
         return out | {"added_to_model": [], "why": why}
+    if budget is None:
+        return out | {"added_to_model": [], "why": "the terms only: not replayed"}
     cost_before = held_out_cost(problem, base_scored)
     # the representable terms together, then each alone: the replay on held-out windows decides
     c = log.columns

@@ -102,7 +102,7 @@ class ReplayEvidence:
     def prefix(self, segments: int) -> "ReplayEvidence":
         """A hexapod log's evidence on its first ``segments`` segments only (the replay cut short there: a
         cheaper residual to screen on); a single actuator's is its own (its windows are replayed alone)."""
-        if self.log.system != "hexapod" or segments >= self.problem.segments:
+        if not self.problem.screens or segments >= self.problem.segments:
             return self
         short = self.problem.prefix(segments)
         return ReplayEvidence(self.log, short, self.budget, short)

@@ -39,8 +39,11 @@ BOUND_WHY = ("the fit ran into the bound: the data asks for more than the bracke
 def at_bound(value: float, lower: float, upper: float, scale: float | None = None) -> float | None:
     """The bound (``lower`` or ``upper``) ``value`` lies within :data:`AT_BOUND` x ``scale`` of, or None.
     ``scale``: default the range ``upper - lower``; a fit whose bounds are physical limits with no upper
-    bracket (friction's forces are at least 0) passes the parameter's typical size."""
+    bracket (friction's forces are at least 0) passes the parameter's typical size; an unbounded range
+    without one: only a value on a bound is at it."""
     tol = AT_BOUND * ((upper - lower) if scale is None else scale)
+    if not math.isfinite(tol):
+        tol = 0.0
     if value - lower <= tol:
         return lower
     if upper - value <= tol:

@@ -1,5 +1,7 @@
-"""The calibration's optimizer: bounded least squares of a :class:`~hexsim.measured.parameters.ParameterSet`
-on a machine's weighted residual, and the rule that holds a parameter the data cannot identify at its prior.
+"""The one optimizer of measured/ (:func:`bounded_fit`: bounded least squares of a residual from the best of
+its starts; the calibration, the identifier's candidates, friction, the supply's start and the flow curve
+call it), and the calibration's use of it: a :class:`~hexsim.measured.parameters.ParameterSet` fitted to a
+machine's weighted residual, with the rule that holds a parameter the data cannot identify at its prior.
 
 The residual is a function of a machine (:class:`hexsim.plant.machine.Machine`): the steady features'
 (:func:`hexsim.measured.calibration.steady_residual`), a log's replay (:class:`hexsim.measured.dynamics.
@@ -26,7 +28,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from hexsim.errors import InputError, PhysicsError
-from hexsim.measured.estimates import AT_BOUND
+from hexsim.measured.estimates import AT_BOUND, at_bound
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.machine import Machine
@@ -81,6 +83,22 @@ class Fit:
         return _free(self.params, self.held)
 
 
+def bounded_fit(residual: Callable[[np.ndarray], np.ndarray], starts, lower, upper, **options):
+    """Least squares of ``residual`` (x (k,) -> (n,)) inside [``lower``, ``upper``] (each (k,) or a scalar;
+    infinite allowed), from the start of ``starts`` (each (k,)) with the lowest sum of squares (one start: no
+    evaluation to choose it): ``scipy.optimize.least_squares`` with ``options`` (its method, diff_step,
+    x_scale, max_nfev, xtol, ftol, loss, f_scale, jac; its defaults otherwise). A residual that cannot be
+    computed at some x (a model that does not run) should return :data:`FAILED_RESIDUAL` per entry there.
+    Returns scipy's result (x, fun, jac, nfev, njev, cost, success) with ``inside`` (k,) bool: the parameters
+    not at a bound (:func:`hexsim.measured.estimates.at_bound`), those whose standard errors mean something."""
+    starts = [np.asarray(s, dtype=float) for s in starts]
+    x0 = starts[0] if len(starts) == 1 else min(starts, key=lambda s: float(np.sum(residual(s) ** 2)))
+    sol = least_squares(residual, x0, bounds=(lower, upper), **options)
+    lo, hi = (np.broadcast_to(np.asarray(b, dtype=float), sol.x.shape) for b in (lower, upper))
+    sol.inside = np.array([at_bound(v, a, b) is None for v, a, b in zip(sol.x, lo, hi)], dtype=bool)
+    return sol
+
+
 def _free(params: ParameterSet, held: dict[str, str]) -> list[int]:
     return [i for i, p in enumerate(params) if p.key not in held]
 
@@ -120,8 +138,8 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         # from the previous fit's values (the prior the first time): holding one parameter should not throw
         # away where the others went
         z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
-        sol = least_squares(residual, z0, bounds=(0.0, 1.0), diff_step=options.diff_step, x_scale=options.x_scale,
-                            max_nfev=options.max_nfev)
+        sol = bounded_fit(residual, [z0], 0.0, 1.0, diff_step=options.diff_step, x_scale=options.x_scale,
+                          max_nfev=options.max_nfev)
         notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
         x[free] = lo[free] + sol.x * span[free]
         if options.warm:
@@ -172,7 +190,7 @@ def _blind(safe: Callable[[np.ndarray], np.ndarray], params: ParameterSet, prior
 def _inside(sol) -> np.ndarray:
     """(k,) bool: the parameters the fit left inside their bounds (normalised coordinates). scipy's trf
     returns the Jacobian column of a parameter at an active bound zeroed: it is not a free variable there."""
-    return (sol.x > AT_BOUND) & (sol.x < 1 - AT_BOUND)  # at_bound's rule on the normalised range [0, 1]
+    return sol.inside
 
 
 def _weak_at_bound(sol, residual: Callable[[np.ndarray], np.ndarray], z_prior: np.ndarray) -> tuple[int | None, str]:

@@ -29,11 +29,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import minimize_scalar
 from scipy.signal import lti, lsim, savgol_filter
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
+from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics
 from hexsim.plant.legs import bulk_modulus, leg_params
@@ -219,8 +220,8 @@ def _solve(A: np.ndarray, b: np.ndarray, prior: _Prior, weight: float, scale: fl
     lo = np.concatenate([np.zeros(m - 2), [_BETA[0], 0.0]])
     hi = np.concatenate([np.full(m - 2, np.inf), [_BETA[1], np.inf]])
     x0 = np.clip(prior.start(), lo, hi)
-    return least_squares(fun, x0, jac=lambda x: jac, bounds=(lo, hi), loss="soft_l1", f_scale=1.0,
-                         method="trf", x_scale="jac").x
+    return bounded_fit(fun, [x0], lo, hi, jac=lambda x: jac, loss="soft_l1", f_scale=1.0, method="trf",
+                       x_scale="jac").x
 
 
 def _gain(A: np.ndarray, R: np.ndarray, b: np.ndarray, prior: "_Prior", scale: float) -> float:

@@ -33,11 +33,11 @@ import dataclasses
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
 from hexsim.measured.estimates import FITTED, UNIDENTIFIABLE, at_bound
+from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.statistics import fit_statistics
@@ -329,9 +329,9 @@ def _fit_curve(v: np.ndarray, f: np.ndarray, weight: np.ndarray, free: tuple[str
         x[idx] = y
         return x
 
-    sol = least_squares(lambda y: (stribeck(v, full(y), hyd) - f) * weight,
-                        np.clip(x0[idx], LOWER[idx] + 1e-9, UPPER[idx]), bounds=(LOWER[idx], UPPER[idx]),
-                        x_scale=np.array(X_SCALE)[idx], **({"loss": "soft_l1", "f_scale": ROBUST_SCALE_N} if robust else {}))
+    sol = bounded_fit(lambda y: (stribeck(v, full(y), hyd) - f) * weight,
+                      [np.clip(x0[idx], LOWER[idx] + 1e-9, UPPER[idx])], LOWER[idx], UPPER[idx],
+                      x_scale=np.array(X_SCALE)[idx], **({"loss": "soft_l1", "f_scale": ROBUST_SCALE_N} if robust else {}))
     jac = np.zeros((len(v), len(PARAMS)))
     jac[:, idx] = sol.jac
     return _Fit(full(sol.x), sol.fun, jac)

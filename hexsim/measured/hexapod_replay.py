@@ -208,6 +208,7 @@ class HexapodProblem:
     # :attr:`focus_leg`, the identifier sets it to the leg that stands out, else leg 1), the supply and the
     # platform's vertical acceleration, with that leg's motion state
     focus_leg = 1
+    screens = True  # the whole log per model: candidates screened on the first segments (prefix)
     replay_mode = ("closed loop: the logged leg setpoints through the model's P control (logged K_p and rate) "
                    "plus the logged compensation u_v - K_p (r - y), from the neutral pose at rest")
     scored = f"segments of {SEGMENT_S:g} s after the first {SETTLE_S:g} s, all legs / axes"

@@ -46,7 +46,6 @@ from functools import partial
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares
 from tqdm import tqdm
 
 from hexsim.errors import PhysicsError
@@ -63,7 +62,7 @@ from hexsim.measured.candidates import (
 )
 from hexsim.measured.discovery import discover, held_out_cost
 from hexsim.measured.estimates import at_bound
-from hexsim.measured.fitting import FAILED_RESIDUAL
+from hexsim.measured.fitting import FAILED_RESIDUAL, bounded_fit
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import CHANNELS, PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n
@@ -178,7 +177,7 @@ def refit_jointly(problem: ReplayProblem, fits: list[FitResult], budget: Budget)
 
 
 def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, budget: Budget):
-    """least_squares (trf) inside the bounds on the fit windows, from the best of ``starts``. Standard
+    """:func:`hexsim.measured.fitting.bounded_fit` (trf) inside the bounds on the fit windows, from the best of ``starts``. Standard
     errors from the Jacobian at the optimum, s^2 (J^T J)^-1 with s^2 per independent residual (N_eff,
     Bartlett: residuals of a dynamic model are not white); none for a parameter at a bound
     (:func:`hexsim.measured.estimates.at_bound`). A model that
@@ -203,14 +202,14 @@ def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, bud
         return residual_vector(problem, sim, budget, problem.fit_rows)
 
     x0 = min(starts, key=lambda x: float(np.sum(resid(x) ** 2)))
-    sol = least_squares(resid, x0, bounds=(lower, upper), method="trf", diff_step=1e-2, x_scale="jac",
-                        max_nfev=12 * len(x0) + 8, xtol=1e-4, ftol=1e-6)
+    sol = bounded_fit(resid, [x0], lower, upper, method="trf", diff_step=1e-2, x_scale="jac",
+                      max_nfev=12 * len(x0) + 8, xtol=1e-4, ftol=1e-6)
     x = sol.x if sim_at(sol.x) is not None else x0
     scored = score(problem, sim_at(x), budget)
     fit_vec = budget_vector(problem, scored.residuals, budget, problem.fit_rows)  # calibrated on the fit rows
     n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
     # the calibrated fit rows' residuals (not trf's), per independent residual; NaN: no error at a bound
-    inside = np.array([at_bound(v, a, b) is None for v, a, b in zip(x, lower, upper)], dtype=bool)
+    inside = sol.inside if x is sol.x else np.array([at_bound(v, a, b) is None for v, a, b in zip(x, lower, upper)])
     se = fit_statistics(sol.jac, fit_vec, free=inside, n_independent=n_eff, fill=np.nan).std_errors
     return x, se, scored, int(sol.nfev)
 
@@ -298,7 +297,7 @@ MAX_LEGS = 2
 def search_problem(problem: ReplayProblem):
     """The problem candidates are searched on: a hexapod log's first :data:`SEARCH_SEGMENTS` segments
     (the problem itself if it is not longer), a single-actuator log's own windows."""
-    if getattr(problem, "segments", 0) > SEARCH_SEGMENTS:
+    if problem.screens and problem.segments > SEARCH_SEGMENTS:
         return problem.prefix(SEARCH_SEGMENTS)
     return problem
 
@@ -395,8 +394,8 @@ def _start_cost_in_worker(source, key, base, budget):
 
 def standout_legs(problem: ReplayProblem, scored: Scored, budget: Budget) -> list[int]:
     """Hexapod legs (1-6) whose held-out position or P1 error stands out of the others' (see
-    :data:`LEG_STANDOUT`), worst first, at most :data:`MAX_LEGS`; [] for a single actuator."""
-    if problem.log.system != "hexapod":
+    :data:`LEG_STANDOUT`), worst first, at most :data:`MAX_LEGS`; [] for a single actuator (no focus leg)."""
+    if problem.focus_leg is None:
         return []
     b = budget.total
     ratio = np.max([np.asarray(scored.held_out_rms_signals[ch]) / b[ch] for ch in ("position", "p1")
@@ -461,7 +460,7 @@ def _parallel(jobs: int, fn, worker, problem, calls: list[tuple], on_done=None) 
     formulation and the limit this log's nominal set, :func:`_rebuilt`) when jobs > 1. ``on_done(result)`` is
     called as each finishes (progress)."""
     on_done = on_done or (lambda result: None)
-    source = (problem.log, getattr(problem, "model", "platform"), problem.position_offset_limit)
+    source = (problem.log, problem.model, problem.position_offset_limit)
     if in_workers(jobs) and len(calls) > 1:
         with worker_pool(min(jobs, len(calls))) as pool:
             futures = {pool.submit(worker, source, *args): i for i, args in enumerate(calls)}
@@ -482,7 +481,7 @@ def _screen(problem: ReplayProblem, log, keys: list[str], base: PlantModel, budg
     """Hexapod: the cost of each candidate's best start on the search segments (:func:`start_cost`); the
     :data:`FIT_PER_ROUND` lowest go on to be fitted from that start. Returns (keys to fit, their start,
     the screening table)."""
-    if log.system != "hexapod" or len(keys) <= FIT_PER_ROUND:
+    if not problem.screens or len(keys) <= FIT_PER_ROUND:
         return keys, {}, []
     notify(f"screening {len(keys)} candidates by their best start on the first {SEARCH_SEGMENTS} segments")
     costs = _parallel(jobs, partial(start_cost, problem), _start_cost_in_worker, problem,
@@ -542,7 +541,7 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
                 break
             on_top = tuple(a.key for a in accepted)
             base_cost = float(np.sum(residual_vector(search, search.simulate(model), budget, search.fit_rows) ** 2)) \
-                if log.system == "hexapod" and len(keys) > FIT_PER_ROUND else 0.0
+                if problem.screens and len(keys) > FIT_PER_ROUND else 0.0
             keys, starts, table = _screen(problem, log, keys, model, budget, base_cost, jobs, notify)
             screening.append(table)
             notify(f"round {len(rounds) + 1}: fitting {len(keys)} candidates")
@@ -617,8 +616,8 @@ def _discover_partial(problem: ReplayProblem, nominal: "Scored", model: PlantMod
     the mean of a leak's flow that the library lacks, and the leak's own term is then no longer seen). The
     account whose kept terms leave the lower held-out cost is returned (``"on"`` says which); if neither
     keeps a term, the one on the accepted effects."""
-    on_top = discover(problem, model, current, budget, score)
-    alone = discover(problem, problem.nominal, nominal, budget, score)
+    on_top = discover(problem, model, current, budget)
+    alone = discover(problem, problem.nominal, nominal, budget)
     label = " + ".join(a.key for a in accepted)
 
     def after(found: dict) -> float:
@@ -667,7 +666,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         notify("discovery: sparse correction of the model's equations")
     found = None
     if verdict == "unexplained":
-        found = discover(problem, model, current, budget, score)
+        found = discover(problem, model, current, budget)
     elif verdict == "partial":
         found = _discover_partial(problem, nominal, model, current, budget, accepted)
     return Identification(problem=problem, budget=budget, nominal=nominal, rounds=rounds, accepted=accepted,

@@ -128,6 +128,11 @@ class ReplayProblem(Protocol):
     windowed: bool  # each row starts from the measured state (a position offset is then not seen)
     position_offset_limit: float  # [m] most of a position offset calibrated as the sensor's (closed loop)
     focus_leg: int | None  # hexapod: the leg (1..6) the residual analysis looks at; None on a single actuator
+    # candidates are screened by their best start on a prefix of the log before the best few are fitted: a
+    # hexapod's replay runs the whole log per model; such a problem also has ``segments`` (its rows) and
+    # ``prefix(segments)`` (the problem on its first rows, the replay cut short there)
+    screens: bool
+    model: str  # the formulation the log is replayed on (hexapod: "platform" or "full", plant.model.FORMULATIONS)
     replay_mode: str  # how the log drives the model, for reports
     scored: str  # which samples are scored, for reports
     fit_rows: np.ndarray

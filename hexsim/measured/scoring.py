@@ -103,6 +103,8 @@ class Problem:
     windowed = True  # each window starts from the measured state (position residual 0 at its start)
     position_offset_limit = math.inf  # (unused: a window's position starts at the measured one)
     focus_leg = None  # one actuator: no leg to look at
+    screens = False  # a window replays in milliseconds: every candidate is fitted
+    model = "single actuator"  # the formulation it is replayed on: the actuator has one
 
     def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
         self.log = log

@@ -414,7 +414,7 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     candidates = tuple(n for n in default_candidates(log.system) if n not in without)
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
     doc = summary(ident) | {"left_out": list(without),
-                            "model": model if log.system == "hexapod" else "single actuator"}
+                            "model": ident.problem.model}
     check = calibration_advice(ident, notify)
     if check is not None:
         doc["nominal_check"] = check.as_dict()
