@@ -237,3 +237,27 @@ def test_a_calibration_that_cannot_reach_its_own_logs_budget_says_so(calibrated,
     doc = json.loads((folder / "quadratic.json").read_text())
     own = doc["calibration"]["own_budget"]
     assert not own["reached"] and own["short"]["position"] > 10.0, own
+
+
+def test_validate_advises_from_the_identifications_own_replay_not_a_second_one(tmp_path, monkeypatch):
+    """The "never calibrated" advice of ``hexsim validate`` (:func:`hexsim.measured.calibration.transient_check`)
+    calibrates on the replay problem and nominal budget the identification built: evidence made from them
+    is the evidence a calibration would build (same residual, same held-out errors), and with it no log is
+    replayed into evidence again."""
+    from hexsim.measured.calibration import transient_check
+    from hexsim.measured.dynamics import ReplayEvidence
+    from hexsim.measured.scoring import measure_budget
+
+    prior = load_machine(None)
+    log = read_log(write(motion(TRUTH, 4.0, 0.5, 0.06, np.random.default_rng(12)), tmp_path / "sine.csv", "sine"),
+                   machine=prior)
+    problem = Problem(log)
+    given = ReplayEvidence.of_problem(problem, measure_budget(problem, problem.simulate(problem.nominal)))
+    built = ReplayEvidence.of(log, prior)
+    assert np.array_equal(given.residual(prior), built.residual(prior))
+    assert given.errors(prior) == built.errors(prior)
+    monkeypatch.setattr(ReplayEvidence, "of", classmethod(lambda cls, *a, **k: pytest.fail("built again")))
+    advice = transient_check(log, given)
+    assert advice.off and advice.sentence.startswith("This machine was never calibrated")
+    assert advice.as_dict()["held_out_rms_in_budgets"]["after"]["position"] < \
+        advice.as_dict()["held_out_rms_in_budgets"]["before"]["position"]
