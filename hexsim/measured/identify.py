@@ -43,6 +43,7 @@ import math
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from functools import partial
+from typing import Literal, get_args
 
 import numpy as np
 from scipy import stats
@@ -95,6 +96,16 @@ MAX_EFFECTS = 3
 #: budget (WITHIN budgets^2 per sample): significance alone lets a wrong effect that soaks up a few
 #: percent of a large residual pass (null offset 1.73 V on a leaking leg: 4 %, p = 6e-12).
 MIN_EXCESS_SHARE = 0.25
+
+
+#: What a log says of the model: ``none`` (the nominal reproduces every channel within its budget),
+#: ``explained`` (the accepted effects bring every channel within it), ``partial`` (effects accepted,
+#: structure left, or an accepted effect at the edge of its plausible range), ``unexplained`` (no library
+#: effect passes).
+Verdict = Literal["none", "explained", "partial", "unexplained"]
+VERDICTS: tuple[str, ...] = get_args(Verdict)
+#: The verdicts that leave the model short of the log: discovery runs, validate advises calibration.
+UNSETTLED = ("partial", "unexplained")
 
 
 @dataclass
@@ -416,7 +427,7 @@ class Identification:
     rounds: list[list[FitResult]]  # the candidates of each forward-selection round
     accepted: list[FitResult]
     final: Scored  # the nominal plus the accepted effects
-    verdict: str  # none | explained | partial | unexplained
+    verdict: Verdict
     discovery: dict | None = None  # hexsim.measured.discovery.discover, for partial and unexplained verdicts
     # hexapod: per round, every candidate screened: key, the cost of its best start on the search
     # segments relative to the model it extends, and whether it was fitted
@@ -662,7 +673,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         verdict = "partial"
     else:
         verdict = "explained" if max(within_budget(current, budget).values()) <= WITHIN else "partial"
-    if verdict in ("partial", "unexplained"):
+    if verdict in UNSETTLED:
         notify("discovery: sparse correction of the model's equations")
     found = None
     if verdict == "unexplained":

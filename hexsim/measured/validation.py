@@ -20,6 +20,7 @@ from hexsim.measured.identify import (
     MIN_EXCESS_SHARE,
     SEARCH_SEGMENTS,
     WORSE_REL,
+    UNSETTLED,
     Identification,
     default_candidates,
     identify,
@@ -168,7 +169,7 @@ def _calibration_sentences(ident: Identification) -> list[str]:
                        "format specific force, or the reverse), not physics; it is calibrated out.")
             break
     out += _beyond_sentences(ident)
-    settled = ident.verdict in ("none", "explained")
+    settled = ident.verdict not in UNSETTLED
     for ch in SCALED:
         cal = final.get(ch)
         if not cal or not any(abs(sc - 1.0) > 0.005 for sc in cal["scale"]):
@@ -388,7 +389,7 @@ def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice 
 
     log = ident.problem.log
     check = nominal_check(log)
-    if check is not None or ident.verdict not in ("partial", "unexplained") or log.machine.calibration is not None:
+    if check is not None or ident.verdict not in UNSETTLED or log.machine.calibration is not None:
         return check
     if log.system == "hexapod":
         return hexapod_hint(log)
