@@ -1,5 +1,6 @@
-"""One vocabulary for what a fit says of a parameter (hexsim.measured.estimates) and the typed calibration
-record a validation reads (hexsim.measured.records), on hand-made values (issue 42)."""
+"""One vocabulary for a fitted quantity and what a fit says of it (hexsim.measured.parameters.Parameter,
+hexsim.measured.estimates) and the typed calibration record a validation reads (hexsim.measured.records), on
+hand-made values (issue 42)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,10 @@ import numpy as np
 import pytest
 
 from hexsim.errors import InputError
-from hexsim.measured.estimates import AT_A_BOUND, AT_LIMIT, FITTED, HELD, Estimate, at_bound
+from hexsim.measured.candidates import CANDIDATES
+from hexsim.measured.estimates import AT_A_BOUND, AT_LIMIT, FITTED, HELD, UNIDENTIFIABLE, Estimate, at_bound
+from hexsim.measured.friction_id import PARAMETERS, _judge
+from hexsim.measured.parameters import Parameter
 from hexsim.measured.records import CalibrationRecord
 from hexsim.measured.scoring import model_floor
 
@@ -35,6 +39,43 @@ def test_an_estimate_is_judged_held_at_its_limit_at_a_bound_or_fitted():
         Estimate.from_row({"key": "k", "value": 1.0, "status": "guessed"})
     with pytest.raises(InputError, match="needs key, value and status"):
         Estimate.from_row({"key": "k", "value": 1.0})
+
+
+def test_one_parameter_declares_the_calibration_the_candidates_and_friction():
+    """A machine-file key takes the file's unit; any other name must give one. Its estimate is judged by the
+    one rule against its own range, a log's narrower one, or its typical size where the range is a limit."""
+    tank = Parameter("supply.tank_pressure_Pa", 0.0, 1e5, "return line", "end stop", limit="the tank at atmosphere")
+    assert tank.unit == "Pa" and tank.estimate(20.0, 5.0).status == AT_LIMIT
+    assert tank.estimate(5e4, 5.0, held="blind").status == HELD and tank.estimate(5e4, 5.0).status == FITTED
+    assert tank.estimate(5e4, 5.0, bounds=(0.0, 5.001e4)).status == AT_A_BOUND  # a range a log narrowed
+    assert tank.row(tank.estimate(5e4, 5.0)) == tank.estimate(5e4, 5.0).as_row() | {
+        "bounds_source": "return line", "experiment": "end stop"}
+    with pytest.raises(KeyError):
+        Parameter("R_s", 0.0, 20.0)  # no machine-file key: its unit must be given
+    force = Parameter("F_c0", 0.0, 1e4, unit="N", scale=50.0)
+    assert force.estimate(40.0, 1.0).status == FITTED and force.estimate(0.04, 1.0).status == AT_A_BOUND
+    # a candidate's parameters: name, unit, plausible range, no-effect / neutral values, the candidate's source
+    supply, edges = CANDIDATES["supply_pressure"], CANDIDATES["edge_asymmetry"]
+    assert supply.names == ("R_s", "tau_s", "P_s0") and supply.units == ("bar/(L/min)", "ms", "bar")
+    assert supply.no_effect == (0.0, None, None) and supply.origin == (0.0, None, None)
+    assert edges.no_effect == (None, None) and edges.origin == (1.0, 1.0)
+    assert all(p.source == supply.source for p in supply.parameters)
+    assert [p.key for p in PARAMETERS] == ["sigma", "F_c0", "F_s0", "c_s"]
+
+
+def test_friction_rows_are_estimates():
+    """A friction fit with F_c0 run into its lower limit and c_s unseen: rows of the one Estimate, the
+    unidentifiable ones with their reason."""
+    class Sol:  # what least_squares leaves: x, the residual and its Jacobian (n, 4)
+        x = np.array([1000.0, 0.0, 20.0, 0.005])
+        fun = np.random.default_rng(0).normal(0.0, 1.0, 200)
+        jac = np.column_stack([np.linspace(0.01, 0.1, 200), np.ones(200), np.linspace(1, 0, 200), np.zeros(200)])
+
+    params, unidentifiable, _ = _judge(Sol)
+    assert params["sigma"]["status"] == FITTED and Estimate.from_row(params["sigma"]).unit == "N s/m"
+    assert params["F_c0"]["status"] == UNIDENTIFIABLE and "at the bound 0 N" in params["F_c0"]["why"]
+    assert params["c_s"]["status"] == UNIDENTIFIABLE and "does not depend on it" in unidentifiable["c_s"]
+    assert set(unidentifiable) == {"F_c0", "c_s"}
 
 
 def _block(after: list[dict]) -> dict:

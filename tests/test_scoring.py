@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hexsim.measured.scoring import Budget, _offset_and_scale, calibrate, score, within_budget
+from hexsim.measured.scoring import Budget, _offset_and_scale, calibrate_sensors, score, within_budget
 from hexsim.plant.params import SensorSpec
 
 
@@ -52,9 +52,9 @@ def test_a_pressure_transducer_offset_is_calibrated_out_and_a_larger_one_is_left
     calibrated, 0.75 bar left in the residual, and the 2 bar asked reported under "beyond"."""
     sim = {"p1": np.array([[40e5, 41e5, 42e5], [43e5, 42e5, 41e5]])}
     rows = np.array([0, 1])
-    res, cal = calibrate(_problem({"p1": sim["p1"] + 0.5e5}, rows, []), sim, rows)
+    res, cal = calibrate_sensors(_problem({"p1": sim["p1"] + 0.5e5}, rows, []), sim, rows)
     assert np.allclose(res["p1"], 0.0, atol=1e-6) and cal["p1"]["offset"] == [pytest.approx(0.5e5)]
-    res, cal = calibrate(_problem({"p1": sim["p1"] + 2e5}, rows, []), sim, rows)
+    res, cal = calibrate_sensors(_problem({"p1": sim["p1"] + 2e5}, rows, []), sim, rows)
     assert np.allclose(res["p1"], -0.75e5)
     assert cal["p1"]["beyond"] == [pytest.approx(2e5)]
 
@@ -65,7 +65,7 @@ def test_a_windowed_position_gets_a_scale_on_its_increments_only():
     sim = np.array([[0.10, 0.11, 0.12, 0.13], [0.10, 0.09, 0.08, 0.07]])
     measured = sim[:, :1] + 1.005 * (sim - sim[:, :1])
     rows = np.array([0, 1])
-    res, cal = calibrate(_problem({"position": measured}, rows, [], noise=1e-7), {"position": sim}, rows)
+    res, cal = calibrate_sensors(_problem({"position": measured}, rows, [], noise=1e-7), {"position": sim}, rows)
     assert cal["position"] == {"offset": [0.0], "scale": [pytest.approx(1.005)]}
     assert np.allclose(res["position"], 0.0, atol=1e-12)
 

@@ -48,7 +48,7 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.parameters import ParameterSet, default_parameters
+from hexsim.measured.parameters import ParameterSet, default_parameters, leg_null_parameter
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import Machine, machine_from_document, with_keys
 from hexsim.plant.params import FLOW_AREAS
@@ -481,11 +481,6 @@ def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Mach
     return with_keys(machine, {"supply.pressure_Pa": level}), row
 
 
-#: Each hexapod leg's valve null offset is bracketed as a servo-valve data sheet's zero point: ±3 % of the
-#: command range (the ``valve.null_offset_V`` bracket of :mod:`hexsim.measured.parameters`).
-LEG_NULL_RANGE = 0.03
-
-
 def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dict]]:
     """Each hexapod leg's valve null offset from its static tracking error, after the other parameters are
     fitted: in closed loop a null offset u_0 holds the piston u_0 / K_p off its setpoint wherever the valve's
@@ -494,20 +489,21 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
     machine as in the model). So u_0,leg = u_0,prior - K_p d_leg, d_leg the mean of measured minus replayed
     position over the fit segments of the ``replays`` (:class:`hexsim.measured.dynamics.ReplayEvidence`, their
     position offsets calibrated freely) less the legs' median of it, averaged over the logs. The common
-    part stays with the sensors, as ``hexsim validate`` leaves it (:func:`hexsim.measured.scoring.calibrate`):
-    all six nulls shifted alike are not told from the model's common mismatch (an unmodelled spool lag on a
-    heave offsets all six legs alike), so each null is found relative to the legs' median; its standard
-    error from the residual's independent samples (:func:`hexsim.measured.residuals.effective_n`). Without
+    part stays with the sensors, as ``hexsim validate`` leaves it
+    (:func:`hexsim.measured.scoring.calibrate_sensors`): all six nulls shifted alike are not told from the
+    model's common mismatch (an unmodelled spool lag on a heave offsets all six legs alike), so each null is
+    found relative to the legs' median; its standard error from the residual's independent samples
+    (:func:`hexsim.measured.residuals.effective_n`). Without
     it, ``hexsim validate`` (whose closed-loop replay leaves a leg's offset standing out of the others' in the
     residual, :data:`hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_M`) would take every valve's
     zero-point tolerance for a drifted null.
 
-    Returns the machine with ``legs.legN.valve.null_offset_V`` set (clipped to ±:data:`LEG_NULL_RANGE` of the
-    command range: beyond it the report says "at a bound") and the parameter rows for the report."""
+    Returns the machine with ``legs.legN.valve.null_offset_V`` set (clipped to its bracket,
+    :func:`hexsim.measured.parameters.leg_null_parameter`: beyond it the report says "at a bound") and the
+    parameter rows for the report."""
     from hexsim.measured.scoring import position_offsets
     from hexsim.measured.residuals import effective_n
 
-    u_max = machine.hydraulics.u_v_max
     offsets, variances = [], []
     for r in replays:
         p = r.problem
@@ -523,16 +519,14 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
               for leg in range(1, len(shift) + 1)]
     rows, values = [], {}
     for leg, (prior, du, e) in enumerate(zip(priors, shift, se), start=1):
-        key, lo, hi = f"legs.leg{leg}.valve.null_offset_V", -LEG_NULL_RANGE * u_max, LEG_NULL_RANGE * u_max
-        value = float(np.clip(prior - du, lo, hi))
-        values[key] = value
-        est = Estimate.judged(key, value, e, "V", lo, hi)
+        param = leg_null_parameter(machine, leg)
+        value = float(np.clip(prior - du, param.lower, param.upper))
+        values[param.key] = value
+        est = param.estimate(value, e)
         if est.status == AT_A_BOUND:
             est = replace(est, why="the leg's static tracking error asks for more than a valve's zero-point "
                                    "tolerance: a leak or a sensor of that leg, not its null")
-        rows.append(est.as_row() | {"prior": float(prior), "bounds_source": "servo-valve data sheets: zero point "
-                                    "within 2–3 % of the command range", "experiment": "closed-loop motion of that "
-                                    "leg (its static tracking error)"})
+        rows.append(param.row(est) | {"prior": float(prior)})
     return with_keys(machine, values), rows
 
 
@@ -694,10 +688,9 @@ def _free_block(fit: Fit) -> np.ndarray:
 
 def _parameter_rows(fit: Fit) -> list[dict]:
     """Each parameter's :class:`~hexsim.measured.estimates.Estimate` (held at its prior, at its physical limit,
-    at a bound or fitted: :meth:`~hexsim.measured.estimates.Estimate.judged`) as a report row, with where its
-    bounds come from and the experiment that identifies it."""
-    return [Estimate.judged(p.key, value, se, p.unit, p.lower, p.upper, held=fit.held.get(p.key), limit=p.limit).as_row()
-            | {"bounds_source": p.source, "experiment": p.experiment}
+    at a bound or fitted: :meth:`~hexsim.measured.parameters.Parameter.estimate`) as a report row, with where
+    its bounds come from and the experiment that identifies it (:meth:`~hexsim.measured.parameters.Parameter.row`)."""
+    return [p.row(p.estimate(value, se, held=fit.held.get(p.key)))
             for p, value, se in zip(fit.params, fit.values, fit.std_errors)]
 
 

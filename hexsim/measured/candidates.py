@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.parameters import Parameter
 from hexsim.measured.replay import PlantModel
 from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.machine import SYSTEMS
@@ -59,23 +60,17 @@ RELIEF_MARGIN_BAR = 2.0
 
 @dataclass(frozen=True)
 class Candidate:
-    """One effect: parameter names with units, starts, plausible range with its source, the value that
-    means "no effect" (a fit there found nothing), and how the effect changes a model."""
+    """One effect: its free parameters (:class:`~hexsim.measured.parameters.Parameter`: name, unit, the
+    plausible range, the value that means "no effect" (a fit there found nothing) and the one the model
+    without it has), where the plausible ranges come from, the fit's starts and how the effect changes a
+    model. A parameter declared without a source takes the candidate's."""
 
     name: str
-    parameters: tuple[str, ...]
-    units: tuple[str, ...]
+    parameters: tuple[Parameter, ...]
     starts: Callable[[MeasurementLog], tuple[tuple[float, ...], ...]]  # the fit starts from the best of these
-    lower: tuple[float, ...]
-    upper: tuple[float, ...]
-    source: str  # where the plausible range comes from
+    source: str  # where the plausible ranges come from
     apply: Callable[[PlantModel, np.ndarray], PlantModel]
     physics: str
-    no_effect: tuple[float | None, ...] = ()  # per parameter: the value that switches the effect off, or None
-    # per parameter: its value in the model without the effect, where the screening linearises
-    # (identify.linear_start); default no_effect. Unlike no_effect, not a verdict on a fitted value: an
-    # edge asymmetry with k_PA = 1 and k_AT = 0.9 is an effect.
-    neutral: tuple[float | None, ...] = ()
     #: the systems whose logs the effect applies to ("single-actuator", "hexapod")
     systems: tuple[str, ...] = ("single-actuator", "hexapod")
     #: (lower, upper) narrowed to what a log resolves (:func:`plausible_bounds`); None: the plausible range
@@ -83,10 +78,46 @@ class Candidate:
     #: the smallest value of a parameter a log resolves, name -> value (:func:`resolution_floor`)
     floor: Callable[[MeasurementLog], dict[str, float]] | None = None
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "parameters", tuple(p if p.source else replace(p, source=self.source)
+                                                     for p in self.parameters))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The parameters' names, in the order of the fitted vector."""
+        return tuple(p.key for p in self.parameters)
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        return tuple(p.unit for p in self.parameters)
+
+    @property
+    def lower(self) -> tuple[float, ...]:
+        """The plausible range's lower ends (:func:`plausible_bounds` narrows them to a log)."""
+        return tuple(p.lower for p in self.parameters)
+
+    @property
+    def upper(self) -> tuple[float, ...]:
+        return tuple(p.upper for p in self.parameters)
+
+    @property
+    def no_effect(self) -> tuple[float | None, ...]:
+        """Per parameter: the value that switches the effect off, or None."""
+        return tuple(p.no_effect for p in self.parameters)
+
     @property
     def origin(self) -> tuple[float | None, ...]:
-        """Where the screening linearises: :attr:`neutral`, else :attr:`no_effect`."""
-        return self.neutral or self.no_effect
+        """Per parameter, where the screening linearises (identify.linear_start): its neutral value, else its
+        no-effect value (:attr:`Parameter.origin <hexsim.measured.parameters.Parameter.origin>`). Unlike
+        no_effect, not a verdict on a fitted value: an edge asymmetry with k_PA = 1 and k_AT = 0.9 is an
+        effect."""
+        return tuple(p.origin for p in self.parameters)
+
+
+def _p(name: str, unit: str, lower: float, upper: float, no_effect: float | None = None,
+       neutral: float | None = None) -> Parameter:
+    """A candidate's parameter: ``name`` in ``unit`` within its plausible range [``lower``, ``upper``]."""
+    return Parameter(name, lower, upper, unit=unit, no_effect=no_effect, neutral=neutral)
 
 
 def _eff(model: PlantModel, **kw) -> PlantModel:
@@ -243,82 +274,81 @@ def _payload_starts(log: MeasurementLog) -> tuple[tuple[float, ...], ...]:
 
 
 CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
-    Candidate("supply_pressure", ("R_s", "tau_s", "P_s0"), ("bar/(L/min)", "ms", "bar"),
+    Candidate("supply_pressure", (_p("R_s", "bar/(L/min)", 0.0, 20.0, no_effect=0.0), _p("tau_s", "ms", 1.0, 1000.0),
+                                  _p("P_s0", "bar", 20.0, 350.0)),
               _supply_starts,
-              (0.0, 1.0, 20.0), (20.0, 1000.0, 350.0),
               "set pressure 20-350 bar: industrial power units (ISO 4413); R_s up to 20 bar/(L/min) is a "
               "supply line and accumulator far too small for the flow; tau_s 1 ms-1 s (Jelali & Kroll §3.7)",
               _supply,
               "pump + accumulator behind a supply line: P_s sags from the set pressure P_s0 by R_s phi_s, "
-              "time constant tau_s", (0.0, None, None), narrow=_narrow_supply),
-    Candidate("spool_dynamics", ("f_v", "zeta_v"), ("Hz", "-"),
-              lambda log: ((20.0, 0.7), (50.0, 0.7), (120.0, 0.7)), (5.0, 0.3), (300.0, 1.5),
+              "time constant tau_s", narrow=_narrow_supply),
+    Candidate("spool_dynamics", (_p("f_v", "Hz", 5.0, 300.0), _p("zeta_v", "-", 0.3, 1.5)),
+              lambda log: ((20.0, 0.7), (50.0, 0.7), (120.0, 0.7)),
               "-90° frequency of proportional and servo valves 5-300 Hz, damping 0.3-1.5 (manufacturers' "
               "frequency responses, e.g. Rexroth 4WRPEH, Moog D633; Jelali & Kroll §3.4)",
               lambda m, x: _eff(m, spool_frequency=x[0], spool_damping=x[1]),
               "second-order spool position loop (natural frequency f_v, damping zeta_v)", narrow=_narrow_spool),
-    Candidate("null_offset", ("u_0",), ("V",), lambda log: ((-0.2,), (0.0,), (0.2,)), (-2.0,), (2.0,),
+    Candidate("null_offset", (_p("u_0", "V", -2.0, 2.0, no_effect=0.0),), lambda log: ((-0.2,), (0.0,), (0.2,)),
               "zero point within ±20 % of u_v,max (datasheets adjust it to a few % and give drifts of "
               "< 1 %/10 K; seed §5.3)",
               lambda m, x: _hyd(m, null_offset=x[0]),
-              "valve setpoint u_0 that centres the spool is not 0 (seed §5.3: drifts with temperature)", (0.0,)),
-    Candidate("hysteresis", ("h",), ("V",), lambda log: ((0.05,), (0.2,), (0.6,)), (0.0,), (1.0,),
+              "valve setpoint u_0 that centres the spool is not 0 (seed §5.3: drifts with temperature)"),
+    Candidate("hysteresis", (_p("h", "V", 0.0, 1.0, no_effect=0.0),), lambda log: ((0.05,), (0.2,), (0.6,)),
               "hysteresis of proportional valves up to 10 % of u_v,max (datasheets give 0.1-5 %; seed §4.2)",
               lambda m, x: _eff(m, spool_play=x[0]),
               "spool play: backlash of half width h between setpoint and spool (seed §4.2, hysteresis of "
-              "the flow curve)", (0.0,)),
-    Candidate("leakage", ("C_l",), ("1e-12 m^3/(s Pa)",), lambda log: ((0.5,), (5.0,), (50.0,)), (0.0,), (200.0,),
+              "the flow curve)"),
+    Candidate("leakage", (_p("C_l", "1e-12 m^3/(s Pa)", 0.0, 200.0, no_effect=0.0),),
+              lambda log: ((0.5,), (5.0,), (50.0,)),
               "internal leakage of a worn piston seal: up to ~1 L/min at 70 bar, 2e-10 m^3/(s Pa) "
               "(Merritt §3.4; a new seal leaks < 1e-12)",
               lambda m, x: _eff(m, leakage=x[0] * 1e-12),
               "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber (a 4-way valve: "
-              "C_l (P2 - P1), from the rod side)", (0.0,)),
-    Candidate("load", ("M", "inclination"), ("kg", "deg"),
+              "C_l (P2 - P1), from the rod side)"),
+    Candidate("load", (_p("M", "kg", 5.0, 400.0), _p("inclination", "deg", 0.0, 89.0, no_effect=0.0)),
               lambda log: ((log.mass_kg or moving_mass(), max(log.inclination_deg, 1.0)),
-                           (1.5 * (log.mass_kg or moving_mass()), 30.0)), (5.0, 0.0), (400.0, 89.0),
+                           (1.5 * (log.mass_kg or moving_mass()), 30.0)),
               "a moving mass of 5-400 kg per axis (seed app. A: 40 kg) and any inclination short of "
               "horizontal",
               _load, "moving mass and inclination of the axis differ from the declared (seed ch. 4: gravity not "
-              "along the actuator)", (None, 0.0), systems=("single-actuator",)),
-    Candidate("friction", ("k_c", "k_sigma"), ("-", "-"), lambda log: ((1.0, 1.0), (0.5, 1.0), (2.5, 1.0)),
-              (0.0, 0.0), (10.0, 10.0),
+              "along the actuator)", systems=("single-actuator",)),
+    Candidate("friction", (_p("k_c", "-", 0.0, 10.0, neutral=1.0), _p("k_sigma", "-", 0.0, 10.0, neutral=1.0)),
+              lambda log: ((1.0, 1.0), (0.5, 1.0), (2.5, 1.0)),
               "Coulomb/static and viscous levels within 0-10x the seed's identified ones (seed §2.3.3, "
               "app. A)", _friction,
-              "Stribeck friction (seed eq. 3.9) with Coulomb + static levels scaled by k_c, viscous by k_sigma",
-              neutral=(1.0, 1.0)),
-    Candidate("bulk_modulus", ("E",), ("GPa",), lambda log: ((0.3,), (1.0,), (1.5,)), (0.1,), (2.0,),
+              "Stribeck friction (seed eq. 3.9) with Coulomb + static levels scaled by k_c, viscous by k_sigma"),
+    Candidate("bulk_modulus", (_p("E", "GPa", 0.1, 2.0),), lambda log: ((0.3,), (1.0,), (1.5,)),
               "effective bulk modulus of mineral oil 1.4-2.0 GPa, down to ~0.1 GPa with hoses and "
               "entrained air (Merritt §2.5)",
               lambda m, x: _hyd(m, bulk_modulus=x[0] * 1e9),
               "effective bulk modulus of the oil (entrained air lowers it; seed eq. 3.7)"),
-    Candidate("sensor_delay", ("tau_y",), ("ms",), lambda log: ((1.0,), (5.0,), (20.0,)), (0.0,), (50.0,),
+    Candidate("sensor_delay", (_p("tau_y", "ms", 0.0, 50.0, no_effect=0.0),), lambda log: ((1.0,), (5.0,), (20.0,)),
               "a position transducer and its filter lag 0-50 ms; below one sample period the log cannot "
               "resolve a delay",
               lambda m, x: _eff(m, sensor_delay=x[0] * 1e-3),
-              "the position measurement lags the piston by tau_y", (0.0,), narrow=_narrow_delay,
-              floor=_delay_floor),
-    Candidate("edge_asymmetry", ("k_PA", "k_AT"), ("-", "-"), lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
-              (0.5, 0.5), (1.5, 1.5),
+              "the position measurement lags the piston by tau_y", narrow=_narrow_delay, floor=_delay_floor),
+    Candidate("edge_asymmetry", (_p("k_PA", "-", 0.5, 1.5, neutral=1.0), _p("k_AT", "-", 0.5, 1.5, neutral=1.0)),
+              lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
               "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
               "tolerance for a new valve, worn or damaged edges more",
               lambda m, x: _eff(m, edge_gain_pa=x[0], edge_gain_at=x[1]),
               "valve edge asymmetry: the supply edge P→A and the return edge A→T pass k_PA and k_AT times the "
-              "flow of eq. (3.4)", neutral=(1.0, 1.0)),
-    Candidate("entrained_air", ("a",), ("%",), lambda log: ((0.2,), (1.0,), (5.0,)), (0.0,), (20.0,),
+              "flow of eq. (3.4)"),
+    Candidate("entrained_air", (_p("a", "%", 0.0, 20.0, no_effect=0.0),), lambda log: ((0.2,), (1.0,), (5.0,)),
               "undissolved air in mineral oil: well bled systems well under 1 %, aerated oil up to ~10-20 % "
               "by volume at atmospheric pressure (Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), "
               "2011)",
               lambda m, x: _eff(m, air_fraction=x[0] * 1e-2),
               "entrained air: a volume fraction a of air at atmospheric pressure (adiabatic, n = 1.4) makes the "
-              "oil's bulk modulus fall at low pressure (hexsim.plant.legs.bulk_modulus)", (0.0,)),
-    Candidate("payload", ("m_p", "x_p", "y_p", "z_p"), ("kg", "m", "m", "m"), _payload_starts,
-              (-200.0, -0.6, -0.6, -0.2), (600.0, 0.6, 0.6, 0.6),
+              "oil's bulk modulus fall at low pressure (hexsim.plant.legs.bulk_modulus)"),
+    Candidate("payload", (_p("m_p", "kg", -200.0, 600.0, no_effect=0.0), _p("x_p", "m", -0.6, 0.6),
+                          _p("y_p", "m", -0.6, 0.6), _p("z_p", "m", -0.2, 0.6)),
+              _payload_starts,
               "the Micro Motion System carries a payload of up to about 600 kg (seed §2.2.1); a "
               "centre of gravity inside the platform (1.2 m square), from 0.2 m below its joints' plane to 0.6 m "
               "above it (a seat, a cockpit); down to -200 kg: a platform lighter than modelled", _payload,
               "hexapod: a payload change m_p at (x_p, y_p, z_p) on the platform (platform frame), added to the "
-              "machine's payload, its weight and inertia through MuJoCo", (0.0, None, None, None),
-              systems=("hexapod",)),
+              "machine's payload, its weight and inertia through MuJoCo", systems=("hexapod",)),
 )}
 #: Every candidate's name, in the order they are tried.
 CANDIDATE_NAMES = tuple(CANDIDATES)
@@ -363,8 +393,8 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
     span = upper - lower
     se = np.full(len(x), np.nan) if se is None else np.asarray(se, dtype=float)
     problems = []
-    for i, (name, unit) in enumerate(zip(cand.parameters, cand.units)):
-        off = cand.no_effect[i] if i < len(cand.no_effect) else None
+    for i, (name, unit) in enumerate(zip(cand.names, cand.units)):
+        off = cand.no_effect[i]
         v = float(x[i])
         by_se = bool(np.isfinite(se[i]) and se[i] > 0)
         near = NO_EFFECT_SE * se[i] if by_se else PLAUSIBLE_EDGE * span[i]
@@ -376,7 +406,7 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
             problems.append(f"{name} = {v:.4g} {unit} {AT_EDGE_WORDS} "
                             f"{lower[i]:.4g}…{upper[i]:.4g}")
     for name, floor in resolution_floor(cand, log).items():
-        i = cand.parameters.index(name)
+        i = cand.names.index(name)
         if float(x[i]) < floor:
             problems.append(f"{name} = {float(x[i]):.3g} {cand.units[i]} is finer than the log resolves "
                             f"({floor:.3g} {cand.units[i]}, one sample)")

@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hexsim.errors import InputError
-from hexsim.measured.scoring import Budget, Problem, measure_budget, residual_vector, score, within_budget
-from hexsim.measured.scoring import calibrate as sensor_calibration
+from hexsim.measured.scoring import (Budget, Problem, calibrate_sensors, measure_budget, residual_vector, score,
+                                    within_budget)
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import PlantModel, Windows, nominal_plant
 from hexsim.measured.residuals import effective_n
@@ -127,7 +127,7 @@ class ReplayEvidence:
         """Independent samples per residual of the fit windows (:func:`hexsim.measured.residuals.effective_n`):
         the replay's residuals are not white, and a standard error from all samples would be too small."""
         p = self.fitted
-        res, _ = sensor_calibration(p, p.simulate(self.model(machine)), p.fit_rows)
+        res, _ = calibrate_sensors(p, p.simulate(self.model(machine)), p.fit_rows)
         n = sum(res[ch][:, p.settle:].size for ch in p.channels)
         n_eff = sum(effective_n(res[ch][:, p.settle:]) for ch in p.channels)
         return n_eff / n if n else 1.0

@@ -69,15 +69,16 @@ class Estimate:
 
     @classmethod
     def judged(cls, key: str, value: float, std_error: float, unit: str, lower: float, upper: float, *,
-               held: str | None = None, limit: str = "") -> Estimate:
+               held: str | None = None, limit: str = "", scale: float | None = None) -> Estimate:
         """The estimate of a parameter fitted in [``lower``, ``upper``]: ``held`` (why) at its prior, at its
         physical ``limit`` (what the lower bound is, e.g. "the tank at atmosphere") when there, at a bound
-        (:func:`at_bound`) or fitted."""
+        (:func:`at_bound`, with ``scale``) or fitted. A parameter's own
+        :meth:`~hexsim.measured.parameters.Parameter.estimate` calls this with its declaration."""
         common = {"key": key, "value": float(value), "std_error": float(std_error), "unit": unit,
                   "lower": float(lower), "upper": float(upper)}
         if held:
             return cls(**common, status=HELD, why=held)
-        reached = at_bound(value, lower, upper)
+        reached = at_bound(value, lower, upper, scale)
         if limit and reached == lower:
             return cls(**common, status=AT_LIMIT, why=limit)
         if reached is not None:

@@ -36,9 +36,10 @@ import numpy as np
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
-from hexsim.measured.estimates import FITTED, UNIDENTIFIABLE, at_bound
+from hexsim.measured.estimates import HELD, UNIDENTIFIABLE, Estimate, at_bound
 from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.parameters import Parameter
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.model import gravity, moving_mass
@@ -55,9 +56,17 @@ ACC_WINDOW_S = 0.031
 #: [s] the window without an accelerometer: long enough to smooth the oil-spring ringing out of ydd.
 DERIVATIVE_WINDOW_S = 0.051
 V_MIN = 0.0005  # [m/s]: samples slower than this are left out (sign of v uncertain below ~0.1 mm/s)
-PARAMS = ("sigma", "F_c0", "F_s0", "c_s")
-X_SCALE = (1000.0, 50.0, 20.0, 0.005)  # typical sizes of the parameters (the fit's x_scale)
-UNITS = ("N s/m", "N", "N", "m/s")
+_LIMITS = "physical limits (a force opposes motion), far beyond any seal's"
+#: The parameters of one direction's curve, in the order of x in :func:`stribeck`: their units, the fit's
+#: bounds (physical limits, not brackets) and their typical sizes (the fit's x_scale, and what "at a bound"
+#: is measured against, :func:`hexsim.measured.estimates.at_bound`).
+PARAMETERS = (Parameter("sigma", 0.0, 1e5, _LIMITS, unit="N s/m", scale=1000.0),
+              Parameter("F_c0", 0.0, 1e4, _LIMITS, unit="N", scale=50.0),
+              Parameter("F_s0", 0.0, 1e4, _LIMITS, unit="N", scale=20.0),
+              Parameter("c_s", 1e-4, 0.5, "a Stribeck speed of 0.1 mm/s to 0.5 m/s", unit="m/s", scale=0.005))
+PARAMS = tuple(p.key for p in PARAMETERS)
+X_SCALE = np.array([p.scale for p in PARAMETERS])
+LOWER, UPPER = np.array([p.lower for p in PARAMETERS]), np.array([p.upper for p in PARAMETERS])
 
 
 def stribeck(v: np.ndarray, x: np.ndarray, hyd: HydraulicParams | None = None) -> np.ndarray:
@@ -268,13 +277,14 @@ class _Fit(NamedTuple):
     jac: np.ndarray
 
 
-def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = (),
-           n_independent: float | None = None, weighted: bool = False) -> tuple[dict, dict, np.ndarray]:
-    """(parameters with value, standard error, unit and why a value is not identifiable; the
-    unidentifiable ones' reasons; standard errors) of a fit ``sol`` (x, fun, jac) within bounds (lo, hi);
-    parameters in ``fixed`` were not fitted (their entries are left for the caller). ``n_independent``:
-    the independent samples behind the residual (default: the residual's effective count, filtered
-    samples being correlated; steady windows: one per window and not more than the samples say)."""
+def _judge(sol, fixed: tuple[str, ...] = (), n_independent: float | None = None,
+           weighted: bool = False) -> tuple[dict, dict, np.ndarray]:
+    """(each parameter's :class:`~hexsim.measured.estimates.Estimate` row, status unidentifiable with why
+    where the data cannot give it, and its ``unidentifiable`` reason; the unidentifiable ones' reasons;
+    standard errors) of a fit ``sol`` (x, fun, jac) within the :data:`PARAMETERS`' bounds; parameters in
+    ``fixed`` were not fitted (their entries are left for the caller). ``n_independent``: the independent
+    samples behind the residual (default: the residual's effective count, filtered samples being correlated;
+    steady windows: one per window and not more than the samples say)."""
     free = [i for i, p in enumerate(PARAMS) if p not in fixed]
     is_free = np.isin(np.arange(len(PARAMS)), free)
     n_eff = effective_n(sol.fun[None, :])
@@ -283,34 +293,41 @@ def _judge(sol, lo: np.ndarray, hi: np.ndarray, fixed: tuple[str, ...] = (),
     se = stats.std_errors
     # the residual's sensitivity to each parameter over its typical size: a direction the data does not
     # see at all has a zero column, which the pseudo-inverse answers with a standard error of 0
-    sensitivity = np.linalg.norm(sol.jac, axis=0) * np.array(X_SCALE)
+    sensitivity = np.linalg.norm(sol.jac, axis=0) * X_SCALE
     blind = sensitivity < 1e-6 * max(float(sensitivity.max()), 1e-300)
     params, unidentifiable = {}, {}
     if weighted:  # residuals in units of their standard errors: a reduced chi-square below 1 is no better data
         jf = sol.jac[:, is_free]
         se = np.zeros(len(PARAMS))
         se[is_free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf)), 0.0, None) * max(1.0, stats.s2))
-    for i, (p, x, e, u, a, b) in enumerate(zip(PARAMS, sol.x, se, UNITS, lo, hi)):
-        params[p] = {"value": float(x), "std_error": float(e), "unit": u, "status": FITTED}
+    for i, (param, x, e) in enumerate(zip(PARAMETERS, sol.x, se)):
+        est = Estimate(param.key, float(x), float(e), param.unit, lower=param.lower, upper=param.upper)
+        params[param.key] = est.as_row()
         if i not in free:
             continue
         reason = None
-        bound = at_bound(x, a, b, scale=X_SCALE[i])  # the bounds are limits (>= 0), not brackets: its typical size
+        bound = at_bound(x, param.lower, param.upper, param.scale)  # limits (>= 0), not brackets: its typical size
         if blind[i]:
             reason = "the data does not depend on it (no samples where it changes the friction)"
         elif bound is not None:
-            reason = f"at the bound {bound:g} {u} of the fit"
+            reason = f"at the bound {bound:g} {param.unit} of the fit"
         elif not np.isfinite(e) or e > abs(x):
-            where = ("the speeds in the data do not separate a slope from the level" if p == "sigma" else
+            where = ("the speeds in the data do not separate a slope from the level" if param.key == "sigma" else
                      "too few samples at speeds near c_s, where the Stribeck term changes")
-            reason = f"the data cannot separate it (standard error {e:.3g} {u} larger than the value {x:.3g}): {where}"
+            reason = (f"the data cannot separate it (standard error {e:.3g} {param.unit} larger than the value "
+                      f"{x:.3g}): {where}")
         if reason:
-            params[p] |= {"status": UNIDENTIFIABLE, "why": reason}
-            params[p]["unidentifiable"] = unidentifiable[p] = reason
+            params[param.key] = _unidentifiable(est, reason)
+            unidentifiable[param.key] = reason
     return params, unidentifiable, se
 
 
-LOWER, UPPER = np.array([0.0, 0.0, 0.0, 1e-4]), np.array([1e5, 1e4, 1e4, 0.5])  # the fit's bounds
+def _unidentifiable(est: Estimate, why: str) -> dict:
+    """The row of an estimate the data cannot give (status unidentifiable, ``why``; ``unidentifiable`` the
+    same reason, as the report and the terminal read it)."""
+    return dataclasses.replace(est, status=UNIDENTIFIABLE, why=why).as_row() | {"unidentifiable": why}
+
+
 #: the parameters each model frees: the level alone, Coulomb + viscous, the whole Stribeck curve
 MODELS = {"level": ("F_c0",), "coulomb+viscous": ("sigma", "F_c0"), "stribeck": PARAMS}
 HUMP_REASON = ("no samples at speeds near c_s, where the Stribeck term changes: fitted Coulomb + viscous with "
@@ -331,7 +348,7 @@ def _fit_curve(v: np.ndarray, f: np.ndarray, weight: np.ndarray, free: tuple[str
 
     sol = bounded_fit(lambda y: (stribeck(v, full(y), hyd) - f) * weight,
                       [np.clip(x0[idx], LOWER[idx] + 1e-9, UPPER[idx])], LOWER[idx], UPPER[idx],
-                      x_scale=np.array(X_SCALE)[idx], **({"loss": "soft_l1", "f_scale": ROBUST_SCALE_N} if robust else {}))
+                      x_scale=X_SCALE[idx], **({"loss": "soft_l1", "f_scale": ROBUST_SCALE_N} if robust else {}))
     jac = np.zeros((len(v), len(PARAMS)))
     jac[:, idx] = sol.jac
     return _Fit(full(sol.x), sol.fun, jac)
@@ -393,7 +410,7 @@ def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: Hydrau
     model, held, x0 = _model_for(np.abs(pv), n_points, along)
     sol = _fit_curve(pv, pf, weight, MODELS[model], x0, hyd, robust=not steady)
     if model == "stribeck":
-        _, unidentifiable, _ = _judge(sol, LOWER, UPPER)
+        _, unidentifiable, _ = _judge(sol)
         if any(p in unidentifiable for p in ("F_s0", "c_s")):
             # no samples near c_s: the hump cannot be told from the viscous slope; fit Coulomb + viscous
             # (F_s0 = 0), the curve the speeds in the data do identify
@@ -401,10 +418,12 @@ def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: Hydrau
             x0[2] = 0.0
             sol = _fit_curve(pv, pf, weight, MODELS["coulomb+viscous"], x0, hyd, robust=not steady)
             held = dict.fromkeys(("F_s0", "c_s"), HUMP_REASON)
-    params, unidentifiable, _ = _judge(sol, LOWER, UPPER, fixed=tuple(held), n_independent=n_points,
+    params, unidentifiable, _ = _judge(sol, fixed=tuple(held), n_independent=n_points,
                                        weighted=steady)
-    for p, why in held.items():
-        params[p]["unidentifiable"] = unidentifiable[p] = why
+    for p, why in held.items():  # held at the start's value (0 for a slope or a hump the speeds cannot show)
+        held_at = dataclasses.replace(Estimate.from_row(params[p]), status=HELD, why=why)
+        params[p] = held_at.as_row() | {"unidentifiable": why}
+        unidentifiable[p] = why
     residual = stribeck(v, sol.x, hyd) - f
     scatter = float(median_abs_deviation(residual, scale="normal"))
     level = float(abs(np.median(stribeck(v, sol.x, hyd))))

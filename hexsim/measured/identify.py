@@ -8,8 +8,9 @@ engineer would sign it.
    scheme, three times that of a second-order one), and the replay's reconstruction of the logged run
    (the closed-loop hexapod replay of the model's own replay), in quadrature.
 2. **Calibration.** Every model, the nominal included, fits sensor calibration as nuisance parameters
-   (:func:`hexsim.measured.scoring.calibrate`): an offset per channel and a scale for the position transducer and the
-   accelerometer, within the machine file's sensor tolerances (:class:`hexsim.plant.params.SensorSpec`).
+   (:func:`hexsim.measured.scoring.calibrate_sensors`): an offset per channel and a scale for the position
+   transducer and the accelerometer, within the machine file's sensor tolerances
+   (:class:`hexsim.plant.params.SensorSpec`).
    They are reported as calibration, never as an effect; an offset asked beyond its tolerance stays in the
    residual (physics, not the sensor) and is reported.
 3. **Fit.** A candidate (:mod:`hexsim.measured.candidates`) is fitted by ``scipy.optimize.least_squares`` inside
@@ -54,6 +55,7 @@ from hexsim.measured.candidates import (
     AT_EDGE_WORDS,
     CANDIDATES,
     LEG_LEVEL,
+    Candidate,
     applier,
     candidate_key,
     candidates_for,
@@ -150,10 +152,17 @@ def fit_candidate(problem: ReplayProblem, key: str, base: PlantModel, budget: Bu
     starts = [np.clip(np.array(x, dtype=float), lower, upper) for x in given]
     apply = applier(cand, leg)
     x, se, scored, nfev = _least_squares(problem, lambda x: apply(base, x), lower, upper, starts, budget)
-    params = {p: {"value": float(v), "std_error": float(e), "unit": u}
-              for p, v, e, u in zip(cand.parameters, x, se, cand.units)}
+    params = _estimates(cand, x, se, lower, upper)
     return FitResult(name=cand.name, on_top_of=on_top_of, parameters=params, x=x, model=apply(base, x),
                      scored=scored, nfev=nfev, leg=leg)
+
+
+def _estimates(cand: Candidate, x, se, lower, upper) -> dict[str, dict]:
+    """The candidate's parameters as :class:`~hexsim.measured.estimates.Estimate` rows (value, standard error,
+    unit, the plausible range fitted in, status fitted or at a bound), by name. Whether a value is a finding
+    is the judge's (:func:`judge`)."""
+    return {p.key: p.estimate(v, e, bounds=(lo, hi)).as_row()
+            for p, v, e, lo, hi in zip(cand.parameters, x, se, lower, upper)}
 
 
 def refit_jointly(problem: ReplayProblem, fits: list[FitResult], budget: Budget) -> list[FitResult]:
@@ -179,8 +188,7 @@ def refit_jointly(problem: ReplayProblem, fits: list[FitResult], budget: Budget)
     out = []
     for i, (f, (c, leg)) in enumerate(zip(fits, parsed)):
         sl = slice(sizes[i], sizes[i + 1])
-        params = {p: {"value": float(v), "std_error": float(e), "unit": u}
-                  for p, v, e, u in zip(c.parameters, x[sl], se[sl], c.units)}
+        params = _estimates(c, x[sl], se[sl], lower[sl], upper[sl])
         out.append(FitResult(name=f.name, on_top_of=f.on_top_of, parameters=params, x=x[sl], model=model,
                              scored=scored, nfev=nfev, held_out_gain=f.held_out_gain, p_value=f.p_value,
                              accepted=f.accepted, reasons=f.reasons, leg=leg))
@@ -259,7 +267,7 @@ def judge(problem: ReplayProblem, base: Scored, fit: FitResult, budget: Budget, 
                 where = f"{ch} of {labels[j]}" if len(labels) > 1 else ch
                 reasons.append(f"{where} worse: held-out RMS {was:.3g} -> {now:.3g} {CHANNELS[ch][1]}")
     cand = CANDIDATES[fit.name]
-    plausible = plausibility(cand, problem.log, fit.x, np.array([fit.parameters[p]["std_error"] for p in cand.parameters]))
+    plausible = plausibility(cand, problem.log, fit.x, np.array([fit.parameters[p]["std_error"] for p in cand.names]))
     edge = [r for r in plausible if AT_EDGE_WORDS in r]
     fit.at_edge = edge if not reasons and len(edge) == len(plausible) else []
     fit.reasons = reasons + plausible

@@ -1,11 +1,21 @@
-"""The parameters a calibration fits (:mod:`hexsim.measured.calibration`): each a machine-file key with its
-bounds, the bounds' source and the experiment that identifies it; a :class:`ParameterSet` reads their priors
-from a machine (the nominal, :class:`hexsim.plant.machine.Machine`) and writes values into one.
+"""The one vocabulary of a fitted quantity (:class:`Parameter`), and the parameters a calibration fits
+(:mod:`hexsim.measured.calibration`).
 
-A parameter's key sets its field, its unit (the machine file's, :data:`hexsim.plant.machine.KEYS`) and how it
-edits the model (:func:`hexsim.plant.machine.with_keys`): a calibrated nominal is a machine file like any
-other. :func:`default_parameters` is what a data sheet brackets on one actuator, :func:`hexapod_parameters`
-on a hexapod (docs/calibration.md lists both with their sources).
+A :class:`Parameter` is a name (a machine-file key, or an effect's or friction's parameter name), its unit, the
+range [lower, upper] it is fitted in with where that range comes from, the experiment that identifies it and
+what its values mean (a physical limit at the lower bound, the value that switches its effect off, the value
+the model without it has); :meth:`Parameter.estimate` turns a fitted value into an
+:class:`~hexsim.measured.estimates.Estimate` by the one rule for "at a bound". The calibration
+(:func:`default_parameters`, :func:`hexapod_parameters`), the identifier's candidates
+(:data:`hexsim.measured.candidates.CANDIDATES`) and friction (:data:`hexsim.measured.friction_id.PARAMETERS`)
+declare theirs with it.
+
+A calibration parameter's key sets its field, its unit (the machine file's, :data:`hexsim.plant.machine.KEYS`)
+and how it edits the model (:func:`hexsim.plant.machine.with_keys`): a calibrated nominal is a machine file like
+any other; a :class:`ParameterSet` reads their priors from a machine (the nominal,
+:class:`hexsim.plant.machine.Machine`) and writes values into one. :func:`default_parameters` is what a data
+sheet brackets on one actuator, :func:`hexapod_parameters` on a hexapod (docs/calibration.md lists both with
+their sources).
 """
 
 from __future__ import annotations
@@ -16,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hexsim.measured.estimates import Estimate
 from hexsim.plant.machine import KEYS, Machine, get_key, shared_path, with_keys
 from hexsim.plant.model import moving_mass
 
@@ -29,17 +40,33 @@ def _unit_of(key: str) -> str:
 
 @dataclass(frozen=True)
 class Parameter:
-    """One fitted quantity: its machine-file ``key`` (which sets its field and unit, and edits the model),
-    the bounds [lower, upper] in that unit, where the bounds come from, and the experiment that
-    identifies it."""
+    """One fitted quantity: its ``key`` (a machine-file key, which sets its field and unit and edits the model;
+    or an effect's or friction's parameter name), the range [``lower``, ``upper``] it is fitted in, in ``unit``
+    (default: the machine file's unit of ``key``; a name that is no machine-file key must give one), where the
+    range comes from (``source``) and the experiment that identifies it. What its values mean:
+    ``limit``, the lower bound is a physical limit, not a bracket (what it is: "the tank at atmosphere");
+    ``null_value``, what the key's null stands for (load.mass_kg null: the model's mass); ``no_effect``, the
+    value that switches an effect off (a fit there found nothing); ``neutral``, the value the model without the
+    effect has, where a screening linearises (default ``no_effect``; an edge gain of 1 is neutral but a fitted
+    1.0 next to a 0.9 is still an effect); ``scale``, its typical size where the range is only a limit (the
+    fit's x_scale and the scale of "at a bound", :func:`hexsim.measured.estimates.at_bound`).
+    Raises KeyError for a ``key`` without a unit that is no machine-file key."""
 
     key: str
     lower: float
     upper: float
-    source: str
-    experiment: str
-    limit: str = ""  # the lower bound is a physical limit, not a bracket (what it is: "the tank at atmosphere")
-    null_value: float | None = None  # what the key's null stands for (load.mass_kg null: the model's mass)
+    source: str = ""
+    experiment: str = ""
+    limit: str = ""
+    null_value: float | None = None
+    unit: str = ""
+    no_effect: float | None = None
+    neutral: float | None = None
+    scale: float | None = None
+
+    def __post_init__(self) -> None:
+        if not self.unit:
+            object.__setattr__(self, "unit", _unit_of(self.key))
 
     def prior(self, doc: dict) -> float:
         """The parameter's value in the machine-file document ``doc`` (its null's meaning when null)."""
@@ -47,8 +74,26 @@ class Parameter:
         return float(self.null_value if value is None else value)
 
     @property
-    def unit(self) -> str:
-        return _unit_of(self.key)
+    def origin(self) -> float | None:
+        """Where a screening linearises: :attr:`neutral`, else :attr:`no_effect` (None: nowhere in particular)."""
+        return self.no_effect if self.neutral is None else self.neutral
+
+    def estimate(self, value: float, std_error: float, held: str | None = None,
+                 bounds: tuple[float, float] | None = None) -> Estimate:
+        """The :class:`~hexsim.measured.estimates.Estimate` of a fit that left this parameter at ``value`` ±
+        ``std_error`` (:meth:`Estimate.judged <hexsim.measured.estimates.Estimate.judged>`: ``held`` (why) at
+        its prior, at its physical :attr:`limit`, at a bound of the range or fitted). ``bounds``: the range the
+        fit ran in where a log narrowed it (:func:`hexsim.measured.candidates.plausible_bounds`); default
+        [lower, upper]."""
+        lower, upper = (self.lower, self.upper) if bounds is None else bounds
+        return Estimate.judged(self.key, value, std_error, self.unit, lower, upper, held=held, limit=self.limit,
+                               scale=self.scale)
+
+    def row(self, estimate: Estimate) -> dict:
+        """A report row of this parameter's ``estimate`` (:meth:`Estimate.as_row
+        <hexsim.measured.estimates.Estimate.as_row>`) with where its bounds come from and the experiment that
+        identifies it (``bounds_source``, ``experiment``)."""
+        return estimate.as_row() | {"bounds_source": self.source, "experiment": self.experiment}
 
 
 class ParameterSet:
@@ -91,6 +136,10 @@ class ParameterSet:
         (:func:`hexsim.plant.machine.with_keys`: the file's own checks apply; InputError if one fails)."""
         return with_keys(machine, {p.key: float(v) for p, v in zip(self.members, values)})
 
+
+#: A valve's null offset is bracketed as a servo-valve data sheet's zero point: ±3 % of the command range
+#: (the machine's ``valve.null_offset_V``, and each hexapod leg's, :func:`leg_null_parameter`).
+NULL_RANGE = 0.03
 
 #: The experiments that identify what only transients show.
 _TRANSIENTS = "transients: reversals and steps of a closed loop, or the switches of an open-loop experiment"
@@ -156,7 +205,7 @@ def _valve_parameters(machine: Machine, doc: dict, dynamics: bool) -> list[Param
         params.append(Parameter("valve.overlap_m", 0.0, min(0.10 * x_max, 0.9 * limit),
                                 "0 to 10 % of the spool stroke (proportional valves up to 10 %), below where (3.11) "
                                 "no longer meets the port", f"reversals ({_TRANSIENTS})"))
-    params.append(Parameter("valve.null_offset_V", -0.03 * hyd.u_v_max, 0.03 * hyd.u_v_max,
+    params.append(Parameter("valve.null_offset_V", -NULL_RANGE * hyd.u_v_max, NULL_RANGE * hyd.u_v_max,
                             "±3 % of the command range (servo-valve data sheets: ≤ 2–3 %)", small))
     both = "both directions at several commands, with every chamber pressure logged"
     for edge in ("AT", "PB", "BT") if hyd.four_way else ("AT",):
@@ -197,6 +246,16 @@ def _friction_and_oil_parameters(machine: Machine, doc: dict, dynamics: bool) ->
                                 "valve's own volume, half to four times the drawing's", "the oil spring at both ends "
                                 "of the stroke (it trades against the bulk modulus in mid-stroke)"))
     return params
+
+
+def leg_null_parameter(machine: Machine, leg: int) -> Parameter:
+    """Hexapod leg ``leg``'s valve null offset (``legs.legN.valve.null_offset_V``), found from its static tracking
+    error after the other parameters are fitted (:func:`hexsim.measured.calibration.leg_null_offsets`), within
+    ±:data:`NULL_RANGE` of the command range."""
+    bound = NULL_RANGE * machine.hydraulics.u_v_max
+    return Parameter(f"legs.leg{leg}.valve.null_offset_V", -bound, bound,
+                     "servo-valve data sheets: zero point within 2–3 % of the command range",
+                     "closed-loop motion of that leg (its static tracking error)")
 
 
 def hexapod_parameters(machine: Machine) -> ParameterSet:

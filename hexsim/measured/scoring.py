@@ -6,7 +6,7 @@ sensors' calibration as nuisance parameters, and the score of a model (steps 1 a
    b_c = sqrt(sigma_c^2 + tau_c^2), sigma_c the sensor noise, tau_c the replay's numerical error (the
    step's by Richardson, the closed-loop replay's reconstruction) and, on a calibrated machine, what the
    calibration left uncertain, in quadrature.
-2. **Calibration** (:func:`calibrate`): every model fits the sensors' offsets and scales as nuisance
+2. **Calibration** (:func:`calibrate_sensors`): every model fits the sensors' offsets and scales as nuisance
    parameters within the machine file's sensor tolerances (:class:`hexsim.plant.params.SensorSpec`).
 3. **Score** (:class:`Scored`, :func:`score`, :func:`residual_vector`, :func:`within_budget`): the calibrated
    residuals over the budget, per window (fitted, held out) and per channel.
@@ -249,7 +249,7 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     fitted parameters' standard errors s_i and correlations C_ij (the machine file's ``calibration`` block,
     :func:`hexsim.measured.calibration.calibrate`), the replay's change d_i when parameter i moves by s_i,
     and the RMS over the scored samples of sqrt(sum_ij d_i C_ij d_j) (first-order propagation of the
-    covariance). The changes are taken after the sensors' calibration (:func:`calibrate`): what an offset or a
+    covariance). The changes are taken after the sensors' calibration (:func:`calibrate_sensors`): what an offset or a
     scale takes up of a parameter's change (the position scale of a flow gain) is no uncertainty of the
     replay. Added in quadrature: the calibrated model's own held-out misfit on its calibration logs
     (:func:`model_floor`). Empty for a machine that was not calibrated (nothing fitted, or no standard
@@ -265,13 +265,13 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     keys = list(record.correlated)
     corr = record.correlation[np.ix_(*[[keys.index(k) for k in moved]] * 2)]
     machine, s = problem.log.machine, problem.settle
-    base = calibrate(problem, nominal_sim, problem.fit_rows)[0]
+    base = calibrate_sensors(problem, nominal_sim, problem.fit_rows)[0]
     deltas = []
     for key in moved:
         est = record.estimates[key]
         shifted = with_keys(machine, {key: est.value + est.std_error})
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
-        after = calibrate(problem, sim, problem.fit_rows)[0]
+        after = calibrate_sensors(problem, sim, problem.fit_rows)[0]
         deltas.append({ch: (after[ch] - base[ch])[:, s:] for ch in problem.channels})
     out = {}
     for ch in problem.channels:
@@ -328,8 +328,8 @@ def _bounded(beta: float, limit: float) -> float:
     return float(np.clip(beta, -limit, limit))
 
 
-def calibrate(problem: ReplayProblem, sim: dict[str, np.ndarray], rows: np.ndarray) -> tuple[dict[str, np.ndarray],
-              dict]:
+def calibrate_sensors(problem: ReplayProblem, sim: dict[str, np.ndarray],
+                      rows: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
     """Residuals with the sensor calibration fitted on ``rows`` (least squares, scored samples):
     measured ≈ offset + scale · simulated, the scale for :data:`SCALED` channels only. For windowed
     replays the position starts each window at the measured value, so only its scale is fitted, on the
@@ -418,7 +418,7 @@ def position_offsets(problem: ReplayProblem, sim_position: np.ndarray, rows: np.
 
 def _closed_loop_position(problem: ReplayProblem, sim_c: np.ndarray, res: np.ndarray, rows: np.ndarray,
                           motion: list[float]) -> dict:
-    """:func:`calibrate`'s closed-loop position, ``res`` (rows, samples, legs; replayed - measured [m])
+    """:func:`calibrate_sensors`' closed-loop position, ``res`` (rows, samples, legs; replayed - measured [m])
     calibrated in place: each leg's least-squares scale on the replayed motion ``sim_c`` about its mean (where
     it moves: :data:`SCALE_MIN_SNR`, :data:`SCALE_MIN_SHARE`) and an offset within
     ``problem.position_offset_limit`` of the legs' common offset (the median of :func:`position_offsets`),
@@ -457,7 +457,7 @@ class Scored:
 
 
 def score(problem: ReplayProblem, sim: dict[str, np.ndarray], budget: Budget) -> Scored:
-    res, cal = calibrate(problem, sim, problem.fit_rows)
+    res, cal = calibrate_sensors(problem, sim, problem.fit_rows)
     b = budget.total
     s0 = problem.settle
     cost = np.zeros(len(next(iter(res.values()))))  # per window (segment), fitted, held out or left out
@@ -472,7 +472,7 @@ def score(problem: ReplayProblem, sim: dict[str, np.ndarray], budget: Budget) ->
 
 def residual_vector(problem: ReplayProblem, sim: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:
     """Calibrated residuals of ``rows`` (scored samples) divided by the budget, as one vector."""
-    return budget_vector(problem, calibrate(problem, sim, rows)[0], budget, rows)
+    return budget_vector(problem, calibrate_sensors(problem, sim, rows)[0], budget, rows)
 
 
 def budget_vector(problem: ReplayProblem, res: dict[str, np.ndarray], budget: Budget, rows: np.ndarray) -> np.ndarray:

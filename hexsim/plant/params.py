@@ -300,7 +300,7 @@ OFFSET_FIELDS = {"acceleration": "acceleration_offset", "p1": "pressure_offset",
 @dataclass(frozen=True)
 class SensorSpec:
     """The transducers' data-sheet tolerances: how far ``hexsim validate`` may calibrate each sensor's
-    offset and scale as nuisance parameters (:func:`hexsim.measured.scoring.calibrate`). A misfit that
+    offset and scale as nuisance parameters (:func:`hexsim.measured.scoring.calibrate_sensors`). A misfit that
     asks for more is physics, not the sensor (an accelerometer offset of 1.3 m/s² on an axis is an
     inclination of 30°, not a zero-g bias), and is left for the effects. The machine file's ``sensors``
     section; the defaults are typical industrial transducers'."""
