@@ -15,6 +15,8 @@ import pytest
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
 from hexsim.measured.candidates import EFFECT_NAMES
+from hexsim.measured.estimates import STATUSES
+from hexsim.measured.records import EstimateRow, ValidationReport
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
 from hexsim.plant.params import HydraulicParams
@@ -93,6 +95,10 @@ def test_log_without_effect_is_answered_none(answers):
 def test_undeclared_effect_is_named_and_error_halves(answers, effect):
     doc, base = answers[effect], answers["none"]["error_before"]
     assert doc["added_effect"] == effect, [(c["effect"], round(c["held_out_gain"], 3)) for c in doc["candidates"]]
+    assert set(doc) <= set(ValidationReport.__annotations__), set(doc) - set(ValidationReport.__annotations__)
+    assert [e["name"] for e in doc["added_effects"]][0] == effect
+    for row in doc["parameters"].values():  # the effect's estimates, as the typed record declares them
+        assert set(row) <= set(EstimateRow.__annotations__) and row["status"] in STATUSES
     affected = [ch for ch, err in doc["error_before"].items() if err > 2.0 * base[ch]]
     assert affected, doc["error_before"]
     for ch in affected:

@@ -44,7 +44,6 @@ import math
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Literal, get_args
 
 import numpy as np
 from scipy import stats
@@ -67,6 +66,7 @@ from hexsim.measured.discovery import discover, held_out_cost
 from hexsim.measured.estimates import at_bound
 from hexsim.measured.fitting import FAILED_RESIDUAL, bounded_fit
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.records import UNSETTLED, Verdict
 from hexsim.measured.replay import CHANNELS, PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.scoring import (
@@ -100,23 +100,13 @@ MAX_EFFECTS = 3
 MIN_EXCESS_SHARE = 0.25
 
 
-#: What a log says of the model: ``none`` (the nominal reproduces every channel within its budget),
-#: ``explained`` (the accepted effects bring every channel within it), ``partial`` (effects accepted,
-#: structure left, or an accepted effect at the edge of its plausible range), ``unexplained`` (no library
-#: effect passes).
-Verdict = Literal["none", "explained", "partial", "unexplained"]
-VERDICTS: tuple[str, ...] = get_args(Verdict)
-#: The verdicts that leave the model short of the log: discovery runs, validate advises calibration.
-UNSETTLED = ("partial", "unexplained")
-
-
 @dataclass
 class FitResult:
     """One candidate fitted on top of a base model, and the judgement of it."""
 
     name: str
     on_top_of: tuple[str, ...]
-    parameters: dict[str, dict[str, float]]  # name -> {value, std_error, unit}
+    parameters: dict[str, dict]  # name -> its Estimate's row (value, std_error, unit, range, status, why)
     x: np.ndarray
     model: PlantModel
     scored: Scored

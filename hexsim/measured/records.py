@@ -1,8 +1,9 @@
 """What one step of the measured-data chain hands the next, typed: the calibration record a validation reads
 (:class:`CalibrationRecord`, from a machine file's ``calibration`` block as :func:`hexsim.measured.calibration.
-calibrate` writes it). The advice a validation gives on an uncalibrated machine is
-:class:`hexsim.measured.calibration.CalibrationAdvice`; the identification's outcome
-:class:`hexsim.measured.identify.Identification`.
+calibrate` writes it), the verdict (:data:`Verdict`) and the validation report (:class:`ValidationReport`, the
+JSON document ``hexsim validate`` writes and :func:`hexsim.measured.validation.validate` returns). The advice a
+validation gives on an uncalibrated machine is :class:`hexsim.measured.calibration.CalibrationAdvice`; the
+identification's outcome :class:`hexsim.measured.identify.Identification`.
 
 The block is read here and only here: the budget's calibration uncertainty and model floor
 (:mod:`hexsim.measured.scoring`) and the validation's "beyond the calibrated curve" read the record's fields.
@@ -11,11 +12,88 @@ The block is read here and only here: the budget's calibration uncertainty and m
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, TypedDict, get_args
 
 import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.estimates import Estimate
+
+
+#: What a log says of the model: ``none`` (the nominal reproduces every channel within its budget),
+#: ``explained`` (the accepted effects bring every channel within it), ``partial`` (effects accepted,
+#: structure left, or an accepted effect at the edge of its plausible range), ``unexplained`` (no library
+#: effect passes).
+Verdict = Literal["none", "explained", "partial", "unexplained"]
+VERDICTS: tuple[str, ...] = get_args(Verdict)
+#: The verdicts that leave the model short of the log: discovery runs, validate advises calibration.
+UNSETTLED: tuple[Verdict, ...] = ("partial", "unexplained")
+
+
+class EstimateRow(TypedDict, total=False):
+    """One parameter's :class:`~hexsim.measured.estimates.Estimate` as a report holds it
+    (:meth:`~hexsim.measured.estimates.Estimate.as_row`): ``why`` for every status but fitted."""
+
+    key: str
+    unit: str
+    value: float
+    std_error: float
+    lower: float
+    upper: float
+    status: str
+    why: str
+
+
+class AddedEffect(TypedDict):
+    """An effect the identification accepted: the candidate's name, the hexapod leg it acts on alone (None:
+    every leg, or the single actuator) and its parameters' estimates by name."""
+
+    name: str
+    leg: int | None
+    parameters: dict[str, EstimateRow]
+
+
+class ValidationReport(TypedDict, total=False):
+    """The validation's JSON document (``validation.json``, ``hexsim validate --json``), as
+    :func:`hexsim.measured.validation.summary` builds it and :func:`hexsim.measured.validation.validate` completes
+    it; docs/calibration.md and docs/validation.md describe the fields. Channel-keyed maps use the replay's
+    channels (``position``, ``p1``, ``acceleration``, …); errors are NRMSE, RMS in the channels' SI units."""
+
+    log: str
+    machine: str
+    system: str
+    verdict: Verdict
+    added_effect: str | None
+    added_effects: list[AddedEffect]
+    parameters: dict[str, EstimateRow]  # the first accepted effect's
+    calibration: dict  # the sensors' calibration of the nominal and final models (offset, scale per channel)
+    budget: dict
+    held_out_rms_in_budgets: dict[str, float]
+    held_out_rms_per_signal: dict[str, dict[str, dict[str, float]]]
+    error_before: dict[str, float]
+    error_after: dict[str, float]
+    error_definition: str
+    replay: str
+    rms_before: dict[str, float]
+    rms_after: dict[str, float]
+    units: dict[str, str]
+    candidates: list[dict]
+    screening: list[dict]
+    selection: str
+    conclusions: list[str]
+    payload_from_statics: dict | None
+    discovery: dict | None
+    residuals_leg: int | None
+    residuals_before: dict
+    residuals_after: dict
+    windows: dict
+    not_checked: list[str]
+    assumed: list[str]
+    left_out: list[str]  # validate's additions
+    model: str
+    nominal_check: dict
+    beyond_calibrated_curve: dict
+    software: dict  # the versions, as every JSON file hexsim writes carries them (hexsim.tables.write_json)
 
 
 @dataclass(frozen=True)

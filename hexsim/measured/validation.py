@@ -20,7 +20,6 @@ from hexsim.measured.identify import (
     MIN_EXCESS_SHARE,
     SEARCH_SEGMENTS,
     WORSE_REL,
-    UNSETTLED,
     Identification,
     default_candidates,
     identify,
@@ -29,15 +28,13 @@ from hexsim.measured.identify import (
 from hexsim.measured.calibration import CalibrationAdvice, hexapod_hint, nominal_check, transient_check
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.scoring import SCALED, WITHIN, within_budget
-from hexsim.measured.records import CalibrationRecord
-from hexsim.measured.reports.validation import fit_label, write_folder
+from hexsim.measured.records import UNSETTLED, CalibrationRecord, ValidationReport
+from hexsim.measured.reports.validation import fit_label, write_report
 from hexsim.measured.residuals import analyse
 from hexsim.plant.machine import KEYS
 from hexsim.plant.params import OFFSET_FIELDS
 from hexsim.simulation.metrics import STANDARD_GRAVITY
-from hexsim.tables import StdoutTarget, write_json
-
-
+from hexsim.tables import StdoutTarget
 
 #: A payload read from the legs' P1 offsets is reported when it is at least this heavy [kg] and the offsets
 #: leave at most :data:`PAYLOAD_INCONSISTENCY` of the wrench unexplained.
@@ -294,7 +291,7 @@ def _verdict_sentences(ident: Identification) -> list[str]:
     return out
 
 
-def summary(ident: Identification) -> dict:
+def summary(ident: Identification) -> ValidationReport:
     """The JSON document: verdict, added_effects, calibration, budget, error_before/after (NRMSE per
     channel), candidates with their judgement, residual analysis before/after, conclusions, what the log
     lacked and which defaults were assumed."""
@@ -399,7 +396,7 @@ def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice 
 
 
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
-             without: tuple[str, ...] = (), model: str = "platform") -> dict:
+             without: tuple[str, ...] = (), model: str = "platform") -> ValidationReport:
     """Identify (see :func:`hexsim.measured.identify.identify`) on ``log`` (a :class:`MeasurementLog` or the path of
     a log, ``docs/measurement-log.md``), then write the report folder ``report`` (report.md +
     residuals.png + validation.json) and/or the JSON file ``json_path``. Returns the JSON document
@@ -414,8 +411,8 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     json_path = None if json_path is None or isinstance(json_path, StdoutTarget) else pathlib.Path(json_path)
     candidates = tuple(n for n in default_candidates(log.system) if n not in without)
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
-    doc = summary(ident) | {"left_out": list(without),
-                            "model": ident.problem.model}
+    doc = summary(ident)
+    doc.update(left_out=list(without), model=ident.problem.model)
     check = calibration_advice(ident, notify)
     if check is not None:
         doc["nominal_check"] = check.as_dict()
@@ -426,8 +423,5 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
         doc["beyond_calibrated_curve"] = beyond
         if ident.verdict != "none":
             doc["conclusions"].insert(0, beyond["sentence"])
-    if report is not None:
-        write_folder(report, ident, doc)
-    if json_path is not None:
-        write_json(json_path, doc)
+    write_report(ident, doc, report, json_path)
     return doc

@@ -9,13 +9,24 @@ import pathlib
 import numpy as np
 
 from hexsim.measured.identify import Identification
+from hexsim.measured.records import ValidationReport
 from hexsim.tables import write_atomic, write_json
 
 #: The files of a validation's report folder.
 FIGURE, MARKDOWN, DOCUMENT = "residuals.png", "report.md", "validation.json"
 
 
-def write_folder(folder: pathlib.Path, ident: Identification, doc: dict) -> None:
+def write_report(ident: Identification, doc: ValidationReport, folder: pathlib.Path | None = None,
+                 json_path: pathlib.Path | None = None) -> None:
+    """Every file a validation writes: the report ``folder`` (:func:`write_folder`) and the JSON document alone at
+    ``json_path``, where given. Raises OSError where either cannot be written."""
+    if folder is not None:
+        write_folder(folder, ident, doc)
+    if json_path is not None:
+        write_json(json_path, doc)
+
+
+def write_folder(folder: pathlib.Path, ident: Identification, doc: ValidationReport) -> None:
     """The report folder of a validation: :data:`MARKDOWN` (:func:`markdown`), :data:`FIGURE` (:func:`plot`)
     and :data:`DOCUMENT` (the JSON document ``doc``), the folder made if needed, each file written whole
     (:func:`hexsim.tables.write_atomic`). Raises OSError where the folder cannot be made."""
