@@ -76,3 +76,41 @@ def test_every_package_is_installed():
         for init in (ROOT / top).rglob("__init__.py"):
             name = ".".join(init.parent.relative_to(ROOT).parts)
             assert name in listed, f"{name} is not in pyproject.toml's [tool.setuptools] packages"
+
+
+#: hexsim.measured from the bottom up (docs/design.md, "What a change touches"): the vocabulary and the log,
+#: the replays, the one optimizer, the scoring layer, then calibration and identification side by side on it,
+#: the reports, the validation that composes them. A module imports only modules on floors below its own, or
+#: on its own floor those of its own side (:data:`SIDES`).
+MEASURED_FLOORS = (
+    {"estimates", "statistics", "measurement", "residuals"},
+    {"parameters", "records", "replay", "acceptance_logs"},
+    {"fitting", "hexapod_replay", "proof"},
+    {"scoring", "flow_curve", "friction_id"},
+    {"calibration", "dynamics", "candidates", "discovery", "identify"},
+    {"reports.calibration", "reports.friction", "reports.validation"},
+    {"validation"},
+)
+#: The two sides of the floor above scoring: a machine's nominal, and the effects the nominal lacks.
+SIDES = ({"calibration", "dynamics"}, {"candidates", "discovery", "identify"})
+
+
+def test_calibration_and_identification_stand_side_by_side_on_scoring():
+    floor = {name: i for i, names in enumerate(MEASURED_FLOORS) for name in names}
+    side = {name: i for i, names in enumerate(SIDES) for name in names}
+    wrong = []
+    for path in sorted((ROOT / "hexsim" / "measured").rglob("*.py")):
+        name = ".".join(path.relative_to(ROOT / "hexsim" / "measured").with_suffix("").parts)
+        if name.split(".")[-1] == "__init__":
+            continue
+        assert name in floor, f"hexsim.measured.{name} is on no floor of MEASURED_FLOORS: place it"
+        for line, target in _hexsim_imports(path):
+            if target[:1] != ["measured"] or len(target) < 2:
+                continue
+            used = ".".join(target[1:3] if target[1] == "reports" else target[1:2])
+            if used not in floor:  # an imported name of a module (hexsim.measured.reports: its package)
+                continue
+            same_side = used in side and side.get(name) == side[used]
+            if floor[used] > floor[name] or (floor[used] == floor[name] and not same_side):
+                wrong.append(f"hexsim/measured/{name.replace('.', '/')}.py:{line} imports hexsim.measured.{used}")
+    assert not wrong, "\n".join(wrong)
