@@ -66,7 +66,7 @@ from hexsim.measured.discovery import discover, held_out_cost
 from hexsim.measured.estimates import at_bound
 from hexsim.measured.fitting import FAILED_RESIDUAL, bounded_fit
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.records import UNSETTLED, Verdict
+from hexsim.measured.records import UNSETTLED, EstimateRow, Verdict
 from hexsim.measured.replay import CHANNELS, PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.scoring import (
@@ -106,7 +106,7 @@ class FitResult:
 
     name: str
     on_top_of: tuple[str, ...]
-    parameters: dict[str, dict]  # name -> its Estimate's row (value, std_error, unit, range, status, why)
+    parameters: dict[str, EstimateRow]  # name -> its Estimate's row (value, std_error, unit, range, status, why)
     x: np.ndarray
     model: PlantModel
     scored: Scored
@@ -147,7 +147,7 @@ def fit_candidate(problem: ReplayProblem, key: str, base: PlantModel, budget: Bu
                      scored=scored, nfev=nfev, leg=leg)
 
 
-def _estimates(cand: Candidate, x, se, lower, upper) -> dict[str, dict]:
+def _estimates(cand: Candidate, x, se, lower, upper) -> dict[str, EstimateRow]:
     """The candidate's parameters as :class:`~hexsim.measured.estimates.Estimate` rows (value, standard error,
     unit, the plausible range fitted in, status fitted or at a bound), by name. Whether a value is a finding
     is the judge's (:func:`judge`)."""
