@@ -48,7 +48,7 @@ from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.parameters import ParameterSet, default_parameters, leg_null_parameter
+from hexsim.measured.parameters import Parameter, ParameterSet, default_parameters, leg_null_parameter
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import Machine, machine_from_document, with_keys
 from hexsim.plant.params import FLOW_AREAS
@@ -472,12 +472,13 @@ def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Mach
     samples = np.concatenate([log.columns["ps_Pa"] for log in logs])
     level = float(np.median(samples))
     spread = float(median_abs_deviation(samples, scale="normal"))
-    est = Estimate("supply.pressure_Pa", level, spread / math.sqrt(len(samples)), "Pa", FROM_LOGS,
+    logged = Parameter("supply.pressure_Pa", float(np.min(samples)), float(np.max(samples)),
+                       "the logged supply pressure's range", "ps_Pa logged")
+    est = Estimate(logged.key, level, spread / math.sqrt(len(samples)), logged.unit, FROM_LOGS,
                    f"every log carries ps_Pa: the median of its {len(samples)} samples (it ranges "
-                   f"{np.min(samples) / 1e5:.4g}…{np.max(samples) / 1e5:.4g} bar), the level every replay runs at",
-                   float(np.min(samples)), float(np.max(samples)))
-    row = est.as_row() | {"prior": float(machine.hydraulics.supply_pressure),
-                          "bounds_source": "the logged supply pressure's range", "experiment": "ps_Pa logged"}
+                   f"{logged.lower / 1e5:.4g}…{logged.upper / 1e5:.4g} bar), the level every replay runs at",
+                   logged.lower, logged.upper)
+    row = logged.row(est) | {"prior": float(machine.hydraulics.supply_pressure)}
     return with_keys(machine, {"supply.pressure_Pa": level}), row
 
 

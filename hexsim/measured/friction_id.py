@@ -277,15 +277,16 @@ class _Fit(NamedTuple):
     jac: np.ndarray
 
 
-def _judge(sol, fixed: tuple[str, ...] = (), n_independent: float | None = None,
+def _judge(sol, held: dict[str, str] | None = None, n_independent: float | None = None,
            weighted: bool = False) -> tuple[dict, dict, np.ndarray]:
-    """(each parameter's :class:`~hexsim.measured.estimates.Estimate` row, status unidentifiable with why
-    where the data cannot give it, and its ``unidentifiable`` reason; the unidentifiable ones' reasons;
-    standard errors) of a fit ``sol`` (x, fun, jac) within the :data:`PARAMETERS`' bounds; parameters in
-    ``fixed`` were not fitted (their entries are left for the caller). ``n_independent``: the independent
+    """(each parameter's :class:`~hexsim.measured.estimates.Estimate` row, status unidentifiable or held with
+    why where the data cannot give it, and its ``unidentifiable`` reason; those reasons by name; standard
+    errors) of a fit ``sol`` (x, fun, jac) within the :data:`PARAMETERS`' bounds; ``held`` (name: why): the
+    parameters not fitted, held at their start's value. ``n_independent``: the independent
     samples behind the residual (default: the residual's effective count, filtered samples being correlated;
     steady windows: one per window and not more than the samples say)."""
-    free = [i for i, p in enumerate(PARAMS) if p not in fixed]
+    held = held or {}
+    free = [i for i, p in enumerate(PARAMS) if p not in held]
     is_free = np.isin(np.arange(len(PARAMS)), free)
     n_eff = effective_n(sol.fun[None, :])
     stats = fit_statistics(sol.jac, sol.fun, free=is_free, n_parameters=len(free),
@@ -303,7 +304,9 @@ def _judge(sol, fixed: tuple[str, ...] = (), n_independent: float | None = None,
     for i, (param, x, e) in enumerate(zip(PARAMETERS, sol.x, se)):
         est = Estimate(param.key, float(x), float(e), param.unit, lower=param.lower, upper=param.upper)
         params[param.key] = est.as_row()
-        if i not in free:
+        if i not in free:  # held at the start's value (0 for a slope or a hump the speeds cannot show)
+            params[param.key] = _unidentifiable(est, held[param.key], HELD)
+            unidentifiable[param.key] = held[param.key]
             continue
         reason = None
         bound = at_bound(x, param.lower, param.upper, param.scale)  # limits (>= 0), not brackets: its typical size
@@ -317,15 +320,15 @@ def _judge(sol, fixed: tuple[str, ...] = (), n_independent: float | None = None,
             reason = (f"the data cannot separate it (standard error {e:.3g} {param.unit} larger than the value "
                       f"{x:.3g}): {where}")
         if reason:
-            params[param.key] = _unidentifiable(est, reason)
+            params[param.key] = _unidentifiable(est, reason, UNIDENTIFIABLE)
             unidentifiable[param.key] = reason
     return params, unidentifiable, se
 
 
-def _unidentifiable(est: Estimate, why: str) -> dict:
-    """The row of an estimate the data cannot give (status unidentifiable, ``why``; ``unidentifiable`` the
-    same reason, as the report and the terminal read it)."""
-    return dataclasses.replace(est, status=UNIDENTIFIABLE, why=why).as_row() | {"unidentifiable": why}
+def _unidentifiable(est: Estimate, why: str, status: str) -> dict:
+    """The row of an estimate the data cannot give (``status`` unidentifiable or held, ``why``;
+    ``unidentifiable`` the same reason, as the report and the terminal read it)."""
+    return dataclasses.replace(est, status=status, why=why).as_row() | {"unidentifiable": why}
 
 
 #: the parameters each model frees: the level alone, Coulomb + viscous, the whole Stribeck curve
@@ -418,12 +421,7 @@ def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: Hydrau
             x0[2] = 0.0
             sol = _fit_curve(pv, pf, weight, MODELS["coulomb+viscous"], x0, hyd, robust=not steady)
             held = dict.fromkeys(("F_s0", "c_s"), HUMP_REASON)
-    params, unidentifiable, _ = _judge(sol, fixed=tuple(held), n_independent=n_points,
-                                       weighted=steady)
-    for p, why in held.items():  # held at the start's value (0 for a slope or a hump the speeds cannot show)
-        held_at = dataclasses.replace(Estimate.from_row(params[p]), status=HELD, why=why)
-        params[p] = held_at.as_row() | {"unidentifiable": why}
-        unidentifiable[p] = why
+    params, unidentifiable, _ = _judge(sol, held, n_independent=n_points, weighted=steady)
     residual = stribeck(v, sol.x, hyd) - f
     scatter = float(median_abs_deviation(residual, scale="normal"))
     level = float(abs(np.median(stribeck(v, sol.x, hyd))))
