@@ -125,6 +125,29 @@ def flow_areas(x_v, p: HydraulicParams):
     return _shaped(a1, shape), _shaped(a2, shape)
 
 
+def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams:
+    """``p`` with its valve's openings as each edge's curve (flow area "curve"): its own form's P→A opening at
+    the command u and A→T opening at -u (:func:`flow_areas`, over 0.2 V below null to u_v,max, a millivolt
+    apart near null), thinned (:func:`hexsim.plant.params.thin_curve`), each edge opening ``open_earlier_V``
+    [V] earlier (negative: later; the dead band narrower or wider by twice it, an underlap or more overlap
+    than the file's). What a calibration may have got wrong near null, as a machine to try a compensator on
+    (:mod:`hexsim.simulation.tuning`'s neighbours). The edge gains stay the effects'."""
+    from hexsim.plant.params import thin_curve
+
+    u = np.unique(np.concatenate([np.linspace(-0.2, 0.5, 701), np.linspace(0.5, p.u_v_max, 951)]))
+    x = u / p.u_v_max * p.x_v_max
+    full = np.pi * p.spool_diameter * p.x_v_max
+    edges = []
+    for a in (flow_areas(x, p)[0], flow_areas(-x, p)[1]):
+        value = np.maximum.accumulate(np.maximum(a / full, 0.0))
+        points = [[round(v - open_earlier_V, 6), f] for v, f in thin_curve(u, value)]
+        if points[-1][0] < p.u_v_max:  # opened earlier: the last point moved below the range's end
+            (u0, f0), (u1, f1) = points[-2], points[-1]
+            points.append([p.u_v_max, f1 + (f1 - f0) / (u1 - u0) * (p.u_v_max - u1)])
+        edges.append(tuple(tuple(q) for q in points))
+    return p.replace(flow_area="curve", opening_table=(), flow_curve_pa=edges[0], flow_curve_at=edges[1], overlap=0.0)
+
+
 def edge_flow(area, dp, p: HydraulicParams):
     """Flow [m^3/s] through one valve edge of opening ``area`` [m^2] (edge gain applied by the caller)
     under the pressure difference ``dp`` [Pa] (upstream minus downstream): the orifice equation (seed eq.

@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from hexsim.plant.effects import NOMINAL, Effects, LegChange
-from hexsim.plant.params import HydraulicParams
+from hexsim.plant.params import MAX_CURVE_POINTS, HydraulicParams
 
 #: Laminar–turbulent transition pressure Δp_tr [Pa] of the valve's orifices: below about this pressure
 #: difference the flow through an edge is laminar (∝ Δp), above it turbulent (∝ √Δp, seed eq. 3.4).
@@ -117,6 +117,16 @@ class LegParams(NamedTuple):
     tf9: float
     tf10: float
     tf11: float
+    # flow area "curve": each edge's points (u [V] at the command that opens it, opening fraction, the monotone
+    # cubic's slope [1/V]; HydraulicParams.edge_curves), cn_* of them used, the rest the last one repeated
+    cn_pa: float
+    cu_pa: tuple
+    cf_pa: tuple
+    cm_pa: tuple
+    cn_at: float
+    cu_at: tuple
+    cf_at: tuple
+    cm_at: tuple
 
 
 def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
@@ -131,7 +141,7 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
         eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure,
         float(hyd.four_way), hyd.pipeline_volume_rod, hyd.stroke, eff.edge_gain_pb, eff.edge_gain_bt,
-        *_table_fields(hyd))
+        *_table_fields(hyd), *_curve_fields(hyd))
 
 
 def _blend(hyd: HydraulicParams) -> tuple[float, float]:
@@ -150,8 +160,26 @@ def _table_fields(hyd: HydraulicParams) -> tuple[float, ...]:
     return (float(n), *(u for u, _ in points), *(f for _, f in points))
 
 
-#: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64).
-LEG_DTYPE = np.dtype([(name, np.float64) for name in LegParams._fields])
+def _curve_fields(hyd: HydraulicParams) -> tuple:
+    """cn, cu, cf, cm of each edge's flow curve (:class:`LegParams`): the points used and three tuples of
+    :data:`~hexsim.plant.params.MAX_CURVE_POINTS`, padded with the last point (slope 0 beyond it is not used:
+    the curve is extended with its last slope)."""
+    out: list = []
+    for u, f, m in hyd.edge_curves:
+        n = len(u)
+        if n == 0:
+            u, f, m = np.zeros(1), np.zeros(1), np.zeros(1)
+        pad = MAX_CURVE_POINTS - len(u)
+        out += [float(n), *(tuple(np.concatenate([a, np.full(pad, a[-1])]).tolist()) for a in (u, f, m))]
+    return tuple(out)
+
+
+#: The flow-curve fields of :class:`LegParams` held as arrays of MAX_CURVE_POINTS in a record.
+_CURVE_ARRAYS = ("cu_pa", "cf_pa", "cm_pa", "cu_at", "cf_at", "cm_at")
+#: One leg's parameters as a numpy record (the fields of :class:`LegParams`, float64; the flow curves' points
+#: as arrays).
+LEG_DTYPE = np.dtype([(name, np.float64, (MAX_CURVE_POINTS,)) if name in _CURVE_ARRAYS else (name, np.float64)
+                      for name in LegParams._fields])
 
 
 def leg_table(hyd: HydraulicParams, eff: Effects, n: int, changes: tuple[LegChange, ...] = ()) -> np.ndarray:
@@ -221,11 +249,17 @@ def flow_areas(x_v, P):
     overlap a dead band); or
     the opening table's fraction of the full opening pi d x_v,max, each edge at the command that opens it
     (P→A at u = x_v u_v,max / x_v,max, A→T at -u: both open around null where the table starts below it,
-    an underlap; :func:`table_opening`); edge gains not applied."""
+    an underlap; :func:`table_opening`); or each edge's flow curve, a monotone cubic through its points
+    (``flow_area="curve"``: P→A at u, A→T at -u; :func:`curve_opening`); edge gains not applied."""
     if P.tab_n > 0.5:
         u = x_v * (P.u_v_max / P.x_v_max)
         full = P.port_width * P.x_v_max
         return full * table_opening(u, P), full * table_opening(-u, P)
+    if P.cn_pa > 0.5:
+        u = x_v * (P.u_v_max / P.x_v_max)
+        full = P.port_width * P.x_v_max
+        return (full * curve_opening(u, P.cn_pa, P.cu_pa, P.cf_pa, P.cm_pa),
+                full * curve_opening(-u, P.cn_at, P.cu_at, P.cf_at, P.cm_at))
     if P.sharp > 1.5:  # port: the smaller of (3.11) and the port's opening (3.3), a kink where they cross
         a = min(P.smooth_gain * x_v * x_v, P.port_width * max(abs(x_v) - P.overlap, 0.0))
         a1 = a if x_v > 0.0 else 0.0
@@ -262,6 +296,33 @@ def table_opening(u, P):
         if u <= us[i]:
             return _lerp(u, us[i - 1], fs[i - 1], us[i], fs[i])
     return fs[11]
+
+
+@_jit
+def curve_opening(u, n, us, fs, ms):
+    """The opening fraction of an edge at the command u [V] that opens it, from its flow curve's n points
+    (us [V], fs [-], slopes ms [1/V]; :class:`LegParams` cu/cf/cm): closed at and below the first point, the
+    cubic Hermite polynomial between points (a monotone PCHIP, its slopes from
+    :attr:`hexsim.plant.params.HydraulicParams.edge_curves`), the last slope beyond the last point. Called, not
+    inlined: inlined into each of the leg step's callers it added 11 s (30 %) to the first run's compile."""
+    k = int(n) - 1
+    if u <= us[0]:
+        return 0.0
+    if u >= us[k]:
+        return fs[k] + ms[k] * (u - us[k])
+    lo, hi = 0, k
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if u < us[mid]:
+            hi = mid
+        else:
+            lo = mid
+    h = us[hi] - us[lo]
+    t = (u - us[lo]) / h
+    t2 = t * t
+    t3 = t2 * t
+    return ((2.0 * t3 - 3.0 * t2 + 1.0) * fs[lo] + (t3 - 2.0 * t2 + t) * h * ms[lo]
+            + (-2.0 * t3 + 3.0 * t2) * fs[hi] + (t3 - t2) * h * ms[hi])
 
 
 @_inline

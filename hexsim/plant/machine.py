@@ -77,12 +77,19 @@ KEYS: tuple[Key, ...] = (
        "fed by the valve)", "seed Fig. 3.1 (3-way)", kind="text", choices=("3-way", "4-way")),
     _k("valve.flow_area", "hydraulics.flow_area", "-", "opening against spool position: smooth (3.11 blended onto "
        "the port), quadratic (3.11 everywhere), port ((3.11) until the port's opening is smaller, the port beyond: a kink, a real spool), "
-       "sharp (3.3, linear with overlap/underlap), table (opening_table)",
+       "sharp (3.3, linear with overlap/underlap), table (opening_table), curve (flow_curve_PA/_AT: each edge's "
+       "curve read from the machine's flows)",
        "seed eq. 3.3, 3.11", kind="text", choices=FLOW_AREAS),
     _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[u_v V, opening as a fraction "
        "of the full opening], …] to u_v,max, linear between points from (0, 0), both edges alike; a first point "
        "[-u V, 0] below null: each edge opens u before null (an underlap)",
        "valve data sheet (flow against command) or a calibration", kind="table"),
+    _k("valve.flow_curve_PA", "hydraulics.flow_curve_pa", "V, -", "flow_area curve: the P→A edge's [[u_v V, opening "
+       "as a fraction of the full opening], …] from where it opens (opening 0; below null: an underlap) to u_v,max, "
+       "a monotone cubic (PCHIP) between points", "hexsim calibrate (the machine's flows)", kind="table"),
+    _k("valve.flow_curve_AT", "hydraulics.flow_curve_at", "V, -", "flow_area curve: the A→T edge's points as "
+       "flow_curve_PA's, at minus the command (empty: flow_curve_PA's)", "hexsim calibrate (the machine's flows)",
+       kind="table"),
     _k("valve.command_range_V", "hydraulics.u_v_max", "V", "valve setpoint at full spool stroke u_v,max", _SEED),
     _k("valve.spool_stroke_m", "hydraulics.x_v_max", "m", "spool travel at u_v,max x_v,max", _SEED),
     _k("valve.spool_diameter_m", "hydraulics.spool_diameter", "m", "spool diameter d: port width pi d of the "
@@ -677,6 +684,14 @@ def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
             node[leaf][int(index[:-1])] = float(value)
         else:
             node[leaf] = float(value)
+    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
+
+
+def with_valve(machine: Machine, **valve) -> Machine:
+    """``machine`` with the ``valve`` section's entries ``valve`` set (any value: a form's name, a table, a curve),
+    the file checked again as any machine file (InputError names the key and value)."""
+    doc = json.loads(json.dumps(machine.document()))
+    doc["valve"].update(valve)
     return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 

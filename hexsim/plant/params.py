@@ -19,7 +19,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 
-FlowArea = Literal["smooth", "port", "quadratic", "sharp", "table"]
+FlowArea = Literal["smooth", "port", "quadratic", "sharp", "table", "curve"]
 #: The valve's flow-area forms (:func:`hexsim.plant.hydraulics.flow_areas`), declared once: the machine
 #: file's ``valve.flow_area`` choices, the command line's, and (all but the table) the forms a calibration
 #: from transients tries (:data:`hexsim.measured.calibration.SEED_FORMS`). A new form is a name here, its
@@ -29,7 +29,38 @@ FLOW_AREAS: tuple[str, ...] = get_args(FlowArea)
 #: Most points an opening table may have above null (besides the origin, or the one point below null where an
 #: underlapped edge opens): the compiled leg step holds twelve as fields.
 MAX_TABLE_POINTS = 11
+#: Most points of one edge's flow curve (flow area "curve", :attr:`HydraulicParams.flow_curve_pa`), the first
+#: where the edge opens: the compiled leg step holds them as arrays of this length.
+MAX_CURVE_POINTS = 48
 ValveType = Literal["3-way", "4-way"]
+
+
+#: A curve's points follow the curve they are taken from within this share of its value plus this share of its
+#: largest value (:func:`thin_curve`): an open-loop replay's position integrates the flow, and 1 % of flow is
+#: tens of a position transducer's noise over a replay window; near null, where the reversals happen, the
+#: openings are small and their shape is the flow gain the reversal sees.
+CURVE_TOLERANCE = (2e-3, 2e-5)
+
+
+def thin_curve(u: np.ndarray, value: np.ndarray) -> list[list[float]]:
+    """At most :data:`MAX_CURVE_POINTS` points [[u V, opening], …] of the curve ``value`` (n,) (non-decreasing)
+    sampled at ``u`` (n,) [V], from where it opens (its last zero) to its end, through which the monotone cubic
+    of flow area "curve" (scipy's PchipInterpolator) stays within :data:`CURVE_TOLERANCE`: the worst-followed
+    sample added, one at a time."""
+    from scipy.interpolate import PchipInterpolator
+
+    start = int(np.flatnonzero(value <= 0.0)[-1]) if np.any(value <= 0.0) else 0
+    u, value = np.asarray(u[start:], dtype=float), np.asarray(value[start:], dtype=float)
+    chosen = [0, len(u) - 1]
+    tol = CURVE_TOLERANCE[0] * value + CURVE_TOLERANCE[1] * float(value[-1] if value[-1] > 0 else 1.0)
+    while len(chosen) < MAX_CURVE_POINTS:
+        idx = sorted(chosen)
+        excess = np.abs(PchipInterpolator(u[idx], value[idx])(u) - value) / tol
+        worst = int(np.argmax(excess))
+        if excess[worst] <= 1.0:
+            break
+        chosen.append(worst)
+    return [[round(float(u[i]), 6), round(float(value[i]), 7)] for i in sorted(set(chosen))]
 
 
 def _check_positive(obj, *names: str) -> None:
@@ -86,7 +117,8 @@ class HydraulicParams:
     # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "port": the smaller of (3.11) and
     # the port's opening (3.3), a kink where they cross (0.90 V) and the overlap a dead band (a real spool, no
     # blend); "sharp": (3.3); "table": the opening against the command as a data sheet or a
-    # measurement gives it (opening_table)
+    # measurement gives it (opening_table); "curve": each edge's opening against the command as a monotone
+    # cubic (PCHIP) through points read from a machine's own flows (flow_curve_pa, flow_curve_at)
     flow_area: FlowArea = "smooth"
     # (u_v [V], opening as a fraction of the full port opening pi d x_v,max) points of the edge the command
     # opens (P→A; A→T at -u_v alike), commands increasing to u_v,max, openings non-decreasing, linear in
@@ -94,6 +126,15 @@ class HydraulicParams:
     # below null with opening 0 (the edge opens there: both edges open around null). Used with flow_area
     # "table" only.
     opening_table: tuple[tuple[float, float], ...] = ()
+    # flow_area "curve": (u_v [V], opening as a fraction of pi d x_v,max) points of the P→A edge at the command
+    # that opens it and of the A→T edge at minus the command (at u = -u_v: an edge's own command), each a
+    # piecewise cubic Hermite curve through its points with the monotone slopes of Fritsch & Carlson (SIAM J.
+    # Numer. Anal. 17(2), 1980; scipy's PchipInterpolator): C^1, no overshoot, a corner (a rounded metering edge
+    # meeting the full port) kept within the points either side of it. The first point is where the edge
+    # opens (opening 0; below null: an underlap, above: an overlap), the last at u_v_max or beyond; at most
+    # MAX_CURVE_POINTS each; flow_curve_at empty: the P→A edge's curve. Used with flow_area "curve" only.
+    flow_curve_pa: tuple[tuple[float, float], ...] = ()
+    flow_curve_at: tuple[tuple[float, float], ...] = ()
     # Lowest pressure the bottom chamber's oil holds [Pa, gauge]: 0.1 bar absolute, where dissolved air comes
     # out of mineral oil and the oil cavitates (air-release pressures 0.1–0.3 bar abs.; the vapour pressure is
     # lower still; Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), 2011). Not in the seed, whose
@@ -180,6 +221,7 @@ class HydraulicParams:
         if self.flow_area not in FLOW_AREAS:
             raise InputError(f"HydraulicParams.flow_area must be one of {', '.join(FLOW_AREAS)}, got {self.flow_area!r}")
         self._check_table()
+        self._check_curves()
         limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
         if self.flow_area in ("smooth", "port") and self.overlap >= limit:
             raise InputError(
@@ -216,6 +258,56 @@ class HydraulicParams:
             prev_u, prev_f = u, f
         if abs(prev_u - self.u_v_max) > 1e-9 * self.u_v_max:
             raise InputError(f"HydraulicParams.opening_table must end at u_v_max ({self.u_v_max:g} V), ends at {prev_u:g} V")
+
+    def _check_curves(self) -> None:
+        """InputError unless the edges' flow curves suit the flow area (the fields' comment): each at least two
+        points, commands increasing, the first opening 0 within 20 % of the command range of null, openings not
+        decreasing (at most 2), the last command at u_v_max or beyond."""
+        curves = {"flow_curve_pa": self.flow_curve_pa, "flow_curve_at": self.flow_curve_at}
+        if self.flow_area != "curve":
+            for name, curve in curves.items():
+                if curve:
+                    raise InputError(f"HydraulicParams.{name} is given but flow_area is {self.flow_area!r}: set "
+                                     f"flow_area to 'curve' to use it")
+            return
+        if not self.flow_curve_pa:
+            raise InputError("HydraulicParams.flow_curve_pa is needed for flow_area 'curve'")
+        for name, curve in curves.items():
+            if not curve and name == "flow_curve_at":
+                continue
+            if not 2 <= len(curve) <= MAX_CURVE_POINTS:
+                raise InputError(f"HydraulicParams.{name} needs 2…{MAX_CURVE_POINTS} points (u_v V, opening "
+                                 f"fraction), got {len(curve)}")
+            for i, point in enumerate(curve):
+                if not (len(point) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in point)):
+                    raise InputError(f"HydraulicParams.{name} point {i + 1} must be two finite numbers, got {point!r}")
+            if curve[0][1] != 0.0 or abs(curve[0][0]) > 0.2 * self.u_v_max:
+                raise InputError(f"HydraulicParams.{name} point 1 ({curve[0][0]:g} V, {curve[0][1]:g}): the first "
+                                 f"point is where the edge opens: opening 0, within 20 % of the command range of null")
+            for i in range(1, len(curve)):
+                (u0, f0), (u1, f1) = curve[i - 1], curve[i]
+                if u1 <= u0 or f1 < f0 or f1 > 2.0:
+                    raise InputError(f"HydraulicParams.{name} point {i + 1} ({u1:g} V, {f1:g}): commands must increase "
+                                     f"and openings must not decrease (fractions of the full opening, at most 2)")
+            if curve[-1][0] < self.u_v_max * (1.0 - 1e-9):
+                raise InputError(f"HydraulicParams.{name} must reach u_v_max ({self.u_v_max:g} V), ends at "
+                                 f"{curve[-1][0]:g} V")
+
+    @functools.cached_property
+    def edge_curves(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+        """((u [V], opening [-], slope [1/V]) of the P→A edge, the same of the A→T edge), each (k,): the flow
+        curves' points and the monotone cubic's slopes at them (scipy's PchipInterpolator, Fritsch & Carlson);
+        empty arrays unless the flow area is "curve"."""
+        from scipy.interpolate import PchipInterpolator
+
+        out = []
+        for curve in (self.flow_curve_pa, self.flow_curve_at or self.flow_curve_pa):
+            if self.flow_area != "curve" or not curve:
+                out.append((np.zeros(0), np.zeros(0), np.zeros(0)))
+                continue
+            u, f = (np.array([p[i] for p in curve], dtype=float) for i in (0, 1))
+            out.append((u, f, PchipInterpolator(u, f).derivative()(u)))
+        return tuple(out)
 
     # Derived constants, computed once per parameter set (the dataclass is frozen).
     @functools.cached_property
