@@ -194,9 +194,11 @@ def _drifted(c0: np.ndarray, s: Actuator, t: float) -> np.ndarray:
 
 
 def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng: np.random.Generator,
-           noise: tuple[float, float, float] = (2e-6, 2e3, 0.02), compensate=None) -> dict[str, np.ndarray]:
+           noise: tuple[float, float, float] = (2e-6, 2e3, 0.02), compensate=None,
+           reference: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """A closed-loop run of ``duration`` s tracking amplitude sin(2 pi f t) faded in over one period around
-    mid-stroke (seed eq. 3.10): the log's columns at 1 kHz, noise (position m, pressure Pa, acceleration
+    mid-stroke (seed eq. 3.10), or ``reference`` [m] (one setpoint a millisecond: a chirp, steps; frequency and
+    amplitude then unused): the log's columns at 1 kHz, noise (position m, pressure Pa, acceleration
     m/s^2) on the measured channels (the controller sees the noisy position). Integrated by RK4 at 2 µs.
     ``compensate(u_p, y, r, r_dot, r_ddot, r_dddot, p1) -> U_c`` [V], called at each controller sample with
     the P output, the measured position, the reference and its derivatives (central differences at the
@@ -207,8 +209,11 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
     g = 9.81
     dt = 1e-3
     t = np.arange(0.0, duration, dt)
-    period = 1.0 / frequency
-    ref = s.stroke / 2 + amplitude * np.sin(2 * np.pi * frequency * t) * np.clip(t / period, 0.0, 1.0)
+    if reference is not None:
+        ref = np.asarray(reference, dtype=float)[:len(t)]
+    else:
+        period = 1.0 / frequency
+        ref = s.stroke / 2 + amplitude * np.sin(2 * np.pi * frequency * t) * np.clip(t / period, 0.0, 1.0)
     g_axis = g * math.cos(math.radians(s.inclination_deg))  # gravity along the cylinder's axis
     z = np.array([s.stroke / 2, 0.0, (s.supply * a2 + s.mass * g_axis) / a1, -s.null_offset / s.u_max * s.x_max,
                   0.0, s.supply])

@@ -37,7 +37,6 @@ also predicted by a fit on the others (leave one log out).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -45,12 +44,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.curves import curve_report, reaches_budget, with_curve
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.parameters import Parameter, ParameterSet, default_parameters, leg_null_parameter
 from hexsim.plant import hydraulics
-from hexsim.plant.machine import Machine, machine_from_document, with_keys
+from hexsim.plant.geometry import Geometry
+from hexsim.plant.machine import Machine, with_keys, with_valve
 from hexsim.plant.params import FLOW_AREAS
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.simulation.metrics import steady_segments
@@ -196,14 +197,11 @@ HEXAPOD_NFEV = 8
 HEXAPOD_SCREEN_SEGMENTS, HEXAPOD_SCREEN_NFEV = 24, 3
 #: The flow-area forms of seed eq. (3.11) and (3.3) a calibration from transients tries for a valve of that
 #: family (the seed's 300 x_v^2 and its port), keeping the one that predicts the held-out windows best.
-SEED_FORMS = tuple(form for form in FLOW_AREAS if form != "table")
+SEED_FORMS = tuple(form for form in FLOW_AREAS if form not in ("table", "curve"))
+#: What ``flow_areas`` names to ask for the valve's curves read from the logs' flows (:mod:`hexsim.measured.curves`;
+#: "table" as earlier versions called it).
+READ_CURVE = ("curve", "table")
 DYNAMICS = ("auto", "always", "never")
-#: The commands of a calibrated flow curve (:func:`table_from`), as fractions of u_v,max: one below null
-#: where an underlapped edge opens, eight from null to a tenth of the range where reversals happen (the
-#: edges' overlap or underlap and their rounding), two beyond for fast motions, the end of the range.
-TABLE_KNOTS = (-0.02, 0.0, 0.005, 0.01, 0.02, 0.035, 0.05, 0.075, 0.1, 0.25, 0.55, 1.0)
-
-
 def _is_steady(log: MeasurementLog) -> bool:
     """An open-loop constant-command experiment (:func:`features` finds a steady motion in it)."""
     if not log.open_loop:
@@ -219,8 +217,8 @@ def _forms(machine: Machine, flow_areas: tuple[str, ...] | None) -> tuple[str, .
     """The flow-area forms to calibrate: those asked for, else the machine's own and, for a valve of the
     seed's (3.11) family, the others of :data:`SEED_FORMS`."""
     own = machine.hydraulics.flow_area
-    if flow_areas and own != "table":  # "table" there: the chosen form's curve read from the logs afterwards
-        flow_areas = tuple(f for f in flow_areas if f != "table")
+    if flow_areas:  # "curve" (or "table" on a machine without one): the curves read from the logs afterwards
+        flow_areas = tuple(f for f in flow_areas if f not in READ_CURVE or f == own)
     if flow_areas:
         return tuple(flow_areas)
     if own in SEED_FORMS[:3]:
@@ -228,49 +226,32 @@ def _forms(machine: Machine, flow_areas: tuple[str, ...] | None) -> tuple[str, .
     return (own,)
 
 
-def _wants_curve(ev: "_Evidence", machine: Machine, flow_areas: tuple[str, ...] | None) -> bool:
-    """Whether a calibration goes on to read the valve's flow curve from the logs' flows (:func:`_with_curve`):
-    when "table" is asked for on a machine without a table of its own. Raises InputError where it is asked for
-    and cannot be read: steady features only, hexapod logs, or a log without ``p1_Pa`` (named)."""
-    if not flow_areas or "table" not in flow_areas or machine.hydraulics.flow_area == "table":
-        return False
+def _wants_curve(ev: "_Evidence", machine: Machine, flow_areas: tuple[str, ...] | None) -> bool | None:
+    """Whether a calibration goes on to read the valve's curves from the logs' flows (:mod:`hexsim.measured.curves`):
+    True where ``flow_areas`` asks for them (:data:`READ_CURVE`) on a machine whose valve is a form, None where it
+    may (no form named: when the chosen form misses its own logs' budget, single-actuator transients with
+    ``p1_Pa`` in every log), False otherwise. Raises InputError where it is asked for and cannot be read: steady
+    features only, hexapod logs, or a log without ``p1_Pa`` (named)."""
+    own = machine.hydraulics.flow_area
+    asked = bool(flow_areas) and any(f in READ_CURVE and f != own for f in flow_areas)
+    readable = bool(ev.replays) and not ev.hexapod and all("p1_Pa" in r.log.columns for r in ev.replays)
+    if not asked:
+        return None if not flow_areas and readable and own not in ("table", "curve") else False
     if not ev.replays or ev.hexapod:
-        raise InputError("--flow-area table reads the valve's curve from single-actuator transients (closed-loop "
+        raise InputError("--flow-area curve reads the valve's curves from single-actuator transients (closed-loop "
                          "motions, steps); these logs give " + ("hexapod replays" if ev.hexapod else "steady features"))
     lacking = [r.log.path.name for r in ev.replays if "p1_Pa" not in r.log.columns]
     if lacking:
-        raise InputError(f"--flow-area table reads the valve's curve from the chamber's flow: {', '.join(lacking)} "
+        raise InputError(f"--flow-area curve reads the valve's curves from the chamber's flow: {', '.join(lacking)} "
                          f"has no p1_Pa column")
     return True
-
-
-def table_from(machine: Machine) -> Machine:
-    """``machine`` with its valve's opening as a table (flow area "table") at :data:`TABLE_KNOTS`: its form's
-    opening of the P→A edge sampled there times its flow gain k_PA, as a
-    fraction of pi d x_v,max (at most 2, not decreasing; closed at the first knot below null), k_PA then 1 and
-    the return edge's k_AT relative to it (the edges' ratio kept), the overlap 0 (the table carries it)."""
-    hyd, eff = machine.hydraulics, machine.effects
-    u = np.array(TABLE_KNOTS) * hyd.u_v_max
-    a1, _ = hydraulics.flow_areas(u / hyd.u_v_max * hyd.x_v_max, hyd)
-    f = np.minimum(np.maximum.accumulate(eff.edge_gain_pa * a1 / (math.pi * hyd.spool_diameter * hyd.x_v_max)), 2.0)
-    f[0] = 0.0
-    return _with_valve(machine, flow_area="table", overlap_m=0.0, edge_gain_PA=1.0,
-                       edge_gain_AT=eff.edge_gain_at / eff.edge_gain_pa,
-                       opening_table=[[round(float(a), 6), float(b)] for a, b in zip(u, f)])
-
-
-def _with_valve(machine: Machine, **valve) -> Machine:
-    """``machine`` with the ``valve`` section's entries ``valve`` set (any value, a table too), checked again as
-    any machine file."""
-    doc = json.loads(json.dumps(machine.document()))
-    doc["valve"].update(valve)
-    return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 
 def with_flow_area(machine: Machine, form: str) -> Machine:
     """``machine`` with its valve's flow-area form set to ``form`` (checked as any machine file: an underlap
     needs the sharp area). Raises InputError for a form the machine's valve cannot take."""
-    return _with_valve(machine, flow_area=form, **({} if form == "table" else {"opening_table": []}))
+    return with_valve(machine, flow_area=form, **({} if form == "table" else {"opening_table": []}),
+                      **({} if form == "curve" else {"flow_curve_PA": [], "flow_curve_AT": []}))
 
 
 @dataclass
@@ -369,54 +350,9 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
         best["fit"] = fit_parameters(ev.residual(), best["start"], best["params"], independent_share=share,
                                      initial=best["machine"], options=options, notify=notify)
         best["machine"] = best["params"].apply(best["start"], best["fit"].values)
-    if curve:
-        best = _with_curve(ev, best, tried, options, notify)
+    if curve or (curve is None and not reaches_budget(ev.replays, best["machine"])):
+        best = with_curve(ev.replays, best, tried, options, share, notify)
     return best, tried
-
-
-#: The chosen form's parameters a flow curve read from the logs replaces (its shape and gain are the table's;
-#: the return edge's gain, the bulk modulus and the dead volume it fits from the same flows start the replay fit).
-CURVE_REPLACES = ("valve.edge_gain_PA", "valve.smooth_area_gain", "valve.overlap_m", "valve.spool_diameter_m",
-                  "valve.rated_flow_m3ps")
-#: A flow curve read from the logs replaces the chosen form only if it predicts the held-out windows this much
-#: better (a form's few parameters are the simpler answer where the curve gains little).
-CURVE_GAIN = 0.9
-
-
-def _with_curve(ev: _Evidence, best: dict, tried: list[dict], options: FitOptions,
-                notify: Callable[[str], None]) -> dict:
-    """The chosen form's machine with its valve's opening read from the logs' flows
-    (:func:`hexsim.measured.flow_curve.fit_flow_curve`: a table at :data:`TABLE_KNOTS`, held towards the form's
-    curve where the logs do not reach), then the form's other parameters (less :data:`CURVE_REPLACES`) fitted
-    again to the replays from there; kept in place of the form if it predicts the held-out windows
-    :data:`CURVE_GAIN` better (its cost added to ``tried``). Returns the chosen (as :func:`_choose_form`'s, with
-    ``curve``: the :class:`~hexsim.measured.flow_curve.FlowCurve`, ``form``: the form it started from)."""
-    from hexsim.measured.flow_curve import fit_flow_curve
-
-    start = table_from(best["machine"])
-    table = start.hydraulics.opening_table
-    notify(f"reading the valve's flow curve from the logs' flows ({len(table)} points)")
-    curve = fit_flow_curve([r.log for r in ev.replays], start, np.array([u for u, _ in table]),
-                           np.array([f for _, f in table]))
-    params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
-    bounds = {p.key: (p.lower, p.upper) for p in params}
-    read = {"valve.edge_gain_AT": curve.edge_gain_at, "oil.bulk_modulus_Pa": curve.bulk_modulus,
-            "cylinder.dead_volume_cap_m3": curve.pipeline_volume}  # the replay fit's start, inside its brackets
-    start = with_keys(_with_valve(start, opening_table=curve.table()),
-                      {k: float(np.clip(v, *bounds.get(k, (v, v)))) for k, v in read.items()})
-    notify(f"calibrating {len(params)} parameters with the flow curve read from the logs")
-    fit = fit_parameters(ev.residual(), start, params, independent_share=ev.independent_share, options=options,
-                         notify=notify)
-    result = params.apply(start, fit.values)
-    cost = sum(r.errors(result)["held_out_cost"] for r in ev.replays)
-    form_cost = sum(r.errors(best["machine"])["held_out_cost"] for r in ev.replays)
-    tried.append({"flow_area": "table (read from the logs' flows)", "held_out_cost": cost})
-    if cost >= CURVE_GAIN * form_cost:
-        notify(f"kept the {best['flow_area']} flow area: the curve read from the logs predicts the held-out windows "
-               f"at {cost / form_cost:.2f} of its cost (it replaces the form below {CURVE_GAIN:g})")
-        return best
-    return {"flow_area": "table", "start": start, "params": params, "fit": fit, "machine": result, "curve": curve,
-            "form": best["flow_area"]}
 
 
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
@@ -445,8 +381,9 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     nulls = []
     if ev.hexapod:
         best["machine"], nulls = leg_null_offsets(ev.replays, best["machine"])
+    best["machine"], noise = sensor_noise_from_logs(logs, best["machine"])
     report = _report(ev, machine, best, tried, logs)
-    report["parameters"] += nulls + ([supply] if supply else [])
+    report["parameters"] += nulls + ([supply] if supply else []) + ([noise] if noise else [])
     if held_out:
         report["held_out"] = _held_out(held_out, machine, best["machine"], ev.loads)
     if cross_validate and len(ev.steady) >= 3 and not ev.replays:
@@ -480,6 +417,30 @@ def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Mach
                    logged.lower, logged.upper)
     row = logged.row(est) | {"prior": float(machine.hydraulics.supply_pressure)}
     return with_keys(machine, {"supply.pressure_Pa": level}), row
+
+
+def sensor_noise_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Machine, dict | None]:
+    """The position sensor's noise as the logs show it: the median over the logs (and a hexapod's legs) of
+    each position channel's white-noise rms (:func:`hexsim.measured.residuals.noise_of`: the second
+    difference's MAD, blind to the motion), written to ``sensors.position_noise_m``. The P controller turns
+    this noise into valve dither, K_p times it, at every reversal: a file that keeps a data sheet's 2 µm for a
+    transducer that reads 5 µm predicts a reversal bump 30-40 % low. Returns the machine with it set and its
+    report row (status ``from the logs``); unchanged and None for logs without a position column."""
+    from hexsim.measured.residuals import noise_of
+
+    levels = [noise_of(log.columns[c], "position") for log in logs for c in log.columns
+              if c == "pos_m" or (c.startswith("leg") and c.endswith("_pos_m"))]
+    if not levels:
+        return machine, None
+    level = float(np.median(levels))
+    logged = Parameter("sensors.position_noise_m", float(min(levels)), float(max(levels)),
+                       "the position channels' noise over the logs", "pos_m logged")
+    est = Estimate(logged.key, level, float(np.std(levels)) / math.sqrt(len(levels)), logged.unit, FROM_LOGS,
+                   f"the median white-noise rms of the {len(levels)} logged position channel(s) (second differences' "
+                   f"MAD; they range {min(levels) * 1e6:.3g}…{max(levels) * 1e6:.3g} µm): runs dither the valve "
+                   f"with it, as the machine does", logged.lower, logged.upper)
+    row = logged.row(est) | {"prior": float(machine.controller.position_noise)}
+    return with_keys(machine, {"sensors.position_noise_m": level}), row
 
 
 def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dict]]:
@@ -541,7 +502,8 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
     if ev.replays:
         methods.append("transients (closed-loop replay of the whole log, hexsim.measured.hexapod_replay)"
                        if ev.hexapod else "transients (windowed valve replay, hexsim.measured.dynamics)")
-    report = {"machine": machine.label, "logs": [str(log.path) for log in logs],
+    report = {"machine": machine.label, "system": "hexapod" if ev.hexapod else "single-actuator",
+              "logs": [str(log.path) for log in logs],
               "method": "bounded least squares of " + " and ".join(methods) + " (hexsim.measured.calibration)",
               "weights": {"speed": f"{SPEED_SIGMA_REL:.0%} + {SPEED_SIGMA_ABS * 1e3:g} mm/s",
                           "pressure_Pa": PRESSURE_SIGMA, "transients": "each channel's noise budget"},
@@ -555,7 +517,7 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
                                "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
                                          if "held_out_cost" in t else {"refused": t["refused"]})} for t in tried]}
         if "curve" in best:
-            report["flow_area"]["curve"] = _curve_report(best["curve"], best["form"])
+            report["flow_area"]["curve"] = curve_report(best["curve"], best["form"], calibrated)
         report["transients"] = [{"before": r.errors(machine), "after": a} for r, a in zip(ev.replays, after)]
     elif ev.steady:
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
@@ -626,18 +588,6 @@ def _leave_one_log_out(ev: _Evidence, best: dict) -> list[dict]:
     return rows
 
 
-def _curve_report(curve, form: str) -> dict:
-    """The report's account of a flow curve read from the logs' flows (:func:`_with_curve`)."""
-    return {"from_form": form, "table": curve.table(), "edge_gain_AT": curve.edge_gain_at,
-            "bulk_modulus_Pa": curve.bulk_modulus, "dead_volume_cap_m3": curve.pipeline_volume,
-            "regularisation": curve.weight, "held_out_flow_rms_m3ps": {f"{w:g}": v for w, v in curve.held_out.items()},
-            "flow_rms_m3ps": curve.rms, "measured_flow_rms_m3ps": curve.flow_rms,
-            "commands_measured_V": [round(v, 4) for v in curve.reached],
-            "note": "openings, return-edge gain, bulk modulus and dead volume read from the flow balance "
-                    "(continuity against the orifice equation); the last three then refitted with the others to "
-                    "the replays"}
-
-
 def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: str, n_logs: int) -> Machine:
     """The calibrated machine with its provenance: the report (without the feature rows) as its
     ``calibration``, each fitted key's source (value ± standard error, the prior), the chosen flow-area form's
@@ -648,10 +598,10 @@ def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: st
                                       f"best (prior {prior.hydraulics.flow_area})")
     curve = report.get("flow_area", {}).get("curve")
     if curve:
-        sources["valve.opening_table"] = (f"hexsim calibrate from {n_logs} log(s): read from the logs' flows "
-                                          f"(continuity against the orifice equation), held towards the "
-                                          f"{curve['from_form']} form's curve with weight {curve['regularisation']:g} "
-                                          f"chosen by held-out windows")
+        for edge in ("PA", "AT"):
+            sources[f"valve.flow_curve_{edge}"] = (
+                f"hexsim calibrate from {n_logs} log(s): read from the logs' flows (continuity against the orifice "
+                f"equation) to {curve['reach_V'][edge]:.3g} V, the {curve['from_form']} form's shape beyond")
     for row in report["parameters"]:
         if row["status"] != HELD:
             key, _, index = row["key"].partition("[")  # a table point's source is its table's
@@ -660,9 +610,24 @@ def _with_provenance(calibrated: Machine, prior: Machine, report: dict, form: st
             earlier = sources.get(key, "") if index else ""
             sources[key] = (f"{earlier}; {text}" if earlier.startswith("hexsim calibrate") else
                             f"hexsim calibrate from {n_logs} log(s): {text}")
+    calibrated = as_logged_system(calibrated, report)
     provenance = {k: v for k, v in report.items() if k != "rows"}
     return dataclasses.replace(calibrated, calibration=provenance, sources=tuple(sources.items()),
                                description=(calibrated.description + " Calibrated by hexsim calibrate.").strip())
+
+
+def as_logged_system(machine: Machine, report: dict) -> Machine:
+    """``machine`` as the kind of system its calibration logs come from: a hexapod file (the built-in default)
+    calibrated on single-actuator logs describes one actuator, so it becomes a single-actuator file (its
+    hexapod section and legs dropped; the load's mass and inclination the logs' axis has), and the report
+    says so (``system``). A machine of the logs' own kind is returned unchanged."""
+    logs_system = report.get("system", machine.system)
+    if machine.system == logs_system or logs_system != "single-actuator":
+        return machine
+    report["system_note"] = (f"the logs are a single actuator's: the calibrated file describes one actuator "
+                             f"(the prior {machine.label} is a {machine.system})")
+    return dataclasses.replace(machine, system="single-actuator", geometry=Geometry(), legs=(),
+                               name=f"{machine.name}_actuator")
 
 
 def _held_out(logs: list[MeasurementLog], prior: Machine, calibrated: Machine, loads: dict) -> dict:

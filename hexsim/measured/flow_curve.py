@@ -1,110 +1,113 @@
-"""A valve's flow curve read from its logs' own flows: the opening against command, point by point.
+"""A valve's flow curves read from its logs' own flows: each edge's opening against command, over every
+command the logs reach, corners included.
 
 A closed-loop log of a valve-controlled cylinder measures the flow through the valve at every sample, by
 continuity (seed eq. 3.6, 3.7): phi_1 = A1 ydot + V1(y) / E dP1/dt (+ the leakage C_l (P_s - P1) the chamber
-receives across the piston), and with a 4-way valve phi_2 = -A2 ydot + V2(y) / E dP2/dt. The valve's side of
-the same flow is the orifice equation of each edge (seed eq. 3.4): with the opening of an edge a table T of
-the signed command u that opens it (:func:`hexsim.plant.legs.table_opening`, linear between its points, P→A
-at u, A→T at -u), phi_1 = k_PA pi d x_v,max T(u) q(P_s - P1) - k_AT pi d x_v,max T(-u) q(P1 - P_t), q the
-flow of a unit opening (:func:`hexsim.plant.hydraulics.edge_flow`). That is *linear* in the table's values,
-so the curve is a bounded linear least-squares problem (openings rising from the first point: every answer
-a valve's) whose answer does not depend on where a search starts, unlike a replay's fit of the same points
-(:mod:`hexsim.measured.calibration`). The return edge's gain k_AT is the one nonlinear parameter, found by a
-bounded scalar search around it (separable least squares: Golub & Pereyra, SIAM J. Numer. Anal. 10(2),
-1973). A robust loss (scipy's soft-L1) keeps the reversals, where dP1/dt is largest and noisiest, from
-steering the curve.
+receives across the piston), and with a 4-way valve phi_2 = -A2 ydot + V2(y) / E dP2/dt. The valve's side of the
+same flow is the orifice equation of each edge (seed eq. 3.4): phi_1 = pi d x_v,max (O_PA(u) q(P_s - P1) -
+O_AT(-u) q(P1 - P_t)), O_PA and O_AT the edges' openings (fractions of the full opening) at the command that
+opens each, q the flow of a unit opening (:func:`hexsim.plant.hydraulics.edge_flow`). That is *linear* in the
+openings, so each edge's curve is a linear least-squares problem whose answer does not depend on where a search
+starts, and 1/E and V_pl/E are two more linear unknowns.
 
-The points the logs do not reach are held near a prior curve (the chosen flow-area form's, sampled) by a
-regularisation whose weight the held-out windows choose: each log is cut into :data:`FOLDS` contiguous
-windows, the curve fitted without one window at a time and judged on it (blocked cross-validation, e.g.
-Bergmeir & Benítez, Information Sciences 191, 2012), and the weight with the smallest held-out flow error kept.
+**The curves** (:func:`fit_flow_curves`): each edge's opening is piecewise linear on a fine grid of commands
+(:func:`edge_grid`: 20 mV near null, 5 % of the command beyond, from 0.2 V below null, where an underlapped
+edge opens, to the largest command the logs reach on that edge), rising from zero (every answer a valve's).
+What picks the shape out of the noise is a penalty on the *changes of slope*, their sum of absolute values
+(l1 trend filtering: Kim, Koh, Boyd & Gorinevsky, SIAM Review 51(2), 2009): a few kinks where the flows ask for
+them, a rounded metering edge meeting the full port among them, straight lines elsewhere. Its weight is
+chosen by held-out windows (each log cut into :data:`FOLDS` contiguous windows, the curve fitted without one at
+a time and judged on it: blocked cross-validation, Bergmeir & Benítez, Information Sciences 191, 2012), so the
+number of corners is the data's. The absolute values and a robust loss on the flows (the reversals' dP1/dt is
+the noisiest term) are iteratively reweighted least squares (Holland & Welsch 1977), each step a bounded
+linear least squares on the normal equations.
 
-The derivatives are Savitzky-Golay's (:func:`scipy.signal.savgol_filter`, zero phase, a cubic over
-:data:`WINDOW_S`), the same filter on every channel so that the samples stay aligned.
+**Into the machine file** (:meth:`FlowCurves.points`): each edge's fitted curve thinned to at most
+:data:`hexsim.plant.params.MAX_CURVE_POINTS` points through which the monotone cubic (PCHIP) of flow area
+"curve" follows it (:func:`hexsim.plant.params.thin_curve`); beyond the largest command the logs reach, the calibrated
+flow-area form's shape (the prior, scaled to meet the curve there) up to the command range.
+
+Continuity is integrated over short intervals (:func:`flow_samples`), so no measured signal is differentiated
+and a step's fast pressure jump is as much evidence as a slow motion; 1/E and V_pl/E are two more linear
+unknowns (the compressed volume), held weakly at the machine's.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import lsq_linear
 from scipy.signal import lti, lsim, savgol_filter
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
-from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics
 from hexsim.plant.legs import bulk_modulus, leg_params
 from hexsim.plant.machine import Machine
+from hexsim.plant.params import thin_curve
 
-#: Span [s] of the Savitzky-Golay cubic that smooths and differentiates the channels (10 ms: short against the
-#: ~0.1 s of a reversal, long against the 1 ms sampling whose pressure noise dP/dt would amplify).
+#: Span [s] of the Savitzky-Golay cubic that smooths the position at the intervals' ends (zero phase; 11 ms,
+#: short against a motion, long against the transducer's sample-to-sample noise).
 WINDOW_S = 0.011
+#: Length [s] of the intervals over which continuity is integrated (:func:`flow_samples`): long against the
+#: position transducer's noise at its ends, short against the motion (each sample's command keeps its own
+#: place on the curve inside it).
+INTERVAL_S = 0.01
 #: Samples this close to either end of the stroke [m] are left out (the stops' forces are not the valve's).
 STOP_MARGIN = 0.002
-#: Contiguous windows per log for the blocked cross-validation of the regularisation weight.
+#: Contiguous windows per log for the blocked cross-validation of the smoothness weight.
 FOLDS = 5
-#: Regularisation weights tried (:func:`_solve`): a point's deviation from the prior curve by its scale costs
-#: this fraction of the data's robust sum of squares.
-WEIGHTS = (1e-4, 1e-3, 1e-2, 1e-1, 1.0)
-#: The return edge's gain is searched within this range of the prior's.
-EDGE_GAIN_RANGE = (0.5, 1.5)
+#: Weights of the penalty on the curves' slope changes tried, as a share of the flows' robust sum of squares
+#: per unit of the penalty (:func:`_solve`).
+WEIGHTS = (1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
+#: The grid of each edge's curve: knots below null where an underlapped edge may open [V], then from null a
+#: spacing of the larger of GRID_MIN_V and GRID_REL times the command (a corner is placed to within a knot:
+#: 18 mV at 0.9 V).
+BELOW_NULL_V = (-0.2, -0.12, -0.07, -0.04, -0.02, -0.01)
+GRID_MIN_V, GRID_REL = 0.005, 0.02
+#: An edge's curve is read up to this quantile of the commands that open it (a few outlying samples do not
+#: stretch it over commands the logs barely visit); at least MIN_REACH_V.
+REACH_QUANTILE, MIN_REACH_V = 0.998, 0.1
+#: A knot is a corner of a fitted curve where its slope changes by more than this share (:func:`_refined`).
+CORNER_SHARE = 0.15
+#: Bounds of 1/E [1/Pa]: a bulk modulus within 0.1 … 3 GPa (aerated oil … stiff mineral oil in steel).
+_BETA = (1.0 / 3.0e9, 1.0 / 1.0e8)
+#: Iterations of the reweighted least squares (robust loss and l1 penalty).
+IRLS_STEPS = 6
 
 
 @dataclass(frozen=True)
 class FlowSamples:
-    """A log's flow balance, sample by sample (all (n,), n the samples kept): ``u`` the signed command at the
-    spool [V] (u_v - u_0, through the spool's loop where the machine has one), ``supply`` and ``ret`` the flow
-    [m^3/s] a full opening pi d x_v,max of the supply and the return edge would pass at the logged pressures
-    (edge gains applied; into the chamber positive), ``mirror`` True for the rod side (its supply edge opens
-    at -u), ``flow`` the piston's displacement flow [m^3/s] (A1 ydot less the leakage, or -A2 ydot),
-    ``stored_swept`` and ``stored_dead`` the compressibility flow's factors [m^3 Pa/s] and [Pa/s]: V dP/dt of
-    the swept volume and dP/dt (the dead volume's, cap side; the rod side's dead volume is the machine's, in
-    ``stored_swept``), ``block`` the cross-validation window of each sample (0 … :data:`FOLDS` - 1)."""
+    """One chamber's flow balance in a log, interval by interval: per sample i of the intervals kept (all (n,)),
+    ``u`` the signed command at the spool [V] (u_v - u_0, through the spool's loop where the machine has one),
+    ``supply`` and ``ret`` the volume [m^3] a full opening pi d x_v,max of the supply and the return edge would
+    pass over the sample's period at the logged pressures (into the chamber positive), ``interval`` the interval
+    it belongs to (0 … k - 1); per interval j (all (k,)) ``displaced`` the volume [m^3] the piston displaced
+    into the chamber over it less the leakage, ``swept_dp`` and ``dead_dp`` the compressed volume's factors:
+    the chamber's swept volume times its pressure's change [m^3 Pa] and that change [Pa] (the dead volume's,
+    cap side; the rod side's dead volume is the machine's, in ``swept_dp``), so that the volume that entered is
+    displaced + swept_dp / E + dead_dp V_pl / E, ``block`` its cross-validation window (0 … :data:`FOLDS` - 1);
+    ``mirror`` True for the rod side (its supply edge opens at -u)."""
 
     u: np.ndarray
     supply: np.ndarray
     ret: np.ndarray
-    mirror: bool
-    flow: np.ndarray
-    stored_swept: np.ndarray
-    stored_dead: np.ndarray
+    interval: np.ndarray
+    displaced: np.ndarray
+    swept_dp: np.ndarray
+    dead_dp: np.ndarray
     block: np.ndarray
+    mirror: bool
 
 
-@dataclass(frozen=True)
-class FlowCurve:
-    """A fitted flow curve: ``commands`` (k,) [V] and ``openings`` (k,) [-] (fraction of pi d x_v,max, the
-    first at or below null and 0), the return edge's gain ``edge_gain_at`` [-] (with a 4-way valve the rod
-    side's k_BT scaled alike), the oil's ``bulk_modulus`` [Pa] and the cap side's dead volume
-    ``pipeline_volume`` [m^3] (from the compressibility flow), the ``weight`` the held-out windows chose, their
-    flow error at each weight tried (``held_out``: weight -> rms [m^3/s]) and the rms flow error of the fit
-    (``rms``, [m^3/s]) against the measured flow's rms (``flow_rms``), and the commands the logs reached
-    (``reached``: lowest, highest [V], at the spool: beyond them the curve is the prior's)."""
-
-    commands: np.ndarray
-    openings: np.ndarray
-    edge_gain_at: float
-    bulk_modulus: float
-    pipeline_volume: float
-    weight: float
-    held_out: dict
-    rms: float
-    flow_rms: float
-    reached: tuple[float, float]
-
-    def table(self) -> list[list[float]]:
-        """The machine file's ``valve.opening_table`` rows [[u V, opening], …]."""
-        return [[round(float(u), 6), round(float(f), 6)] for u, f in zip(self.commands, self.openings)]
-
-
-def _smooth(x: np.ndarray, rate: float, deriv: int = 0) -> np.ndarray:
-    """The Savitzky-Golay cubic over :data:`WINDOW_S` of ``x`` sampled at ``rate`` [Hz] (its ``deriv``-th derivative)."""
+def _smooth(x: np.ndarray, rate: float) -> np.ndarray:
+    """The Savitzky-Golay cubic over :data:`WINDOW_S` of ``x`` sampled at ``rate`` [Hz] (zero phase)."""
     n = max(5, int(round(WINDOW_S * rate)) | 1)
-    return savgol_filter(x, n, 3, deriv=deriv, delta=1.0 / rate, mode="interp")
+    return savgol_filter(x, n, 3, mode="interp")
 
 
 def _spool_command(u_v: np.ndarray, time: np.ndarray, machine: Machine) -> np.ndarray:
@@ -119,149 +122,298 @@ def _spool_command(u_v: np.ndarray, time: np.ndarray, machine: Machine) -> np.nd
 
 
 def flow_samples(log: MeasurementLog, machine: Machine) -> list[FlowSamples]:
-    """The flow balance of a single-actuator ``log`` on ``machine``: the cap side's (and with a 4-way valve and a
-    logged ``p2_Pa`` the rod side's) :class:`FlowSamples`. Raises InputError (naming the log) for a hexapod log
-    or one without ``p1_Pa``."""
+    """The flow balance of a single-actuator ``log`` on ``machine`` in the integral form of continuity (seed eq.
+    3.6, 3.7 integrated over each interval of :data:`INTERVAL_S`: the volume that entered the chamber, from the
+    piston's positions and the chamber's pressures at the interval's ends, equals the valve's flow summed over
+    its samples, each command held over its period as the controller holds it): no derivative of a measured
+    signal, so a step's fast pressure jump is measured as well as a slow motion (the equation error in integral
+    form, Young, Automatica 17(1), 1981). The cap side's (and with a 4-way valve and a logged ``p2_Pa`` the rod
+    side's) :class:`FlowSamples`, the edges' gains those of ``machine``; intervals that come within
+    :data:`STOP_MARGIN` of either end of the stroke are left out. Raises InputError (naming the log) for a
+    hexapod log or one without ``p1_Pa``."""
     if log.system != "single-actuator":
         raise InputError(f"{log.path.name}: a flow curve is read from single-actuator logs (this one is {log.system})")
     if "p1_Pa" not in log.columns:
         raise InputError(f"{log.path.name}: a flow curve needs the chamber pressure (column p1_Pa)")
     hyd, eff = machine.hydraulics, machine.effects
     rate, cols = log.sample_rate_hz, log.columns
-    y = _smooth(cols["pos_m"], rate)
-    ydot = _smooth(cols["pos_m"], rate, 1)
-    u = _smooth(_spool_command(cols["valve_cmd_V"], log.time, machine), rate)
-    p_s = _smooth(cols["ps_Pa"], rate) if "ps_Pa" in cols else np.full_like(y, hyd.supply_pressure)
-    keep = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN)
-    block = np.minimum((np.arange(len(y)) * FOLDS) // len(y), FOLDS - 1)
-    across = _smooth(cols["p2_Pa"], rate) if hyd.four_way and "p2_Pa" in cols else p_s  # the leak's far side
+    dt = 1.0 / rate
+    step = max(1, int(round(INTERVAL_S * rate)))
+    n = (len(log.time) - 1) // step
+    edges = np.arange(n + 1) * step  # sample index of each interval's ends
+    y = _smooth(cols["pos_m"], rate)  # the ends' positions, the transducer's noise smoothed (zero phase)
+    u = _spool_command(cols["valve_cmd_V"], log.time, machine)
+    p_s = cols["ps_Pa"] if "ps_Pa" in cols else np.full_like(y, hyd.supply_pressure)
+    inside = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN)
+    keep = np.array([inside[a:b + 1].all() for a, b in zip(edges[:-1], edges[1:])], dtype=bool)
+    block = np.minimum((np.arange(n) * FOLDS) // max(n, 1), FOLDS - 1)
+    across = cols["p2_Pa"] if hyd.four_way and "p2_Pa" in cols else p_s  # the leak's far side
     P = leg_params(hyd, eff)
     full = P.port_width * hyd.x_v_max
-    stiffness = lambda p: np.array([bulk_modulus(float(v), P) for v in p]) if eff.air_fraction > 0 else hyd.bulk_modulus
+    samples = np.arange(edges[-1]).reshape(n, step)[keep].ravel()  # the samples of the kept intervals
+    interval = np.repeat(np.arange(int(keep.sum())), step)
 
-    def side(p_col: str, area: float, swept: np.ndarray, k_in: float, k_out: float, mirror: bool) -> FlowSamples:
-        p = _smooth(cols[p_col], rate)
-        dp = _smooth(cols[p_col], rate, 1) * hyd.bulk_modulus / stiffness(p)  # entrained air: E_eff's share
-        flow = area * ydot - (0.0 if mirror else eff.leakage * (across - p))
-        supply = k_in * full * hydraulics.edge_flow(1.0, p_s - p, hyd)
-        ret = -k_out * full * hydraulics.edge_flow(1.0, p - hyd.tank_pressure, hyd)
-        dead = np.zeros_like(dp) if mirror else dp
-        return FlowSamples(*(a[keep] for a in (u, supply, ret)), mirror,
-                           *(a[keep] for a in (flow, swept * dp, dead, block)))
+    def side(p_col: str, area: float, volume_at, k_in: float, k_out: float, mirror: bool) -> FlowSamples:
+        p = cols[p_col]
+        mid = 0.5 * (p[samples] + p[samples + 1])  # the period's mean pressure at each held command
+        supply = k_in * full * hydraulics.edge_flow(1.0, 0.5 * (p_s[samples] + p_s[samples + 1]) - mid, hyd) * dt
+        ret = -k_out * full * hydraulics.edge_flow(1.0, mid - hyd.tank_pressure, hyd) * dt
+        a, b = edges[:-1][keep], edges[1:][keep]
+        p_mid = 0.5 * (p[a] + p[b])
+        air = np.array([hyd.bulk_modulus / bulk_modulus(float(v), P) for v in p_mid]) if eff.air_fraction > 0 else 1.0
+        dp = (p[b] - p[a]) * air  # entrained air: the effective bulk modulus's share
+        displaced = area * (y[b] - y[a])
+        if not mirror and eff.leakage:
+            displaced -= eff.leakage * np.add.reduceat((across - p)[samples] * dt, np.arange(0, len(samples), step))
+        return FlowSamples(u[samples], supply, ret, interval, displaced, volume_at(0.5 * (y[a] + y[b])) * dp,
+                           np.zeros_like(dp) if mirror else dp, block[keep], mirror)
 
-    out = [side("p1_Pa", hyd.area_bottom, np.maximum(y, 0.0) * hyd.area_bottom, eff.edge_gain_pa, eff.edge_gain_at,
-                False)]
+    out = [side("p1_Pa", hyd.area_bottom, lambda ym: np.maximum(ym, 0.0) * hyd.area_bottom,
+                eff.edge_gain_pa, eff.edge_gain_at, False)]
     if hyd.four_way and "p2_Pa" in cols:
-        v2 = np.maximum(log.stroke_m - y, 0.0) * hyd.area_rod + hyd.pipeline_volume_rod
-        out.append(side("p2_Pa", -hyd.area_rod, v2, eff.edge_gain_pb, eff.edge_gain_bt, True))
+        out.append(side("p2_Pa", -hyd.area_rod,
+                        lambda ym: np.maximum(log.stroke_m - ym, 0.0) * hyd.area_rod + hyd.pipeline_volume_rod,
+                        eff.edge_gain_pb, eff.edge_gain_bt, True))
     return out
 
 
-def _basis(u: np.ndarray, commands: np.ndarray) -> np.ndarray:
-    """(n, k - 1): the opening at ``u`` per unit rise of the table above each point after the first (linear
-    between points, closed at and below the first, flat beyond the last): column j is the opening of a table
-    that rises by 1 from point j on (:func:`hexsim.plant.legs.table_opening`)."""
-    eye = np.eye(len(commands))
-    hats = np.column_stack([np.interp(u, commands, e, left=0.0, right=e[-1]) for e in eye[1:]])
-    return np.cumsum(hats[:, ::-1], axis=1)[:, ::-1]  # a rise at point j lifts every point from j on
+def edge_grid(reach: float) -> np.ndarray:
+    """The knots [V] of one edge's curve up to the command ``reach`` [V]: :data:`BELOW_NULL_V`, null, then a
+    spacing of max(:data:`GRID_MIN_V`, :data:`GRID_REL` u) (the last knot at ``reach``)."""
+    knots = [*BELOW_NULL_V, 0.0]
+    while knots[-1] < reach:
+        knots.append(knots[-1] + max(GRID_MIN_V, GRID_REL * knots[-1]))
+    knots[-1] = max(reach, knots[-2] + 0.5 * GRID_MIN_V)
+    return np.array(knots)
 
 
-def _design(samples: list[FlowSamples], commands: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The linear system of the unknowns (the k - 1 rises, 1/E, V_pl/E): (A (n, k + 1), R (n, k + 1), b (n,)),
-    A the supply edges' flow less the compressibility flow, R the return edges' flow (the prior's gains), so that
-    with the return edges' gains ``g`` times the prior's (A + g R) x = b, the displacement flow."""
-    supply, ret, flows = [], [], []
-    for s in samples:
-        at_in, at_out = (-s.u, s.u) if s.mirror else (s.u, -s.u)
-        supply.append(np.column_stack([_basis(at_in, commands) * s.supply[:, None], -s.stored_swept, -s.stored_dead]))
-        ret.append(np.column_stack([_basis(at_out, commands) * s.ret[:, None], np.zeros((len(s.u), 2))]))
-        flows.append(s.flow)
-    return np.vstack(supply), np.vstack(ret), np.concatenate(flows)
+def _basis(u: np.ndarray, knots: np.ndarray) -> np.ndarray:
+    """(n, k - 1): the opening at ``u`` per unit rise of the curve over each interval (linear between knots,
+    closed at and below the first, flat beyond the last): column j is the opening of a curve that rises by 1
+    over the interval from knot j to knot j + 1 (a rise lifts every knot after it)."""
+    t = np.clip((u[:, None] - knots[None, :-1]) / np.diff(knots)[None, :], 0.0, 1.0)
+    return t
+
+
+def _slope_changes(knots: np.ndarray) -> np.ndarray:
+    """(k - 2, k - 1): the changes of slope [1/V] between neighbouring intervals of a curve given by its rises
+    (slope of interval j = rise_j / h_j)."""
+    h = np.diff(knots)
+    d = np.zeros((len(h) - 1, len(h)))
+    idx = np.arange(len(h) - 1)
+    d[idx, idx] = -1.0 / h[:-1]
+    d[idx, idx + 1] = 1.0 / h[1:]
+    return d
 
 
 @dataclass(frozen=True)
-class _Prior:
-    """What the fit is held towards (:func:`_solve`): the unknowns' map to the penalised quantities ``lift``
-    (q, m) (the openings above the first point, 1/E, V_pl/E), their ``value`` (q,) and ``sigma`` (q,)."""
+class EdgeCurve:
+    """One edge's fitted curve: ``knots`` [V] (k,) and ``openings`` [-] (k,) (fractions of pi d x_v,max, the
+    first 0), piecewise linear, read up to ``reach`` [V] (the last knot)."""
 
-    lift: np.ndarray
-    value: np.ndarray
-    sigma: np.ndarray
+    knots: np.ndarray
+    openings: np.ndarray
 
-    @classmethod
-    def of(cls, openings: np.ndarray, machine: Machine) -> "_Prior":
-        k = len(openings) - 1
-        lift = np.zeros((k + 2, k + 2))
-        lift[:k, :k] = np.tril(np.ones((k, k)))
-        lift[k, k] = lift[k + 1, k + 1] = 1.0
-        beta = 1.0 / machine.hydraulics.bulk_modulus
-        gamma = machine.hydraulics.pipeline_volume * beta
-        value = np.concatenate([openings[1:], [beta, gamma]])
-        sigma = np.concatenate([0.5 * openings[1:] + 0.02, [0.5 * beta, 0.5 * gamma + 0.5e-6 * beta]])
-        return cls(lift, value, sigma)
+    @property
+    def reach(self) -> float:
+        return float(self.knots[-1])
 
-    def start(self) -> np.ndarray:
-        k = len(self.value) - 2
-        return np.concatenate([np.maximum(np.diff(np.concatenate([[0.0], self.value[:k]])), 0.0), self.value[k:]])
+    def opening(self, u: np.ndarray) -> np.ndarray:
+        return np.interp(u, self.knots, self.openings, left=0.0, right=float(self.openings[-1]))
 
 
-#: Bounds of 1/E [1/Pa]: a bulk modulus within 0.1 … 3 GPa (aerated oil … stiff mineral oil in steel).
-_BETA = (1.0 / 3.0e9, 1.0 / 1.0e8)
+@dataclass(frozen=True)
+class FlowCurves:
+    """What :func:`fit_flow_curves` read: the P→A and A→T edges' curves (:class:`EdgeCurve`; the rod side's
+    P→B and B→T of a 4-way valve follow the A→T and P→A shapes, with their own gains), the oil's
+    ``bulk_modulus`` [Pa] and the cap side's dead volume ``pipeline_volume`` [m^3] (from the compressed
+    volume, held weakly at the machine's), the ``weight`` the held-out windows chose for the slope-change penalty, their flow error at each
+    weight tried (``held_out``: weight -> rms [m^3/s]), the rms flow error of the fit (``rms``) against the
+    measured flow's (``flow_rms``), and the commands the logs reached (``reached``: lowest, highest [V] at the
+    spool)."""
+
+    pa: EdgeCurve
+    at: EdgeCurve
+    bulk_modulus: float
+    pipeline_volume: float
+    weight: float
+    held_out: dict
+    rms: float
+    flow_rms: float
+    reached: tuple[float, float]
+
+    def points(self, prior: Machine) -> tuple[list[list[float]], list[list[float]]]:
+        """Each edge's points for the machine file (``valve.flow_curve_PA``, ``valve.flow_curve_AT``): the curve
+        within its reach, then ``prior``'s opening of that edge (its flow-area form and edge gain) scaled to meet
+        it, up to the command range, thinned (:func:`hexsim.plant.params.thin_curve`)."""
+        hyd, eff = prior.hydraulics, prior.effects
+        full = math.pi * hyd.spool_diameter * hyd.x_v_max
+        u_max = hyd.u_v_max
+        out = []
+        for edge, sign, gain in ((self.pa, 1.0, eff.edge_gain_pa), (self.at, -1.0, eff.edge_gain_at)):
+            dense = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], u_max, 2001)]))
+            value = edge.opening(dense)
+            beyond = dense > edge.reach
+            if beyond.any():
+                a1, a2 = hydraulics.flow_areas(sign * dense * hyd.x_v_max / u_max, hyd)
+                shape = gain * (a1 if sign > 0 else a2) / full
+                at_reach = float(np.interp(edge.reach, dense, shape))
+                last = float(edge.openings[-1])
+                if at_reach > 0.0:
+                    value[beyond] = last * shape[beyond] / at_reach
+                else:  # the prior is closed there: the curve's last slope
+                    slope = (edge.openings[-1] - edge.openings[-2]) / (edge.knots[-1] - edge.knots[-2])
+                    value[beyond] = last + slope * (dense[beyond] - edge.reach)
+            value = np.minimum(np.maximum.accumulate(np.maximum(value, 0.0)), 2.0)
+            out.append(thin_curve(dense, value))
+        return out[0], out[1]
 
 
-def _solve(A: np.ndarray, b: np.ndarray, prior: _Prior, weight: float, scale: float) -> np.ndarray:
-    """The unknowns (m,) (rises >= 0, 1/E within :data:`_BETA`, V_pl/E >= 0) minimising the soft-L1 flow error
-    (scale ``scale`` [m^3/s]) plus the weighted deviation from ``prior`` (sum of squares by its sigma, times
-    ``weight`` times the samples)."""
-    pen = math.sqrt(weight * len(b)) / prior.sigma
-    jac = np.vstack([A / scale, pen[:, None] * prior.lift])
-    fun = lambda x: np.concatenate([(A @ x - b) / scale, pen * (prior.lift @ x - prior.value)])
-    m = A.shape[1]
-    lo = np.concatenate([np.zeros(m - 2), [_BETA[0], 0.0]])
-    hi = np.concatenate([np.full(m - 2, np.inf), [_BETA[1], np.inf]])
-    x0 = np.clip(prior.start(), lo, hi)
-    return bounded_fit(fun, [x0], lo, hi, jac=lambda x: jac, loss="soft_l1", f_scale=1.0, method="trf",
-                       x_scale="jac").x
+def _edge_rows(samples: list[FlowSamples], pa: np.ndarray, at: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The linear system of the unknowns (the P→A rises, the A→T rises, 1/E, V_pl/E): (A (k, m), b (k,), block
+    (k,), reach (k, 2)) over the intervals, with A x = b the flow balance of every interval (:class:`FlowSamples`):
+    the supply edge's unit volume times its opening plus the return edge's, summed over the interval's
+    samples, less the compressed volume, equals the displaced volume; ``reach`` the largest command of each
+    interval on each edge. A cap side's supply edge is P→A at u, its return A→T at -u; a rod side's supply edge P→B follows
+    the A→T curve at -u and its return B→T the P→A curve at u."""
+    rows, rhs, blocks, reach = [], [], [], []
+    for s in samples:
+        on_pa, on_at = _basis(s.u, pa), _basis(-s.u, at)
+        if s.mirror:  # rod side: P→B (supply) on the A→T curve, B→T (return) on the P→A curve
+            per = np.column_stack([on_pa * s.ret[:, None], on_at * s.supply[:, None]])
+        else:
+            per = np.column_stack([on_pa * s.supply[:, None], on_at * s.ret[:, None]])
+        starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
+        rows.append(np.column_stack([np.add.reduceat(per, starts, axis=0), -s.swept_dp, -s.dead_dp]))
+        rhs.append(s.displaced)
+        blocks.append(s.block)
+        reach.append(np.column_stack([np.maximum.reduceat(s.u, starts), np.maximum.reduceat(-s.u, starts)]))
+    return np.vstack(rows), np.concatenate(rhs), np.concatenate(blocks), np.vstack(reach)
 
 
-def _gain(A: np.ndarray, R: np.ndarray, b: np.ndarray, prior: "_Prior", scale: float) -> float:
-    """The return edges' gain factor g of the system (A + g R) x = b (:func:`_design`): a bounded scalar search
-    of the soft-L1 flow error, the unknowns solved (:func:`_solve`, the smallest regularisation weight) at each
-    trial."""
-    def cost(g: float) -> float:
-        e = ((A + g * R) @ _solve(A + g * R, b, prior, WEIGHTS[0], scale) - b) / scale
-        return float(np.sum(2.0 * (np.sqrt(1.0 + e * e) - 1.0)))
-
-    return float(minimize_scalar(cost, bounds=EDGE_GAIN_RANGE, method="bounded", options={"xatol": 2e-3}).x)
+def _penalty(pa: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """(p, m): the slope changes of both edges' curves as rows on the unknowns (none on 1/E and V_pl/E)."""
+    dp, da = _slope_changes(pa), _slope_changes(at)
+    out = np.zeros((dp.shape[0] + da.shape[0], dp.shape[1] + da.shape[1] + 2))
+    out[:dp.shape[0], :dp.shape[1]] = dp
+    out[dp.shape[0]:, dp.shape[1]:dp.shape[1] + da.shape[1]] = da
+    return out
 
 
-def fit_flow_curve(logs: list[MeasurementLog], machine: Machine, commands: np.ndarray,
-                   prior: np.ndarray) -> FlowCurve:
-    """The valve's opening table at ``commands`` (k,) [V] (the first at or below null, its opening 0) read from
-    ``logs``' flow balance on ``machine`` (its areas, null offset, supply edge gain k_PA and spool loop; see the
-    module), held near ``prior`` (k,) [-] (and ``machine``'s bulk modulus and dead volume) where the logs do not
-    reach, with the weight the held-out windows choose; the return edge's gain (relative to ``machine``'s), the
-    bulk modulus and the dead volume fitted with it.
+def _solve(gram: np.ndarray, rhs: np.ndarray, D: np.ndarray, weight: float, x0: np.ndarray,
+           bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The unknowns inside ``bounds`` minimising x^T gram x - 2 rhs^T x + weight sum |D x|: the absolute values
+    reweighted (:data:`IRLS_STEPS` times), each step a bounded linear least squares on the equilibrated normal
+    equations (``scipy.optimize.lsq_linear``, bvls)."""
+    lo, hi = bounds
+    x = np.clip(x0, lo, hi)
+    for _ in range(IRLS_STEPS):
+        d = D @ x
+        eps = 1e-3 * max(float(np.median(np.abs(d))), 1e-6)
+        g = gram + weight * (D.T * (1.0 / (np.abs(d) + eps))) @ D
+        scale = np.sqrt(np.maximum(np.diag(g), 1e-30 * np.max(np.diag(g))))
+        gs = g / scale[:, None] / scale[None, :]  # equilibrated
+        r = np.linalg.cholesky(gs + 1e-10 * np.eye(len(gs))).T
+        z = np.linalg.solve(r.T, rhs / scale)
+        x = lsq_linear(r, z, bounds=(lo * scale, hi * scale), method="bvls").x / scale
+    return x
 
-    Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 200 samples
+
+def fit_flow_curves(logs: list[MeasurementLog], machine: Machine) -> FlowCurves:
+    """Each edge's curve read from ``logs``' flow balance on ``machine`` (its areas, null offset, spool loop,
+    bulk modulus and dead volume; the curves carry the edges' gains: P→A and A→T read with unit gains, a 4-way
+    valve's rod side with its gains relative to them), the slope-change penalty's weight chosen by held-out
+    windows, then fitted again with knots added either side of each corner the first fit found
+    (:func:`_refined`: the knots go where the flows ask for them) (module doc).
+
+    Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 100 intervals
     away from the stops remain."""
-    samples = [s for log in logs for s in flow_samples(log, machine)]
-    if sum(len(s.flow) for s in samples) < 200:
-        raise InputError("a flow curve needs at least 200 samples away from the stroke's ends; the logs have fewer")
-    supply, ret, b = _design(samples, commands)
-    scale = max(0.05 * float(median_abs_deviation(b, scale="normal")), 1e-9)
-    block = np.concatenate([s.block for s in samples])
-    held = _Prior.of(np.asarray(prior, float), machine)
-    g = _gain(supply, ret, b, held, scale)
-    A = supply + g * ret
+    eff = machine.effects
+    unit = dataclasses.replace(machine, effects=eff.replace(
+        edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
+        edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
+    samples = [s for log in logs for s in flow_samples(log, unit)]
+    if sum(len(s.displaced) for s in samples) < 100:
+        raise InputError("a flow curve needs at least 100 intervals away from the stroke's ends; the logs have fewer")
+    u_all = np.concatenate([s.u for s in samples])
+    reach = [max(float(np.quantile(w[w > 0], REACH_QUANTILE)) if np.count_nonzero(w > 0) > 50 else 0.0,
+                 MIN_REACH_V) for w in (u_all, -u_all)]
+    first = _fit_on(samples, reach, edge_grid(reach[0]), edge_grid(reach[1]), machine)
+    second = _fit_on(samples, reach, _refined(first.pa), _refined(first.at), machine, first.weight)
+    return dataclasses.replace(second, held_out=first.held_out, reached=(float(u_all.min()), float(u_all.max())))
+
+
+def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: np.ndarray, machine: Machine,
+            weight: float | None = None) -> FlowCurves:
+    """The curves on the knots ``pa`` and ``at`` (V, each edge's up to its ``reach``): the flows' robust weights
+    (soft-L1 as reweighted least squares, three passes), then the penalty's ``weight`` chosen by the blocked
+    held-out windows where it is not given (the smoothest within one standard error of the best: Hastie,
+    Tibshirani & Friedman, The Elements of Statistical Learning, 2nd ed., §7.10; a compensator inverts this
+    curve, and a wiggle the held-out windows cannot tell from the best fit is a bump at every crossing)."""
+    A, b, block, most = _edge_rows(samples, pa, at)
+    keep = (most[:, 0] <= reach[0]) & (most[:, 1] <= reach[1])  # an interval beyond an edge's reach is not its
+    A, b, block = A[keep], b[keep], block[keep]
+    D = _penalty(pa, at)
+    x = _prior_unknowns(machine, pa, at)
+    m = len(x)
+    bounds = (np.concatenate([np.zeros(m - 2), [_BETA[0], 0.0]]), np.concatenate([np.full(m - 2, np.inf), [_BETA[1], np.inf]]))
+    # 1/E and V_pl/E held weakly at the machine's (half their value as a standard deviation): where the logs' pressure
+    # changes hardly tell the swept from the dead volume, the two do not wander apart
+    prior_gram = np.zeros((m, m))
+    prior_gram[m - 2:, m - 2:] = np.diag(1.0 / (0.5 * x[m - 2:] + 1e-30) ** 2)
+    prior_rhs = prior_gram @ x
+    c = max(0.05 * float(median_abs_deviation(b, scale="normal")), 1e-9)
+    unit_penalty = float(np.sum(b * b)) / max(float(np.sum(np.abs(D @ x))), 1e-12) / c**2  # weight 1: data ~ penalty
+    w = np.ones(len(b))
+    for _ in range(3):
+        x = _solve((A.T * (w / c**2)) @ A + prior_gram, (A.T * (w / c**2)) @ b + prior_rhs, D,
+                   (weight or WEIGHTS[2]) * unit_penalty, x, bounds)
+        e = (A @ x - b) / c
+        w = 1.0 / np.sqrt(1.0 + e * e)
+    grams = [((A[block == k].T * (w[block == k] / c**2)) @ A[block == k],
+              (A[block == k].T * (w[block == k] / c**2)) @ b[block == k]) for k in range(FOLDS)]
+    gram, rhs = sum(g for g, _ in grams) + prior_gram, sum(r for _, r in grams) + prior_rhs
     held_out = {}
-    for weight in WEIGHTS:
-        err = [(A[block == k] @ _solve(A[block != k], b[block != k], held, weight, scale) - b[block == k]) ** 2
-               for k in range(FOLDS)]
-        held_out[weight] = float(np.sqrt(np.mean(np.concatenate(err))))
-    weight = min(held_out, key=held_out.get)
-    x = _solve(A, b, held, weight, scale)
-    return FlowCurve(np.asarray(commands, float), np.concatenate([[0.0], np.cumsum(x[:-2])]),
-                     g * machine.effects.edge_gain_at, 1.0 / x[-2], x[-1] / x[-2], weight, held_out,
-                     float(np.sqrt(np.mean((A @ x - b) ** 2))), float(np.sqrt(np.mean(b * b))),
-                     (float(min(s.u.min() for s in samples)), float(max(s.u.max() for s in samples))))
+    if weight is None:
+        spread = {}
+        for trial in WEIGHTS:
+            folds = []
+            for k, (gk, rk) in enumerate(grams):
+                xk = _solve(gram - gk, rhs - rk, D, trial * unit_penalty, x, bounds)
+                sel = block == k
+                folds.append(float(np.sum(w[sel] * (A[sel] @ xk - b[sel]) ** 2) / np.sum(w[sel])))
+            held_out[trial] = float(np.sqrt(np.mean(folds)))
+            spread[trial] = float(np.std(folds) / math.sqrt(FOLDS))  # the mean square's standard error
+        best = min(held_out, key=held_out.get)
+        weight = max(wt for wt in WEIGHTS if held_out[wt] ** 2 <= held_out[best] ** 2 + spread[best])
+    x = _solve(gram, rhs, D, weight * unit_penalty, x, bounds)
+    k_pa = len(pa) - 1
+    curves = (EdgeCurve(pa, np.concatenate([[0.0], np.cumsum(x[:k_pa])])),
+              EdgeCurve(at, np.concatenate([[0.0], np.cumsum(x[k_pa:m - 2])])))
+    return FlowCurves(*curves, 1.0 / x[-2], x[-1] / x[-2], weight, held_out,
+                      float(np.sqrt(np.mean((A @ x - b) ** 2))), float(np.sqrt(np.mean(b * b))), (0.0, 0.0))
+
+
+def _refined(edge: EdgeCurve) -> np.ndarray:
+    """``edge``'s knots with three more in each interval either side of every corner it found: a knot where the
+    slope changes by more than :data:`CORNER_SHARE` of the larger slope beside it (a rounded metering edge
+    meeting the port halves it there; a smooth curve's change from one knot to the next is a few percent)."""
+    k, f = edge.knots, edge.openings
+    slope = np.diff(f) / np.diff(k)
+    change = np.abs(np.diff(slope)) > CORNER_SHARE * np.maximum(np.abs(slope[:-1]), np.abs(slope[1:]))
+    extra = [k[j] + (k[j + 1] - k[j]) * q for i in np.flatnonzero(change) + 1 for j in (i - 1, i)
+             for q in (0.25, 0.5, 0.75)]
+    return np.unique(np.concatenate([k, extra]))
+
+
+def _prior_unknowns(machine: Machine, pa: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The unknowns of ``machine``'s own valve (its form's openings with its edge gains at the knots, as rises;
+    1/E, V_pl/E): where the reweighted least squares starts."""
+    hyd, eff = machine.hydraulics, machine.effects
+    full = math.pi * hyd.spool_diameter * hyd.x_v_max
+    a_pa = hydraulics.flow_areas(pa * hyd.x_v_max / hyd.u_v_max, hyd)[0] * eff.edge_gain_pa / full
+    a_at = hydraulics.flow_areas(-at * hyd.x_v_max / hyd.u_v_max, hyd)[1] * eff.edge_gain_at / full
+    rises = [np.maximum(np.diff(np.maximum.accumulate(a)), 0.0) for a in (a_pa, a_at)]
+    beta = 1.0 / hyd.bulk_modulus
+    return np.concatenate([*rises, [beta, hyd.pipeline_volume * beta]])

@@ -1,0 +1,101 @@
+"""The calibration's step from a flow-area form to the valve's own curves, read from the logs' flows.
+
+The seed's flow-area forms (3.3, 3.11, their blend and the port-limited spool) are priors: a real spool is none
+of them (a rounded metering edge meeting a port narrower than the perimeter, edges that open before null), and
+what a form cannot follow becomes structure in every later residual, and a compensator that inverts it jumps
+where the true curve bends (docs/compensation.md). When the chosen form misses its own logs' budget (or the
+user asks for it, ``--flow-area …,curve``), :func:`with_curve` reads each edge's curve from the logs' flows
+(:func:`hexsim.measured.flow_curve.fit_flow_curves`), puts it in the machine file (flow area ``curve``, the
+calibrated form beyond the commands the logs reach), fits the form's other parameters (less
+:data:`CURVE_REPLACES`) again to the replays from there, and keeps it where it predicts the held-out windows
+:data:`CURVE_GAIN` better than the form.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from hexsim.measured.fitting import FitOptions, fit_parameters
+from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves
+from hexsim.measured.parameters import ParameterSet
+from hexsim.measured.scoring import WITHIN
+from hexsim.plant.machine import Machine, with_keys, with_valve
+
+#: The chosen form's parameters the curves replace (their shape is the curves'; the edges' gains stay, as a
+#: scale of each curve the replays refine: an open-loop replay's position asks for the flow to a few parts in
+#: a thousand, the flow balance gives it to about a percent).
+CURVE_REPLACES = ("valve.smooth_area_gain", "valve.overlap_m", "valve.spool_diameter_m", "valve.rated_flow_m3ps")
+
+#: The curves replace the chosen form only if they predict the held-out windows this much better (a form's few
+#: parameters are the simpler answer where the curves gain little).
+CURVE_GAIN = 0.9
+
+
+def reaches_budget(replays: list, machine: Machine) -> bool:
+    """Whether ``machine`` reproduces every replayed log's held-out windows within the budget (RMS within
+    sqrt(:data:`hexsim.measured.scoring.WITHIN`) budgets in every channel): a calibrated form that does needs no
+    curve."""
+    limit = math.sqrt(WITHIN)
+    return all(v <= limit for r in replays for v in r.errors(machine)["held_out_rms_in_budgets"].values())
+
+
+def curve_machine(machine: Machine, curves: FlowCurves) -> Machine:
+    """``machine`` with its valve's opening the edges' curves (flow area ``curve``: :meth:`FlowCurves.points`,
+    ``machine``'s form beyond the commands the logs reached), the curves carrying the P→A and A→T gains (1
+    now; a 4-way valve's P→B and B→T relative to them) and any overlap or underlap (the file's 0)."""
+    pa, at = curves.points(machine)
+    eff = machine.effects
+    return with_valve(machine, flow_area="curve", opening_table=[], flow_curve_PA=pa, flow_curve_AT=at, overlap_m=0.0,
+                      edge_gain_PA=1.0, edge_gain_AT=1.0, edge_gain_PB=eff.edge_gain_pb / eff.edge_gain_at,
+                      edge_gain_BT=eff.edge_gain_bt / eff.edge_gain_pa)
+
+
+def with_curve(replays: list, best: dict, tried: list[dict], options: FitOptions, independent_share,
+               notify: Callable[[str], None]) -> dict:
+    """The chosen form's calibration ``best`` (``flow_area``, ``start``, ``params``, ``fit``, ``machine``) with
+    the valve's curves read from the ``replays``' logs (:class:`hexsim.measured.dynamics.ReplayEvidence`), the
+    form's other parameters fitted again to the replays from there (``options``, ``independent_share``: as the
+    form's fit); kept in place of the form if it predicts the held-out windows :data:`CURVE_GAIN` better (its
+    cost added to ``tried``). Returns the chosen, as ``best`` with ``curve`` (the
+    :class:`~hexsim.measured.flow_curve.FlowCurves`) and ``form`` (the form it started from) when the curves
+    are."""
+    params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
+    curves = fit_flow_curves([r.log for r in replays], best["machine"])
+    bounds = {p.key: (p.lower, p.upper) for p in params}
+    read = {"oil.bulk_modulus_Pa": curves.bulk_modulus, "cylinder.dead_volume_cap_m3": curves.pipeline_volume}
+    start = with_keys(curve_machine(best["machine"], curves),  # the replay fit's start, inside its brackets
+                      {k: float(np.clip(v, *bounds[k])) for k, v in read.items() if k in bounds})
+    notify(f"read the valve's curves from the logs' flows (to {curves.pa.reach:.3g} V on P→A, {curves.at.reach:.3g} V "
+           f"on A→T); calibrating {len(params)} parameters with them")
+    fit = fit_parameters(lambda m: np.concatenate([r.residual(m) for r in replays]), start, params,
+                         independent_share=independent_share, options=options, notify=notify)
+    result = params.apply(start, fit.values)
+    cost = sum(r.errors(result)["held_out_cost"] for r in replays)
+    form_cost = sum(r.errors(best["machine"])["held_out_cost"] for r in replays)
+    tried.append({"flow_area": "curve (read from the logs' flows)", "held_out_cost": cost})
+    if cost >= CURVE_GAIN * form_cost:
+        notify(f"kept the {best['flow_area']} flow area: the curves read from the logs predict the held-out windows "
+               f"at {cost / form_cost:.2f} of its cost (they replace the form below {CURVE_GAIN:g})")
+        return best
+    return {"flow_area": "curve", "start": start, "params": params, "fit": fit, "machine": result, "curve": curves,
+            "form": best["flow_area"]}
+
+
+def curve_report(curves: FlowCurves, form: str, machine: Machine) -> dict:
+    """The calibration report's account of the curves read from the logs' flows (:func:`with_curve`), the
+    points as ``machine`` (the calibrated file) holds them."""
+    hyd = machine.hydraulics
+    return {"from_form": form, "flow_curve_PA": [list(p) for p in hyd.flow_curve_pa],
+            "flow_curve_AT": [list(p) for p in (hyd.flow_curve_at or hyd.flow_curve_pa)],
+            "reach_V": {"PA": curves.pa.reach, "AT": curves.at.reach}, "regularisation": curves.weight,
+            "bulk_modulus_Pa": curves.bulk_modulus, "dead_volume_cap_m3": curves.pipeline_volume,
+            "held_out_flow_rms_m3": {f"{w:g}": v for w, v in curves.held_out.items()},
+            "flow_rms_m3": curves.rms, "measured_flow_rms_m3": curves.flow_rms,
+            "commands_measured_V": [round(v, 4) for v in curves.reached],
+            "note": "each edge's opening read from the flow balance (continuity integrated over 10 ms against the "
+                    "orifice equation; l1 penalty on the slope's changes, its weight by held-out windows); beyond "
+                    f"the commands reached, the {form} form's shape; the other parameters then refitted to the "
+                    "replays"}
