@@ -44,6 +44,7 @@ import numpy as np
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from compensation.base import Compensator
+from compensation.curve_learning import CurveLearner, rest_scale
 from compensation.settings import CompensatorSettings, SettingsError
 
 #: Low-pass [Hz] on a measured pressure before the feedforward scales its flow curve to it: the leg's
@@ -90,6 +91,8 @@ class LegModel:
     pressure_scaling: scale the flow curve to P1_ref by the orifice law (3-way valves; off for 4-way,
         whose two chambers share the load);
     slope: s_i, the linear curve's slope [m/(s V)], (n,): the machine's chord at ±u_ref;
+    kp: K_p [V/m], the P gain the compensator runs beside (the machine file's controller; 0: unknown, the
+        adaptive one reads it off the P output and the tracking error);
     source: where the model came from (machine file, tuned file).
     """
 
@@ -106,6 +109,7 @@ class LegModel:
     friction_f: np.ndarray
     slope: np.ndarray
     pressure_scaling: bool = True
+    kp: float = 0.0
     source: str = ""
 
     def __post_init__(self) -> None:
@@ -290,28 +294,34 @@ class FeedforwardCompensator(Compensator):
 
 
 class AdaptiveFeedforward(FeedforwardCompensator):
-    """The feedforward with an inverse that follows the machine as it drifts (oil temperature, wear, a
-    drifting null), under a guard that falls back rather than make a bump worse.
+    """The feedforward with an inverse that learns the machine's own curve and follows it as it drifts (oil
+    temperature, wear, a drifting null), under a guard that falls back rather than make a bump worse.
 
-    Learning: an adaptive inverse of the dead band in the line of Tao & Kokotović (*Adaptive control of
-    systems with actuator and sensor nonlinearities*, Wiley 1996, ch. 3): per leg, a shift c [V] of both
-    breakpoints and per direction d of the reference velocity v a slope correction g_d [-] of the inverse
-    beyond its breakpoint b_d (the model's F^-1(0±): the overlap's edge), u_v = F^-1(v + s LP(u_p)) + c +
-    g_d (F^-1(v) - b_d). A drifting null is c; a changed flow gain (viscosity, density, wear) or a worn
-    edge the g's, which leave the breakpoints where c puts them. (One c for both sides: learned per side,
-    the two breakpoints split on the asymmetry of the P loop's lag and the jump between them at every
-    reversal was itself a bump. The slope acting on F^-1(v) itself moved the breakpoints of a sharp-edged
-    valve with the flow gain: a few mV there doubled its bump.) With a right model the P loop adds no volts
-    beyond the sensor noise; what it adds, e = F^-1(v + s LP(u_p)) - F^-1(v), is the model's error at
-    that speed, and each sample moves (c, g_d) by normalised least mean squares, Δθ = dt / ``adapt_time``
-    e φ / |φ|², φ = (1, F^-1(v) - b_d). The seed's safety principles (§5.5): no learning below the velocity
-    band k (where the inverse's gain is highest), e clipped to ±0.25 V per sample, steps bounded to
-    ``adapt_rate`` [V/s], each term bounded to ±``adapt_limit``, the correction faded in over ``fade_time``.
+    Learning, on two time scales:
+
+    - **the whole curve** (:class:`compensation.curve_learning.CurveLearner`): the seed's buffers and weighting
+      (§5.5, appendix C) in the model-based frame. Over ``buffer_time`` the compensator keeps what it commanded
+      and what the P loop did; offline in the buffer it inverts the loop (the piston's velocity is ṙ - ė, e the
+      tracking error the P output is K_p times) and so measures the curve's error at each command without the
+      loop's lag, and corrects the leg model's curve where the motion went, faded in over ``fade_time``. A
+      corner where a rounded metering edge meets the port, which a calibration smoothed, is learned where the
+      motion crosses it (docs/compensation.md: the reference plant R1's corner crossings from 11x to about 4x
+      the seat's perception threshold within a minute).
+    - **the null**: a shift c [V] of the inverse, u_v = F^-1(v + s LP(u_p)) + c, moved towards the volts the P
+      loop adds, e = F^-1(v + s LP(u_p)) - F^-1(v), by least mean squares, Δc = dt / ``adapt_time`` e (in the
+      line of Tao & Kokotović's adaptive dead-band inverse, *Adaptive control of systems with actuator and
+      sensor nonlinearities*, Wiley 1996, ch. 3): a drifting null is followed in a fraction of a second, where
+      a buffer takes seconds. (One c for both sides: learned per side, the two breakpoints split on the
+      asymmetry of the P loop's lag and the jump between them at every reversal was itself a bump. A slope
+      correction per side beside it, as the curve's learning began, fought the curve on a drifting machine:
+      the curve now carries the flow gain.) The seed's safety principles (§5.5): no learning below the
+      velocity band k, e clipped to ±0.25 V per sample, steps bounded to ``adapt_rate`` [V/s], c to
+      ±``adapt_limit``, faded in over ``fade_time``.
 
     Guard: at each reversal of the reference (per leg), the largest |LP(u_p)| within ±0.1 s is the
     bump's footprint in the loop (a leg that stalls in the dead band makes the P output climb across it).
     A footprint more than twice its running level (an exponential mean over the last reversals, which
-    follows a slow drift) on two reversals running restores the last parameters that did not, and learning
+    follows a slow drift) on two reversals running restores the last null and curve that did not, and learning
     pauses for four reversals. A footprint as large as the P output an uncompensated reversal needs — the
     flow curve's dead band, and at least :data:`TURN_OFF_FLOOR_V` (some fifteen times a working
     feedforward's footprint on the Micro Motion System, a tenth of an uncompensated reversal's there) — on two reversals
@@ -326,8 +336,9 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         super().__init__(*args, **kwargs)
         st, n, m = self.settings, self.n_legs, self.model
         self.null = np.zeros(n)  # c [V]
-        self.slope_gain = np.zeros((2, n))  # g_+, g_- [-]
-        self.good = (self.null.copy(), self.slope_gain.copy())
+        self.learner = CurveLearner(m.u, m.velocity, self.rate_hz, st.buffer_time, kp=m.kp)
+        self._v_target = None  # the curve the inverse is fading to (_set_curve)
+        self.good = (self.null.copy(), self.learner.state())
         half = self.WINDOW_S * self.rate_hz
         self._ring = np.zeros((int(2 * half) + 1, n))
         self._k = 0
@@ -343,42 +354,62 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         self._applied = 0.0
         # the footprint an uncompensated reversal leaves [V]: the dead band, at least the floor
         self.turn_off = np.maximum([_dead_band(m.u, row) for row in m.velocity], TURN_OFF_FLOOR_V)
-        # each side's breakpoint [V] (2, n): where the model's inverse starts, F^-1(0+) and F^-1(0-)
-        self.breakpoints = np.stack([self.inverse(np.full(n, 1e-9), m.p_rest), self.inverse(np.full(n, -1e-9), m.p_rest)])
-
-    def correction(self, v: np.ndarray, u_static: np.ndarray) -> np.ndarray:
-        """c + g_d (u - b_d) [V] (n_legs,): d the direction of v [m/s], u = F^-1(v) [V] the model's inverse
-        (n_legs,), b_d its breakpoint on that side."""
-        d = (v < 0).astype(int)
-        legs = np.arange(self.n_legs)
-        return self.null + self.slope_gain[d, legs] * (u_static - self.breakpoints[d, legs])
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        self._follow_curve()
         velocity, p1 = self.demand()
         loop = self.loop_filter(u_p)
         static = self.inverse(velocity, p1)
-        u_v = self.inverse(velocity + self.model.slope * loop, p1)
+        promised = velocity + self.model.slope * loop
+        u_v = self.inverse(promised, p1)
         if self.reference is not None:
-            self._learn(np.clip(u_v - static, -0.25, 0.25), velocity, static)
+            self._learn(np.clip(u_v - static, -0.25, 0.25), velocity)
             self._guard(loop, self.reference.r_dot)
+            self._buffer(u_v, y_measured, u_p, promised, velocity, p1)
         self._applied += self._fade * (1.0 - self._applied)
-        u_v = u_v + self._applied * self.correction(velocity, static)
+        u_v = u_v + self._applied * self.null
         self._scale += self._fade * (np.where(self.off, 0.0, 1.0) - self._scale)
         self.feedforward = self._scale * (u_v - u_p)
         return self.feedforward
 
-    def _learn(self, error: np.ndarray, v: np.ndarray, u_static: np.ndarray) -> None:
-        """One NLMS step of (c, g_d) towards the loop's volts ``error`` (n_legs,) at velocity v, where the
-        model's inverse gives ``u_static`` [V]."""
+    def _buffer(self, u_v, y, u_p, promised, velocity, p1) -> None:
+        """This tick into the curve's buffers (:class:`compensation.curve_learning.CurveLearner`); with a full buffer,
+        the legs that learn (not paused by the guard, not turned off) take its corrections."""
+        m, ref = self.model, self.reference
+        volume = (np.maximum(ref.r, 0.0) * m.area_bottom + m.pipeline_volume) / (m.bulk_modulus * m.area_bottom)
+        measured = None if ref.p1 is None else np.asarray(ref.p1, dtype=float)
+        at = p1 if measured is None else measured  # the orifice's pressure now: the measured one where fitted
+        held = np.array([np.interp(u_v[i], self._u, self._v[i] - m.velocity[i]) for i in range(self.n_legs)])
+        if not self.learner.record(u_v, ref.r, np.asarray(y, dtype=float), u_p, promised, ref.r_dot,
+                                   velocity - ref.r_dot, rest_scale(m, promised, at), measured, volume, held):
+            return
+        before = self.learner.state()
+        self.learner.learn()
+        for i in np.flatnonzero((self._pause > 0) | self.off):
+            self.learner.restore(i, before)
+        self._set_curve(self.learner.curve())
+
+    def _set_curve(self, velocity: np.ndarray) -> None:
+        """The curve (n_legs, G) [m/s at rest] the inverse moves to: what the buffers taught (strictly increasing
+        for the inverse, as the model's), faded in over ``fade_time`` (:meth:`_follow_curve`; the seed fades new
+        parameters in, §5.5: a curve changed at once would jump the valve)."""
+        self._v_target = velocity + 1e-12 * self._u[None, :]
+
+    def _follow_curve(self) -> None:
+        """One tick of the inverse's curve towards what the buffers taught (the fade of ``fade_time``)."""
+        if self._v_target is None:
+            return
+        self._v += self._fade * (self._v_target - self._v)
+        if np.max(np.abs(self._v_target - self._v)) < 1e-9:
+            self._v, self._v_target = self._v_target, None
+
+    def _learn(self, error: np.ndarray, v: np.ndarray) -> None:
+        """One normalised LMS step of the null shift c towards the loop's volts ``error`` (n_legs,) at velocity v
+        [m/s] (n_legs,)."""
         st = self.settings
         legs = np.flatnonzero((np.abs(v) >= st.velocity_band) & (self._pause == 0) & ~self.off)
-        d = (v[legs] < 0).astype(int)
-        x = u_static[legs] - self.breakpoints[d, legs]
-        gain = self.dt / st.adapt_time * error[legs] / (1.0 + x**2)
-        bound = st.adapt_rate * self.dt
-        self.null[legs] = np.clip(self.null[legs] + np.clip(gain, -bound, bound), -st.adapt_limit, st.adapt_limit)
-        self.slope_gain[d, legs] = np.clip(self.slope_gain[d, legs] + np.clip(gain * x, -bound, bound),
-                                           -st.adapt_limit, st.adapt_limit)
+        step = np.clip(self.dt / st.adapt_time * error[legs], -st.adapt_rate * self.dt, st.adapt_rate * self.dt)
+        self.null[legs] = np.clip(self.null[legs] + step, -st.adapt_limit, st.adapt_limit)
 
     def _guard(self, loop: np.ndarray, r_dot: np.ndarray) -> None:
         ring = self._ring
@@ -403,11 +434,12 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         level = self.level[i]
         if np.isnan(level) or footprint <= 2.0 * level:
             self._strikes[i] = 0
-            self.good[0][i], self.good[1][:, i] = self.null[i], self.slope_gain[:, i]
+            self.good[0][i], self.good[1][i] = self.null[i], self.learner.correction[i]
         else:
             self._strikes[i] += 1
             if self._strikes[i] >= 2:
-                self.null[i], self.slope_gain[:, i] = self.good[0][i], self.good[1][:, i]
+                self.null[i] = self.good[0][i]
+                self._set_curve(self.learner.restore(i, self.good[1]))
                 self._strikes[i], self._pause[i] = 0, 4
         self.level[i] = footprint if np.isnan(level) else level + 0.25 * (min(footprint, 2.0 * level) - level)
 

@@ -48,14 +48,14 @@ def static_flow_curve(u: np.ndarray, p_rest: np.ndarray, hyd: HydraulicParams, e
 
 
 def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, eff: Effects = NOMINAL,
-              load: np.ndarray | None = None, u_ref: float = 1.0, source: str = "") -> LegModel:
+              load: np.ndarray | None = None, u_ref: float = 1.0, kp: float = 0.0, source: str = "") -> LegModel:
     """The :class:`~compensation.model_based.LegModel` of a machine: ``hyd`` and ``eff`` its hydraulics and
     effects (a machine file's), ``p_rest`` (n,) [Pa] each leg's bottom-chamber pressure at rest,
     ``inertia`` (n, n) [kg] the legs' inertia matrix (leg forces = inertia @ leg accelerations; the
     inverse of :func:`hexsim.simulation.config.leg_mobility`'s A), ``load`` (n,) [N] the rest loads (4-way
     valves), ``u_ref`` [V] where the linear curve meets the flow curve (its slope is the mean chord at
-    ±u_ref, as the oracle's). Raises SettingsError (a ValueError) for a model whose inverse
-    :func:`compensation.model_based.check_model` refuses."""
+    ±u_ref, as the oracle's), ``kp`` [V/m] the P gain the compensator runs beside (0: unknown). Raises
+    SettingsError (a ValueError) for a model whose inverse :func:`compensation.model_based.check_model` refuses."""
     u_max = hyd.u_v_max
     if hyd.four_way:
         s = np.linspace(-1.0, 1.0, GRID_POINTS_4WAY)
@@ -72,7 +72,7 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
                     area_bottom=float(hyd.area_bottom), bulk_modulus=float(hyd.bulk_modulus),
                     pipeline_volume=float(hyd.pipeline_volume), mass=np.atleast_2d(np.asarray(inertia, dtype=float)),
                     friction_v=friction_v, friction_f=np.asarray(hydraulics.friction_force(friction_v, hyd)),
-                    slope=slope, pressure_scaling=not hyd.four_way, source=source)
+                    slope=slope, pressure_scaling=not hyd.four_way, kp=float(kp), source=source)
 
 
 #: Largest K_p s / f_c of the P loop through the inverse: the discrete loop's pole 1 - K_p s / f_c stays

@@ -421,7 +421,8 @@ def _leg_model(cfg: RunConfig, mobility: np.ndarray, p1_0: np.ndarray, m, d, idx
     effects, the rest pressures, the legs' inertia (the inverse of their mobility)."""
     model = leg_model(cfg.hydraulics, p1_0, np.linalg.inv(mobility), eff=cfg.effects,
                       load=static_leg_forces(m, d, idx) if cfg.hydraulics.four_way else None,
-                      u_ref=cfg.compensator_settings.oracle_u_ref, source=f"machine {cfg.machine_label}")
+                      u_ref=cfg.compensator_settings.oracle_u_ref, kp=cfg.controller.kp,
+                      source=f"machine {cfg.machine_label}")
     check_loop(model, cfg.controller.kp, cfg.controller.rate_hz)
     return model
 

@@ -1,0 +1,226 @@
+"""The valve's whole flow curve learned on the machine from what the P loop adds: the seed's buffers and
+weighting (§5.5, appendix C) in the model-based frame.
+
+A model-based feedforward (:mod:`compensation.model_based`) commands u = F^-1(w; P1) for the velocity w it wants
+(the reference's and the loop's, w = v_d + s LP(u_p)), F the calibrated leg model's static flow curve. Where the
+machine's curve is another — a corner where a rounded metering edge meets the port that the calibration
+smoothed, a dead band the valve does not have — the piston's velocity is F_true(u) instead, and the P loop
+takes up the difference. The loop hides it in its lag (its time constant 1 / (K_p s), 30 ms on the Micro
+Motion System, and the loop filter's), so learning from the P output as it comes smears a corner over a few
+hundred millivolts of command. The buffers remove the lag: over ``buffer_time`` the compensator keeps what it
+commanded and what the loop did, and offline in the buffer (zero phase: the seed's point that the phase does
+not matter once the data are buffered) it inverts the loop. With the tracking error e = u_p / K_p (the P
+output is K_p times it), ė = ṙ - ẏ, so the piston's velocity is ẏ = ṙ - ė; the flow's velocity adds the oil's
+compression, (V / E A1) dP1/dt (from the measured p1 where a transducer is fitted, else the model's), and
+against what the model promised at that command, w,
+
+    δ(t) = ṙ - ė + (V / E A1) dP1/dt - w = F_true(u; P1) - F(u; P1)                 (seed eq. 3.7, 5.1)
+
+is the curve's error at the command u(t) itself, no lag left. Scaled back to the rest pressure (the orifice
+law of the edge that opens, seed eq. 3.4) and binned by command with the seed's weighting of the buffer's
+samples (eq. 5.4: the newest weigh most), it corrects the leg model's curve where the machine went:
+F <- F + κ mean_bin(δ). The corrected curve is kept non-decreasing (its inverse unique). A corner the
+calibration missed is learned where the motion crosses it; a dead band the valve lacks closes from its edges
+inwards as the commands there show the flow the model denied. What the compensator does with it, and the
+guard that falls back, is :class:`compensation.model_based.AdaptiveFeedforward`'s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+#: Width [V] of the command bins the curve's corrections are kept in: a corner is placed to within it.
+BIN_V = 0.02
+#: Samples' weight a side of the curve needs in a buffer before it is corrected (at 500 Hz: 20 ms of the motion).
+MIN_SAMPLES = 10
+#: Weight each earlier buffer keeps in the curve's estimate when a new one arrives: the estimate remembers the
+#: last few buffers (1 / (1 - FORGET) of them, 3: some 9 s at the seed's 3 s buffers), so a drifting machine is
+#: followed and one buffer's noise is not the curve.
+FORGET = 0.67
+#: Span [s] of the Savitzky-Golay cubic that differentiates the tracking error and the pressure in a buffer, and
+#: smooths the error it gives (the oil spring's ringing, 100 Hz, is no part of the static curve; shorter, the
+#: position transducer's noise through the derivative made the learned curve worse on the reference plant R1).
+DERIVATIVE_S = 0.021
+#: Velocities [m/s] below which a sample teaches nothing: within 0.1 s of a reversal (a 50 mm, 0.5 Hz sine is
+#: below 0.05 m/s there) the friction's flip and the oil's compression, not the static curve, make the P loop's
+#: work (the seed's velocity band k, §5.3, widened); the null's drift there is the fast null shift's to follow.
+BAND_MPS = 0.05
+#: Smoothing of the binned corrections across neighbouring bins (a Whittaker smoother, Eilers, Anal. Chem. 75,
+#: 2003: the second differences' weight against the bins' sample weights): a bin's noise is no corner.
+SMOOTHING = 3.0
+#: Shrinkage of the corrections towards none, on the evidence's scale (a ridge): a correction the buffers barely
+#: support is not made (on a machine its model describes, the curve's learned noise doubled the bump).
+SHRINK = 0.1
+
+
+def seed_weights(n: int) -> np.ndarray:
+    """The seed's weighting of a buffer's n samples (eq. 5.4, appendix C): 1 / (1 + exp(-10 i / (2 n))), i = 1…n,
+    from 0.5 for the oldest to 0.99 for the newest."""
+    i = np.arange(1, n + 1)
+    return 1.0 / (1.0 + np.exp(-10.0 * i / (2.0 * n)))
+
+
+class CurveLearner:
+    """Buffers of one compensator's legs and the corrections they teach (module doc).
+
+    Built with the commands of the leg model's curve ``u`` (G,) [V], its velocities at rest ``velocity`` (n, G)
+    [m/s], the controller rate [Hz], the buffer's length ``buffer_time`` [s] and the P gain ``kp`` [V/m] (0: the
+    ratio of the P output to the tracking error, fitted in each buffer). :meth:`record` takes a sample per
+    controller tick; when the buffer is full, :meth:`learn` returns the corrected curve (n, G)."""
+
+    def __init__(self, u: np.ndarray, velocity: np.ndarray, rate_hz: float, buffer_time: float, kp: float = 0.0):
+        self.u = np.asarray(u, dtype=float)
+        self.base = np.atleast_2d(np.asarray(velocity, dtype=float))
+        self.n_legs = self.base.shape[0]
+        self.dt = 1.0 / rate_hz
+        self.size = max(int(round(buffer_time * rate_hz)), 4 * int(round(DERIVATIVE_S * rate_hz)))
+        self.kp = kp
+        self.centres = np.arange(self.u[0], self.u[-1] + BIN_V, BIN_V)
+        self.correction = np.zeros((self.n_legs, len(self.centres)))  # [m/s] at the rest pressure
+        bins = len(self.centres)
+        self.gram = np.zeros((self.n_legs, bins, bins))  # the evidence: the regression's normal equations
+        self.rhs = np.zeros((self.n_legs, bins))
+        names = ("u", "tracking", "u_p", "promised", "ref_rate", "compression", "scale", "p1", "volume", "held")
+        self.buffer = {k: np.zeros((self.size, self.n_legs)) for k in names}
+        self.filled = 0
+
+    def record(self, u: np.ndarray, r: np.ndarray, y: np.ndarray, u_p: np.ndarray, promised: np.ndarray,
+               r_dot: np.ndarray, compression: np.ndarray, scale: np.ndarray, p1: np.ndarray | None,
+               volume: np.ndarray, held: np.ndarray) -> bool:
+        """One tick, each (n,): the command u [V] the model's inverse gave (before the compensator's own
+        corrections), the setpoint r and measured position y [m], the P output u_p [V], the velocity the model
+        promised at u, w [m/s] at the leg's pressure, ṙ [m/s], the compression's share of w [m/s] (V / E A1
+        dP1_ref/dt), the pressure scaling of the curve there ``scale`` (the orifice law's sqrt(Δp / Δp_rest), 1
+        without it), the measured p1 [Pa] (None: no transducer), the chamber's V / (E A1) ``volume`` [m/Pa]
+        (times dP1/dt, the compression's share of the flow as a velocity) and the correction ``held`` [m/s at
+        rest] the inverse's curve had at u (what the compensator had learned and faded in by then). Returns True
+        when the buffer is full."""
+        k = self.filled
+        b = self.buffer
+        b["u"][k], b["tracking"][k], b["u_p"][k], b["promised"][k] = u, r - y, u_p, promised
+        b["ref_rate"][k], b["compression"][k], b["scale"][k], b["volume"][k] = r_dot, compression, scale, volume
+        b["p1"][k] = np.nan if p1 is None else p1
+        b["held"][k] = held
+        self.filled += 1
+        return self.filled >= self.size
+
+    def gain(self) -> np.ndarray:
+        """K_p [V/m] per leg: the given one, else the least-squares ratio of the buffer's P output to its tracking
+        error (they are K_p apart, the sensor's noise in both)."""
+        if self.kp > 0:
+            return np.full(self.n_legs, self.kp)
+        e, up = self.buffer["tracking"], self.buffer["u_p"]
+        den = np.sum(e * e, axis=0)
+        return np.where(den > 0, np.sum(e * up, axis=0) / np.maximum(den, 1e-30), np.inf)
+
+    def errors(self) -> np.ndarray:
+        """(size, n) [m/s]: δ at each buffered tick scaled to the rest pressure (module doc)."""
+        b, n = self.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
+        e = b["u_p"] / self.gain()[None, :]  # the tracking error the controller saw [m]
+        e_dot = savgol_filter(e, n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
+        flow = b["ref_rate"] - e_dot
+        if not np.isnan(b["p1"]).any():
+            p1_dot = savgol_filter(b["p1"], n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
+            flow = flow + b["volume"] * p1_dot
+        else:
+            flow = flow + b["compression"]
+        # the command of tick k acts from tick k to k + 1: its flow is the one measured half way, the mean of the
+        # two ticks' (flow at tick k against the command of tick k put the curve's error a tick late: on the
+        # Micro Motion System's heave the learned curve then made the bump 6x the model's own)
+        flow = 0.5 * (flow + np.concatenate([flow[1:], flow[-1:]]))
+        delta = (flow - b["promised"]) / np.maximum(b["scale"], 1e-3)
+        return savgol_filter(delta, n, 3, axis=0, mode="interp")
+
+    def learn(self) -> np.ndarray:
+        """The curve (n, G) [m/s] at rest, non-decreasing, from the evidence of this buffer and, fading by
+        :data:`FORGET` each, the earlier ones. Each sample's measured correction (δ plus what the inverse's curve
+        held there) is the correction at its command, seen through the time filter δ was measured with: so the
+        bins' corrections are fitted to it as a least-squares regression on the same filter's response to each
+        bin (a hat in the command, in time as the command moved; the filter's blur along the command, 50 mV at a
+        port's corner, is taken out rather than learned), with the seed's weights, from null outwards on each
+        side with the second differences' penalty (:func:`_smoothed`), null itself uncorrected; beyond the
+        commands the motion reached, the last bin's correction held. The buffer is emptied."""
+        b, n_sg = self.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
+        target = self.errors() + savgol_filter(b["held"], n_sg, 3, axis=0, mode="interp")
+        w = seed_weights(self.size)[:, None] * (np.abs(b["promised"]) >= BAND_MPS)
+        bins = len(self.centres)
+        self.gram *= FORGET
+        self.rhs *= FORGET
+        for leg in range(self.n_legs):
+            pos = (b["u"][:, leg] - self.centres[0]) / BIN_V
+            lo, hi = max(int(np.floor(pos.min())) - 1, 0), min(int(np.ceil(pos.max())) + 2, bins)
+            hats = np.clip(1.0 - np.abs(pos[:, None] - np.arange(lo, hi)[None, :]), 0.0, None)
+            seen = savgol_filter(hats, n_sg, 3, axis=0, mode="interp") * w[:, leg, None]
+            self.gram[leg, lo:hi, lo:hi] += seen.T @ savgol_filter(hats, n_sg, 3, axis=0, mode="interp")
+            self.rhs[leg, lo:hi] += seen.T @ target[:, leg]
+        self.filled = 0
+        null = int(np.argmin(np.abs(self.centres)))
+        for leg in range(self.n_legs):
+            weight, row = np.diag(self.gram[leg]), np.zeros(bins)
+            for side in (np.arange(null, bins), np.arange(null, -1, -1)):  # from null outwards
+                seen = np.flatnonzero(weight[side] > 1e-6 * max(float(weight.max()), 1e-30))
+                if not seen.size or weight[side].sum() < MIN_SAMPLES:
+                    continue
+                span = side[:seen[-1] + 1]
+                row[span] = _smoothed(self.gram[leg][np.ix_(span, span)], self.rhs[leg, span])
+                row[side[seen[-1] + 1:]] = row[span[-1]]  # beyond the commands the motion reached: held
+            self.correction[leg] = row
+        return self.curve()
+
+    def curve(self) -> np.ndarray:
+        """The leg model's curve with the corrections learned so far (n, G) [m/s], non-decreasing."""
+        out = self.base + np.stack([np.interp(self.u, self.centres, c) for c in self.correction])
+        return np.maximum.accumulate(out, axis=1)
+
+    def state(self) -> np.ndarray:
+        """The corrections learned so far (n, bins) [m/s], a copy."""
+        return self.correction.copy()
+
+    def restore(self, leg: int, state: np.ndarray) -> np.ndarray:
+        """Leg ``leg``'s corrections back to its row of ``state`` (a :meth:`state`), its evidence forgotten (the
+        next buffers measure the correction afresh from there); the curve they give."""
+        self.correction[leg] = state[leg]
+        self.gram[leg] = 0.0
+        self.rhs[leg] = 0.0
+        return self.curve()
+
+    def held(self, u: np.ndarray) -> np.ndarray:
+        """The correction [m/s at rest] each leg's curve holds at its command u (n,) [V]."""
+        return np.array([np.interp(u[i], self.centres, self.correction[i]) for i in range(self.n_legs)])
+
+
+def _smoothed(gram: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The corrections (k,) of a side's bins from null outwards from the regression's normal equations ``gram``
+    (k, k) and ``rhs`` (k,), with :data:`SMOOTHING` times the second differences' squares (a Whittaker smoother,
+    Eilers, Anal. Chem. 75, 2003, on the evidence's scale) and the first bin (null) held at zero: a bin the
+    motion passed too fast to weigh, and the reversals' band that teaches nothing, are filled by their
+    neighbours, and the correction leaves null as smoothly as it can (a kink there would be a bump at every
+    reversal)."""
+    k = len(rhs)
+    diag = np.diag(gram)
+    scale = float(np.mean(diag[diag > 0]))
+    g = gram / scale
+    g[0, :] = 0.0
+    g[0, 0] = 1e6  # null: no correction
+    r = rhs / scale
+    r[0] = 0.0
+    if k < 3:
+        return np.linalg.lstsq(g + 1e-9 * np.eye(k), r, rcond=None)[0]
+    d = np.diff(np.eye(k), 2, axis=0)
+    return np.linalg.solve(g + SMOOTHING * d.T @ d + SHRINK * np.eye(k), r)
+
+
+def rest_scale(model, velocity: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """The orifice law's factor between a 3-way leg's curve at its rest pressure and at ``p1`` [Pa] (n,), for the
+    edge that passes ``velocity`` [m/s] (n,): sqrt(Δp / Δp_rest), held within 0.5…2 (seed eq. 3.4; as
+    :meth:`compensation.model_based.FeedforwardCompensator.inverse` scales it); 1 where the model does not scale
+    (a 4-way valve's curve is its steady motion against the load)."""
+    if not model.pressure_scaling:
+        return np.ones_like(np.asarray(velocity, dtype=float))
+    up = (model.supply_pressure - p1) / (model.supply_pressure - model.p_rest)
+    down = (p1 - model.tank_pressure) / (model.p_rest - model.tank_pressure)
+    return np.sqrt(np.clip(np.where(velocity >= 0, up, down), 0.25, 4.0))
+
+
+__all__ = ["BIN_V", "CurveLearner", "rest_scale", "seed_weights"]
