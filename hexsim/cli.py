@@ -144,10 +144,20 @@ def _add_tune(sub) -> None:
                          "a single actuator)")
     tu.add_argument("--machine", metavar="NAME|FILE.json", help="the machine (a calibrated machine file or a built-in)")
     tu.add_argument("--duration", type=_number, default=20.0, help="simulated time of each run [s] (default 20)")
+    tu.add_argument("--dead-band-tolerance", type=_number, default=None, metavar="V",
+                    help="how far [V] each valve edge may open earlier or later than the machine file says: the "
+                         "tuned compensator must not make a reversal worse on those neighbours (default 0.01; 0: "
+                         "judge on the file and a drifting null only; docs/compensation.md)")
     tu.add_argument("--out", type=pathlib.Path, help="the tuned compensator file to write (.json)")
     tu.add_argument("--check", type=pathlib.Path, nargs="+", metavar="LOG.csv",
                     help="proof instead of tuning: logs of the machine running with --compensator, beside the machine "
                          "simulated with it on each log's setpoints (measured and predicted smoothness)")
+    tu.add_argument("--from-logs", nargs="+", type=pathlib.Path, metavar="LOG.csv",
+                    help="commissioning instead of tuning: logs of the machine running with --compensator (a tuned "
+                    "file) read back into the model (each valve edge's curve from their flows and the calibration's "
+                    "own logs'); writes the improved tuned file to --out (docs/compensation.md)")
+    tu.add_argument("--machine-out", type=pathlib.Path, metavar="FILE.json",
+                    help="--from-logs: also write the machine file with the curves read from the logs")
     tu.add_argument("--compensator", type=_compensator_arg, metavar="NAME|FILE.json",
                     help="--check: the compensator the logs ran with (a tuned file, or a built-in's name)")
     tu.add_argument("--json", type=pathlib.Path, help="also write every candidate's figures as JSON; - for stdout")
@@ -248,9 +258,10 @@ def _add_calibrate(sub) -> None:
     ca.add_argument("--flow-area", type=_flow_areas, metavar="FORM[,FORM…]",
                     help="with transients, the valve flow-area forms to calibrate and choose among by the held-out "
                          "windows (smooth, port, quadratic, sharp; default the machine's own and, for the seed's "
-                         "(3.11) family, the others); table: then the valve's curve read from the logs' flows (12 "
-                         "points, an underlap allowed; needs p1_Pa), kept if it predicts the held-out windows 10 %% "
-                         "better (docs/calibration.md)")
+                         "(3.11) family, the others); curve: then each edge's curve read from the logs' flows over "
+                         "every command they reach (corners and an underlap included; needs p1_Pa), kept if it "
+                         "predicts the held-out windows 10 %% better; without this option the curves are tried "
+                         "whenever the chosen form misses its own logs' budget (docs/calibration.md)")
     ca.add_argument("--no-cross-validation", action="store_true",
                     help="skip the leave-one-log-out refits (one per log)")
     ca.add_argument("--report", type=pathlib.Path, metavar="DIR",
@@ -613,7 +624,7 @@ def _scenario_options(p: argparse.ArgumentParser) -> None:
     _machine_option(p)
     p.add_argument("--kp", type=_number, help=f"P gain K_p [V/m] (default: the machine's, {ControllerParams.kp:g} built in); "
                    "this and the options below override the machine file")
-    p.add_argument("--flow-area", choices=[f for f in FLOW_AREAS if f != "table"],
+    p.add_argument("--flow-area", choices=[f for f in FLOW_AREAS if f not in ("table", "curve")],
                    help="valve flow-area function: smooth a = 300 x_v^2 (seed eq. 3.11) blended onto the port's "
                         "opening above 0.78 V (default), quadratic (3.11 at every opening, as the seed simulated), "
                         "port (3.11 until the port's opening is smaller, a kink at 0.90 V) or sharp-edged with "
@@ -910,6 +921,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
 
     if args.check:
         return _tune_check(args)
+    if args.from_logs:
+        return _tune_from_logs(args)
     if args.out is None:
         raise InputError("tune: --out FILE.json is needed (or --check LOG.csv … --compensator FILE.json)")
     if args.jobs < 1:
@@ -925,22 +938,67 @@ def cmd_tune(args: argparse.Namespace) -> int:
     for m in motions:
         _check_machine_scenario(machine, make_scenario(m, duration=args.duration))
     from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import CANDIDATES, tune, tune_table, write_tuned
+    from hexsim.simulation.tuning import CANDIDATES, DEAD_BAND_TOLERANCE_V, neighbours, tune, tune_table, write_tuned
 
+    tolerance = DEAD_BAND_TOLERANCE_V if args.dead_band_tolerance is None else args.dead_band_tolerance
+    around = neighbours(tolerance)
     base = RunConfig.from_machine(machine, make_scenario(motions[0], duration=args.duration))
-    print(f"tuning on {', '.join(motions)} ({args.duration:g} s each, machine {base.machine_label}): "
-          f"{len(CANDIDATES)} candidates with {worker_count(args.jobs)} worker(s)…", flush=True)
-    result = tune(base, motions, jobs=args.jobs, progress=sys.stderr.isatty())
+    print(f"tuning on {', '.join(motions)} ({args.duration:g} s each, machine {base.machine_label} and "
+          f"{len(around) - 1} neighbours): {len(CANDIDATES)} candidates with {worker_count(args.jobs)} worker(s)…",
+          flush=True)
+    result = tune(base, motions, jobs=args.jobs, progress=sys.stderr.isatty(), neighbours=around)
     for label, why in result.refused.items():
         print(f"refused {label}: {why}")
+    for label, why in result.worse.items():
+        print(f"not chosen {label}: {why}")
     print(tune_table(result))
-    print(f"tuned: {result.chosen.label} (worst motion {100 * (1 - result.worst_ratio):.0f} % below none)")
+    motion, neighbour = result.worst_at
+    print(f"tuned: {result.chosen.label} (worst case {100 * (1 - result.worst_ratio):.0f} % below none, on {motion}, "
+          f"{neighbour}; neighbours: {', '.join(n.name for n in around)})")
     write_tuned(args.out, result, base, motions)
     print(f"wrote {args.out}")
     if args.json:
         write_json(args.json, {"motions": list(motions), "machine": base.machine_label, "chosen": result.chosen.label,
                                "refused": result.refused, "candidates": result.rows})
         print(f"wrote {args.json}")
+    return 0
+
+
+def _tune_from_logs(args: argparse.Namespace) -> int:
+    """``hexsim tune --from-logs LOG… --compensator FILE --machine CAL --out FILE``: commissioning (the logs' evidence
+    into the model, the tuned file's leg model built again from it)."""
+    if args.check:
+        raise InputError("tune: --from-logs and --check are two steps; run one at a time")
+    if args.compensator is None or not args.compensator.endswith(".json"):
+        raise InputError("tune --from-logs: --compensator FILE.json (the tuned file the logs ran with) is needed")
+    for path in (*args.from_logs, pathlib.Path(args.compensator)):
+        if not path.exists():
+            raise InputError(f"{path}: no such file")
+    if args.out is None or args.out.suffix != ".json" or not args.out.parent.exists():
+        raise InputError(f"tune --from-logs: --out FILE.json in an existing folder is needed, got {args.out}")
+    for out in (args.out, args.machine_out):
+        if out is not None and out.resolve() == pathlib.Path(args.compensator).resolve():
+            raise InputError(f"{out}: would overwrite the tuned file the logs ran with; write the improved one elsewhere")
+    from hexsim.measured.commissioning import commission
+    from hexsim.plant.machine import dump, load_machine
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.tuning import retuned
+
+    machine = load_machine(args.machine)
+    learned = commission(list(args.from_logs), machine)
+    curves = learned.curves
+    print(f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
+          f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs))
+    base = RunConfig.from_machine(learned.machine, "actuator")
+    doc = retuned(args.compensator, base, learned.model, learned.report(), jobs=args.jobs)
+    for label, rows in doc["predicted"].items():
+        for row in rows:
+            print(f"predicted {label:<30} {row['motion']:<9} mean rev. peak {row['final_mean_reversal_peak']:.4f}")
+    write_json(args.out, doc)
+    print(f"wrote {args.out}")
+    if args.machine_out:
+        args.machine_out.write_text(dump(learned.machine.document()))
+        print(f"wrote {args.machine_out}")
     return 0
 
 

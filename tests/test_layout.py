@@ -89,7 +89,7 @@ MEASURED_FLOORS = (
     {"scoring", "flow_curve", "friction_id"},
     {"calibration", "curves", "dynamics", "candidates", "discovery", "identify"},
     {"reports.calibration", "reports.friction", "reports.validation"},
-    {"validation"},
+    {"validation", "commissioning"},
 )
 #: The two sides of the floor above scoring: a machine's nominal, and the effects the nominal lacks.
 SIDES = ({"calibration", "curves", "dynamics"}, {"candidates", "discovery", "identify"})

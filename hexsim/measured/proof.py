@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import pathlib
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import smoothness
+from hexsim.simulation.perception import ISO_PERCEPTION_THRESHOLD
 from hexsim.simulation.runner import simulate
 
 #: Periods at the start of a log left out of its smoothness (the fade-in and the compensator's start).
@@ -75,3 +77,54 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
                       "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
                       "noise_ratio": sm.noise_ratio}
     return {"log": str(path), "frequency_hz": frequency, "compensator": base.compensator_name, **rows}
+
+
+@dataclass(frozen=True)
+class PassengerView:
+    """A machine's run as its passenger gets it (:func:`passenger_view`): the reversal bump on the acceleration
+    (``reversal_peaks`` [m/s^2], each the largest departure from the fundamental within ±0.1 s of a reversal,
+    :func:`hexsim.simulation.metrics.smoothness`; their ``mean`` and ``max``), the ISO 2631-1 W_k weighted false
+    cue at the seat over the whole window (``seat_peak`` [m/s^2]: every reversal and every crossing of a corner
+    of the valve's curve between them) and its multiple of the perception threshold (``seat_ratio``, 0.015 m/s^2:
+    ISO 2631-1:1997 Annex C), and the ``noise_ratio``."""
+
+    reversal_peaks: np.ndarray
+    seat_peak: float
+    noise_ratio: float
+
+    @property
+    def mean(self) -> float:
+        return float(np.mean(self.reversal_peaks)) if self.reversal_peaks.size else float("nan")
+
+    @property
+    def max(self) -> float:
+        return float(np.max(self.reversal_peaks)) if self.reversal_peaks.size else float("nan")
+
+    @property
+    def seat_ratio(self) -> float:
+        return self.seat_peak / ISO_PERCEPTION_THRESHOLD
+
+    def worst_against(self, none: "PassengerView") -> float:
+        """The largest ratio of a reversal's peak to the same reversal's without compensation (the runs' reversals
+        in order; the shorter count): above 1, a reversal the compensation made worse."""
+        n = min(self.reversal_peaks.size, none.reversal_peaks.size)
+        return float(np.max(self.reversal_peaks[:n] / none.reversal_peaks[:n])) if n else float("nan")
+
+
+def passenger_view(t: np.ndarray, acc: np.ndarray, setpoint: np.ndarray, frequency: float, t_start: float,
+                   velocity: np.ndarray | None = None) -> PassengerView:
+    """The :class:`PassengerView` of an acceleration ``acc`` [m/s^2] along a vertical axis, sampled at t (N,) [s]
+    (uniform), from ``t_start`` [s]: its reversal peaks where ``setpoint`` (N,) [m] turns (moved to the measured
+    motion's turns when ``velocity`` (N,) [m/s] is given), the W_k weighting (ISO 2631-1 Annex A, vertical,
+    :func:`hexsim.simulation.perception.iso2631`) of its departure from the fundamental at ``frequency`` [Hz],
+    started a period earlier so that the filter has settled. Raises ValueError for a window shorter than a
+    period."""
+    from hexsim.signals import fit_fundamental
+    from hexsim.simulation.perception import iso2631
+
+    sm = smoothness(t, acc, frequency, t_start, setpoint, name="acceleration", unit="m/s^2", velocity=velocity)
+    lead = t >= t_start - 1.0 / frequency
+    cue = acc[lead] - fit_fundamental(t[lead], acc[lead], frequency)[3]
+    weighted = iso2631("Wk").apply(cue, 1.0 / float(np.median(np.diff(t))))
+    seat = float(np.max(np.abs(weighted[t[lead] >= t_start])))
+    return PassengerView(sm.reversal_peaks, seat, sm.noise_ratio)

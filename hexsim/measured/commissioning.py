@@ -1,0 +1,80 @@
+"""Commissioning: the machine's own logs, run with the tuned compensator, taken back into its model, and a
+tuned file improved from them (``hexsim tune --from-logs``; docs/compensation.md).
+
+A calibration sees the valve where its experiments drove it: a chirp dwells at small commands, a step passes
+through the rest in a few milliseconds. The motions the compensator is tuned for cross the valve's curve
+elsewhere, slowly, over and over (a 50 mm, 0.5 Hz sine crosses a port-limited spool's corner at 0.9 V four
+times a period), and every log of the machine running them measures the valve's flow there. So commissioning
+is run, log, learn, run again: each edge's curve is read again from the flows of the commissioning logs and of
+the calibration's own logs (the calibrated file names them; :func:`hexsim.measured.flow_curve.fit_flow_curves`),
+the machine file takes the curves (flow area ``curve``: :func:`hexsim.measured.curves.curve_machine`), and the
+tuned file's leg model (:class:`compensation.model_based.LegModel`) is built again from that machine, its
+compensator and settings kept; the predicted figures are those of the new model. A user runs it on the machine
+at most three times (docs/compensation.md: measured on machines hexsim did not write).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+from dataclasses import dataclass
+
+from compensation.model_based import LegModel
+from hexsim.errors import InputError
+from hexsim.measured.curves import curve_machine, curve_report
+from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves
+from hexsim.measured.measurement import MeasurementLog, read_log
+from hexsim.plant.machine import Machine
+
+
+@dataclass(frozen=True)
+class Commissioning:
+    """What :func:`commission` learned: the ``machine`` with each edge's curve read from the ``logs`` (the
+    commissioning logs, then the calibration's own that were found), the :class:`FlowCurves`, and the leg
+    ``model`` a model-based compensator inverts on it."""
+
+    machine: Machine
+    curves: FlowCurves
+    logs: tuple[str, ...]
+    model: LegModel
+
+    def report(self) -> dict:
+        """The tuned file's ``commissioning`` entry: the logs read and the curves (:func:`hexsim.measured.curves.
+        curve_report`)."""
+        return {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", self.machine)}
+
+
+def calibration_logs(machine: Machine) -> list[pathlib.Path]:
+    """The logs ``machine``'s calibration was fitted to (its file's ``calibration`` block), those that still
+    exist (relative paths as the calibration wrote them, else beside the machine file); none for a machine that
+    was not calibrated."""
+    found = []
+    for name in (machine.calibration or {}).get("logs", []):
+        for path in (pathlib.Path(name), *([machine.path.parent / pathlib.Path(name).name] if machine.path else [])):
+            if path.exists():
+                found.append(path)
+                break
+    return found
+
+
+def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = True) -> Commissioning:
+    """Read the valve's curves from the logs ``paths`` (single-actuator logs of ``machine`` running, the tuned
+    compensator among them) and, with ``own_logs``, the calibration's own (:func:`calibration_logs`), on
+    ``machine``; the machine with them and its leg model. Raises InputError naming the log for a hexapod log,
+    one without the valve command, position or ``p1_Pa``, or too few samples away from the stroke's ends."""
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.tuning import leg_model_of
+
+    if machine.system != "single-actuator":
+        raise InputError(f"{machine.label}: commissioning from logs reads a single actuator's valve (this machine is "
+                         f"a {machine.system}); tune each leg's file, or calibrate the hexapod again on its logs")
+    extra = [p for p in calibration_logs(machine) if p.resolve() not in {q.resolve() for q in paths}] if own_logs else []
+    logs: list[MeasurementLog] = [read_log(p, machine=machine) for p in (*paths, *extra)]
+    for log in logs:
+        if log.system != "single-actuator":
+            raise InputError(f"{log.path}: commissioning reads single-actuator logs (this is {log.system})")
+    curves = fit_flow_curves(logs, machine)
+    new = curve_machine(machine, curves)
+    new = dataclasses.replace(new, description=(machine.description + " Commissioned by hexsim tune --from-logs.").strip())
+    model = leg_model_of(RunConfig.from_machine(new, "actuator"))
+    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model)
