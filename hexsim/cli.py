@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import os
 import pathlib
@@ -175,7 +176,8 @@ def _add_compare(sub) -> None:
     )
     _scenario_options(cmp)
     cmp.add_argument("--compensators", default=",".join(COMPENSATORS[1:]),
-                     help="comma-separated compensators to compare (none is always included)")
+                     help="comma-separated compensators to compare: built-in names or tuned files (FILE.json, "
+                          "from hexsim tune); none is always included")
     _worker_options(cmp, "worker processes")
     cmp.add_argument("--plot", type=pathlib.Path, help="write the comparison figure (seed Fig. 5.12 layout; .png, .pdf or .svg)")
     cmp.add_argument("--json", type=pathlib.Path, help="write the per-compensator figures as JSON; - for stdout")
@@ -888,18 +890,27 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from hexsim.simulation.comparison import compare, league_table
 
     _check_outputs(args)
-    names = tuple(n.strip() for n in args.compensators.split(",") if n.strip())
+    given = tuple(n.strip() for n in args.compensators.split(",") if n.strip())
+    names = tuple(n for n in given if not n.endswith(".json"))
     unknown = [n for n in names if n not in COMPENSATORS]
     if unknown:
-        raise InputError(f"--compensators: unknown compensator {unknown[0]!r}; choose from {', '.join(COMPENSATORS)}")
+        raise InputError(f"--compensators: unknown compensator {unknown[0]!r}; choose from {', '.join(COMPENSATORS)} "
+                         "or a tuned file (.json)")
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     base = _run_config(args, "none")
+    labelled = []
+    for path in dict.fromkeys(n for n in given if n.endswith(".json")):
+        from hexsim.simulation.tuning import read_tuned
+
+        name, settings, model = read_tuned(path)  # InputError naming the file
+        labelled.append((f"{pathlib.Path(path).name} ({name})", dataclasses.replace(
+            base, compensator=name, compensator_settings=settings, compensator_model=model)))
     thresholds = _thresholds(args)
-    print(f"comparing {', '.join(dict.fromkeys(('none', *names)))} on {base.scenario.name} "
+    print(f"comparing {', '.join(dict.fromkeys(('none', *names, *(label for label, _ in labelled))))} on {base.scenario.name} "
           f"({base.scenario.duration:g} s, machine {base.machine_label}) with {worker_count(args.jobs)} worker(s)…",
           flush=True)
-    entries = compare(base, names, jobs=args.jobs, thresholds=thresholds)
+    entries = compare(base, names, jobs=args.jobs, thresholds=thresholds, labelled=tuple(labelled))
     print(league_table(entries))
     written = []
     if args.json:

@@ -134,6 +134,28 @@ def test_compare_prints_a_league_table_and_writes_json_and_png(tmp_path, capsys)
     assert (tmp_path / "league.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_compare_runs_a_tuned_file_beside_the_built_ins(tmp_path, capsys):
+    """A tuned file in --compensators runs with its own settings, labelled by its name: the buffered compensator
+    with the built-in's settings gives the built-in's figures to the last digit, one with a 1.5 s buffer others."""
+    for name, settings in (("same.json", {}), ("short.json", {"buffer_time": 1.5})):
+        (tmp_path / name).write_text(json.dumps({"format": "hexsim-tuned/1", "compensator": "buffered",
+                                                 "settings": settings}))
+    code = main(["compare", "actuator", "--duration", "6", "--jobs", "2", "--json", str(tmp_path / "league.json"),
+                 "--compensators", f"buffered,{tmp_path / 'same.json'},{tmp_path / 'short.json'}"])
+    assert code == 0
+    assert re.search(r"^short\.json \(buffered\)\s", capsys.readouterr().out, re.M)
+    league = json.loads((tmp_path / "league.json").read_text())["compensators"]
+    peak = {k: v["mean_reversal_peak"] for k, v in league.items()}
+    assert peak["same.json (buffered)"] == peak["buffered"] != peak["short.json (buffered)"]
+
+
+def test_compare_names_a_tuned_file_it_cannot_read(tmp_path, capsys):
+    (tmp_path / "bad.json").write_text(json.dumps({"format": "hexsim-tuned/1", "compensator": "magic"}))
+    assert main(["compare", "actuator", "--compensators", f"{tmp_path / 'bad.json'}"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.json" in err and "'magic'" in err and "Traceback" not in err
+
+
 def test_compare_refuses_an_unknown_compensator(capsys):
     assert main(["compare", "heave", "--compensators", "buffered,magic"]) == 2
     assert "unknown compensator 'magic'" in capsys.readouterr().err

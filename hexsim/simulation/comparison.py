@@ -125,20 +125,26 @@ def evaluate(config: RunConfig, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> 
 
 
 def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2,
-            thresholds: Thresholds = DEFAULT_THRESHOLDS) -> list[Entry]:
-    """Run ``base`` once per compensator in ``names`` (``none`` is always included) with ``jobs`` worker
-    processes; returns the entries in league order with the reduction of the mean reversal peak vs none
-    and, for a hexapod, the bumps felt with the perception ``thresholds``."""
+            thresholds: Thresholds = DEFAULT_THRESHOLDS,
+            labelled: tuple[tuple[str, RunConfig], ...] = ()) -> list[Entry]:
+    """Run ``base`` once per compensator in ``names`` (``none`` is always included), then each of the
+    ``labelled`` configurations (label, config: e.g. a tuned file's compensator with its settings and leg
+    model, :func:`hexsim.simulation.tuning.read_tuned`), with ``jobs`` worker processes; returns the entries
+    in that order, labelled, with the reduction of the mean reversal peak vs none and, for a hexapod, the
+    bumps felt with the perception ``thresholds``. Raises ValueError for an unknown name."""
     names = tuple(dict.fromkeys(("none", *names)))
     unknown = [n for n in names if n not in COMPENSATORS]
     if unknown:
         raise ValueError(f"unknown compensator {unknown[0]!r}; choose from {', '.join(COMPENSATORS)}")
     configs = [dataclasses.replace(base, compensator=n, progress=False) for n in names]
+    configs += [dataclasses.replace(c, progress=False) for _, c in labelled]
     if not in_workers(jobs):
         entries = [evaluate(c, thresholds) for c in configs]
     else:
         with worker_pool(jobs) as pool:
             entries = list(pool.map(evaluate, configs, [thresholds] * len(configs)))
+    for entry, (label, _) in zip(entries[len(names):], labelled):
+        entry.compensator = label
     baseline = entries[0].mean_reversal_peak
     for e in entries:
         e.reduction_pct = 100.0 * (1.0 - e.mean_reversal_peak / baseline) if baseline > 0 else None
@@ -149,14 +155,15 @@ def league_table(entries: list[Entry]) -> str:
     """The league table as aligned text."""
     unit = entries[0].unit
     felt = entries[0].perception is not None
-    head = (f"{'compensator':<12} {'noise_ratio':>11} {'peak_noise':>14} {'mean rev. peak [' + unit + ']':>22} "
+    w = max(12, *(len(e.compensator) for e in entries))
+    head = (f"{'compensator':<{w}} {'noise_ratio':>11} {'peak_noise':>14} {'mean rev. peak [' + unit + ']':>22} "
             f"{'reduction':>9} {'settled after':>13} {'saturated':>9}" + (f" {'felt (seat ratio)':>18}" if felt else ""))
     rows = [head, "-" * len(head)]
     for e in entries:
         peak = f"{e.peak_noise_g:.4f} g" if e.peak_noise_g is not None else f"{e.peak_noise:.3f} {unit}"
         red = f"{e.reduction_pct:.0f} %" if e.reduction_pct is not None else "—"
         settle = f"{e.settling_time_s:.1f} s" if e.settling_time_s is not None else "not settled"
-        rows.append(f"{e.compensator:<12} {e.noise_ratio:>11.4f} {peak:>14} {e.mean_reversal_peak:>22.4f} "
+        rows.append(f"{e.compensator:<{w}} {e.noise_ratio:>11.4f} {peak:>14} {e.mean_reversal_peak:>22.4f} "
                     f"{red:>9} {settle:>13} {e.saturated_samples:>9}" + (f" {_felt(e.perception):>18}" if felt else ""))
     rows.append("felt: bumps of the final window perceptible to a seated occupant (ISO 2631-1 at the seat or the "
                 "vestibular models at the head) and the worst seat ratio to the threshold" if felt else "")
