@@ -23,15 +23,17 @@ def pytest_cmdline_main(config):
     return None
 
 
-#: The longest test files, longest first (seconds on one worker, `pytest --durations=0` on 2 cores, summed per
-#: file, at c749c41): the hexapod's calibration 247, calibration 211, transients 200 (every library effect on
-#: the calibrated machine), hexapod validation 161, validation 130, feedforward 100 (issue 44), verdicts 48, cli 20;
-#: the rest 18 or less.
+#: The longest test files, longest first (seconds of one worker, from `pytest --durations` on 2 cores, setup
+#: included; the suite prints its 25 slowest at the end): commissioning about 400 (a calibration, a tune and a
+#: commissioning of an independent actuator), feedforward 340, flow curves 320 (fits with cross-validation),
+#: the hexapod's calibration 250, the curve calibration 220, calibration 210, transients 200 (every library
+#: effect on the calibrated machine), hexapod validation 160, validation 130 to 210, verdicts 50, cli 20; the
+#: rest 20 or less.
 #: Handed out first, the two workers finish together; in the alphabetical order the validation files came
 #: last and one worker ran them alone for minutes.
-LONGEST_FIRST = ("test_calibration_hexapod.py", "test_calibration.py", "test_calibration_transients.py",
-                 "test_hexapod_validation.py", "test_validation.py", "test_feedforward.py", "test_verdicts.py",
-                 "test_cli.py")
+LONGEST_FIRST = ("test_commissioning.py", "test_feedforward.py", "test_flow_curves.py", "test_calibration_hexapod.py",
+                 "test_calibration_curve.py", "test_calibration.py", "test_calibration_transients.py",
+                 "test_validation.py", "test_hexapod_validation.py", "test_verdicts.py", "test_cli.py")
 
 
 def pytest_collection_modifyitems(config, items):
