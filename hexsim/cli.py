@@ -1041,8 +1041,11 @@ def _tune_check(args: argparse.Namespace) -> int:
             peak = f"{f['max_reversal_peak']:.4f}" if f["max_reversal_peak"] is not None else "—"
             print(f"{pathlib.Path(r['log']).name:<28} {what:<10} {f['mean_reversal_peak']:>14.4f} {peak:>13} "
                   f"{f['noise_ratio']:>11.4f}")
-    print(f"predicted: {base.machine_label} with {base.compensator_name} on each log's setpoints (m/s², from the "
-          "third period)")
+    print(f"predicted: {base.machine_label} with {base.compensator_name} on each log's setpoints, read with the "
+          "log's accelerometer noise (m/s², from the third period)")
+    for r in rows:
+        print(f"{pathlib.Path(r['log']).name} (accelerometer noise {r['accelerometer_noise_mps2']:.3f} m/s²): "
+              f"{r['verdict']['sentence']}")
     if args.json:
         write_json(args.json, {"machine": base.machine_label, "proofs": rows})
         print(f"wrote {args.json}")

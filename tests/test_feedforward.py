@@ -129,7 +129,9 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
                                                                             capsys):
     """Proof on logs: a log of the truth running with hexsim's compensator (written by the truth's own loop)
     beside the calibrated machine simulated with the same compensator on the log's setpoints. Both show the
-    bump removed (measured 0.08, predicted 0.03 m/s², none 0.75); the JSON carries both."""
+    bump removed (measured 0.08, predicted 0.07 m/s² with the log's accelerometer noise, none 0.75); the JSON
+    carries both, and the verdict: not within its uncertainty between the reversals, at the truth's corner
+    (measured 1.2× the prediction at 0.88 V); an uncompensated log within it (0.99×)."""
     doc = {"format": "hexsim-tuned/1", "compensator": "feedforward", "settings": {}, "model": model.to_dict()}
     tuned = tmp_path / "tuned.json"
     tuned.write_text(json.dumps(doc))
@@ -137,11 +139,23 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
                 tmp_path / "with.csv", "with the feedforward")
     assert main(["tune", "--check", str(log), "--compensator", str(tuned), "--machine", str(machine),
                  "--json", str(tmp_path / "proof.json")]) == 0
-    assert "predicted" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "predicted" in out
     proof = json.loads((tmp_path / "proof.json").read_text())["proofs"][0]
     for what in ("measured", "predicted"):
         assert proof[what]["mean_reversal_peak"] < 0.2 * none_peaks.mean()
         assert proof[what]["reversals"] >= 6
+    # read with the log's accelerometer noise (the truth's 0.02 m/s^2), the prediction of the uncompensated run is
+    # within its uncertainty; compensated, what the calibrated model lacks shows between the reversals, where the
+    # truth's port-limited spool has its corner (k_a x^2 meets the port at 0.90 V)
+    verdict = proof["verdict"]
+    assert proof["accelerometer_noise_mps2"] == pytest.approx(0.02, rel=0.1)
+    assert verdict["within"] is False and verdict["sentence"] in out and verdict["sentence"].startswith("not within")
+    assert verdict["between reversals"]["low"] > 1.0 and verdict["corner_V"] == pytest.approx(0.9, abs=0.05)
+    without = write(motion(TRUTH, 12.0, 0.5, 0.05, np.random.default_rng(6)), tmp_path / "without.csv", "none")
+    assert main(["tune", "--check", str(without), "--compensator", "none", "--machine", str(machine),
+                 "--json", str(tmp_path / "none.json")]) == 0
+    assert json.loads((tmp_path / "none.json").read_text())["proofs"][0]["verdict"]["within"] is True
 
 
 @pytest.mark.parametrize("change, reason", [

@@ -8,6 +8,7 @@ import pathlib
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import signal, stats
 
 from hexsim.control.scenario import Scenario
 from hexsim.errors import InputError
@@ -15,7 +16,7 @@ from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency
 from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import smoothness
+from hexsim.simulation.metrics import REVERSAL_WINDOW, Smoothness, smoothness
 from hexsim.simulation.perception import ISO_PERCEPTION_THRESHOLD
 from hexsim.simulation.runner import simulate
 
@@ -26,6 +27,127 @@ PROOF_SKIP_PERIODS = 2.0
 PROOF_END_S = 0.1
 
 
+#: Confidence of the interval a prediction must hold the measured ratio in to be "within its uncertainty".
+CONFIDENCE = 0.95
+#: Fewest reversals (or stretches between them) a side needs before a ratio is judged.
+MIN_EVENTS = 3
+#: Spread [V] (interquartile) of the valve commands at the peaks between reversals below which they are said to
+#: sit at one command: a corner of the flow curve crossed at the same speed every half period.
+CORNER_SPREAD_V = 0.15
+
+
+@dataclass(frozen=True)
+class Ratio:
+    """Measured over predicted of one kind of event (``what``: "reversals", "between reversals"): the ratio of the
+    events' geometric means and its ``CONFIDENCE`` interval (Welch's t on their logarithms, scipy.stats.ttest_ind:
+    the uncertainty the event-to-event scatter of both runs gives), from ``n_measured`` and ``n_predicted``
+    events; ``within`` when the interval holds 1."""
+
+    what: str
+    ratio: float
+    low: float
+    high: float
+    n_measured: int
+    n_predicted: int
+
+    @property
+    def within(self) -> bool:
+        return self.low <= 1.0 <= self.high
+
+    def text(self) -> str:
+        return f"{self.ratio:.2f}× the prediction ({CONFIDENCE:.0%} interval {self.low:.2f}–{self.high:.2f})"
+
+
+def ratio(what: str, measured: np.ndarray, predicted: np.ndarray) -> Ratio | None:
+    """The :class:`Ratio` of ``measured`` (n,) to ``predicted`` (m,) peaks [m/s^2] (positive); None with fewer than
+    ``MIN_EVENTS`` on a side."""
+    a, b = np.asarray(measured, float), np.asarray(predicted, float)
+    a, b = a[a > 0], b[b > 0]
+    if min(a.size, b.size) < MIN_EVENTS:
+        return None
+    la, lb = np.log(a), np.log(b)
+    ci = stats.ttest_ind(la, lb, equal_var=False).confidence_interval(CONFIDENCE)
+    return Ratio(what, float(np.exp(la.mean() - lb.mean())), float(np.exp(ci.low)), float(np.exp(ci.high)),
+                 int(a.size), int(b.size))
+
+
+def between_peaks(sm: Smoothness) -> tuple[np.ndarray, np.ndarray]:
+    """(peaks (k,) [unit], their times (k,) [s]): the largest departure from the fundamental in each stretch between
+    consecutive reversals, more than ``REVERSAL_WINDOW`` from both (where a valve curve's corner is crossed at
+    speed, or whatever else the motion meets between its turns)."""
+    peaks, times = [], []
+    for r0, r1 in zip(sm.reversal_times[:-1], sm.reversal_times[1:]):
+        k = np.flatnonzero((sm.t > r0 + REVERSAL_WINDOW) & (sm.t < r1 - REVERSAL_WINDOW))
+        if k.size:
+            j = k[np.argmax(np.abs(sm.noise[k]))]
+            peaks.append(abs(sm.noise[j]))
+            times.append(sm.t[j])
+    return np.array(peaks), np.array(times)
+
+
+@dataclass(frozen=True)
+class ProofVerdict:
+    """Whether a log's run is what hexsim predicted (:func:`verdict`): the ``reversals``' and the ``between``
+    stretches' :class:`Ratio` (None: too few), and the valve commands [V] at the measured peaks between reversals
+    when they sit at one (``corner_V``: median, or None)."""
+
+    reversals: Ratio | None
+    between: Ratio | None
+    corner_V: float | None
+
+    @property
+    def within(self) -> bool | None:
+        judged = [r for r in (self.reversals, self.between) if r is not None]
+        return all(r.within for r in judged) if judged else None
+
+    def sentence(self) -> str:
+        """One line: within its uncertainty, or by how much not and where."""
+        if self.within is None:
+            return f"too few reversals to judge (at least {MIN_EVENTS} a side)"
+        if self.within:
+            parts = [f"{r.what} {r.text()}" for r in (self.reversals, self.between) if r is not None]
+            return "within its uncertainty: " + "; ".join(parts)
+        off = [r for r in (self.reversals, self.between) if r is not None and not r.within]
+        parts = []
+        for r in off:
+            where = r.what
+            if r.what == "between reversals":
+                where += (f", at a valve command of {self.corner_V:.2f} V each time (a corner of the flow curve the "
+                          "model lacks?)" if self.corner_V is not None else ", at no one valve command")
+            parts.append(f"{where}: measured {r.text()}")
+        return "not within its uncertainty: " + "; ".join(parts)
+
+
+def verdict(measured: Smoothness, predicted: Smoothness, valve_cmd: np.ndarray | None = None,
+            t: np.ndarray | None = None) -> ProofVerdict:
+    """A log's ``measured`` smoothness against the ``predicted`` (same window) as a :class:`ProofVerdict`; the
+    log's ``valve_cmd`` (N,) [V] at its times ``t`` (N,) [s], where it has one, places the peaks between
+    reversals on the valve's curve."""
+    bm, tm = between_peaks(measured)
+    bp, _ = between_peaks(predicted)
+    corner = None
+    if valve_cmd is not None and t is not None and tm.size >= MIN_EVENTS:
+        u = np.abs(np.interp(tm, t, valve_cmd))
+        q1, q3 = np.percentile(u, [25, 75])
+        corner = float(np.median(u)) if q3 - q1 < CORNER_SPREAD_V else None
+    return ProofVerdict(ratio("reversals", measured.reversal_peaks, predicted.reversal_peaks),
+                        ratio("between reversals", bm, bp), corner)
+
+
+def accelerometer_noise(t: np.ndarray, acc: np.ndarray) -> float:
+    """The white noise [m/s^2] (standard deviation a sample) of a logged acceleration ``acc`` (N,) at times t (N,)
+    [s]: the flat floor of its power spectral density (Welch, scipy.signal.welch) above a tenth of the sampling
+    rate, where a motion of a few hertz leaves nothing, taken as the median over that band (a ringing's or a
+    valve's narrow lines do not count), sigma^2 = PSD fs / 2. A logged acceleration already averaged (hexsim's
+    1 ms means, a filtered accelerometer) has a falling floor and gives less than its instantaneous noise."""
+    acc = np.asarray(acc, float)
+    if acc.size < 64:
+        return 0.0
+    fs = 1.0 / float(np.median(np.diff(t)))
+    f, psd = signal.welch(acc - acc.mean(), fs=fs, nperseg=min(1024, acc.size))
+    return float(np.sqrt(np.median(psd[f >= fs / 10]) * fs / 2))
+
+
 def proof(path: pathlib.Path, base: RunConfig) -> dict:
     """A log of the machine running with a compensator beside the machine simulated with it on the log's own
     setpoints: the smoothness (mean and max reversal peak, noise ratio) of both, from the third period on.
@@ -34,7 +156,10 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
     (docs/measurement-log.md): a single actuator's ``ref_m`` and ``acc_mps2``, or a hexapod's
     ``leg{i}_ref_m`` and the platform accelerometer on the axis whose setpoint moves most (a translation:
     ``dof_ref_{x,y,z}_m`` needed). The simulation starts at the log's first positions and follows its
-    setpoints held sample by sample. Raises InputError naming the log and what it lacks."""
+    setpoints held sample by sample; the prediction is read as the log's accelerometer would read it, on the log's
+    samples with the white noise the log shows (:func:`accelerometer_noise`). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the
+    peaks between reversals, against the predicted, within the uncertainty their scatter gives or by how much
+    not and where. Raises InputError naming the log and what it lacks."""
     log = read_log(path, base.machine or None, needs=("pos_m",))
     t = log.time - log.time[0]
     cols = log.columns
@@ -68,15 +193,26 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
         measured_vel = measured_velocity(log, pos[:, 0])
     else:
         sim_acc, sim_vel, measured_vel = result.acc[:, axis], None, None
-    rows = {}
-    for name, (tt, a, v) in {"measured": (t, acc, measured_vel), "predicted": (result.t, sim_acc, sim_vel)}.items():
+    # the prediction as the log's accelerometer would read it: on the log's samples, with the noise it shows
+    sigma = accelerometer_noise(t, acc)
+    sim_acc = np.interp(t, result.t, sim_acc) + np.random.default_rng(0).normal(0.0, sigma, t.size)
+    sim_vel = None if sim_vel is None else np.interp(t, result.t, sim_vel)
+    rows, judged = {}, {}
+    for name, (tt, a, v) in {"measured": (t, acc, measured_vel), "predicted": (t, sim_acc, sim_vel)}.items():
         keep = tt <= t[-1] - PROOF_END_S  # where the log's setpoints end, the held reference stops at once
         sm = smoothness(tt[keep], a[keep], frequency, t0, np.interp(tt[keep], t, setpoint), name=name, unit="m/s^2",
                         velocity=None if v is None else v[keep])
+        judged[name] = sm
         rows[name] = {"mean_reversal_peak": sm.mean_reversal_peak, "reversals": int(sm.reversal_peaks.size),
                       "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
                       "noise_ratio": sm.noise_ratio}
-    return {"log": str(path), "frequency_hz": frequency, "compensator": base.compensator_name, **rows}
+    valve = cols.get("valve_cmd_V") if axis < 0 else None
+    judgement = verdict(judged["measured"], judged["predicted"], valve, t)
+    return {"log": str(path), "frequency_hz": frequency, "compensator": base.compensator_name,
+            "accelerometer_noise_mps2": sigma, **rows,
+            "verdict": {"within": judgement.within, "sentence": judgement.sentence(),
+                        **{r.what: dataclasses.asdict(r) for r in (judgement.reversals, judgement.between) if r},
+                        "corner_V": judgement.corner_V}}
 
 
 @dataclass(frozen=True)
