@@ -266,6 +266,9 @@ def _add_calibrate(sub) -> None:
                          "whenever the chosen form misses its own logs' budget (docs/calibration.md)")
     ca.add_argument("--no-cross-validation", action="store_true",
                     help="skip the leave-one-log-out refits (one per log)")
+    ca.add_argument("--keep-worse", action="store_true",
+                    help="write the calibrated file even when it predicts its own logs' held-out windows worse than "
+                         "the prior (by default nothing is written then, exit 2)")
     ca.add_argument("--report", type=pathlib.Path, metavar="DIR",
                     help="write report.md and features.png (measured against predicted) here")
     ca.add_argument("--json", type=pathlib.Path, help="write the report as JSON; - for stdout")
@@ -554,6 +557,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                                    dynamics=args.dynamics, flow_areas=args.flow_area,
                                    notify=lambda text: print(text, file=sys.stderr, flush=True))
     print(table(report))
+    worse = report.get("own_budget", {}).get("worse_than_prior", {})
+    if worse and not args.keep_worse:
+        raise InputError(
+            "calibrate: the calibrated model predicts its own logs' held-out windows worse than the prior "
+            f"{machine.label} did (" + ", ".join(f"{ch} {b:.3g} → {a:.3g}" for ch, (b, a) in worse.items())
+            + " budgets); nothing written. The prior is the better model of these logs: give logs that excite what "
+            "was fitted (docs/calibration.md), another --flow-area, or --keep-worse to write it anyway")
     doc = calibrated.document()
     machine_from_document(doc, str(args.out))  # checked as any machine file before it is written
     write_atomic(args.out, lambda tmp: tmp.write_text(dump(doc), encoding="utf-8"))

@@ -299,3 +299,25 @@ def test_a_3_way_vertical_leg_calibrates_and_names_the_weight_friction_trade(tmp
               or r["key"] == "load.mass_kg" and r["status"] == "held at its prior"]
     assert traded, rows
     assert report["fit"]["after"]["pressure_error_max_Pa"] < 0.1e5
+
+
+def test_a_calibration_worse_than_its_prior_on_its_own_logs_writes_nothing(tmp_path, monkeypatch, capsys):
+    """The own-budget check worked by hand: held-out position 2.05 budgets with the prior, 4.12 calibrated, is worse
+    than the prior (more than 1.1 times, and beyond the budget's sqrt 2); p1 3.0 -> 3.1 is not (within 1.1 times).
+    ``hexsim calibrate`` then writes nothing, names the channel, exits 2; ``--keep-worse`` writes it."""
+    from hexsim.measured import calibration
+    from hexsim.measured.reports import calibration as reports
+
+    own = calibration.own_budget({"transients": [
+        {"before": {"held_out_rms_in_budgets": {"position": 2.05, "p1": 3.0}},
+         "after": {"held_out_rms_in_budgets": {"position": 4.12, "p1": 3.1}}}]})
+    assert own["worse_than_prior"] == {"position": [2.05, 4.12]} and not own["reached"]
+    monkeypatch.setattr(calibration, "calibrate", lambda logs, machine, **_: (machine, {"own_budget": own}))
+    monkeypatch.setattr(reports, "table", lambda report: "")
+    log = str(pathlib.Path(__file__).parents[1] / "examples" / "data" / "servo_cylinder" / "cyl_1V_s1_pA.csv")
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", log, "--machine", "servo_cylinder", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "position 2.05 → 4.12 budgets" in err and "nothing written" in err and not out.exists()
+    assert main(["calibrate", log, "--machine", "servo_cylinder", "--out", str(out), "--keep-worse"]) == 0
+    assert out.exists()

@@ -530,22 +530,34 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
     return report
 
 
+#: A calibrated model whose worst held-out error on a channel of its own logs exceeds the prior's by this factor
+#: (and misses the budget) is worse than the file it started from there: ``hexsim calibrate`` writes no file.
+WORSE_THAN_PRIOR = 1.1
+
+
 def own_budget(report: dict) -> dict:
     """Whether the calibrated model reaches its own calibration logs' budget: the worst held-out RMS in
     budgets per channel over the logs' windows after the calibration (``transients`` or ``replayed``),
     ``reached`` when every channel's is within sqrt(:data:`hexsim.measured.scoring.WITHIN`), else
     ``short`` (channel -> budgets) and a ``sentence`` saying what that means for a validation on this machine:
     the model leaves structure of its own (form the calibration cannot fit), which ``hexsim validate`` counts
-    as the model's floor (:func:`hexsim.measured.scoring.model_floor`) and judges effects against."""
+    as the model's floor (:func:`hexsim.measured.scoring.model_floor`) and judges effects against;
+    ``worse_than_prior`` (channel -> [prior's, calibrated's] budgets): the channels it misses by more than
+    :data:`WORSE_THAN_PRIOR` times what the prior missed them by on the same windows."""
     from hexsim.measured.scoring import WITHIN
 
-    rows = [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t]
-    worst: dict[str, float] = {}
-    for r in rows:
-        for ch, v in r.get("held_out_rms_in_budgets", {}).items():
-            worst[ch] = max(worst.get(ch, 0.0), float(v))
+    def worst_of(which: str) -> dict[str, float]:
+        rows = [t[which] for t in (*report.get("transients", []), *report.get("replayed", [])) if which in t]
+        worst: dict[str, float] = {}
+        for r in rows:
+            for ch, v in r.get("held_out_rms_in_budgets", {}).items():
+                worst[ch] = max(worst.get(ch, 0.0), float(v))
+        return worst
+
+    worst, before = worst_of("after"), worst_of("before")
     short = {ch: v for ch, v in worst.items() if v > math.sqrt(WITHIN)}
-    out = {"reached": not short, "held_out_rms_in_budgets": worst, "short": short}
+    worse = {ch: [before[ch], v] for ch, v in short.items() if ch in before and v > WORSE_THAN_PRIOR * before[ch]}
+    out = {"reached": not short, "held_out_rms_in_budgets": worst, "short": short, "worse_than_prior": worse}
     if short:
         out["sentence"] = (
             "The calibrated model does not reach its own logs' budget: held-out " + ", ".join(
