@@ -14,10 +14,10 @@ from hexsim.control.scenario import Scenario
 from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import measured_velocity
-from hexsim.signals import dominant_frequency
+from hexsim.signals import dominant_frequency, fit_fundamental
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import REVERSAL_WINDOW, Smoothness, smoothness
-from hexsim.simulation.perception import ISO_PERCEPTION_THRESHOLD
+from hexsim.simulation.perception import ISO_PERCEPTION_THRESHOLD, iso2631
 from hexsim.simulation.runner import simulate
 
 #: Periods at the start of a log left out of its smoothness (the fade-in and the compensator's start).
@@ -255,9 +255,6 @@ def passenger_view(t: np.ndarray, acc: np.ndarray, setpoint: np.ndarray, frequen
     :func:`hexsim.simulation.perception.iso2631`) of its departure from the fundamental at ``frequency`` [Hz],
     started a period earlier so that the filter has settled. Raises ValueError for a window shorter than a
     period."""
-    from hexsim.signals import fit_fundamental
-    from hexsim.simulation.perception import iso2631
-
     sm = smoothness(t, acc, frequency, t_start, setpoint, name="acceleration", unit="m/s^2", velocity=velocity)
     lead = t >= t_start - 1.0 / frequency
     cue = acc[lead] - fit_fundamental(t[lead], acc[lead], frequency)[3]
