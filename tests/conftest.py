@@ -23,12 +23,10 @@ def pytest_cmdline_main(config):
     return None
 
 
-#: The longest test files, longest first (seconds of one worker, from `pytest --durations` on 2 cores, setup
-#: included; the suite prints its 25 slowest at the end): commissioning about 400 (a calibration, a tune and a
-#: commissioning of an independent actuator), feedforward 340, flow curves 320 (fits with cross-validation),
-#: the hexapod's calibration 250, the curve calibration 220, calibration 210, transients 200 (every library
-#: effect on the calibrated machine), hexapod validation 160, validation 130 to 210, verdicts 50, cli 20; the
-#: rest 20 or less.
+#: The longest test files, longest first (`pytest --durations=25`, which the suite prints, on 2 cores at e528574:
+#: the slowest setups are a calibration each — transients 144 s, validation 110, the curve calibration 107, the
+#: hexapod's 103, commissioning 97, hexapod validation 94, feedforward 72 — and the longest calls 106 s and less).
+#: The whole suite is 31 CPU minutes on two workers that finish within a minute of each other.
 #: Handed out first, the two workers finish together; in the alphabetical order the validation files came
 #: last and one worker ran them alone for minutes.
 LONGEST_FIRST = ("test_commissioning.py", "test_feedforward.py", "test_flow_curves.py", "test_calibration_hexapod.py",
