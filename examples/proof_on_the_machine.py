@@ -35,6 +35,7 @@ import time
 import numpy as np
 
 from compensation import make_compensator
+from hexsim.control.scenario import make_scenario
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.commissioning import commission
 from hexsim.measured.measurement import read_log
@@ -43,12 +44,11 @@ from hexsim.plant.machine import dump, load_machine
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.runner import simulate
 from hexsim.simulation.tuning import read_tuned, retuned, tune, write_tuned
-from hexsim.control.scenario import make_scenario
 
 HERE = pathlib.Path(__file__).resolve().parent
 REFERENCE = HERE.parent.parent / "shared" / "reference-plants"
 sys.path[:0] = [str(HERE.parent / "tests"), str(REFERENCE)]
-from independent_actuator import Actuator, motion, write  # noqa: E402
+from independent_actuator import Actuator, motion, write
 
 #: The seed's sine (eq. 3.10): 50 mm at 0.5 Hz about mid-stroke, faded in over 2 s.
 FREQUENCY, AMPLITUDE = 0.5, 0.05

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from independent_actuator import Actuator, motion, write
 from scipy.interpolate import PchipInterpolator
 
 from hexsim.errors import InputError
@@ -20,7 +21,6 @@ from hexsim.measured.measurement import read_log
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import load_machine, with_valve
 from hexsim.plant.params import HydraulicParams
-from independent_actuator import Actuator, motion, write
 
 PA = ((-0.05, 0.0), (0.2, 0.01), (0.5, 0.05), (0.9, 0.16), (1.0, 0.18), (3.0, 0.5), (10.0, 1.0))
 AT = ((0.02, 0.0), (0.5, 0.04), (10.0, 0.9))
@@ -96,7 +96,7 @@ def test_the_corner_is_where_the_valve_has_it(curves):
     fc, _ = curves
     x = np.roots([TRUTH.area_gain, -math.pi * TRUTH.spool_d, math.pi * TRUTH.spool_d * TRUTH.overlap]).max()
     corner = x / TRUTH.x_max * TRUTH.u_max
-    slope = lambda u: (fc.pa.opening(np.array([u + 0.01])) - fc.pa.opening(np.array([u - 0.01])))[0] / 0.02  # noqa: E731
+    slope = lambda u: (fc.pa.opening(np.array([u + 0.01])) - fc.pa.opening(np.array([u - 0.01])))[0] / 0.02
     assert slope(corner - 0.06) > 1.4 * slope(corner + 0.06)
     knots = fc.pa.knots[(fc.pa.knots > corner - 0.2) & (fc.pa.knots < corner + 0.2)]
     changes = [(slope(k - 0.01) - slope(k + 0.01), k) for k in knots]

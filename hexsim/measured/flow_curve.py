@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import lsq_linear
-from scipy.signal import lti, lsim, savgol_filter
+from scipy.signal import lsim, lti, savgol_filter
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError

@@ -240,7 +240,7 @@ class PassengerView:
     def seat_ratio(self) -> float:
         return self.seat_peak / ISO_PERCEPTION_THRESHOLD
 
-    def worst_against(self, none: "PassengerView") -> float:
+    def worst_against(self, none: PassengerView) -> float:
         """The largest ratio of a reversal's peak to the same reversal's without compensation (the runs' reversals
         in order; the shorter count): above 1, a reversal the compensation made worse."""
         n = min(self.reversal_peaks.size, none.reversal_peaks.size)
