@@ -145,3 +145,18 @@ def test_the_judge_rejects_small_worse_tolerance_and_implausible_fits():
     edge = _judged([40.0, 50.0, 60.0], [4.0, 6.0, 5.0], 1.99, 0.01)
     assert not edge.accepted and edge.at_edge == edge.reasons and len(edge.reasons) == 1
     assert "at a bound of its plausible range -2…2" in edge.reasons[0]
+
+
+def test_a_budget_the_calibrations_floor_sets_is_named_with_both_figures():
+    """Issue 52's 4-way rig: p1 off by 42 bar against 0.045 bar of noise was answered `none` with no word on the
+    floor. The sentence names each channel whose calibration uncertainty is at least 3 times its noise (p1: 42 bar
+    against 0.045, 933×), not the one where the noise sets the budget (position: 1 µm against 5 µm); nothing
+    where no channel's is."""
+    from hexsim.measured.validation import floor_sentences
+
+    units = {"p1": "Pa", "position": "m"}
+    budget = Budget(noise={"p1": 4.5e3, "position": 5e-6}, tolerance={"p1": 4.2e6, "position": 1e-6},
+                    calibration={"p1": 4.2e6, "position": 1e-6})
+    (sentence,) = floor_sentences(budget, units)
+    assert "p1 (42 bar against 0.045 bar of sensor noise, 933×)" in sentence and "position" not in sentence
+    assert floor_sentences(Budget(noise=budget.noise, tolerance=budget.noise, calibration={}), units) == []

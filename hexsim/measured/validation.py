@@ -64,7 +64,8 @@ def conclusions(ident: Identification, before: dict) -> list[str]:
     ``before``: the residual analysis of the nominal model (:func:`hexsim.measured.residuals.analyse`)."""
     ratio = {ch: math.sqrt(v) for ch, v in within_budget(ident.nominal, ident.budget).items()}
     off = [ch for ch, r in ratio.items() if r * r > WITHIN]
-    return (_channel_sentences(ratio, off) + _calibration_sentences(ident) + sensor_consistency(ident.problem.log)
+    return (_channel_sentences(ratio, off) + floor_sentences(ident.budget, ident.problem.units)
+            + _calibration_sentences(ident) + sensor_consistency(ident.problem.log)
             + _leg_sentences(ident) + _direction_sentences(before, off) + _verdict_sentences(ident))
 
 
@@ -110,10 +111,42 @@ def sensor_consistency(log: MeasurementLog) -> list[str]:
     return []
 
 
+#: A channel's budget is the calibration's floor, not the sensor, where what the calibration left uncertain is
+#: this many times the sensor's noise.
+FLOOR_DOMINATES = 3.0
+
+
+def _readable(value: float, unit: str) -> str:
+    """``value`` [SI ``unit``] as an engineer reads it: pressures in bar, lengths in mm."""
+    if unit == "Pa":
+        return f"{value / 1e5:.3g} bar"
+    if unit == "m":
+        return f"{value * 1e3:.3g} mm"
+    return f"{value:.3g} {unit}"
+
+
+def floor_sentences(budget, units: dict[str, str]) -> list[str]:
+    """Where a verdict's budget is the calibration's floor rather than the sensors' noise (the calibration's
+    uncertainty, :func:`hexsim.measured.scoring.calibration_uncertainty`, at least :data:`FLOOR_DOMINATES` times
+    the noise): a sentence naming the channels, both figures and what it means — an effect smaller than the floor
+    is not resolved on this machine, whatever the verdict. ``budget``: a :class:`hexsim.measured.scoring.Budget`;
+    ``units``: channel -> SI unit. Empty where the noise sets every budget."""
+    floor = {ch: c for ch, c in budget.calibration.items()
+             if ch in budget.noise and c > FLOOR_DOMINATES * max(budget.noise[ch], 1e-300)}
+    if not floor:
+        return []
+    parts = [f"{ch} ({_readable(c, units.get(ch, ''))} against {_readable(budget.noise[ch], units.get(ch, ''))} "
+             f"of sensor noise, {c / max(budget.noise[ch], 1e-300):.3g}×)" for ch, c in floor.items()]
+    return ["The budget is this machine's calibration floor, not its sensors, on " + ", ".join(parts)
+            + ": an effect smaller than that is not resolved on this machine, whatever the verdict; a calibration "
+            "that reaches its own logs' budget lowers it (docs/calibration.md)."]
+
+
 def _channel_sentences(ratio: dict[str, float], off: list[str]) -> list[str]:
     clean = [ch for ch in ratio if ch not in off]
     if not off:
-        return ["The nominal model reproduces every channel to within its noise and numerical tolerance "
+        return ["The nominal model reproduces every channel within its budget, the sensors' noise, the replay's "
+                "numerical tolerance and, on a calibrated machine, the calibration's uncertainty "
                 "(held-out RMS / budget: " + ", ".join(f"{ch} {r:.2g}" for ch, r in ratio.items()) + ")."]
     out = ["Off beyond noise and tolerance: " + ", ".join(f"{ch} ({ratio[ch]:.3g} budgets)" for ch in off)
            + (f"; at noise: {', '.join(clean)}." if clean else ".")]
