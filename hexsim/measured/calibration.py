@@ -351,7 +351,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
                                      initial=best["machine"], options=options, notify=notify)
         best["machine"] = best["params"].apply(best["start"], best["fit"].values)
     if curve or (curve is None and not reaches_budget(ev.replays, best["machine"])):
-        best = with_curve(ev.replays, best, tried, options, share, notify)
+        best = with_curve(ev.replays, ev.residual(), best, tried, options, share, notify)
     return best, tried
 
 

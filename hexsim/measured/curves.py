@@ -53,12 +53,12 @@ def curve_machine(machine: Machine, curves: FlowCurves) -> Machine:
                       edge_gain_BT=eff.edge_gain_bt / eff.edge_gain_pa)
 
 
-def with_curve(replays: list, best: dict, tried: list[dict], options: FitOptions, independent_share,
-               notify: Callable[[str], None]) -> dict:
+def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: dict, tried: list[dict],
+               options: FitOptions, independent_share, notify: Callable[[str], None]) -> dict:
     """The chosen form's calibration ``best`` (``flow_area``, ``start``, ``params``, ``fit``, ``machine``) with
     the valve's curves read from the ``replays``' logs (:class:`hexsim.measured.dynamics.ReplayEvidence`), the
-    form's other parameters fitted again to the replays from there (``options``, ``independent_share``: as the
-    form's fit); kept in place of the form if it predicts the held-out windows :data:`CURVE_GAIN` better (its
+    form's other parameters fitted again from there to the calibration's own ``residual`` (``options``,
+    ``independent_share``: as the form's fit); kept in place of the form if it predicts the held-out windows :data:`CURVE_GAIN` better (its
     cost added to ``tried``). Returns the chosen, as ``best`` with ``curve`` (the
     :class:`~hexsim.measured.flow_curve.FlowCurves`) and ``form`` (the form it started from) when the curves
     are."""
@@ -70,8 +70,8 @@ def with_curve(replays: list, best: dict, tried: list[dict], options: FitOptions
                       {k: float(np.clip(v, *bounds[k])) for k, v in read.items() if k in bounds})
     notify(f"read the valve's curves from the logs' flows (to {curves.pa.reach:.3g} V on P→A, {curves.at.reach:.3g} V "
            f"on A→T); calibrating {len(params)} parameters with them")
-    fit = fit_parameters(lambda m: np.concatenate([r.residual(m) for r in replays]), start, params,
-                         independent_share=independent_share, options=options, notify=notify)
+    fit = fit_parameters(residual, start, params, independent_share=independent_share, options=options,
+                         notify=notify)
     result = params.apply(start, fit.values)
     cost = sum(r.errors(result)["held_out_cost"] for r in replays)
     form_cost = sum(r.errors(best["machine"])["held_out_cost"] for r in replays)

@@ -690,8 +690,7 @@ def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
 def with_valve(machine: Machine, **valve) -> Machine:
     """``machine`` with the ``valve`` section's entries ``valve`` set (any value: a form's name, a table, a curve),
     the file checked again as any machine file (InputError names the key and value)."""
-    doc = json.loads(json.dumps(machine.document()))
-    doc["valve"].update(valve)
+    doc = set_keys(machine.document(), [(f"valve.{key}", value) for key, value in valve.items()])
     return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 
