@@ -224,25 +224,31 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
 
     p_s = p.supply_pressure if p_s is None else float(p_s)
     x_v = float(spool_position(u_v, p))
+    P = leg_params(p, eff)  # once: brentq calls the compiled scalar flows hundreds of times per speed
 
-    def chamber(v: float, flow, target: float) -> float:  # the pressure at which flow(p) = target
-        return brentq(lambda q: float(flow(x_v, q, p, p_s, eff)) - target, p.cavitation_pressure, p_s + 1e7,
-                      xtol=1e-6)
+    def phi_1(q: float) -> float:
+        return legs.orifice(x_v, q, p_s, P)[0]
+
+    def phi_2(q: float) -> float:
+        return legs.orifice_rod(x_v, q, p_s, P)[0]
+
+    def chamber(flow, target: float) -> float:  # the pressure at which flow(p) = target
+        return brentq(lambda q: flow(q) - target, p.cavitation_pressure, p_s + 1e7, xtol=1e-6)
 
     def pressures(v: float) -> tuple[float, float]:
-        p1 = chamber(v, valve_flow, v * p.area_bottom)
-        p2 = chamber(v, valve_flow_rod, -v * p.area_rod) if p.four_way else p_s
+        p1 = chamber(phi_1, v * p.area_bottom)
+        p2 = chamber(phi_2, -v * p.area_rod) if p.four_way else p_s
         return p1, p2
 
     def imbalance(v: float) -> float:
         p1, p2 = pressures(v)
-        return p1 * p.area_bottom - p2 * p.area_rod - float(friction_force(v, p)) - load_force
+        return p1 * p.area_bottom - p2 * p.area_rod - legs.friction(v, P) - load_force
 
     reach = []  # the speeds at which both chambers can still follow (the flow at the pressure limits)
-    for flow, area in ((valve_flow, p.area_bottom), (valve_flow_rod, -p.area_rod)):
-        if flow is valve_flow_rod and not p.four_way:
+    for flow, area in ((phi_1, p.area_bottom), (phi_2, -p.area_rod)):
+        if flow is phi_2 and not p.four_way:
             continue
-        ends = [float(flow(x_v, q, p, p_s, eff)) / area for q in (p.cavitation_pressure, p_s + 1e7)]
+        ends = [flow(q) / area for q in (p.cavitation_pressure, p_s + 1e7)]
         reach.append((min(ends), max(ends)))
     lo, hi = max(r[0] for r in reach), min(r[1] for r in reach)
     lo, hi = lo + 1e-9 * abs(lo) + 1e-12, hi - 1e-9 * abs(hi) - 1e-12
@@ -251,7 +257,7 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
     except ValueError:
         raise ValueError(f"no steady motion at u_v = {u_v:g} V against {load_force:g} N (stalled)") from None
     p1, p2 = pressures(v)
-    return SteadyState(v, p1, p2, float(friction_force(v, p)))
+    return SteadyState(v, p1, p2, float(legs.friction(v, P)))
 
 
 def static_velocity(u_v, p1, p: HydraulicParams, p_s=None):
