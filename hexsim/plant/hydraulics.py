@@ -13,6 +13,7 @@ phi_1 > 0 fills the bottom chamber; the leg force > 0 extends the leg.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numba
@@ -148,6 +149,41 @@ def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams
     return p.replace(flow_area="curve", opening_table=(), flow_curve_pa=edges[0], flow_curve_at=edges[1], overlap=0.0)
 
 
+@_jit
+def _chamber_pressure(x_v, target, p_s, P, rod, lo, hi):
+    """The chamber pressure in [lo, hi] [Pa] at which the valve's flow into it (phi_1 of
+    :func:`hexsim.plant.legs.orifice`, or phi_2 of :func:`~hexsim.plant.legs.orifice_rod` when ``rod``)
+    equals ``target`` [m^3/s]; NaN if it does not within [lo, hi]. The flow falls monotonically with the
+    pressure (d phi/dP <= 0), so Newton's step on the exact derivative, kept inside a bisection bracket,
+    converges to 1e-6 Pa (as scipy's brentq did here, 20x the cost from Python)."""
+    f_lo = (legs.orifice_rod(x_v, lo, p_s, P) if rod else legs.orifice(x_v, lo, p_s, P))[0] - target
+    f_hi = (legs.orifice_rod(x_v, hi, p_s, P) if rod else legs.orifice(x_v, hi, p_s, P))[0] - target
+    if f_lo == 0.0:
+        return lo
+    if f_hi == 0.0:
+        return hi
+    if (f_lo > 0.0) == (f_hi > 0.0):
+        return math.nan
+    q = 0.5 * (lo + hi)
+    for _ in range(200):
+        f, df = legs.orifice_rod(x_v, q, p_s, P) if rod else legs.orifice(x_v, q, p_s, P)
+        f -= target
+        if f == 0.0:
+            return q
+        if (f > 0.0) == (f_lo > 0.0):
+            lo = q
+        else:
+            hi = q
+        step = f / df if df < 0.0 else math.inf
+        nxt = q - step
+        if not (lo < nxt < hi):
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - q) < 1e-6 or hi - lo < 1e-6:
+            return nxt
+        q = nxt
+    return q
+
+
 def edge_flow(area, dp, p: HydraulicParams):
     """Flow [m^3/s] through one valve edge of opening ``area`` [m^2] (edge gain applied by the caller)
     under the pressure difference ``dp`` [Pa] (upstream minus downstream): the orifice equation (seed eq.
@@ -233,7 +269,10 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
         return legs.orifice_rod(x_v, q, p_s, P)[0]
 
     def chamber(flow, target: float) -> float:  # the pressure at which flow(p) = target
-        return brentq(lambda q: flow(q) - target, p.cavitation_pressure, p_s + 1e7, xtol=1e-6)
+        q = _chamber_pressure(x_v, target, p_s, P, flow is phi_2, p.cavitation_pressure, p_s + 1e7)
+        if math.isnan(q):
+            raise ValueError(f"no chamber pressure gives {target:g} m^3/s")
+        return q
 
     def pressures(v: float) -> tuple[float, float]:
         p1 = chamber(phi_1, v * p.area_bottom)
