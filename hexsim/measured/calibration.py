@@ -188,6 +188,11 @@ def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
 #: optimum, but it ranked the forms right on every machine measured, docs/calibration.md; the chosen form
 #: then goes on from there).
 FIT_NFEV, SCREEN_NFEV = 40, 10
+#: A fit on replays stops when a step moves the parameters less than XTOL of their brackets' scale or lowers
+#: the weighted sum of squares by less than FTOL of itself (scipy's xtol, ftol; its 1e-8 defaults spent half
+#: of a calibration's replays on the last 0.01 % of its cost, the refits after a parameter is held nearly all
+#: of theirs).
+XTOL, FTOL = 1e-4, 1e-6
 #: Evaluations of one least-squares run on hexapod logs: each is a closed-loop replay of the whole log (0.8 s
 #: for 20 s of the Micro Motion System) and a Jacobian of as many replays as parameters (20); the fit is
 #: nearly linear in the legs' flow gains and converges in a few steps (docs/calibration.md).
@@ -319,7 +324,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
     form could be calibrated."""
     forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
     curve = _wants_curve(ev, machine, flow_areas)  # refused before any fit where it cannot be read
-    options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01,
+    options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01, xtol=XTOL, ftol=FTOL,
                          max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV) if ev.replays else FitOptions()
     share = ev.independent_share if ev.replays else None
     screen = len(forms) > 1

@@ -62,6 +62,8 @@ class FitOptions:
     warm: bool = False
     rule: bool = True
     correlated_se: float = 0.0
+    xtol: float = 1e-8
+    ftol: float = 1e-8
 
 
 @dataclass
@@ -139,7 +141,7 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         # away where the others went
         z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
         sol = bounded_fit(residual, [z0], 0.0, 1.0, diff_step=options.diff_step, x_scale=options.x_scale,
-                          max_nfev=options.max_nfev)
+                          max_nfev=options.max_nfev, xtol=options.xtol, ftol=options.ftol)
         notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
         x[free] = lo[free] + sol.x * span[free]
         if options.warm:
