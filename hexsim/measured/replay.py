@@ -22,7 +22,7 @@ from typing import Protocol, runtime_checkable
 
 import mujoco
 import numpy as np
-from scipy.signal import cont2discrete
+from scipy.signal import cont2discrete, lfilter, ss2tf
 
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.measurement import MeasurementLog
@@ -200,28 +200,21 @@ def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effec
     u_b[j] = clip(u_b[j-1], u[j] - h, u[j] + h), then the second-order spool loop as an exact ZOH
     discretisation (scipy.signal.cont2discrete) of x_v'' = w^2 (x_set - x_v) - 2 zeta w x_v' (spool
     travel limits ignored here). With an ideal spool x_v = x_set, v_v = 0."""
-    u_b = u_log.copy()
-    if eff.spool_play > 0:  # the backlash state at row j, after the setpoints of rows 0 … j-1
-        h = eff.spool_play
-        prev = u_log[0]
-        for j, u in enumerate(u_log):
-            u_b[j] = prev
-            prev = legs.backlash.py_func(prev, u, h)
+    u_b = legs.backlash_history(u_log, eff.spool_play) if eff.spool_play > 0 else u_log.copy()
     x_set = hydraulics.spool_position(u_b, hyd)
     if eff.spool_frequency <= 0:
         return u_b[rows], x_set[rows], np.zeros(len(rows))
     w, z = 2 * np.pi * eff.spool_frequency, eff.spool_damping
     a = np.array([[0.0, 1.0], [-w * w, -2 * z * w]])
     ad, bd, *_ = cont2discrete((a, np.array([[0.0], [w * w]]), np.eye(2), np.zeros((2, 1))), 1.0 / fs, "zoh")
-    # the setpoint of row j is held over the period from row j to row j+1 (see replay)
-    x = np.zeros(2)
-    x[0] = x_set[0]
-    states = np.empty((len(u_log), 2))
-    for j in range(len(u_log)):
-        if j:
-            x = ad @ x + bd[:, 0] * x_set[j - 1]
-        states[j] = x
-    return u_b[rows], states[rows, 0], states[rows, 1]
+    # the setpoint of row j is held over the period from row j to row j+1 (see replay): from rest at
+    # x_set[0], the state at row j is the response to x_set[0 … j-1], each output of the discrete system
+    # (ad, bd) with its one-sample delay (ss2tf's leading zero), filtered by scipy.signal.lfilter
+    dev = x_set - x_set[0]
+    num, den = ss2tf(ad, bd, np.eye(2), np.zeros((2, 1)))
+    x_v = x_set[0] + lfilter(num[0], den, dev)
+    v_v = lfilter(num[1], den, dev)
+    return u_b[rows], x_v[rows], v_v[rows]
 
 
 def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: float = 1e-4,

@@ -459,6 +459,19 @@ def backlash(u_b, u, h):
     return min(max(u_b, u - h), u + h)
 
 
+@_jit
+def backlash_history(u, h):
+    """The play's state before each sample of a setpoint sequence u (n,) [V] of half width h [V]:
+    u_b[0] = u[0], u_b[j] = :func:`backlash` (u_b[j-1], u[j-1], h) (the recursion a replay starts each
+    window from)."""
+    out = np.empty_like(u)
+    prev = u[0]
+    for j in range(u.shape[0]):
+        out[j] = prev
+        prev = backlash(prev, u[j], h)
+    return out
+
+
 @_inline
 def _spool_step(i, u, dt, S, P):
     """Spool play (backlash of half width h) and the second-order spool loop (semi-implicit Euler,
