@@ -91,6 +91,27 @@ def test_two_parameters_the_residual_only_sees_together_are_not_both_fitted():
     assert screening.held == {} and np.all(screening.std_errors == 0.0)
 
 
+def test_a_hold_that_the_data_refuse_is_taken_back():
+    """Two levels correlated beyond 0.98 in the fit, yet plainly separated by the data (low noise, many
+    samples): the rule holds the worse known at its prior, the refit's cost rises far beyond MAX_HOLD_RISE,
+    and the fit before the hold is the answer, both levels free at the truth (a calibration's return edge,
+    "correlation +0.992" with the supply edge, once held so and its cost 140x)."""
+    machine = load_machine("servo_cylinder")
+    params = _set(machine)
+    truth = 1.3 * params.priors(machine)
+    rng = np.random.default_rng(5)
+    design = rng.normal(size=(400, 3))
+    design[:, 1] = design[:, 0] + 0.1 * rng.normal(size=400)  # the two Coulomb levels nearly together
+    residual_of, _ = _linear(design, truth, noise=0.001)
+    said = []
+    fit = fit_parameters(residual_of, machine, params, notify=said.append)
+    assert any(line.startswith("held at its prior: friction.") and "trades against" in line for line in said), said
+    assert any(line.startswith("kept free: friction.") for line in said), said
+    assert fit.held == {}
+    np.testing.assert_allclose(fit.values, truth, rtol=1e-3)
+    assert np.all(fit.std_errors > 0.0)
+
+
 def test_a_bound_the_data_barely_ask_for_is_held_and_one_they_ask_for_is_kept():
     """A parameter the residual sees only faintly, whose truth lies beyond its bracket, runs to the bound at
     no material gain (the real cylinder's 10 V table point, seen through a 0.01 V null offset): held at its
