@@ -17,7 +17,8 @@ prior, and with the others at three quarters of theirs) is held. A parameter the
 held too when putting it back at its prior costs less than :data:`MIN_BOUND_GAIN` in the weighted sum of
 squares (the others as fitted): a bound reached through a sensitivity the data barely have (the real
 cylinder's 10 V table point, seen by its 5 V runs only through a null offset of 0.01 V) is no finding.
-A hold whose refit ends more than :data:`MAX_HOLD_RISE` above the fit before it is taken back: the data
+A hold whose refit ends more than :data:`MAX_HOLD_RISE` above the fit before it (of that fit's weighted sum
+of squares, or of the residual's length where the fit is closer than its weights) is taken back: the data
 do separate that parameter (a correlation or standard error read at a point short of the optimum said
 otherwise), and the fit before it is the answer, the parameter free with its statistics as they were.
 """
@@ -44,7 +45,7 @@ MAX_CORRELATION = 0.98
 #: degree of freedom: 1 is one standard deviation) is not asked for by the data: held at its prior.
 MIN_BOUND_GAIN = 1.0
 #: A hold (module doc) whose refit's weighted sum of squares ends more than this share above the fit before
-#: it is taken back (measured: holding a return edge "correlated +0.992" with the supply edge raised a
+#: it (or above the residual's length, a fit within its weights: a hold there moves it by noise) is taken back (measured: holding a return edge "correlated +0.992" with the supply edge raised a
 #: calibration's cost from 4.75e5 to 6.6e7; the holds the data cannot see change it by under 1 %).
 MAX_HOLD_RISE = 0.1
 #: A machine the residual cannot be computed for (a physics error, an invalid file) costs this per entry.
@@ -151,7 +152,7 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         sol = bounded_fit(residual, [z0], 0.0, 1.0, diff_step=options.diff_step, x_scale=options.x_scale,
                           max_nfev=options.max_nfev, xtol=options.xtol, ftol=options.ftol)
         notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
-        if before is not None and 2 * sol.cost > (1.0 + MAX_HOLD_RISE) * before[1]:
+        if before is not None and 2 * sol.cost - before[1] > MAX_HOLD_RISE * max(before[1], n_res):
             notify(f"kept free: {before[2]} (held, the cost rose {before[1]:.4g} -> {2 * sol.cost:.4g})")
             return before[0]
         x[free] = lo[free] + sol.x * span[free]
