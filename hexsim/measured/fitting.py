@@ -45,8 +45,9 @@ MAX_CORRELATION = 0.98
 #: degree of freedom: 1 is one standard deviation) is not asked for by the data: held at its prior.
 MIN_BOUND_GAIN = 1.0
 #: A hold (module doc) whose refit's weighted sum of squares ends more than this share above the fit before
-#: it (or above the residual's length, a fit within its weights: a hold there moves it by noise) is taken back (measured: holding a return edge "correlated +0.992" with the supply edge raised a
-#: calibration's cost from 4.75e5 to 6.6e7; the holds the data cannot see change it by under 1 %).
+#: it (or of the residual's length, for a fit within its weights: a hold there moves it by noise) is taken
+#: back. Measured: holding a return edge "correlated +0.992" with the supply edge raised a calibration's cost
+#: from 4.75e5 to 6.6e7; the holds the data cannot see change it by under 1 %.
 MAX_HOLD_RISE = 0.1
 #: A machine the residual cannot be computed for (a physics error, an invalid file) costs this per entry.
 FAILED_RESIDUAL = 1e3

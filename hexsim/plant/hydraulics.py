@@ -260,7 +260,7 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
 
     p_s = p.supply_pressure if p_s is None else float(p_s)
     x_v = float(spool_position(u_v, p))
-    P = leg_params(p, eff)  # once: brentq calls the compiled scalar flows hundreds of times per speed
+    P = leg_params(p, eff)  # once: each speed's chamber solves call the compiled flows many times
 
     def phi_1(q: float) -> float:
         return legs.orifice(x_v, q, p_s, P)[0]
