@@ -136,7 +136,7 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
     start = prior.copy() if initial is None else np.clip(params.priors(initial), lo, lo + span)
     if options.rule:
         held |= _blind(safe, params, prior, held)
-    before: tuple[Fit, float, str] | None = None  # the fit before the last hold, its cost, the key held
+    before: tuple[Fit, str] | None = None  # the fit before the last hold, and the key held
     while True:
         free = _free(params, held)
         x = prior.copy()
@@ -153,9 +153,11 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         sol = bounded_fit(residual, [z0], 0.0, 1.0, diff_step=options.diff_step, x_scale=options.x_scale,
                           max_nfev=options.max_nfev, xtol=options.xtol, ftol=options.ftol)
         notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
-        if before is not None and 2 * sol.cost - before[1] > MAX_HOLD_RISE * max(before[1], n_res):
-            notify(f"kept free: {before[2]} (held, the cost rose {before[1]:.4g} -> {2 * sol.cost:.4g})")
-            return before[0]
+        if before is not None:
+            cost = float(np.sum(before[0].residuals ** 2))
+            if 2 * sol.cost - cost > MAX_HOLD_RISE * max(cost, n_res):
+                notify(f"kept free: {before[1]} (held, the cost rose {cost:.4g} -> {2 * sol.cost:.4g})")
+                return before[0]
         x[free] = lo[free] + sol.x * span[free]
         if options.warm:
             start = x.copy()
@@ -176,7 +178,7 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         if worst is None:
             return fit
         notify(f"held at its prior: {params[free[worst]].key} ({why})")
-        before = (fit, 2 * sol.cost, params[free[worst]].key)
+        before = (fit, params[free[worst]].key)
         held[params[free[worst]].key] = why
 
 

@@ -150,14 +150,20 @@ def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams
 
 
 @_jit
+def _chamber_flow(x_v, q, p_s, P, rod):
+    """(phi, d phi/dP) into the cap-side chamber at pressure q (:func:`hexsim.plant.legs.orifice`) or, when
+    ``rod``, into the rod side (:func:`~hexsim.plant.legs.orifice_rod`)."""
+    return legs.orifice_rod(x_v, q, p_s, P) if rod else legs.orifice(x_v, q, p_s, P)
+
+
+@_jit
 def _chamber_pressure(x_v, target, p_s, P, rod, lo, hi):
-    """The chamber pressure in [lo, hi] [Pa] at which the valve's flow into it (phi_1 of
-    :func:`hexsim.plant.legs.orifice`, or phi_2 of :func:`~hexsim.plant.legs.orifice_rod` when ``rod``)
-    equals ``target`` [m^3/s]; NaN if it does not within [lo, hi]. The flow falls monotonically with the
-    pressure (d phi/dP <= 0), so Newton's step on the exact derivative, kept inside a bisection bracket,
-    converges to 1e-6 Pa (as scipy's brentq did here, 20x the cost from Python)."""
-    f_lo = (legs.orifice_rod(x_v, lo, p_s, P) if rod else legs.orifice(x_v, lo, p_s, P))[0] - target
-    f_hi = (legs.orifice_rod(x_v, hi, p_s, P) if rod else legs.orifice(x_v, hi, p_s, P))[0] - target
+    """The chamber pressure in [lo, hi] [Pa] at which the valve's flow into it (:func:`_chamber_flow`) equals
+    ``target`` [m^3/s]; NaN if it does not within [lo, hi]. The flow falls monotonically with the pressure
+    (d phi/dP <= 0), so Newton's step on the exact derivative, kept inside a bisection bracket, converges to
+    1e-6 Pa (as scipy's brentq did here, 20x the cost from Python)."""
+    f_lo = _chamber_flow(x_v, lo, p_s, P, rod)[0] - target
+    f_hi = _chamber_flow(x_v, hi, p_s, P, rod)[0] - target
     if f_lo == 0.0:
         return lo
     if f_hi == 0.0:
@@ -166,7 +172,7 @@ def _chamber_pressure(x_v, target, p_s, P, rod, lo, hi):
         return math.nan
     q = 0.5 * (lo + hi)
     for _ in range(200):
-        f, df = legs.orifice_rod(x_v, q, p_s, P) if rod else legs.orifice(x_v, q, p_s, P)
+        f, df = _chamber_flow(x_v, q, p_s, P, rod)
         f -= target
         if f == 0.0:
             return q
@@ -262,21 +268,15 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
     x_v = float(spool_position(u_v, p))
     P = leg_params(p, eff)  # once: each speed's chamber solves call the compiled flows many times
 
-    def phi_1(q: float) -> float:
-        return legs.orifice(x_v, q, p_s, P)[0]
-
-    def phi_2(q: float) -> float:
-        return legs.orifice_rod(x_v, q, p_s, P)[0]
-
-    def chamber(flow, target: float) -> float:  # the pressure at which flow(p) = target
-        q = _chamber_pressure(x_v, target, p_s, P, flow is phi_2, p.cavitation_pressure, p_s + 1e7)
+    def chamber(rod: bool, target: float) -> float:  # the pressure at which the flow into it is target
+        q = _chamber_pressure(x_v, target, p_s, P, rod, p.cavitation_pressure, p_s + 1e7)
         if math.isnan(q):
             raise ValueError(f"no chamber pressure gives {target:g} m^3/s")
         return q
 
     def pressures(v: float) -> tuple[float, float]:
-        p1 = chamber(phi_1, v * p.area_bottom)
-        p2 = chamber(phi_2, -v * p.area_rod) if p.four_way else p_s
+        p1 = chamber(False, v * p.area_bottom)
+        p2 = chamber(True, -v * p.area_rod) if p.four_way else p_s
         return p1, p2
 
     def imbalance(v: float) -> float:
@@ -284,10 +284,8 @@ def steady_state(u_v: float, load_force: float, p: HydraulicParams, p_s: float |
         return p1 * p.area_bottom - p2 * p.area_rod - legs.friction(v, P) - load_force
 
     reach = []  # the speeds at which both chambers can still follow (the flow at the pressure limits)
-    for flow, area in ((phi_1, p.area_bottom), (phi_2, -p.area_rod)):
-        if flow is phi_2 and not p.four_way:
-            continue
-        ends = [flow(q) / area for q in (p.cavitation_pressure, p_s + 1e7)]
+    for rod, area in ((False, p.area_bottom), (True, -p.area_rod))[:2 if p.four_way else 1]:
+        ends = [_chamber_flow(x_v, q, p_s, P, rod)[0] / area for q in (p.cavitation_pressure, p_s + 1e7)]
         reach.append((min(ends), max(ends)))
     lo, hi = max(r[0] for r in reach), min(r[1] for r in reach)
     lo, hi = lo + 1e-9 * abs(lo) + 1e-12, hi - 1e-9 * abs(hi) - 1e-12
