@@ -305,8 +305,8 @@ class AdaptiveFeedforward(FeedforwardCompensator):
       tracking error the P output is K_p times) and so measures the curve's error at each command without the
       loop's lag, and corrects the leg model's curve where the motion went, faded in over ``fade_time``. A
       corner where a rounded metering edge meets the port, which a calibration smoothed, is learned where the
-      motion crosses it (docs/compensation.md: the reference plant R1's corner crossings from 11x to about 4x
-      the seat's perception threshold within a minute).
+      motion crosses it (docs/compensation.md: the reference plant R1's corner crossings from 11x to about 3x
+      the seat's perception threshold within a minute, the corner's kink kept).
     - **the null**: a shift c [V] of the inverse, u_v = F^-1(v + s LP(u_p)) + c, moved towards the volts the P
       loop adds, e = F^-1(v + s LP(u_p)) - F^-1(v), by least mean squares, Δc = dt / ``adapt_time`` e (in the
       line of Tao & Kokotović's adaptive dead-band inverse, *Adaptive control of systems with actuator and
