@@ -58,3 +58,30 @@ def test_noise_is_not_taken_for_a_kink(seed):
     rounded = squared_only(gram, rhs, knee)
     kept = cl._smoothed(gram, rhs, knee)
     assert np.sqrt(np.mean(kept**2)) <= 1.1 * np.sqrt(np.mean(rounded**2))
+
+
+def _adaptive():
+    from compensation.model_based import AdaptiveFeedforward
+    from compensation.settings import CompensatorSettings
+    from hexsim.control.scenario import make_scenario
+    from hexsim.simulation.config import RunConfig
+    from hexsim.simulation.tuning import leg_model_of
+
+    model = leg_model_of(RunConfig(make_scenario("actuator", duration=6.0)))
+    return AdaptiveFeedforward(1, 500.0, 10.0, CompensatorSettings(adapt_time=0.2, fade_time=0.01), model=model)
+
+
+@pytest.mark.parametrize("speed, learns", [(0.02, True), (0.12, False)])
+def test_the_null_is_learned_near_the_reversals_and_the_curve_at_speed(speed, learns):
+    """The P loop adding 20 mV for a second: below the curve learner's band (cl.BAND_MPS) the adaptive null shift
+    takes it up; at speed it is the curve's error (a corner's, on R1) and the null stays put (learned there, it was
+    a bump at every reversal)."""
+    from compensation.model_based import Reference
+
+    comp = _adaptive()
+    one = np.ones(1)
+    for k in range(500):
+        r = 0.1 + speed * k / 500.0
+        comp.observe(Reference(r * one, speed * one, 0 * one, 0 * one, None))
+        comp.update(0.02 * one, r * one)
+    assert (abs(comp.null[0]) > 2e-3) == learns
