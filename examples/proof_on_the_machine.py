@@ -18,7 +18,12 @@ the ``actuator`` motion), then the tuned file in the machine's loop on the seed'
 beside hexsim's prediction of the same run; then up to ``--runs`` commissioning runs (each run's log read back
 into the model by ``hexsim tune --from-logs``, the improved file run again).
 
-    python examples/proof_on_the_machine.py [--machines R1,corner,underlap,drift] [--runs 3] [--duration 60]
+    python examples/proof_on_the_machine.py [--machines R1,corner,underlap,drift] [--runs 3] [--duration 60] [--floor]
+
+``--floor`` adds, on R1, the floor any static inverse can reach there: the fixed feedforward with R1's own leg
+model (its flow curve, friction, oil spring and mass from ``../shared/reference-plants``' equations, not a
+calibration) in R1's loop, with its sensors' noise and without; and the tuned file's leg model with R1's own flow
+curve in place of the calibrated one (what the curve alone costs).
 
 It made the tables of docs/compensation.md ("Proven on the machine").
 """
@@ -178,6 +183,60 @@ def prove(name: str, runs: int, duration: float, folder: pathlib.Path) -> list[d
     return rows
 
 
+def r1_own_model():
+    """R1's leg as the feedforward sees a leg (:class:`compensation.model_based.LegModel`), from the reference plant's
+    own equations and R1's values (``plant.SEED`` with ``r1.R1``): the flow curve at the rest pressure on a 10 mV
+    grid, the friction curve, A1, E, V_pl, M. What no calibration can beat: the floor of a static inverse."""
+    import plant
+    import r1
+
+    from compensation.model_based import LegModel
+
+    p = {**plant.SEED, **r1.R1}
+    a1, a2, g = p["A1"], p["A2"], p["g"]
+    p_rest = p["Ps"] * a2 / a1 + p["M"] * g / a1
+    u = np.linspace(-p["uvmax"], p["uvmax"], 2001)
+    x = np.abs(u) * p["xvmax"] / p["uvmax"]
+    area = np.array([plant.port_area(xi, **p["area_kw"]) for xi in x])
+    drop = np.where(u > 0, p["Ps"] - p_rest, p_rest - p["Pt"])
+    velocity = np.sign(u) * p["Cd"] * area * np.sqrt(2 * drop / p["rho"]) / a1
+    v = np.linspace(-0.5, 0.5, 2001)
+    side = {True: ("sp", "Fcp", "Fsp"), False: ("sm", "Fcm", "Fsm")}
+    force = np.array([p[side[vi >= 0][0]] * vi + np.arctan(p["k"] * vi) * (p[side[vi >= 0][1]] + p[side[vi >= 0][2]]
+                      * np.exp(-abs(vi) / p["cs"])) for vi in v])
+    slope = (np.interp(1.0, u, velocity) - np.interp(-1.0, u, velocity)) / 2.0
+    return LegModel(u=u, velocity=velocity[None, :], p_rest=np.array([p_rest]), supply_pressure=p["Ps"],
+                    tank_pressure=p["Pt"], area_bottom=a1, bulk_modulus=p["E"], pipeline_volume=p["Vpl"],
+                    mass=np.array([[p["M"]]]), friction_v=v, friction_f=force, slope=np.array([slope]), kp=200.0,
+                    source="R1's own equations (../shared/reference-plants)")
+
+
+def floor(duration: float, none: dict, tuned: pathlib.Path) -> list[dict]:
+    """The rows of ``--floor``: the fixed feedforward on R1's own leg model in R1's loop, with its sensors' noise and
+    without, and on the ``tuned`` file's leg model with R1's own flow curve (``none``: the uncompensated row, for
+    the reductions)."""
+    import dataclasses
+
+    import plant
+    import r1
+
+    own, calibrated = r1_own_model(), read_tuned(tuned)[2]
+    swapped = dataclasses.replace(calibrated, u=own.u, velocity=own.velocity, slope=own.slope)
+    rows = []
+    for label, model, noise in (("feedforward on R1's own model (floor)", own, None),
+                                ("the same, sensors without noise", own, dict(pos=0.0, p=0.0, acc=0.0)),
+                                ("feedforward on the tuned file with R1's own curve", swapped, None)):
+        comp = make_compensator("feedforward", 1, 500.0, model=model)
+        effects = r1.effects("r1_f")
+        if noise:
+            effects["noise"] = noise
+        out, extra = plant.simulate(effects=effects, ref="sine", T=duration, seed=20, compensator=comp)
+        view, now = judged(out[:, 0], out[:, 1], extra["acc_mean"], extra["v"], extra["acc"], duration)
+        rows.append({"machine": "R1", "run": label, "measured": view, "instantaneous": now, "predicted": None,
+                     "none": none["measured"], "none_instantaneous": none["instantaneous"]})
+    return rows
+
+
 def table(rows: list[dict]) -> str:
     """Measured (1 ms means, as hexsim records) beside predicted; the instantaneous samples' reduction where the
     machine gives them."""
@@ -190,8 +249,9 @@ def table(rows: list[dict]) -> str:
         now, none_now = r.get("instantaneous"), r.get("none_instantaneous")
         red_now = f"{100 * (1 - now.mean / none_now.mean):.1f} %" if now is not None and none_now is not None else "–"
         worst = f"{m.worst_against(none):.2f}" if none else "–"
-        out.append(f"| {r['machine']} | {r['run']} | {m.mean:.4f} | {p.mean:.4f} | {red} | {red_now} | {worst} | "
-                   f"{m.seat_ratio:.2f} | {p.seat_ratio:.2f} |")
+        p_mean, p_seat = (f"{p.mean:.4f}", f"{p.seat_ratio:.2f}") if p else ("–", "–")
+        out.append(f"| {r['machine']} | {r['run']} | {m.mean:.4f} | {p_mean} | {red} | {red_now} | {worst} | "
+                   f"{m.seat_ratio:.2f} | {p_seat} |")
     return "\n".join(out)
 
 
@@ -201,6 +261,7 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=3, help="commissioning runs after the tuned one (default 3)")
     ap.add_argument("--duration", type=float, default=60.0, help="each run on the machine [s] (default 60)")
     ap.add_argument("--keep", type=pathlib.Path, help="keep the logs and files in this folder")
+    ap.add_argument("--floor", action="store_true", help="on R1, add the floor: the feedforward on R1's own model")
     args = ap.parse_args(argv)
     names = [m for m in args.machines.split(",") if m]
     unknown = [m for m in names if m not in MACHINES]
@@ -212,6 +273,8 @@ def main(argv=None) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         for name in names:
             rows += prove(name, args.runs, args.duration, folder)
+            if args.floor and name == "R1":
+                rows += floor(args.duration, rows[-args.runs - 2], folder / "R1_tuned_0.json")
             print(table([r for r in rows if r["machine"] == name]), flush=True)
     print("\n" + table(rows))
     return 0
