@@ -44,8 +44,7 @@ import numpy as np
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from compensation.base import Compensator
-from compensation import curve_learning
-from compensation.curve_learning import CurveLearner, rest_scale
+from compensation.curve_learning import BAND_MPS, CurveLearner, rest_scale
 from compensation.settings import CompensatorSettings, SettingsError
 
 #: Low-pass [Hz] on a measured pressure before the feedforward scales its flow curve to it: the leg's
@@ -412,7 +411,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         """One normalised LMS step of the null shift c towards the loop's volts ``error`` (n_legs,) at velocity v
         [m/s] (n_legs,)."""
         st = self.settings
-        slow = (np.abs(v) >= st.velocity_band) & (np.abs(v) < curve_learning.BAND_MPS)
+        slow = (np.abs(v) >= st.velocity_band) & (np.abs(v) < BAND_MPS)
         legs = np.flatnonzero(slow & (self._pause == 0) & ~self.off)
         step = np.clip(self.dt / st.adapt_time * error[legs], -st.adapt_rate * self.dt, st.adapt_rate * self.dt)
         self.null[legs] = np.clip(self.null[legs] + step, -st.adapt_limit, st.adapt_limit)
