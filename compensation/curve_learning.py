@@ -206,7 +206,8 @@ class CurveLearner:
         return np.array([np.interp(u[i], self.centres, self.correction[i]) for i in range(self.n_legs)])
 
 
-def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0) -> np.ndarray:
+def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
+              iterations: int = KINK_ITERATIONS) -> np.ndarray:
     """The corrections (k,) of a side's bins from null outwards from the regression's normal equations ``gram``
     (k, k) and ``rhs`` (k,), with :data:`SMOOTHING` times the second differences' squares (a Whittaker smoother,
     Eilers, Anal. Chem. 75, 2003, on the evidence's scale) and the first bin (null) held at zero: a bin the
@@ -217,7 +218,7 @@ def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0)
     A kink the evidence asks for is kept: a second difference larger than ``knee`` [m/s] ((k - 2,) or a scalar:
     :data:`KINK` of the model curve's slope across a bin) and :data:`KINK_MEDIAN` times their median is
     penalised in proportion to its size rather than its square (a Huber penalty, solved by iteratively
-    reweighted least squares, :data:`KINK_ITERATIONS` solves; in the line of l1 trend filtering, Kim, Koh, Boyd
+    reweighted least squares, ``iterations`` solves, 1: the squared penalty alone; in the line of l1 trend filtering, Kim, Koh, Boyd
     & Gorinevsky, SIAM Review 51(2), 2009, which keeps a piecewise-linear signal's kinks). The squared penalty
     alone rounds a corner of the valve's curve (where a rounded metering edge meets the full port) into a
     hump some 80 mV wide, short of its tip, and every crossing of the corner is then a bump."""
@@ -233,7 +234,7 @@ def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0)
         return np.linalg.lstsq(g + 1e-9 * np.eye(k), r, rcond=None)[0]
     d = np.diff(np.eye(k), 2, axis=0)
     weight = np.full(k - 2, SMOOTHING)
-    for _ in range(KINK_ITERATIONS):
+    for _ in range(iterations):
         c = np.linalg.solve(g + d.T @ (weight[:, None] * d) + SHRINK * np.eye(k), r)
         curvature = np.abs(d @ c)
         bend = np.maximum(knee, KINK_MEDIAN * float(np.median(curvature)))
