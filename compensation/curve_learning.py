@@ -92,6 +92,9 @@ class CurveLearner:
         self.kp = kp
         self.centres = np.arange(self.u[0], self.u[-1] + BIN_V, BIN_V)
         self.correction = np.zeros((self.n_legs, len(self.centres)))  # [m/s] at the rest pressure
+        # a kink (:data:`KINK`): the flow gain changing by KINK of the model curve's own within a bin [m/s]
+        self.knee = KINK * BIN_V * np.abs(np.gradient(
+            np.stack([np.interp(self.centres, self.u, row) for row in self.base]), BIN_V, axis=1))
         bins = len(self.centres)
         self.gram = np.zeros((self.n_legs, bins, bins))  # the evidence: the regression's normal equations
         self.rhs = np.zeros((self.n_legs, bins))
@@ -172,14 +175,13 @@ class CurveLearner:
         null = int(np.argmin(np.abs(self.centres)))
         for leg in range(self.n_legs):
             weight, row = np.diag(self.gram[leg]), np.zeros(bins)
-            # a kink: the flow gain changing by KINK of the model curve's own within a bin
-            knee = KINK * BIN_V * np.abs(np.gradient(np.interp(self.centres, self.u, self.base[leg]), BIN_V))
             for side in (np.arange(null, bins), np.arange(null, -1, -1)):  # from null outwards
                 seen = np.flatnonzero(weight[side] > 1e-6 * max(float(weight.max()), 1e-30))
                 if not seen.size or weight[side].sum() < MIN_SAMPLES:
                     continue
                 span = side[:seen[-1] + 1]
-                row[span] = _smoothed(self.gram[leg][np.ix_(span, span)], self.rhs[leg, span], knee[span[1:-1]])
+                row[span] = _smoothed(self.gram[leg][np.ix_(span, span)], self.rhs[leg, span],
+                                      self.knee[leg, span[1:-1]])
                 row[side[seen[-1] + 1:]] = row[span[-1]]  # beyond the commands the motion reached: held
             self.correction[leg] = row
         return self.curve()
@@ -218,8 +220,9 @@ def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
     A kink the evidence asks for is kept: a second difference larger than ``knee`` [m/s] ((k - 2,) or a scalar:
     :data:`KINK` of the model curve's slope across a bin) and :data:`KINK_MEDIAN` times their median is
     penalised in proportion to its size rather than its square (a Huber penalty, solved by iteratively
-    reweighted least squares, ``iterations`` solves, 1: the squared penalty alone; in the line of l1 trend filtering, Kim, Koh, Boyd
-    & Gorinevsky, SIAM Review 51(2), 2009, which keeps a piecewise-linear signal's kinks). The squared penalty
+    reweighted least squares, ``iterations`` solves, 1: the squared penalty alone; in the line of l1 trend
+    filtering, Kim, Koh, Boyd & Gorinevsky, SIAM Review 51(2), 2009, which keeps a piecewise-linear signal's
+    kinks). The squared penalty
     alone rounds a corner of the valve's curve (where a rounded metering edge meets the full port) into a
     hump some 80 mV wide, short of its tip, and every crossing of the corner is then a bump."""
     k = len(rhs)
@@ -233,12 +236,13 @@ def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
     if k < 3:
         return np.linalg.lstsq(g + 1e-9 * np.eye(k), r, rcond=None)[0]
     d = np.diff(np.eye(k), 2, axis=0)
-    weight = np.full(k - 2, SMOOTHING)
-    for _ in range(iterations):
-        c = np.linalg.solve(g + d.T @ (weight[:, None] * d) + SHRINK * np.eye(k), r)
+    base = g + SHRINK * np.eye(k)
+    c = np.linalg.solve(base + SMOOTHING * d.T @ d, r)
+    for _ in range(iterations - 1):
         curvature = np.abs(d @ c)
         bend = np.maximum(knee, KINK_MEDIAN * float(np.median(curvature)))
         weight = SMOOTHING * np.minimum(1.0, bend / np.maximum(curvature, 1e-15))
+        c = np.linalg.solve(base + d.T @ (weight[:, None] * d), r)
     return c
 
 
