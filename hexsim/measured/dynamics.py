@@ -19,7 +19,6 @@ prior machine), so a fit is judged in the same units ``hexsim validate`` judges 
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from dataclasses import dataclass
@@ -30,20 +29,13 @@ from hexsim.errors import InputError
 from hexsim.measured.scoring import (Budget, Problem, calibrate_sensors, measure_budget, residual_vector, score,
                                     within_budget)
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.replay import PlantModel, Windows, nominal_plant
+from hexsim.measured.replay import PlantModel, nominal_plant
 from hexsim.measured.residuals import effective_n
 from hexsim.plant.machine import Machine
 
 #: Fit windows replayed per log at most (spread over the log): a fit's cost stays bounded for long logs;
 #: the held-out windows are all scored.
 MAX_FIT_WINDOWS = 16
-def _only(problem: Problem, rows: np.ndarray) -> Problem:
-    """A copy of ``problem`` whose windows are its windows ``rows`` alone, all of them fit windows."""
-    out = copy.copy(problem)
-    out.windows = Windows(problem.windows.starts[rows], problem.windows.length)
-    out.measured = {ch: m[rows] for ch, m in problem.measured.items()}
-    out.fit_rows, out.test_rows = np.arange(len(rows)), np.arange(0)
-    return out
 
 
 @dataclass
@@ -81,7 +73,7 @@ class ReplayEvidence:
         of ``hexsim validate`` (:attr:`hexsim.measured.identify.Identification.nominal_budget`): the same
         windows, at most :data:`MAX_FIT_WINDOWS` of its fit windows replayed by the residual."""
         fitted = problem.fit_rows[np.unique(np.linspace(0, len(problem.fit_rows) - 1, MAX_FIT_WINDOWS).round().astype(int))]
-        return cls(problem.log, problem, budget, _only(problem, fitted))
+        return cls(problem.log, problem, budget, problem.only(fitted))
 
     @classmethod
     def _hexapod(cls, log: MeasurementLog, machine: Machine, every_window: bool) -> "ReplayEvidence":

@@ -160,6 +160,10 @@ class HexapodProblem:
         short.position_offset_limit = self.position_offset_limit
         return short
 
+    def fit_windows(self) -> "HexapodProblem":
+        """Itself: one closed-loop replay of the log makes every segment (:class:`ReplayProblem`)."""
+        return self
+
     @property
     def segments(self) -> int:
         return self.shape[0]

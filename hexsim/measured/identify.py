@@ -192,13 +192,15 @@ def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, bud
     (:func:`hexsim.measured.estimates.at_bound`). A model that
     cannot run at some parameter value scores as a bad fit there. Returns (x, standard errors, Scored,
     function evaluations)."""
-    cache: dict[bytes, dict[str, np.ndarray] | None] = {}
+    fitted = problem.fit_windows()  # a single actuator's residual replays its fit windows only
+    cache: dict[tuple[bytes, bool], dict[str, np.ndarray] | None] = {}
 
-    def sim_at(x):
-        key = np.asarray(x).tobytes()
+    def sim_at(x, every_row: bool = False):
+        on = problem if every_row else fitted
+        key = (np.asarray(x).tobytes(), on is problem)
         if key not in cache:
             try:
-                cache[key] = problem.simulate(make_model(x))
+                cache[key] = on.simulate(make_model(x))
             except (PhysicsError, FloatingPointError, ValueError):
                 cache[key] = None
         return cache[key]
@@ -206,15 +208,15 @@ def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, bud
     def resid(x):
         sim = sim_at(x)
         if sim is None:
-            n = sum(problem.measured[ch][problem.fit_rows, problem.settle:].size for ch in problem.channels)
+            n = sum(fitted.measured[ch][fitted.fit_rows, fitted.settle:].size for ch in fitted.channels)
             return np.full(n, FAILED_RESIDUAL)
-        return residual_vector(problem, sim, budget, problem.fit_rows)
+        return residual_vector(fitted, sim, budget, fitted.fit_rows)
 
     x0 = min(starts, key=lambda x: float(np.sum(resid(x) ** 2)))
     sol = bounded_fit(resid, [x0], lower, upper, method="trf", diff_step=1e-2, x_scale="jac",
                       max_nfev=12 * len(x0) + 8, xtol=1e-4, ftol=1e-6)
     x = sol.x if sim_at(sol.x) is not None else x0
-    scored = score(problem, sim_at(x), budget)
+    scored = score(problem, sim_at(x, every_row=True), budget)
     fit_vec = budget_vector(problem, scored.residuals, budget, problem.fit_rows)  # calibrated on the fit rows
     n_eff = sum(effective_n(scored.residuals[ch][problem.fit_rows, problem.settle:]) for ch in problem.channels)
     # the calibrated fit rows' residuals (not trf's), per independent residual; NaN: no error at a bound
@@ -339,7 +341,7 @@ def start_cost(problem: ReplayProblem, key: str, base: PlantModel, budget: Budge
     """(best start, its cost on the fit windows of the search problem) of a candidate: one replay per
     start, the candidate's own starts and the linearised one (:func:`linear_start`). A start the model
     cannot run scores infinite."""
-    search = search_problem(problem)
+    search = search_problem(problem).fit_windows()
     cand, leg = parse_key(key)
     lower, upper = plausible_bounds(cand, search.log)
     apply = applier(cand, leg)

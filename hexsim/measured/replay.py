@@ -150,6 +150,11 @@ class ReplayProblem(Protocol):
     def replay_error(self, model: PlantModel) -> dict[str, float]:
         """The replay's own error per channel beyond the model's step (0 where there is none)."""
 
+    def fit_windows(self) -> "ReplayProblem":
+        """The problem a least-squares residual replays: the fit rows alone, all of them fit rows, where the
+        rows replay independently (a single actuator's windows); the problem itself where one replay makes
+        every row (a hexapod's closed loop)."""
+
     @property
     def units(self) -> dict[str, str]: ...
 

@@ -20,6 +20,7 @@ A single actuator's log is replayed in windows (:class:`Problem`), a hexapod's i
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from dataclasses import dataclass, field
@@ -127,6 +128,20 @@ class Problem:
         self.measured = {ch: self.windows.take(log.columns[CHANNELS[ch][0]]) for ch in self.channels}
         self.log_noise = {ch: noise_of(log.columns[CHANNELS[ch][0]], ch) for ch in self.channels}
         self.nominal = nominal_plant(log)
+
+    def only(self, rows: np.ndarray) -> "Problem":
+        """A copy whose windows are this problem's windows ``rows`` alone, all of them fit windows: a residual
+        on them replays only them (the windows are independent bodies of one batch model, so each replays as
+        it does among the others)."""
+        out = copy.copy(self)
+        out.windows = Windows(self.windows.starts[rows], self.windows.length)
+        out.measured = {ch: m[rows] for ch, m in self.measured.items()}
+        out.fit_rows, out.test_rows = np.arange(len(rows)), np.arange(0)
+        return out
+
+    def fit_windows(self) -> "Problem":
+        """The fit windows alone (:meth:`only`): what a least-squares residual replays."""
+        return self.only(self.fit_rows)
 
     def simulate(self, model: PlantModel, dt: float = REPLAY_DT) -> dict[str, np.ndarray]:
         """Replayed channels, name -> (windows, samples), physical units."""
