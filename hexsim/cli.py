@@ -116,8 +116,12 @@ def _add_run(sub) -> None:
     run.add_argument("--json", type=pathlib.Path, help="write the metrics as JSON; - for stdout")
     run.add_argument("--log", type=pathlib.Path, help="write the run as a measurement log (CSV + JSON sidecar)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--cueing", choices=("classical", "mpc"), default="classical",
+                     help="vehicle:PATH: the classical washout (default) or model-predictive cueing within the "
+                          "machine's envelope (docs/motion-cueing.md)")
     run.add_argument("--washout", type=pathlib.Path, metavar="WASHOUT.json",
-                     help="vehicle:PATH: the classical washout's parameters (any subset; default: docs/motion-cueing.md)")
+                     help="vehicle:PATH: the cueing's parameters, the classical washout's or, with --cueing mpc, the "
+                          "MPC's (any subset; default: docs/motion-cueing.md)")
     _thresholds_option(run)
 
 
@@ -697,9 +701,16 @@ def _run_config(args: argparse.Namespace, compensator: str):
         hydraulics = hydraulics.replace(flow_area=args.flow_area)
     if args.payload is not None:
         effects = effects.replace(payload_kg=args.payload[0], payload_at_m=args.payload[1])
+    mpc = None
+    if getattr(args, "cueing", "classical") == "mpc":
+        if not args.scenario.startswith("vehicle:"):
+            raise InputError(f"--cueing applies to a vehicle:PATH scenario, not {args.scenario}")
+        if machine.system != "hexapod":
+            raise InputError(f"--cueing mpc needs a hexapod; --machine {machine.label} is a {machine.system}")
+        mpc = _platform_envelope(machine, hydraulics, effects)
     scenario = make_scenario(args.scenario, duration=args.duration, amplitude=args.amplitude,
                              frequency=args.frequency, controller_rate_hz=controller.rate_hz,
-                             washout=getattr(args, "washout", None))
+                             washout=getattr(args, "washout", None), mpc=mpc)
     _check_machine_scenario(machine, scenario)
     if scenario.cueing is not None and getattr(args, "command", "run") in ("compare", "sweep"):
         raise InputError(f"{args.command} judges the smoothness of periodic motions; a vehicle: scenario's figures are "
@@ -729,6 +740,19 @@ def _run_config(args: argparse.Namespace, compensator: str):
                      warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
+
+
+def _platform_envelope(machine, hydraulics, effects):
+    """(PlatformLimits, head point (3,) [m]) of a hexapod machine for the MPC cueing: its envelope at the
+    neutral pose (:func:`hexsim.simulation.acceptance.platform_limits`) and its occupant's head."""
+    from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
+    from hexsim.simulation.acceptance import platform_limits
+    from hexsim.simulation.config import RunConfig
+
+    base = RunConfig(scenario=make_scenario("heave", duration=6.0), hydraulics=hydraulics,
+                     controller=machine.controller, machine=machine.name if machine.path is None else str(machine.path),
+                     geometry=machine.geometry, leg_changes=machine.leg_changes, effects=effects)
+    return platform_limits(base), (machine.geometry or MICRO_MOTION_SYSTEM).head_point
 
 
 def _check_machine_scenario(machine, scenario) -> None:
@@ -873,13 +897,20 @@ def _vehicle_outputs(args: argparse.Namespace, result, thresholds) -> int:
 
     cfg = result.config
     report = cue_report(result, thresholds)
-    print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, washout {report.washout}, "
+    solver = cfg.scenario.cueing[2].solver
+    cueing = "washout" if solver is None else "mpc cueing"
+    print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, {cueing} {report.washout}, "
           f"compensator {cfg.compensator_name})\nmachine   {cfg.machine_label}")
+    if solver is not None:
+        print(f"mpc       {solver['programmes']} programmes of {solver['variables']} variables, "
+              f"{solver['unsolved']} unsolved; solve {solver['solve_ms_mean']:.1f} ms mean, "
+              f"{solver['solve_ms_max']:.1f} ms largest: {solver['real_time_factor']:.1f}x real time")
     print(cue_table(report))
     written = []
     if args.json:
         doc = {"scenario": cfg.scenario.name, "machine": cfg.machine_label, "compensator": cfg.compensator_name,
-               "duration_s": cfg.scenario.duration, **report.document()}
+               "duration_s": cfg.scenario.duration, "cueing": "classical" if solver is None else "mpc",
+               "cueing_solver": solver, **report.document()}
         write_json(args.json, doc)
         written.append(args.json)
     if args.plot:

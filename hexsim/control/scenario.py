@@ -128,16 +128,18 @@ class Scenario:
 
 
 def make_scenario(name: str, *, duration: float | None = None, amplitude: float | None = None,
-                  frequency: float | None = None, controller_rate_hz: float = 500.0, washout=None) -> Scenario:
-    """Build a scenario by name (see module doc); ``washout``: a washout parameter file (path) or
-    :class:`~hexsim.control.washout.WashoutParams` for a ``vehicle:`` scenario. Raises InputError for an
-    unknown name or bad option."""
-    if washout is not None and not name.startswith("vehicle:"):
-        raise InputError(f"--washout applies to a vehicle:PATH scenario, not {name}")
+                  frequency: float | None = None, controller_rate_hz: float = 500.0, washout=None,
+                  mpc=None) -> Scenario:
+    """Build a scenario by name (see module doc); ``washout``: the cueing's parameter file (path), or
+    :class:`~hexsim.control.washout.WashoutParams` / :class:`~hexsim.control.mpc_cueing.MPCParams` for a
+    ``vehicle:`` scenario; ``mpc``: (platform limits, head point (3,) [m]) to cue it by model-predictive
+    cueing instead of the classical washout. Raises InputError for an unknown name or bad option."""
+    if (washout is not None or mpc is not None) and not name.startswith("vehicle:"):
+        raise InputError(f"--{'washout' if mpc is None else 'cueing'} applies to a vehicle:PATH scenario, not {name}")
     if name.startswith("vehicle:"):
         if amplitude is not None or frequency is not None:
             raise InputError("--amplitude and --frequency do not apply to a vehicle: scenario")
-        return vehicle_scenario(name[8:], washout, duration=duration, controller_rate_hz=controller_rate_hz)
+        return vehicle_scenario(name[8:], washout, duration=duration, controller_rate_hz=controller_rate_hz, mpc=mpc)
     if name.startswith(("file:", "valve:")):
         if amplitude is not None or frequency is not None:
             raise InputError(f"--amplitude and --frequency do not apply to a {name.split(':')[0]}: scenario")
@@ -209,23 +211,30 @@ def _file_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
 
 
 def vehicle_scenario(vehicle, washout=None, *, duration: float | None = None,
-                     controller_rate_hz: float = 500.0) -> Scenario:
+                     controller_rate_hz: float = 500.0, mpc=None) -> Scenario:
     """The platform setpoints the classical washout makes of ``vehicle`` (a vehicle-motion CSV's path or a
     :class:`~hexsim.control.washout.VehicleMotion`) with ``washout`` (a JSON file's path, WashoutParams, or
-    None for the defaults), at the controller's rate. The metrics' axis is the one that moves most (as for
-    a setpoint file). Raises InputError naming the file, column, row or key that is wrong."""
+    None for the defaults), at the controller's rate; with ``mpc`` = (:class:`~hexsim.control.mpc_cueing.
+    PlatformLimits`, the head (3,) [m, platform frame]) those of the model-predictive cueing
+    (:func:`hexsim.control.mpc_cueing.mpc_washout`, ``washout`` then its MPCParams or their file). The
+    metrics' axis is the one that moves most (as for a setpoint file). Raises InputError naming the file,
+    column, row or key that is wrong."""
+    from hexsim.control.mpc_cueing import MPCParams, mpc_washout
     from hexsim.control.washout import VehicleMotion, WashoutParams, read_vehicle
     from hexsim.control.washout import washout as run_washout
 
     motion = vehicle if isinstance(vehicle, VehicleMotion) else read_vehicle(vehicle)
-    params = washout if isinstance(washout, WashoutParams) else (
-        WashoutParams() if washout is None else WashoutParams.from_file(washout))
+    kind = WashoutParams if mpc is None else MPCParams
+    params = washout if isinstance(washout, kind) else kind() if washout is None else kind.from_file(washout)
     end = float(motion.t[-1])
     duration = end if duration is None else duration
     _check_duration(duration, 1.0, "a vehicle motion")
     if duration > end + 1e-9:
         raise InputError(f"{motion.source}: --duration {duration:g} s is longer than the vehicle motion ({end:g} s)")
-    out = run_washout(motion, params, controller_rate_hz, duration)
+    if mpc is None:
+        out = run_washout(motion, params, controller_rate_hz, duration)
+    else:
+        out = mpc_washout(motion, mpc[0], params, mpc[1], controller_rate_hz, duration)
     weights = np.array([1, 1, 1, 0.5, 0.5, 0.5])
     axis = int(np.argmax(np.ptp(out.poses, axis=0) * weights))
     return Scenario(f"vehicle:{motion.source}", "hexapod", duration, axis, 1.0 / duration, 0.0, None,

@@ -162,8 +162,9 @@ class WashoutParams:
 class WashoutOutput:
     """What the washout commands: t (N,) [s]; poses (N, 6) [m, rad] relative to neutral (x, y, z, roll,
     pitch, yaw); each channel's part: translation (N, 3) [m], tilt (N, 2) [rad] (roll, pitch), rotation
-    (N, 3) [rad]; limited: (6,) samples whose input the scaling's limit saturated (x, y, z, p, q, r), and
-    tilt_rate_limited: samples where the tilt ran at its rate limit."""
+    (N, 3) [rad]; limited: (6,) samples whose input the scaling's limit saturated (x, y, z, p, q, r),
+    tilt_rate_limited: samples where the tilt ran at its rate limit; solver: an optimising cueing's solve
+    statistics (:func:`hexsim.control.mpc_cueing.mpc_washout`), None for the classical washout."""
 
     t: np.ndarray
     poses: np.ndarray
@@ -172,6 +173,7 @@ class WashoutOutput:
     rotation: np.ndarray
     limited: np.ndarray
     tilt_rate_limited: int
+    solver: dict | None = None
 
 
 def washout(vehicle: VehicleMotion, params: WashoutParams = WashoutParams(), rate_hz: float = 500.0,

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hexsim.control.mpc_cueing import PlatformLimits
 from hexsim.control.scenario import SINE_DOFS, make_scenario, vehicle_scenario
 from hexsim.errors import InputError
 from hexsim.signals import fit_fundamental
@@ -320,25 +321,50 @@ def turn_around(base: RunConfig, dof: str, frequency: float = 0.5, seed: int = 0
     return r, sm, bump_perception(r, sm, thresholds=thresholds)
 
 
-def envelope(base: RunConfig, dofs: tuple[str, ...]) -> dict[str, dict]:
-    """The motion envelope of each of ``dofs`` at the neutral pose (module doc): excursion [m or rad] each way,
-    velocity [m/s or rad/s] and acceleration [m/s^2 or rad/s^2] (the smaller of the two directions). The
-    model, its rest pressures and the legs' inertia are set up once for all of them."""
+def platform_limits(base: RunConfig) -> PlatformLimits:
+    """The platform's envelope at the neutral pose as the legs see it (:func:`_at_rest`)."""
+    return _at_rest(base)[1]
+
+
+def _at_rest(base: RunConfig):
+    """The platform's envelope at the neutral pose as the legs see it (module doc, motion envelope): the
+    kinematics' Jacobian, each leg's stroke about its neutral extension, its speed at full valve opening
+    against the rest pressure (the flow curve's static velocity), the legs' forces per unit pose acceleration
+    (their effective inertia, constraints included) and the force each can add or take away with the supply
+    and tank pressures. The model and its rest pressures are set up once. Returns (the geometry,
+    :class:`hexsim.control.mpc_cueing.PlatformLimits`)."""
     from hexsim.control.kinematics import HexapodGeometry
     from hexsim.plant import hydraulics
     from hexsim.simulation.config import leg_mobility
 
     sim = Simulator(dataclasses.replace(base, scenario=make_scenario("heave", duration=6.0), progress=False))
     geo = HexapodGeometry.from_model(sim.model)
-    lo, hi = geo.stroke[:, 0], geo.stroke[:, 1]
     hyd, p1 = base.hydraulics, sim.p1_initial
-    v_ext = hydraulics.static_velocity(hyd.u_v_max, p1, hyd)
-    v_ret = -hydraulics.static_velocity(-hyd.u_v_max, p1, hyd)
+    neutral = geo.inverse(np.zeros(6), check=False)
+    jac = np.empty((6, 6))
+    for k in range(6):
+        dp = np.zeros(6)
+        dp[k] = 1e-6
+        jac[:, k] = (geo.inverse(dp, check=False) - geo.inverse(-dp, check=False)) / 2e-6  # dy/dq
     mobility, _ = leg_mobility(sim.model, sim.data, sim.idx)
-    up = (hyd.supply_pressure - p1) * hyd.area_bottom  # force each leg can add, and take away [N]
-    down = (p1 - hyd.tank_pressure) * hyd.area_bottom
+    return geo, PlatformLimits(
+        jacobian=jac, stroke_lo=geo.stroke[:, 0] - neutral, stroke_hi=geo.stroke[:, 1] - neutral,
+        velocity_extend=hydraulics.static_velocity(hyd.u_v_max, p1, hyd) * np.ones(6),
+        velocity_retract=-hydraulics.static_velocity(-hyd.u_v_max, p1, hyd) * np.ones(6),
+        force_map=np.linalg.solve(mobility, jac),  # leg forces per unit pose acceleration [N/(m/s^2)]
+        force_up=(hyd.supply_pressure - p1) * hyd.area_bottom * np.ones(6),
+        force_down=(p1 - hyd.tank_pressure) * hyd.area_bottom * np.ones(6),
+        source=f"machine {base.machine or 'built-in'}")
 
-    def reach(k: int, sign: float) -> float:
+
+def envelope(base: RunConfig, dofs: tuple[str, ...]) -> dict[str, dict]:
+    """The motion envelope of each of ``dofs`` at the neutral pose (module doc): excursion [m or rad] each way,
+    velocity [m/s or rad/s] and acceleration [m/s^2 or rad/s^2] (the smaller of the two directions), from
+    :func:`platform_limits`."""
+    geo, lim = _at_rest(base)
+    lo, hi = geo.stroke[:, 0], geo.stroke[:, 1]
+
+    def reach(k: int, sign: float) -> float:  # the kinematics are not linear that far: bisect on them
         a, b = 0.0, 1.0 if k < 3 else math.radians(60)
         for _ in range(50):
             mid = 0.5 * (a + b)
@@ -351,11 +377,9 @@ def envelope(base: RunConfig, dofs: tuple[str, ...]) -> dict[str, dict]:
     out = {}
     for dof in dofs:
         k = SINE_DOFS[dof]
-        dp = np.zeros(6)
-        dp[k] = 1e-6
-        jac = (geo.inverse(dp, check=False) - geo.inverse(-dp, check=False)) / 2e-6  # dy/dq (6,)
-        speed = np.where(jac > 0, v_ext, v_ret)
-        force = np.linalg.solve(mobility, jac)  # leg forces per unit acceleration of the DOF [N/(m/s^2)]
+        jac, force = lim.jacobian[:, k], lim.force_map[:, k]
+        speed = np.where(jac > 0, lim.velocity_extend, lim.velocity_retract)
+        up, down = lim.force_up, lim.force_down
         accel = min(float(np.min(np.where(force > 0, up, down) / np.maximum(np.abs(force), 1e-12))),
                     float(np.min(np.where(force > 0, down, up) / np.maximum(np.abs(force), 1e-12))))
         out[dof] = {"excursion": [-reach(k, -1.0), reach(k, 1.0)],
