@@ -167,3 +167,22 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a JSON object of {what}")
     return doc
+
+
+def read_settings(cls, path: str | os.PathLike, what: str):
+    """An instance of the frozen dataclass ``cls`` (with a ``source`` field) from the JSON object in ``path``
+    holding any subset of its other fields (lists as tuples; the rest default), ``source`` the path; ``what``
+    names the settings in messages (e.g. "washout"). Raises InputError naming the file and the key for an
+    unknown key or a value ``cls`` refuses (its own InputError)."""
+    import dataclasses
+
+    path = pathlib.Path(path)
+    doc = read_json_object(path, f"{what} parameters")
+    known = {f.name for f in dataclasses.fields(cls)} - {"source"}
+    unknown = sorted(set(doc) - known)
+    if unknown:
+        raise InputError(f"{path}: unknown {what} key {unknown[0]!r} (known: {', '.join(sorted(known))})")
+    try:
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc.items()}, source=str(path))
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None

@@ -46,7 +46,7 @@ from scipy.linalg import block_diag
 from scipy.signal import cont2discrete, tf2ss
 
 from hexsim.errors import InputError
-from hexsim.tables import read_json_object
+from hexsim.tables import read_settings
 
 G = 9.81  # [m/s^2] the vehicle's 1 g, as the classical washout's
 
@@ -163,16 +163,7 @@ class MPCParams:
     def from_file(cls, path: str | pathlib.Path) -> "MPCParams":
         """The parameters a JSON object gives (any subset; the rest default). Raises InputError naming the
         file and the key for an unknown key or a bad value."""
-        path = pathlib.Path(path)
-        doc = read_json_object(path, "mpc cueing parameters")
-        known = {f.name for f in fields(cls)} - {"source"}
-        unknown = sorted(set(doc) - known)
-        if unknown:
-            raise InputError(f"{path}: unknown mpc cueing key {unknown[0]!r} (known: {', '.join(sorted(known))})")
-        try:
-            return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc.items()}, source=str(path))
-        except InputError as exc:
-            raise InputError(f"{path}: {exc}") from None
+        return read_settings(cls, path, "mpc cueing")
 
     def document(self) -> dict:
         """The parameters as a JSON-ready dict (the file's form), with the algorithm's name."""

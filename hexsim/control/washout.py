@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 
 from hexsim.errors import InputError
 from hexsim.signals import LinearModel
-from hexsim.tables import read_json_object, read_numeric_csv
+from hexsim.tables import read_numeric_csv, read_settings
 
 G = 9.81  # [m/s^2] the vehicle's 1 g (the models' gravity)
 #: the vehicle-motion CSV's columns: time, specific force (vehicle axes) and body rates at the head
@@ -142,16 +142,7 @@ class WashoutParams:
     def from_file(cls, path: str | pathlib.Path) -> "WashoutParams":
         """The parameters a JSON object gives (any subset of the fields; the rest default). Raises
         InputError naming the file and the key for an unknown key or a bad value."""
-        path = pathlib.Path(path)
-        doc = read_json_object(path, "washout parameters")
-        known = {f.name for f in fields(cls)} - {"source"}
-        unknown = sorted(set(doc) - known)
-        if unknown:
-            raise InputError(f"{path}: unknown washout key {unknown[0]!r} (known: {', '.join(sorted(known))})")
-        try:
-            return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in doc.items()}, source=str(path))
-        except InputError as exc:
-            raise InputError(f"{path}: {exc}") from None
+        return read_settings(cls, path, "washout")
 
     def document(self) -> dict:
         """The parameters as a JSON-ready dict (the file's form)."""
