@@ -76,6 +76,15 @@ def near_reversals(t: np.ndarray, velocity: np.ndarray, half_width: float = 0.05
     return near
 
 
+def polynomial_product(*factors) -> tuple[float, ...]:
+    """The product of polynomials (coefficients, highest power first; numpy.polymul), as floats: a
+    :class:`LinearModel`'s numerator or denominator from its factors."""
+    out = np.array([1.0])
+    for f in factors:
+        out = np.polymul(out, f)
+    return tuple(float(c) for c in out)
+
+
 @dataclass(frozen=True)
 class LinearModel:
     """A continuous linear model ``num(s)/den(s)`` (polynomial coefficients, highest power first) with the

@@ -15,7 +15,7 @@ Its model, linear about the neutral pose (small angles, Euler rates as body rate
   defaults 1.5 deg/s and 4 deg/s^2) so the tilt itself is not sensed as a rotation;
 * **the head**: the specific force at ``head_m`` (the origin's acceleration plus the angular acceleration
   times the lever arm) and the body rates;
-* **the vestibular organs** (:func:`hexsim.simulation.perception.otolith`, :func:`~.canal`, 15 states): the
+* **the vestibular organs** (:func:`hexsim.control.vestibular.otolith`, :func:`~.canal`, 15 states): the
   cost is the squared difference between what they sense of the platform and of the vehicle, per axis in
   units of Benson's detection thresholds (:data:`VESTIBULAR_THRESHOLDS`), so that an error is weighed by how
   well it is felt; small weights pull the platform back to neutral (position, velocity, angles) and keep
@@ -45,18 +45,14 @@ from scipy import sparse
 from scipy.linalg import block_diag
 from scipy.signal import cont2discrete, tf2ss
 
+from hexsim.control.vestibular import VESTIBULAR_THRESHOLDS, canal, otolith
 from hexsim.errors import InputError
 from hexsim.tables import read_settings
 
 G = 9.81  # [m/s^2] the vehicle's 1 g, as the classical washout's
 
-#: otolith and canal models (Telban & Cardullo 2005): as hexsim.simulation.perception's, repeated here as
-#: transfer functions (numerator, denominator) in s because the control layer does not import the studies
-OTOLITH_TF = (np.array([13.2, 1.0]), np.polymul([5.33, 1.0], [0.66, 1.0]))
-CANAL_TF = (np.polymul(np.polymul([80.0, 0.0], [5.73, 0.0]), [0.06, 1.0]),
-            np.polymul(np.polymul([80.0, 1.0], [5.73, 1.0]), [0.005, 1.0]))
-#: Benson's detection thresholds (m/s^2 for x, y, z; rad/s for roll, pitch, yaw): the sensed error's units
-SENSED_SCALE = np.array([0.063, 0.057, 0.154, math.radians(2.0), math.radians(2.0), math.radians(1.6)])
+#: the sensed error's units per axis (x, y, z, roll, pitch, yaw): Benson's detection thresholds
+SENSED_SCALE = np.array([VESTIBULAR_THRESHOLDS[axis] for axis in ("x", "y", "z", "roll", "pitch", "yaw")])
 
 
 @dataclass(frozen=True)
@@ -197,8 +193,10 @@ def _head_force(head: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def continuous_model(head: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(A (n, n), B (n, 8), C (6, n)) of the platform, head and vestibular organs (module doc): C gives the
     sensed specific force (3, m/s^2 less 1 g) and the sensed body rates (3, rad/s)."""
-    oa, ob, oc, od = tf2ss(*OTOLITH_TF)
-    ca, cb, cc, cd = tf2ss(*CANAL_TF)
+    oa, ob, oc, od = tf2ss(otolith().num, otolith().den)
+    ca, cb, cc, cd = tf2ss(canal().num, canal().den)
+    if np.any(od):
+        raise AssertionError("the otolith model must be strictly proper")
     n_o, n_c = oa.shape[0], ca.shape[0]
     n = N_PLATFORM + 3 * n_o + 3 * n_c
     a, b, c = np.zeros((n, n)), np.zeros((n, N_INPUT)), np.zeros((6, n))
@@ -223,8 +221,6 @@ def continuous_model(head: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
         a[q] += cb @ rate[k:k + 1]
         c[3 + k, q] = cc[0]
         c[3 + k] += cd[0, 0] * rate[k]
-    if np.any(od):
-        raise AssertionError("the otolith model must be strictly proper")
     return a, b, c
 
 
@@ -282,8 +278,8 @@ class MPCCueing:
         a, b, self.c = continuous_model(head)
         self.continuous = (a, b)
         self.n = a.shape[0]
-        self.ad, self.bd, *_ = cont2discrete((a, b, np.eye(self.n), np.zeros((self.n, N_INPUT))), params.step_s, "zoh")
-        pred = _prediction(self.ad, self.bd, params.steps)
+        ad, bd, *_ = cont2discrete((a, b, np.eye(self.n), np.zeros((self.n, N_INPUT))), params.step_s, "zoh")
+        pred = _prediction(ad, bd, params.steps)
         # move blocking (Cagienard et al. 2007): the accelerations held over blocks that lengthen along the
         # horizon, U = T V, so the programme has a few dozen variables rather than steps x 8
         self.blocks = move_blocks(params.steps)
@@ -301,7 +297,6 @@ class MPCCueing:
                           verbose=False, warm_starting=True, polishing=False, eps_abs=1e-4, eps_rel=1e-4,
                           max_iter=4000)
         self.infeasible = 0
-        self.iterations = 0
         self.previous = np.zeros(self.variables)
 
     def _cost(self, pred: _Prediction, hold: np.ndarray) -> np.ndarray:
@@ -361,27 +356,22 @@ class MPCCueing:
                            u=np.concatenate([self.hi_state - free, self.hi_in]))
         self.solver.warm_start(x=self.previous)
         res = self.solver.solve(raise_error=False)
-        self.iterations += int(res.info.iter)
-        if res.x is not None and np.all(np.isfinite(res.x)):
+        finite = res.x is not None and bool(np.all(np.isfinite(res.x)))
+        if finite:
             self.previous = res.x
-        if res.info.status not in ("solved", "solved inaccurate") or res.x is None or not np.all(np.isfinite(res.x)):
+        if not finite or res.info.status not in ("solved", "solved inaccurate"):
             self.infeasible += 1
-            return np.zeros(N_INPUT) if res.x is None or not np.all(np.isfinite(res.x)) else res.x[:N_INPUT]
-        return res.x[:N_INPUT]
+        return res.x[:N_INPUT] if finite else np.zeros(N_INPUT)
 
 
 def vehicle_reference(vehicle, params: MPCParams, t: np.ndarray, rate_hz: float) -> np.ndarray:
     """What the driver senses of the scaled vehicle motion at times t (N,) [s] on a grid of ``rate_hz``:
     (N, 6) specific force less 1 g [m/s^2] and body rates [rad/s] through the otolith and canal models, from
     rest."""
-    from hexsim.signals import LinearModel
-
     f, w = vehicle.at(t)
     stimulus = np.concatenate([(f - np.array([0.0, 0.0, G])) * np.array(params.scale_specific_force),
                                w * np.array(params.scale_angular_velocity)], axis=1)
-    organs = [LinearModel("otolith", tuple(OTOLITH_TF[0]), tuple(OTOLITH_TF[1]), "m/s^2", "Telban & Cardullo 2005")] * 3 \
-        + [LinearModel("semicircular canal", tuple(CANAL_TF[0]), tuple(CANAL_TF[1]), "rad/s", "Telban & Cardullo 2005")] * 3
-    return np.stack([organ.apply(stimulus[:, k], rate_hz) for k, organ in enumerate(organs)], axis=1)
+    return np.concatenate([otolith().apply(stimulus[:, :3], rate_hz), canal().apply(stimulus[:, 3:], rate_hz)], axis=1)
 
 
 def mpc_washout(vehicle, limits: PlatformLimits, params: MPCParams, head_m, rate_hz: float = 500.0,
@@ -421,7 +411,7 @@ def mpc_washout(vehicle, limits: PlatformLimits, params: MPCParams, head_m, rate
             solve_s.append(time.perf_counter() - start)
         states[i] = x
         x = fine_a @ x + fine_b @ u
-    translation, rotation, tilt = states[:, 0:3], states[:, 6:9].copy(), states[:, 12:14]
+    translation, rotation, tilt = states[:, 0:3], states[:, 6:9], states[:, 12:14]
     poses = np.concatenate([translation, rotation], axis=1)
     poses[:, 3:5] += tilt
     rate_lim = math.radians(params.tilt_rate_limit_degps)

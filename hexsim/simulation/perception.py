@@ -44,32 +44,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hexsim.signals import LinearModel, fit_fundamental
+from hexsim.control.vestibular import THRESHOLD_STIMULUS_S, VESTIBULAR_THRESHOLDS, canal, otolith
+from hexsim.signals import LinearModel, fit_fundamental, polynomial_product
 
 #: the head's and the seat's axes, in the order of :class:`PointMotion` (translations, then rotations)
 AXES = ("x", "y", "z", "roll", "pitch", "yaw")
 #: how long after a reversal the sensed peak is looked for [s] (before: the metrics' 0.1 s window)
 SENSED_TAIL = 0.25
-
-
-def _poly(*factors) -> tuple[float, ...]:
-    out = np.array([1.0])
-    for f in factors:
-        out = np.polymul(out, f)
-    return tuple(float(c) for c in out)
-
-
-def otolith(tau_a: float = 13.2, tau_l: float = 5.33, tau_s: float = 0.66) -> LinearModel:
-    """Otolith model of specific force (module doc), unit DC gain."""
-    return LinearModel("otolith", _poly([tau_a, 1.0]), _poly([tau_l, 1.0], [tau_s, 1.0]), "m/s^2",
-                       "Young & Meiry (1968); parameters as in Telban & Cardullo (2005), NASA/CR-2005-213747")
-
-
-def canal(tau_a: float = 80.0, tau_1: float = 5.73, tau_l: float = 0.06, tau_2: float = 0.005) -> LinearModel:
-    """Semicircular-canal model of angular velocity (module doc), unit mid-band gain."""
-    return LinearModel("semicircular canal", _poly([tau_a, 0.0], [tau_1, 0.0], [tau_l, 1.0]),
-                       _poly([tau_a, 1.0], [tau_1, 1.0], [tau_2, 1.0]), "rad/s",
-                       "Fernandez & Goldberg (1971); form and parameters as in Telban & Cardullo (2005)")
 
 
 def _second_order(f: float, q: float) -> np.ndarray:
@@ -89,12 +70,12 @@ def iso2631(weighting: str) -> LinearModel:
     q12 = 1 / math.sqrt(2)
     w2, w3, w4 = (2 * np.pi * f for f in (100.0, f3, f4))
     # high pass s^2/(s^2 + w1 s/Q + w1^2); low pass w2^2/(…); transition (1 + s/w3)/(1 + s/(Q4 w4) + s^2/w4^2)
-    num = _poly([1.0, 0.0, 0.0], [w2 * w2], [w4 * w4 / w3, w4 * w4])
-    den = _poly(_second_order(0.4, q12), _second_order(100.0, q12), _second_order(f4, q4))
+    num = polynomial_product([1.0, 0.0, 0.0], [w2 * w2], [w4 * w4 / w3, w4 * w4])
+    den = polynomial_product(_second_order(0.4, q12), _second_order(100.0, q12), _second_order(f4, q4))
     if step is not None:  # upward step (s^2 + w5 s/Q5 + w5^2)/(s^2 + w6 s/Q6 + w6^2): (f5/f6)^2 at DC, 1 above
         f5, q5, f6, q6 = step
-        num = _poly(num, _second_order(f5, q5))
-        den = _poly(den, _second_order(f6, q6))
+        num = polynomial_product(num, _second_order(f5, q5))
+        den = polynomial_product(den, _second_order(f6, q6))
     return LinearModel(f"ISO 2631-1 {weighting}", num, den, "m/s^2", "ISO 2631-1:1997 Annex A, Table A.2")
 
 
@@ -102,11 +83,6 @@ def iso2631(weighting: str) -> LinearModel:
 ISO_WEIGHTINGS = {"x": "Wd", "y": "Wd", "z": "Wk"}
 #: ISO 2631-1:1997 Annex C: weighted peak acceleration that 50 % of alert, fit persons just detect [m/s^2]
 ISO_PERCEPTION_THRESHOLD = 0.015
-#: detection thresholds of the stimulus (module doc): m/s^2 (x, y, z), rad/s (roll, pitch, yaw)
-VESTIBULAR_THRESHOLDS = {"x": 0.063, "y": 0.057, "z": 0.154,
-                         "roll": math.radians(2.0), "pitch": math.radians(2.0), "yaw": math.radians(1.6)}
-#: duration of the threshold experiments' stimulus [s] (a single cycle of sinusoidal acceleration)
-THRESHOLD_STIMULUS_S = 3.0
 
 
 @dataclass(frozen=True)
