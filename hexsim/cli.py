@@ -64,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_accept(sub)
     _add_bench(sub)
     _add_machine(sub)
+    _add_serve(sub)
     return parser
 
 
@@ -123,6 +124,50 @@ def _add_run(sub) -> None:
                      help="vehicle:PATH: the cueing's parameters, the classical washout's or, with --cueing mpc, the "
                           "MPC's (any subset; default: docs/motion-cueing.md)")
     _thresholds_option(run)
+
+
+def _address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` for argparse."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"{text!r} is not HOST:PORT")
+    return host, int(port)
+
+
+def _add_serve(sub) -> None:
+    """The ``serve`` command's options."""
+    se = sub.add_parser(
+        "serve", help="a real-time virtual motion system your host computer drives over UDP (docs/serve.md)",
+        description="Listen for the host's setpoint packets, simulate the platform in real time at the controller "
+        "rate (hydraulics, bump, compensator) and send its state back; engage, neutral and park ramped; a lost host "
+        "returns it to neutral. With --client: be the host instead (send a scenario's motion to --to).")
+    _machine_option(se)
+    se.add_argument("--compensator", type=_compensator_arg, default="none", metavar="NAME|FILE.json",
+                    help=f"compensator per leg: {', '.join(COMPENSATORS)} (default none), or a tuned file")
+    se.add_argument("--bind", default="127.0.0.1", help="address to listen on (default %(default)s; 0.0.0.0: all)")
+    se.add_argument("--port", type=int, default=5005, help="UDP port to listen on (default %(default)s)")
+    se.add_argument("--reply", type=_address, metavar="HOST:PORT",
+                    help="where to send the state packets (default: the sender of the last accepted packet)")
+    se.add_argument("--layout", type=pathlib.Path, metavar="LAYOUT.json",
+                    help="the host packet's layout (default hexsim's, docs/serve.md)")
+    se.add_argument("--state-layout", type=pathlib.Path, metavar="LAYOUT.json",
+                    help="the state packet's layout (default hexsim's)")
+    se.add_argument("--state-rate", type=_number, default=100.0, help="state packets per second (default %(default)s)")
+    se.add_argument("--duration", type=_number, default=None,
+                    help="seconds to serve (default 3600); with --client: the motion's length (default the scenario's)")
+    se.add_argument("--keep", type=_number, default=600.0,
+                    help="seconds of recording kept for --log / --rrd (the last; default %(default)s)")
+    se.add_argument("--engage-time", type=_number, default=2.0, help="fade-in of the host's motion [s] (default 2)")
+    se.add_argument("--timeout", type=_number, default=0.5,
+                    help="silence after which the host is lost and the platform returns to neutral [s] (default 0.5)")
+    se.add_argument("--log", type=pathlib.Path, help="write the session as a measurement log (CSV + JSON sidecar)")
+    se.add_argument("--rrd", type=pathlib.Path, help="write the session as a rerun recording (.rrd)")
+    se.add_argument("--json", type=pathlib.Path, help="write the session's report (timing, packets, modes) as JSON")
+    se.add_argument("--client", metavar="SCENARIO",
+                    help="be the host: send SCENARIO's platform motion (heave, file:PATH, vehicle:PATH, …) to --to")
+    se.add_argument("--to", type=_address, default=("127.0.0.1", 5005), metavar="HOST:PORT",
+                    help="--client: the motion system's address (default 127.0.0.1:5005)")
+    se.add_argument("--rate", type=_number, default=100.0, help="--client: packets per second (default %(default)s)")
 
 
 def _compensator_arg(text: str) -> str:
@@ -1176,6 +1221,42 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_serve(args: argparse.Namespace) -> int:
+    from hexsim.interfaces.packets import HOST_PACKET, STATE_PACKET, PacketLayout
+
+    host = PacketLayout.from_file(args.layout).check_host() if args.layout else HOST_PACKET
+    state = PacketLayout.from_file(args.state_layout).check_state() if args.state_layout else STATE_PACKET
+    if args.client:
+        from hexsim.interfaces.host import client_lines, run_client
+
+        record = run_client(args.client, args.to, host, state, args.rate, args.duration)
+        print("\n".join(client_lines(record)))
+        return 0
+    _check_outputs(args)
+    from hexsim.interfaces.operating_modes import ModeSettings
+    from hexsim.interfaces.server import ServeSettings, serve_session
+
+    settings = ServeSettings(bind=args.bind, port=args.port, reply_to=args.reply, state_rate_hz=args.state_rate,
+                             duration_s=3600.0 if args.duration is None else args.duration, keep_s=args.keep,
+                             modes=ModeSettings(engage_s=args.engage_time, host_timeout_s=args.timeout),
+                             host_layout=host, state_layout=state)
+    from hexsim.plant.machine import load_machine
+    from hexsim.simulation.config import RunConfig
+
+    machine = load_machine(args.machine)
+    options = {"compensator": args.compensator}
+    if args.compensator.endswith(".json"):
+        from hexsim.simulation.tuning import read_tuned
+
+        name, compensator_settings, model = read_tuned(args.compensator)
+        options = {"compensator": name, "compensator_settings": compensator_settings, "compensator_model": model}
+    base = RunConfig.from_machine(machine, "heave" if machine.system == "hexapod" else "actuator", **options)
+    written = serve_session(base, settings, log=args.log, rrd=args.rrd, json_path=args.json, out=print)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
 def _workers(args: argparse.Namespace):
     """The Dask client of ``--scheduler`` for the command's duration (hexsim.simulation.workers.dask_client), or nothing."""
     if getattr(args, "scheduler", None) is None:
@@ -1209,7 +1290,7 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _show_note
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                         "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine,
-                        "calibrate": cmd_calibrate, "accept": cmd_accept, "tune": cmd_tune}
+                        "calibrate": cmd_calibrate, "accept": cmd_accept, "tune": cmd_tune, "serve": cmd_serve}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

@@ -1,0 +1,257 @@
+"""A motion controller's operating modes: the piston setpoints the legs follow, from the host's packets.
+
+The conventions of a hydraulic motion system's controller (docs/serve.md):
+
+* it starts **neutral** (settled at the neutral pose, as after its raise), holding the pose whatever the host
+  sends until the host asks to **engage**; the host's motion is then faded in over ``engage_s``
+  (setpoint = neutral + s(t) (host - neutral), s a quintic from 0 to 1 with zero slope and curvature at both
+  ends: no step in position, velocity or acceleration), then followed (**engaged**);
+* asked for **neutral** (or **park**) while engaged, or when the host goes silent for ``host_timeout_s``
+  while engaged (**host lost**, a latched fault: engage is refused until the host has sent another mode), it
+  returns to neutral on a cubic from the setpoint and its velocity at that instant to rest at neutral, over
+  ``return_s`` or longer where the legs' ``move_speed`` asks for it (no step in position or velocity);
+* **park** lowers each leg to ``park_m`` above its retracted end, and leaving park raises it again, on the
+  same cubic (from rest), at most ``move_speed``; a move is finished before the next request is taken.
+
+A host packet is rejected, counted by reason and leaves the platform undisturbed when its frame counter
+is not newer than the last accepted one (modulo the counter's range: "order"; after a silence longer than
+the timeout any counter starts a new timeline), or when its setpoint needs a
+leg beyond its stroke less ``margin_m`` ("envelope").
+
+Between packets the host's setpoints are interpolated linearly on the host's own timeline, not on the
+arrival times: each accepted packet sits at its frame counter (unwrapped) times the host period, the period
+and the timeline's offset are learned from the arrivals by slow averages (:data:`LEARN`), and the setpoint
+is played ``delay_frames`` frames behind the newest (1.5: a packet may arrive up to half a period late without
+the setpoints noticing). Arrival jitter then moves the offset a little, not the setpoints' velocity, which
+would be acceleration spikes of the size jitter x velocity / period^2. A host that stops holds its last
+setpoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from collections.abc import Callable
+
+import numpy as np
+
+from hexsim.errors import InputError
+
+
+class Status(enum.IntEnum):
+    """The state the motion system reports (the state packet's ``status``)."""
+
+    PARKED = 0
+    NEUTRAL = 1
+    ENGAGED = 2
+    ENGAGING = 3
+    RETURNING = 4
+    PARKING = 5
+    RAISING = 6
+
+
+#: the weight of each arrival in the averages of the host period and its timeline's offset
+LEARN = 0.02
+#: the host packets kept for the interpolation
+KEEP = 8
+
+#: fault bits of the state packet's ``faults``
+HOST_LOST, REJECTED, OVERRUN, ENVELOPE = 1, 2, 4, 8
+
+
+@dataclasses.dataclass(frozen=True)
+class ModeSettings:
+    """engage_s [s]: the fade-in of the host's motion; return_s [s]: the shortest return to neutral;
+    move_speed [m/s]: the largest leg speed of a return, park or raise; host_timeout_s [s]: silence after which
+    the host is lost; margin_m [m]: the envelope's distance from each end of the stroke; park_m [m]: the park
+    position above the retracted end; delay_frames: how far behind the newest packet the host's setpoints are
+played (module doc). Raises InputError for a value that is not positive (margin_m and park_m:
+    not negative)."""
+
+    engage_s: float = 2.0
+    return_s: float = 2.0
+    move_speed: float = 0.05
+    host_timeout_s: float = 0.5
+    margin_m: float = 0.005
+    park_m: float = 0.005
+    delay_frames: float = 1.5
+
+    def __post_init__(self) -> None:
+        for name in ("engage_s", "return_s", "move_speed", "host_timeout_s"):
+            if not getattr(self, name) > 0:
+                raise InputError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("margin_m", "park_m", "delay_frames"):
+            if not getattr(self, name) >= 0:
+                raise InputError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+
+
+def quintic(s: float) -> float:
+    """0 at s <= 0, 1 at s >= 1, between them 10 s^3 - 15 s^4 + 6 s^5 (zero slope and curvature at both ends)."""
+    s = min(max(s, 0.0), 1.0)
+    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+@dataclasses.dataclass
+class _Move:
+    """A cubic from (y0, v0) at t0 to rest at y1 at t0 + T (arrays (n,) [m], [m/s])."""
+
+    t0: float
+    T: float
+    y0: np.ndarray
+    v0: np.ndarray
+    y1: np.ndarray
+    then: Status
+
+    def at(self, t: float) -> np.ndarray:
+        s = min(max((t - self.t0) / self.T, 0.0), 1.0)
+        h00, h10, h01 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2
+        return h00 * self.y0 + h10 * self.T * self.v0 + h01 * self.y1
+
+    def done(self, t: float) -> bool:
+        return t >= self.t0 + self.T
+
+
+class OperatingModes:
+    """The piston setpoints (n_legs,) [m] a motion controller hands its P loops (module doc).
+
+    ``neutral`` (n,) [m] and ``stroke`` (n, 2) [m]: the legs' neutral positions and ends; ``to_legs``: the
+    host's six setpoints [m, rad] (a DOF pose, or the legs themselves) -> piston positions (n,) [m] (NaN where
+    the pose has none); ``frame_range``: the frame counter's modulus (2^bits). :meth:`receive` takes a host
+    packet's fields, :meth:`setpoint` advances to a controller tick."""
+
+    def __init__(self, neutral: np.ndarray, stroke: np.ndarray, to_legs: Callable[[np.ndarray], np.ndarray],
+                 settings: ModeSettings = ModeSettings(), frame_range: int = 1 << 32) -> None:
+        self.neutral = np.asarray(neutral, dtype=float)
+        self.stroke = np.asarray(stroke, dtype=float)
+        self.park = self.stroke[:, 0] + settings.park_m
+        self.lo, self.hi = self.stroke[:, 0] + settings.margin_m, self.stroke[:, 1] - settings.margin_m
+        self.to_legs, self.settings, self.frame_range = to_legs, settings, frame_range
+        self.status = Status.NEUTRAL
+        self.requested = "neutral"
+        self.latched = False  # host lost: engage refused until another mode is asked
+        self.faults = 0  # HOST_LOST while latched, the others until read (:meth:`take_faults`)
+        self.cmd, self.vel = self.neutral.copy(), np.zeros_like(self.neutral)
+        self._t = 0.0
+        self._move: _Move | None = None
+        self._fade_t0 = 0.0
+        self._frames: list[int] = []  # the last KEEP accepted packets: unwrapped frame counters
+        self._legs: list[np.ndarray] = []  # and their piston setpoints
+        self._arrived = -np.inf  # the newest accepted packet's arrival [s]
+        self._first = (0.0, 0)  # the first accepted packet's (arrival [s], frame)
+        self.host_period: float | None = None  # [s], learned
+        self._offset = 0.0  # the host timeline's start on ours [s], learned
+        self.last_frame: int | None = None
+        self.rejected: dict[str, int] = {}
+
+    # ------------------------------------------------------------------ packets
+    def reject(self, reason: str) -> None:
+        """Count a rejected packet under ``reason`` (the fault bit REJECTED, ENVELOPE for "envelope")."""
+        self.rejected[reason] = self.rejected.get(reason, 0) + 1
+        self.faults |= ENVELOPE if reason == "envelope" else REJECTED
+
+    def receive(self, t: float, fields: dict) -> bool:
+        """Take a host packet's ``fields`` (:meth:`~hexsim.interfaces.packets.PacketLayout.unpack`: frame, mode,
+        the six setpoints in ``setpoint`` (6,)) arrived at ``t`` [s]. Returns whether it was accepted (else it is
+        counted under its reason and changes nothing)."""
+        frame = int(fields["frame"])
+        if t - self._arrived > self.settings.host_timeout_s:  # a host back after silence: a new timeline
+            self.last_frame, self._frames, self._legs, self.host_period = None, [], [], None
+        if self.last_frame is not None:
+            ahead = (frame - self.last_frame) % self.frame_range
+            if ahead == 0 or ahead >= self.frame_range // 2:
+                self.reject("order")
+                return False
+        legs = np.asarray(self.to_legs(np.asarray(fields["setpoint"], dtype=float)), dtype=float)
+        if not np.all(np.isfinite(legs)) or np.any(legs < self.lo) or np.any(legs > self.hi):
+            self.reject("envelope")
+            return False
+        self._learn(t, frame)
+        self.last_frame = frame
+        self._legs = [*self._legs[-(KEEP - 1):], legs]
+        if fields["mode"] != "engage":
+            self.latched = False
+            self.faults &= ~HOST_LOST
+        self.requested = fields["mode"]
+        return True
+
+    def take_faults(self) -> int:
+        """The fault bits since the last call (HOST_LOST stays while it is latched)."""
+        out, self.faults = self.faults, self.faults & HOST_LOST
+        return out
+
+    def _learn(self, t: float, frame: int) -> None:
+        """Place the accepted packet (arrival ``t`` [s], counter ``frame``) on the host's timeline: its unwrapped
+        frame, and the averages of the host period and the timeline's offset (module doc)."""
+        n = frame if not self._frames else self._frames[-1] + (frame - self.last_frame) % self.frame_range
+        self._frames = [*self._frames[-(KEEP - 1):], n]
+        self._arrived = t
+        if len(self._frames) == 1:
+            self._first = (t, n)
+            return
+        t0, n0 = self._first
+        if self.host_period is None:
+            self.host_period = (t - t0) / (n - n0)
+            self._offset = t0 - n0 * self.host_period
+        else:
+            self.host_period += LEARN * ((t - t0) / (n - n0) - self.host_period)
+            self._offset += LEARN * ((t - n * self.host_period) - self._offset)
+
+    def host_setpoint(self, t: float) -> np.ndarray:
+        """The host's piston setpoints at ``t`` [s]: linear on the host's timeline, ``delay_frames`` behind
+        the newest packet (module doc); the newest once the timeline passes it."""
+        if self.host_period is None or self.host_period <= 0:
+            return self._legs[-1]
+        f = (t - self._offset) / self.host_period - self.settings.delay_frames
+        frames = self._frames
+        if f >= frames[-1]:
+            return self._legs[-1]
+        if f <= frames[0]:
+            return self._legs[0]
+        k = int(np.searchsorted(frames, f, side="right"))  # frames[k - 1] <= f < frames[k]
+        s = (f - frames[k - 1]) / (frames[k] - frames[k - 1])
+        return self._legs[k - 1] + s * (self._legs[k] - self._legs[k - 1])
+
+    # ------------------------------------------------------------------ ticks
+    def _start_move(self, t: float, target: np.ndarray, then: Status, status: Status, floor: float) -> None:
+        """A cubic from the setpoint now (with its velocity) to rest at ``target`` over at least ``floor`` [s]
+        and long enough that no leg passes ``move_speed`` (a cubic from rest peaks at 1.5 x the mean speed)."""
+        distance = float(np.max(np.abs(target - self.cmd)))
+        T = max(floor, 1.5 * distance / self.settings.move_speed, 1e-3)
+        self._move = _Move(t, T, self.cmd.copy(), self.vel.copy(), target.copy(), then)
+        self.status = status
+
+    def setpoint(self, t: float) -> np.ndarray:
+        """Advance to the controller tick at ``t`` [s] (increasing): the modes' transitions, then the piston
+        setpoints (n,) [m] (a copy)."""
+        s = self.settings
+        host_ok = t - self._arrived <= s.host_timeout_s
+        following = self.status in (Status.ENGAGED, Status.ENGAGING)
+        if following and not host_ok:
+            self.latched = True
+            self.faults |= HOST_LOST
+            self._start_move(t, self.neutral, Status.NEUTRAL, Status.RETURNING, s.return_s)
+        elif following and self.requested != "engage":
+            self._start_move(t, self.neutral, Status.NEUTRAL, Status.RETURNING, s.return_s)
+        elif self._move is not None and self._move.done(t):
+            self.status, self._move = self._move.then, None
+        if self.status == Status.NEUTRAL:
+            if self.requested == "park":
+                self._start_move(t, self.park, Status.PARKED, Status.PARKING, 0.0)
+            elif self.requested == "engage" and host_ok and not self.latched:
+                self.status, self._fade_t0 = Status.ENGAGING, t
+        elif self.status == Status.PARKED and self.requested != "park" and host_ok:
+            self._start_move(t, self.neutral, Status.NEUTRAL, Status.RAISING, 0.0)
+        if self.status == Status.ENGAGING and t - self._fade_t0 >= s.engage_s:
+            self.status = Status.ENGAGED
+        if self.status == Status.ENGAGED:
+            y = self.host_setpoint(t)
+        elif self.status == Status.ENGAGING:
+            y = self.neutral + quintic((t - self._fade_t0) / s.engage_s) * (self.host_setpoint(t) - self.neutral)
+        elif self._move is not None:
+            y = self._move.at(t)
+        else:
+            y = self.park if self.status == Status.PARKED else self.neutral
+        dt = t - self._t
+        self.vel = (y - self.cmd) / dt if dt > 0 else np.zeros_like(y)
+        self.cmd, self._t = np.array(y, dtype=float), t
+        return self.cmd.copy()

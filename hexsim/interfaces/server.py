@@ -1,0 +1,384 @@
+"""``hexsim serve``: a virtual motion system a simulator's host computer drives over UDP, in real time.
+
+The host sends setpoint packets (:mod:`hexsim.interfaces.packets`) at its own rate; every controller period
+(the machine's, 500 Hz for the built-in) the server takes the packets that arrived, hands the P loops the
+piston setpoints of the operating modes (:mod:`hexsim.interfaces.operating_modes`: engage, neutral, park,
+host lost, rejected packets), advances the whole simulation one period — the same
+:class:`~hexsim.simulation.runner.Simulator` as ``hexsim run`` (hydraulics, the bump, the compensator,
+MuJoCo) — and sends the platform's state back at ``state_rate_hz``. The periods are paced to the wall clock:
+between ticks the loop waits in ``select`` on the socket (reading packets as they arrive, their arrival
+timed), the last fraction of a millisecond in a spin. A tick that starts late is not skipped: the loop
+runs the next ones back to back until it is on time again.
+
+Timing (:class:`Timing`): each tick's start against its deadline (the jitter; a tick more than one period
+late is *late*: the simulation has fallen behind the wall clock), and its work (packets, setpoints, the step,
+the state packet; more than one period is an *overrun*).
+
+At the end (the duration reached, or Ctrl-C) the run's recording (the last ``keep_s``) is written as a
+measurement log and a rerun recording when asked, and the report (:class:`ServeReport`) as JSON.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import gc
+import math
+import select
+import socket
+import threading
+import time
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+from tqdm import tqdm
+
+from hexsim.control.kinematics import HexapodGeometry
+from hexsim.control.scenario import Scenario
+from hexsim.errors import InputError
+from hexsim.interfaces.operating_modes import OVERRUN, ModeSettings, OperatingModes
+from hexsim.interfaces.packets import (
+    DOF,
+    HOST_PACKET,
+    LEGS,
+    STATE_PACKET,
+    TYPES,
+    PacketError,
+    PacketLayout,
+)
+from hexsim.simulation.config import RunConfig
+from hexsim.simulation.perception import rigid_point_specific_force
+from hexsim.simulation.runner import Simulator
+
+#: the last stretch before a deadline spent spinning instead of in ``select`` [s]
+SPIN_S = 3e-4
+
+
+@dataclasses.dataclass(frozen=True)
+class ServeSettings:
+    """Where to listen (``bind``, ``port``; port 0: any free one), where to answer (``reply_to`` (host,
+    port); None: the sender of the last accepted packet), the state packets' rate [Hz], the longest session
+    [s] (``duration_s``: the recording is set up for it), the recording kept for the outputs [s], the
+    operating modes' settings and the two packet layouts. Raises InputError for a bad value."""
+
+    bind: str = "127.0.0.1"
+    port: int = 5005
+    reply_to: tuple[str, int] | None = None
+    state_rate_hz: float = 100.0
+    duration_s: float = 3600.0
+    keep_s: float = 600.0
+    modes: ModeSettings = ModeSettings()
+    host_layout: PacketLayout = HOST_PACKET
+    state_layout: PacketLayout = STATE_PACKET
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.port < 65536:
+            raise InputError(f"port must be 0…65535, got {self.port}")
+        for name in ("state_rate_hz", "duration_s", "keep_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"{name} must be a positive number, got {value!r}")
+        self.host_layout.check_host()
+        self.state_layout.check_state()
+
+
+@dataclasses.dataclass
+class Timing:
+    """Per tick: ``lateness`` (n,) [s] of its start after its deadline, ``work`` (n,) [s] it took; ``period``
+    [s]. The figures: :meth:`summary`."""
+
+    period: float
+    lateness: np.ndarray
+    work: np.ndarray
+    ticks: int = 0
+    late: int = 0
+
+    def summary(self) -> dict:
+        """ticks; jitter p50, p99, max [ms] (start after deadline); late ticks (more than one period late);
+        overruns (work over one period); work mean, p99, max [ms]; the work's share of the period (mean)."""
+        n = self.ticks
+        late, work = self.lateness[:n] * 1e3, self.work[:n] * 1e3
+        if n == 0:
+            return {"ticks": 0}
+        return {"ticks": n, "period_ms": self.period * 1e3,
+                "jitter_p50_ms": float(np.percentile(late, 50)), "jitter_p99_ms": float(np.percentile(late, 99)),
+                "jitter_max_ms": float(late.max()), "late_ticks": int(np.sum(late > self.period * 1e3)),
+                "overruns": int(np.sum(work > self.period * 1e3)), "work_mean_ms": float(work.mean()),
+                "work_p99_ms": float(np.percentile(work, 99)), "work_max_ms": float(work.max()),
+                "load": float(work.mean() / (self.period * 1e3))}
+
+
+@dataclasses.dataclass(frozen=True)
+class ServeReport:
+    """What a session did: the machine and compensator, the simulated time [s], the timing
+    (:meth:`Timing.summary`), the packets (received, accepted, rejected by reason, state packets sent and
+    failed), the operating modes' transitions ((time [s], status name)) and the status at the end."""
+
+    machine: str
+    compensator: str
+    simulated_s: float
+    timing: dict
+    packets: dict
+    transitions: list
+    status: str
+
+    def lines(self) -> list[str]:
+        """The report as a user reads it."""
+        t, p = self.timing, self.packets
+        out = [f"machine {self.machine}, compensator {self.compensator}: {self.simulated_s:.1f} s served, "
+               f"ended {self.status}"]
+        if t.get("ticks"):
+            out.append(f"timing: {t['ticks']} ticks of {t['period_ms']:g} ms; start after deadline p50 "
+                       f"{t['jitter_p50_ms']:.3f}, p99 {t['jitter_p99_ms']:.3f}, max {t['jitter_max_ms']:.3f} ms; "
+                       f"{t['late_ticks']} late, {t['overruns']} overruns; work mean {t['work_mean_ms']:.3f} ms "
+                       f"({t['load']:.0%} of the period), max {t['work_max_ms']:.3f} ms")
+        rejected = ", ".join(f"{n} {k}" for k, n in sorted(p["rejected"].items())) or "none"
+        out.append(f"packets: {p['received']} received, {p['accepted']} accepted, rejected: {rejected}; "
+                   f"{p['sent']} state packets sent ({p['send_failed']} failed)")
+        out.append("modes: " + ", ".join(f"{name} at {when:.2f} s" for when, name in self.transitions))
+        return out
+
+
+def live_scenario(system: str, neutral: np.ndarray, duration: float) -> Scenario:
+    """A scenario that holds the legs at ``neutral`` (n,) [m] for ``duration`` [s]: the setpoint rows the
+    server overwrites tick by tick."""
+    return Scenario("serve", system, float(duration), 2 if system == "hexapod" else -1, 0.0, 0.0,
+                    legs=(np.zeros(1), np.asarray(neutral, dtype=float)[None, :]))
+
+
+class VirtualMotionSystem:
+    """The simulation behind ``hexsim serve`` (module doc): ``base`` gives the machine, controller and
+    compensator (its scenario is replaced), ``settings`` the socket, layouts and modes. :meth:`run` serves
+    until the duration or :meth:`stop`; :meth:`result` is the recording, :meth:`report` the figures.
+    Raises InputError for a machine that is not a hexapod (with DOF setpoints) or a port in use."""
+
+    def __init__(self, base: RunConfig, settings: ServeSettings = ServeSettings()) -> None:
+        if base.scenario.system != "hexapod" and settings.host_layout.setpoints == "dof":
+            raise InputError("hexsim serve with DOF setpoints needs a hexapod machine (a single actuator: a layout "
+                             "with setpoints 'legs' and one leg)")
+        self.settings = settings
+        probe = Simulator(dataclasses.replace(base, scenario=live_scenario(base.scenario.system, np.zeros(6), 0.1)))
+        neutral = probe.idx.neutral_y
+        config = dataclasses.replace(base, scenario=live_scenario(base.scenario.system, neutral, settings.duration_s),
+                                     record_rate_hz=base.controller.rate_hz, keep_last_s=settings.keep_s,
+                                     progress=False)
+        self.config = config
+        self.sim = sim = Simulator(config)
+        self.period = sim.ctrl_div * sim.dt
+        self.hexapod = config.scenario.system == "hexapod"
+        if settings.host_layout.setpoints == "dof":
+            geo = HexapodGeometry.from_model(sim.model)
+            self._neutral_position = geo.neutral_position
+
+            def to_legs(q: np.ndarray) -> np.ndarray:
+                return geo.inverse(q, check=False)
+        else:
+            if len(neutral) != 6 and self.hexapod:
+                raise InputError("a legs layout needs six legs")
+
+            def to_legs(q: np.ndarray) -> np.ndarray:
+                return q[: len(neutral)]
+        frame = next(f for f in settings.host_layout.fields if f.name == "frame")
+        self.modes = OperatingModes(neutral, sim.idx.stroke, to_legs, settings.modes,
+                                    1 << (8 * np.dtype(TYPES[frame.type]).itemsize))
+        self._setpoint_names = DOF if settings.host_layout.setpoints == "dof" else LEGS
+        n_ticks = int(math.ceil(settings.duration_s / self.period))
+        self.timing = Timing(self.period, np.zeros(n_ticks), np.zeros(n_ticks))
+        self.transitions: list[tuple[float, str]] = [(0.0, self.modes.status.name.lower())]
+        self.packets = {"received": 0, "accepted": 0, "sent": 0, "send_failed": 0}
+        self._reply = settings.reply_to
+        self._send_div = max(1, int(round(1.0 / (settings.state_rate_hz * self.period))))
+        self._stop = threading.Event()
+        self._t0 = 0.0
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            self.sock.bind((settings.bind, settings.port))
+        except OSError as exc:
+            self.sock.close()
+            raise InputError(f"cannot listen on {settings.bind}:{settings.port}: {exc.strerror}") from None
+        self.sock.setblocking(False)
+        self.address = self.sock.getsockname()
+        self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform") if self.hexapod else -1
+        self._vel = np.zeros(6)
+
+    # ------------------------------------------------------------------ packets
+    def _drain(self) -> None:
+        """Take every packet waiting on the socket, each timed at its reading [s since the start]."""
+        layout = self.settings.host_layout
+        while True:
+            try:
+                data, sender = self.sock.recvfrom(65536)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # e.g. an ICMP port-unreachable of a state packet, reported on this socket
+                continue
+            self.packets["received"] += 1
+            now = time.perf_counter() - self._t0
+            try:
+                fields = layout.unpack(data)
+            except PacketError as exc:
+                self.modes.reject(exc.reason)
+                continue
+            fields["setpoint"] = np.array([fields[n] for n in self._setpoint_names])
+            if self.modes.receive(now, fields):
+                self.packets["accepted"] += 1
+                if self.settings.reply_to is None:
+                    self._reply = sender
+
+    def state(self) -> dict[str, float]:
+        """The platform's state now as the state packet's fields (:data:`~hexsim.interfaces.packets.STATE_FIELDS`)."""
+        sim, m, d, modes = self.sim, self.sim.model, self.sim.data, self.modes
+        y, _ = sim.idx.positions(d)
+        out = {"status": int(modes.status), "frame": modes.last_frame or 0, "faults": modes.take_faults(),
+               "time": sim.time, "received": self.packets["received"], "rejected": sum(modes.rejected.values()),
+               "late": self.timing.late,
+               "p_s": float(sim.state.p_s[0])}
+        out.update({f"leg{i + 1}": float(v) for i, v in enumerate(y)})
+        out.update({f"leg{i + 1}_ref": float(v) for i, v in enumerate(modes.cmd)})
+        out.update({f"p1_leg{i + 1}": float(v) for i, v in enumerate(sim.state.p1)})
+        if self.hexapod:
+            s = sim.idx.sensor
+            quat = d.sensordata[s["platform_quat"]]
+            world_from_body = Rotation.from_quat(quat[[1, 2, 3, 0]])
+            rpy = world_from_body.as_euler("ZYX")[::-1]
+            pose = np.concatenate([d.sensordata[s["platform_pos"]] - self._neutral_position, rpy])
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
+            velocity = np.concatenate([self._vel[3:], self._vel[:3]])
+            out.update(dict(zip(DOF, pose)))
+            out.update({f"{n}_rate": float(v) for n, v in zip(DOF, velocity)})
+            head, omega = self._head(world_from_body)
+            out.update({f"head_f{a}": float(v) for a, v in zip("xyz", head)})
+            out.update({f"head_w{a}": float(v) for a, v in zip("xyz", omega)})
+        return out
+
+    def _head(self, world_from_body: Rotation) -> tuple[np.ndarray, np.ndarray]:
+        """Specific force (3,) [m/s^2] and angular velocity (3,) [rad/s] at the occupant's head, platform axes
+        (:func:`~hexsim.simulation.perception.rigid_point_specific_force` from the accelerometer's site)."""
+        from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
+
+        sim, d = self.sim, self.sim.data
+        s = sim.idx.sensor
+        site_pos, site_quat = sim._sensor_site()
+        body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]])
+        site_from_world = (world_from_body * body_from_site).inv()
+        head = (self.config.geometry or MICRO_MOTION_SYSTEM).head_point
+        omega = d.sensordata[s["platform_gyro"]]
+        alpha = site_from_world.apply(d.sensordata[s["platform_angacc"]])
+        r = body_from_site.inv().apply(np.asarray(head) - site_pos)
+        f = rigid_point_specific_force(d.sensordata[s["platform_acc"]], omega, alpha, r)
+        return body_from_site.apply(f), body_from_site.apply(omega)
+
+    def _send(self) -> None:
+        if self._reply is None:
+            return
+        try:
+            self.sock.sendto(self.settings.state_layout.pack(self.state()), self._reply)
+            self.packets["sent"] += 1
+        except OSError:
+            self.packets["send_failed"] += 1
+
+    # ------------------------------------------------------------------ ticks
+    def tick(self, n: int) -> None:
+        """Controller tick ``n``: the operating modes' setpoints at t = n x period into the P loops, one period
+        of simulation, the state packet when due."""
+        sim, modes = self.sim, self.modes
+        before = modes.status
+        sim.coupling.setpoints[sim.k // sim.ctrl_div] = modes.setpoint(n * self.period)
+        if modes.status != before:
+            self.transitions.append((n * self.period, modes.status.name.lower()))
+        sim.step(self.period)
+        if n % self._send_div == 0:
+            self._send()
+
+    def _wait(self, deadline: float) -> None:
+        """Until ``deadline`` (perf_counter [s]): in ``select`` on the socket, reading packets as they come,
+        then spinning the last :data:`SPIN_S`."""
+        while True:
+            remain = deadline - time.perf_counter()
+            if remain <= 0:
+                return
+            if remain > SPIN_S:
+                ready, _, _ = select.select([self.sock], [], [], remain - SPIN_S)
+                if ready:
+                    self._drain()
+
+    def run(self, duration_s: float | None = None) -> ServeReport:
+        """Serve in real time for ``duration_s`` [s] (None: the settings' duration) or until :meth:`stop` (or
+        Ctrl-C, which ends the session the same way). Returns the report."""
+        timing, sim = self.timing, self.sim
+        last = len(timing.lateness) if duration_s is None else min(len(timing.lateness),
+                                                                     int(round(duration_s / self.period)))
+        self.state()  # the first call of each path is slow (lazy set-up): before the clock starts
+        tqdm(disable=True).close()  # the step's progress bar: its first instance creates tqdm's lock (ms)
+        gc.freeze()  # the objects of the set-up out of the collector's way (its pauses would be ticks late)
+        self._t0 = time.perf_counter() - timing.ticks * self.period
+        try:
+            for n in range(timing.ticks, last):
+                if self._stop.is_set() or sim.done:
+                    break
+                deadline = self._t0 + n * self.period
+                self._wait(deadline)
+                start = time.perf_counter()
+                self._drain()
+                self.tick(n)
+                done = time.perf_counter()
+                timing.lateness[n], timing.work[n] = start - deadline, done - start
+                timing.late += start - deadline > self.period
+                if done - start > self.period:
+                    self.modes.faults |= OVERRUN
+                timing.ticks = n + 1
+        except KeyboardInterrupt:
+            pass
+        return self.report()
+
+    def stop(self) -> None:
+        """End :meth:`run` at its next tick (from another thread)."""
+        self._stop.set()
+
+    def close(self) -> None:
+        self.sock.close()
+
+    def result(self):
+        """The recording (:class:`~hexsim.simulation.config.SimulationResult`, the last ``keep_s``)."""
+        return self.sim.result()
+
+    def report(self) -> ServeReport:
+        packets = {**self.packets, "rejected": dict(self.modes.rejected)}
+        return ServeReport(self.config.machine_label, self.config.compensator_name, self.sim.time,
+                           self.timing.summary(), packets, list(self.transitions), self.modes.status.name.lower())
+
+
+def serve_session(base: RunConfig, settings: ServeSettings, *, log=None, rrd=None, json_path=None,
+                  out=print) -> list:
+    """``hexsim serve``: set up, say where it listens, serve until the duration or Ctrl-C, then print the
+    report and write the outputs asked for (``log``: a measurement log .csv with its sidecar; ``rrd``: a rerun
+    recording; ``json_path``: the report). Returns the paths written. Raises InputError for a port in use or
+    a machine the layout cannot drive."""
+    from hexsim.outputs.logio import write_log
+    from hexsim.outputs.rerun_log import write_rrd
+    from hexsim.tables import write_json
+
+    vms = VirtualMotionSystem(base, settings)
+    host, state = settings.host_layout, settings.state_layout
+    try:
+        out(f"hexsim serve: {vms.config.machine_label}, compensator {vms.config.compensator_name}, controller "
+            f"{1 / vms.period:g} Hz; listening on {vms.address[0]}:{vms.address[1]} for {host.source} host packets "
+            f"({host.size} bytes, setpoints {host.setpoints}); {state.source} state packets ({state.size} bytes) at "
+            f"{settings.state_rate_hz:g} Hz; {settings.duration_s:g} s at most, Ctrl-C ends", flush=True)
+        report = vms.run()
+    finally:
+        vms.close()
+    for line in report.lines():
+        out(line)
+    written = []
+    if (log is not None or rrd is not None) and vms.sim.rows > 1:
+        result = vms.result()
+        if log is not None:
+            written.extend(write_log(log, result))
+        if rrd is not None:
+            write_rrd(rrd, result, None)
+            written.append(rrd)
+    if json_path is not None:
+        write_json(json_path, dataclasses.asdict(report))
+        written.append(json_path)
+    return written

@@ -1,0 +1,268 @@
+"""hexsim serve (issue 56): the packets and their layout files, the operating modes a motion controller keeps
+(engage faded in, neutral and park on cubics, a lost host returned to neutral, rejected packets leaving the
+platform undisturbed), and a session between the host client and the server on localhost, through the
+same Simulator as ``hexsim run``. Timing figures are reported, not asserted (docs/serve.md has the benchmark)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import struct
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+from hexsim.errors import InputError
+from hexsim.interfaces.host import HostClient, motion_script
+from hexsim.interfaces.operating_modes import (
+    HOST_LOST,
+    ModeSettings,
+    OperatingModes,
+    Status,
+    quintic,
+)
+from hexsim.interfaces.packets import (
+    DOF,
+    HOST_PACKET,
+    STATE_PACKET,
+    Field,
+    PacketError,
+    PacketLayout,
+)
+from hexsim.interfaces.server import ServeSettings, VirtualMotionSystem
+from hexsim.plant.machine import load_machine
+from hexsim.simulation.config import RunConfig
+
+NEUTRAL = np.full(6, 0.1)
+STROKE = np.tile([0.0, 0.2], (6, 1))
+TICK = 0.002
+
+
+# ----------------------------------------------------------------------------------------------- packets
+def test_a_host_packet_round_trips_and_a_bad_one_is_refused_with_its_reason():
+    setpoint = dict(zip(DOF, (0.01, -0.02, 0.03, 0.04, -0.05, 0.06)))
+    data = HOST_PACKET.pack({"frame": 7, "mode": 2, **setpoint})
+    assert len(data) == HOST_PACKET.size == 56
+    got = HOST_PACKET.unpack(data)
+    assert got["frame"] == 7 and got["mode"] == "engage"
+    assert [got[n] for n in DOF] == pytest.approx(list(setpoint.values()))
+    reasons = {}
+    for name, bad in {"size": data[:-1],
+                      "version": struct.pack("<H", 2) + data[2:],
+                      "mode": data[:2] + struct.pack("<H", 9) + data[4:],
+                      "number": data[:-8] + struct.pack("<d", float("nan"))}.items():
+        with pytest.raises(PacketError) as exc:
+            HOST_PACKET.unpack(bad)
+        reasons[name] = exc.value.reason
+    assert reasons == {k: k for k in reasons}
+
+
+def test_a_hosts_own_layout_file_is_read_big_endian_in_millimetres_and_degrees(tmp_path):
+    """A host whose packet exists: big-endian, a version word 3, a checksum hexsim ignores, mm and deg."""
+    doc = {"byte_order": "big", "modes": {"park": 10, "neutral": 11, "engage": 12},
+           "fields": [{"name": "version", "type": "u8", "value": 3}, {"name": "mode", "type": "u8"},
+                      {"name": "frame", "type": "u16"},
+                      *({"name": n, "type": "f32", "scale": 1e-3} for n in DOF[:3]),
+                      *({"name": n, "type": "f32", "scale": np.pi / 180} for n in DOF[3:]),
+                      {"name": "checksum", "type": "u32"}]}
+    path = tmp_path / "host.json"
+    path.write_text(json.dumps(doc))
+    layout = PacketLayout.from_file(path).check_host()
+    raw = struct.pack(">BBH6fI", 3, 12, 65535, 10.0, 0.0, -25.0, 2.0, 0.0, 0.0, 0xDEADBEEF)
+    got = layout.unpack(raw)
+    assert got["mode"] == "engage" and got["frame"] == 65535
+    assert got["surge"] == pytest.approx(0.010) and got["heave"] == pytest.approx(-0.025)
+    assert got["roll"] == pytest.approx(np.radians(2.0))
+    assert layout.document()["byte_order"] == "big"
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"fields": [{"name": "frame", "type": "u32"}, {"name": "mode", "type": "u16"}]}, "heave"),
+    ({"fields": [{"name": "frame", "type": "u24"}]}, "u24"),
+    ({"byte_order": "middle"}, "byte_order"),
+    ({"modes": {"park": 0, "neutral": 0, "engage": 2}}, "distinct"),
+    ({"colour": "red"}, "colour"),
+])
+def test_a_layout_file_that_cannot_work_is_refused_naming_the_file_and_what(tmp_path, change, words):
+    doc = {**HOST_PACKET.document(), **change}
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError) as exc:
+        PacketLayout.from_file(path).check_host()
+    assert "bad.json" in str(exc.value) and words in str(exc.value)
+
+
+# ----------------------------------------------------------------------------------------------- modes
+def _modes(**settings) -> OperatingModes:
+    return OperatingModes(NEUTRAL, STROKE, lambda q: NEUTRAL + q, ModeSettings(**settings), frame_range=1 << 16)
+
+
+def _drive(modes: OperatingModes, duration: float, packet, rate_hz: float = 100.0, t0: float = 0.0):
+    """Setpoints (N, 6) at 500 Hz over ``duration`` [s] from ``t0``; ``packet(t)`` -> (mode, q (6,)) or None,
+    sent at ``rate_hz`` with frames counting up."""
+    out, every = [], int(round(1 / (rate_hz * TICK)))
+    for n in range(int(round(duration / TICK))):
+        t = t0 + n * TICK
+        if n % every == 0 and (p := packet(t)) is not None:
+            modes.receive(t, {"frame": (modes.last_frame or 0) + 1, "mode": p[0], "setpoint": p[1]})
+        out.append(modes.setpoint(t))
+    return np.array(out)
+
+
+def test_engage_fades_the_hosts_motion_in_without_a_step_and_then_follows_it():
+    """The host sends a 0.5 Hz, 40 mm sine on leg 1 from t = 0 and asks to engage at 1 s: the setpoint stays
+    neutral until then; the fade adds no step in velocity (its largest change per tick no larger than the one
+    the linear interpolation between the host's packets has once engaged, a_host x T_host); after the 2 s fade
+    it is the host's (1.5 host periods late, delay_frames)."""
+    modes = _modes()
+    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]
+    y = _drive(modes, 5.0, lambda t: ("engage" if t >= 1.0 else "neutral", sine(t)))
+    t = np.arange(len(y)) * TICK
+    assert np.all(y[t < 1.0] == NEUTRAL)
+    dv = np.abs(np.diff(y[:, 0], 2)) / TICK
+    fade, engaged = (t[2:] > 0.9) & (t[2:] < 3.0), t[2:] > 3.0
+    assert dv[fade].max() <= 1.01 * dv[engaged].max()
+    assert dv[engaged].max() <= 1.01 * 0.04 * np.pi**2 * 0.01  # the interpolation's own, at most a_host T_host
+    late = t > 3.1
+    assert y[late, 0] == pytest.approx(NEUTRAL[0] + 0.04 * np.sin(np.pi * (t[late] - 0.015)), abs=2e-4)
+    assert modes.status == Status.ENGAGED
+
+
+def test_a_host_gone_silent_is_lost_and_the_platform_returns_to_neutral_smoothly_and_stays():
+    """Engaged on a moving host that stops sending at 4 s: its last setpoint is held (as a motion controller
+    does), after the timeout the platform returns to neutral on a cubic from rest (no step in position or
+    velocity), the fault is latched, and engage is refused until the host has
+    sent another mode."""
+    modes = _modes(engage_s=0.5, host_timeout_s=0.3, return_s=1.0)
+    sine = lambda t: np.r_[0.0, 0.03 * np.sin(2 * np.pi * 0.5 * t), np.zeros(4)]
+    y = _drive(modes, 8.0, lambda t: ("engage", sine(t)) if t < 4.0 else None)
+    assert modes.status == Status.NEUTRAL and modes.latched and modes.faults & HOST_LOST
+    assert np.all(y[-100:] == NEUTRAL)
+    t = np.arange(len(y)) * TICK
+    held = (t > 4.005) & (t <= 4.29)  # the last packet (3.99 s, played 15 ms late)'s setpoint held until the host is lost
+    assert np.all(y[held] == y[np.argmax(held)])
+    back = t >= 4.29
+    v = np.diff(y[back, 1]) / TICK
+    assert np.max(np.abs(v)) < 1.5 * 0.03 * np.pi  # never faster than the host's own motion
+    assert np.max(np.abs(np.diff(v))) < 1e-3  # from rest to rest without a velocity step [m/s per tick]
+    y2 = _drive(modes, 1.0, lambda t: ("engage", sine(t)), t0=8.0)  # the host back, still asking to engage
+    assert modes.status == Status.NEUTRAL and np.all(y2 == NEUTRAL)
+    _drive(modes, 0.1, lambda t: ("neutral", sine(t)), t0=9.0)
+    _drive(modes, 0.2, lambda t: ("engage", sine(t)), t0=9.1)
+    assert modes.status == Status.ENGAGING and not modes.latched
+
+
+def test_park_lowers_the_legs_to_above_the_retracted_end_and_raises_them_again():
+    modes = _modes(move_speed=0.05)
+    y = _drive(modes, 6.0, lambda t: ("park", np.zeros(6)))
+    assert modes.status == Status.PARKED
+    assert y[-1] == pytest.approx(STROKE[:, 0] + 0.005)
+    assert np.max(np.abs(np.diff(y, axis=0))) / TICK <= 0.05 * 1.01  # at most the move speed
+    _drive(modes, 6.0, lambda t: ("neutral", np.zeros(6)), t0=6.0)
+    assert modes.status == Status.NEUTRAL and modes.cmd == pytest.approx(NEUTRAL)
+
+
+def test_out_of_order_and_out_of_envelope_packets_are_counted_and_change_nothing():
+    modes = _modes(engage_s=0.1)
+    _drive(modes, 1.0, lambda t: ("engage", np.full(6, 0.02)))
+    before = modes.setpoint(1.0)
+    frame = modes.last_frame
+    assert not modes.receive(1.0, {"frame": frame, "mode": "neutral", "setpoint": np.zeros(6)})  # not newer
+    assert not modes.receive(1.0, {"frame": frame - 5, "mode": "neutral", "setpoint": np.zeros(6)})
+    assert not modes.receive(1.0, {"frame": frame + 1, "mode": "engage", "setpoint": np.full(6, 0.098)})  # stroke
+    assert modes.rejected == {"order": 2, "envelope": 1}
+    assert modes.requested == "engage" and modes.setpoint(1.002) == pytest.approx(before)
+    wrapped = _modes()  # the counter wraps at its range: 65535 -> 0 is newer
+    assert wrapped.receive(0.0, {"frame": 65535, "mode": "neutral", "setpoint": np.zeros(6)})
+    assert wrapped.receive(0.01, {"frame": 0, "mode": "neutral", "setpoint": np.zeros(6)})
+
+
+def test_the_quintic_fade_is_flat_at_both_ends():
+    s = np.linspace(0, 1, 1001)
+    q = np.array([quintic(x) for x in s])
+    assert q[0] == 0 and q[-1] == 1 and np.all(np.diff(q) >= 0)
+    assert np.diff(q)[0] < 1e-8 and np.diff(q)[-1] < 1e-8
+
+
+# ----------------------------------------------------------------------------------------------- a session
+@pytest.fixture(scope="module")
+def session():
+    """The built-in hexapod with the buffered compensator served 11 s on localhost (a thread), a host
+    client (this thread) at 100 Hz: neutral 1 s, engage and 0.5 Hz, 40 mm heave for 6 s, neutral; then two
+    malformed packets, one out of order, one beyond the envelope, and silence."""
+    base = RunConfig.from_machine(load_machine(None), "heave", compensator="buffered")
+    vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=12.0, keep_s=12.0))
+    served = threading.Thread(target=vms.run, kwargs={"duration_s": 11.0})
+    served.start()
+    heave = lambda t: np.r_[0.0, 0.0, 0.04 * np.sin(np.pi * t), 0.0, 0.0, 0.0]
+    script, total = motion_script(heave, 6.0, lead_s=1.0, tail_s=2.5)
+    try:
+        with HostClient(vms.address) as host:
+            record = host.session(script, total)
+            host.send_raw(b"\x01\x00")  # too short
+            host.send_raw(host.packet("neutral", np.zeros(6))[:-8] + struct.pack("<d", float("inf")))
+            host.send_raw(host.packet("neutral", np.zeros(6), frame=3))  # long past
+            host.send_raw(host.packet("neutral", np.r_[0.0, 0.0, 0.5, 0, 0, 0]))  # 0.5 m heave: beyond
+            host.session(lambda t: None, 1.0, record)  # silence, still reading
+    finally:
+        served.join()
+        vms.close()
+    return vms, record
+
+
+def test_the_host_sees_the_platform_engage_follow_and_return(session):
+    _, record = session
+    _, status = record.series("status")
+    seen = [int(status[0])] + [int(b) for a, b in itertools.pairwise(status) if b != a]
+    assert seen == [Status.NEUTRAL, Status.ENGAGING, Status.ENGAGED, Status.RETURNING, Status.NEUTRAL]
+    _, heave = record.series("heave")
+    _, fz = record.series("head_fz")
+    engaged = status == Status.ENGAGED
+    assert heave[engaged].max() == pytest.approx(0.04, abs=0.004)  # the platform's own pose, as MuJoCo has it
+    assert heave[engaged].min() == pytest.approx(-0.04, abs=0.004)
+    # the head's specific force: gravity plus the sine's acceleration (-w^2 heave), with the reversal bumps on it
+    assert fz[engaged].mean() == pytest.approx(9.81, abs=0.05)
+    assert np.corrcoef(fz[engaged], -heave[engaged])[0, 1] > 0.6  # measured 0.80
+    _, p1 = record.series("p1_leg1")
+    assert np.all((p1 > 0) & (p1 < 100e5))
+
+
+def test_bad_packets_are_counted_by_reason_and_the_platform_is_undisturbed(session):
+    vms, record = session
+    rep = vms.report()
+    assert rep.packets["rejected"] == {"size": 1, "number": 1, "order": 1, "envelope": 1}
+    assert rep.packets["accepted"] == len(record.sent)  # every scripted frame
+    result = vms.result()
+    tail = result.t > 10.0
+    assert np.abs(result.y_ref[tail] - vms.modes.neutral).max() < 1e-9  # neutral held through them
+    assert any(s["faults"] & 2 for _, s in record.states)  # the rejection flagged to the host
+
+
+def test_the_session_reports_its_timing_and_records_what_the_legs_did(session):
+    vms, _ = session
+    timing = vms.report().timing
+    assert timing["ticks"] == round(11.0 / 0.002)
+    assert {"jitter_p99_ms", "late_ticks", "overruns", "work_mean_ms"} <= set(timing)
+    assert 0 <= timing["jitter_p50_ms"] <= timing["jitter_p99_ms"] <= timing["jitter_max_ms"]
+    result = vms.result()
+    assert result.t[-1] == pytest.approx(11.0, abs=0.005)
+    engaged = (result.t > 4.0) & (result.t < 7.0)
+    assert np.abs(result.y[engaged] - result.y_ref[engaged]).max() < 0.005  # the P loops followed
+
+
+def test_serve_refuses_a_bad_layout_with_one_line_and_exit_2(tmp_path):
+    path = tmp_path / "host.json"
+    path.write_text(json.dumps({"fields": [{"name": "frame", "type": "u32"}]}))
+    proc = subprocess.run([sys.executable, "-m", "hexsim", "serve", "--layout", str(path), "--duration", "1"],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "host.json" in proc.stderr and "mode" in proc.stderr
+
+
+def test_a_state_layout_may_name_only_what_hexsim_sends():
+    with pytest.raises(InputError, match="'wind'"):
+        PacketLayout((*STATE_PACKET.fields[:3], Field("wind", "f32")), source="x").check_state()
+    assert PacketLayout((*STATE_PACKET.fields[:3], Field("spare", "u16", value=0)), source="x").check_state()
