@@ -1250,7 +1250,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
         name, compensator_settings, model = read_tuned(args.compensator)
         options = {"compensator": name, "compensator_settings": compensator_settings, "compensator_model": model}
-    base = RunConfig.from_machine(machine, "heave" if machine.system == "hexapod" else "actuator", **options)
+    if machine.system != "hexapod":
+        raise InputError(f"hexsim serve needs a hexapod machine; --machine {machine.label} is a {machine.system}")
+    base = RunConfig.from_machine(machine, "heave", **options)
     written = serve_session(base, settings, log=args.log, rrd=args.rrd, json_path=args.json, out=print)
     for path in written:
         print(f"wrote {path}")

@@ -15,6 +15,7 @@ import threading
 import numpy as np
 import pytest
 
+from hexsim.control.scenario import make_scenario
 from hexsim.errors import InputError
 from hexsim.interfaces.host import HostClient, motion_script
 from hexsim.interfaces.operating_modes import (
@@ -27,6 +28,7 @@ from hexsim.interfaces.operating_modes import (
 from hexsim.interfaces.packets import (
     DOF,
     HOST_PACKET,
+    HOST_PACKET_LEGS,
     STATE_PACKET,
     Field,
     PacketError,
@@ -266,3 +268,17 @@ def test_a_state_layout_may_name_only_what_hexsim_sends():
     with pytest.raises(InputError, match="'wind'"):
         PacketLayout((*STATE_PACKET.fields[:3], Field("wind", "f32")), source="x").check_state()
     assert PacketLayout((*STATE_PACKET.fields[:3], Field("spare", "u16", value=0)), source="x").check_state()
+
+
+def test_a_legs_layout_drives_the_pistons_directly_and_a_single_actuator_is_refused():
+    vms = VirtualMotionSystem(RunConfig.from_machine(load_machine(None), "heave"),
+                              ServeSettings(port=0, duration_s=1.0, host_layout=HOST_PACKET_LEGS))
+    try:
+        neutral = vms.modes.neutral
+        assert vms.modes.to_legs(neutral + 0.01) == pytest.approx(neutral + 0.01)
+        state = vms.state()
+        assert state["leg1"] == pytest.approx(neutral[0], abs=1e-3) and state["heave"] == pytest.approx(0, abs=1e-3)
+    finally:
+        vms.close()
+    with pytest.raises(InputError, match="hexapod"):
+        VirtualMotionSystem(RunConfig(make_scenario("actuator")), ServeSettings(port=0, duration_s=1.0))

@@ -53,8 +53,9 @@ STATE_FIELDS: dict[str, tuple[str, str]] = {
                     "last state packet, 8 a setpoint beyond the envelope since the last state packet"),
     "time": ("s", "simulated time"),
     **{n: ("m" if k < 3 else "rad", f"platform {n}, relative to the neutral pose") for k, n in enumerate(DOF)},
-    **{f"{n}_rate": ("m/s" if k < 3 else "rad/s", f"platform {n} velocity (world frame)")
-       for k, n in enumerate(DOF)},
+    **{f"{n}_rate": ("m/s", f"platform velocity along the world {a} axis") for n, a in zip(DOF[:3], "xyz")},
+    **{f"{n}_rate": ("rad/s", f"platform angular velocity about the world {a} axis (the {n} rate at small angles)")
+       for n, a in zip(DOF[3:], "xyz")},
     **{f"head_f{a}": ("m/s^2", f"specific force at the occupant's head, platform {a} axis") for a in "xyz"},
     **{f"head_w{a}": ("rad/s", f"angular velocity, platform {a} axis") for a in "xyz"},
     **{f"leg{i}": ("m", f"leg {i} piston position from the retracted end") for i in range(1, 7)},

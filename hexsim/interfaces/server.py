@@ -46,6 +46,7 @@ from hexsim.interfaces.packets import (
     PacketError,
     PacketLayout,
 )
+from hexsim.plant.model import PlantIndex, load_model
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.perception import rigid_point_specific_force
 from hexsim.simulation.runner import Simulator
@@ -150,32 +151,25 @@ class VirtualMotionSystem:
     """The simulation behind ``hexsim serve`` (module doc): ``base`` gives the machine, controller and
     compensator (its scenario is replaced), ``settings`` the socket, layouts and modes. :meth:`run` serves
     until the duration or :meth:`stop`; :meth:`result` is the recording, :meth:`report` the figures.
-    Raises InputError for a machine that is not a hexapod (with DOF setpoints) or a port in use."""
+    Raises InputError for a machine that is not a hexapod or a port in use."""
 
     def __init__(self, base: RunConfig, settings: ServeSettings = ServeSettings()) -> None:
-        if base.scenario.system != "hexapod" and settings.host_layout.setpoints == "dof":
-            raise InputError("hexsim serve with DOF setpoints needs a hexapod machine (a single actuator: a layout "
-                             "with setpoints 'legs' and one leg)")
+        if base.scenario.system != "hexapod":
+            raise InputError(f"hexsim serve needs a hexapod machine; {base.machine_label} is a single actuator")
         self.settings = settings
-        probe = Simulator(dataclasses.replace(base, scenario=live_scenario(base.scenario.system, np.zeros(6), 0.1)))
-        neutral = probe.idx.neutral_y
-        config = dataclasses.replace(base, scenario=live_scenario(base.scenario.system, neutral, settings.duration_s),
+        neutral = PlantIndex.from_model(load_model("hexapod", base.model, base.effects, base.geometry)).neutral_y
+        config = dataclasses.replace(base, scenario=live_scenario("hexapod", neutral, settings.duration_s),
                                      record_rate_hz=base.controller.rate_hz, keep_last_s=settings.keep_s,
                                      progress=False)
         self.config = config
         self.sim = sim = Simulator(config)
         self.period = sim.ctrl_div * sim.dt
-        self.hexapod = config.scenario.system == "hexapod"
+        geo = HexapodGeometry.from_model(sim.model)
+        self._neutral_position = geo.neutral_position
         if settings.host_layout.setpoints == "dof":
-            geo = HexapodGeometry.from_model(sim.model)
-            self._neutral_position = geo.neutral_position
-
             def to_legs(q: np.ndarray) -> np.ndarray:
                 return geo.inverse(q, check=False)
         else:
-            if len(neutral) != 6 and self.hexapod:
-                raise InputError("a legs layout needs six legs")
-
             def to_legs(q: np.ndarray) -> np.ndarray:
                 return q[: len(neutral)]
         frame = next(f for f in settings.host_layout.fields if f.name == "frame")
@@ -198,7 +192,7 @@ class VirtualMotionSystem:
             raise InputError(f"cannot listen on {settings.bind}:{settings.port}: {exc.strerror}") from None
         self.sock.setblocking(False)
         self.address = self.sock.getsockname()
-        self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform") if self.hexapod else -1
+        self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform")
         self._vel = np.zeros(6)
 
     # ------------------------------------------------------------------ packets
@@ -236,19 +230,18 @@ class VirtualMotionSystem:
         out.update({f"leg{i + 1}": float(v) for i, v in enumerate(y)})
         out.update({f"leg{i + 1}_ref": float(v) for i, v in enumerate(modes.cmd)})
         out.update({f"p1_leg{i + 1}": float(v) for i, v in enumerate(sim.state.p1)})
-        if self.hexapod:
-            s = sim.idx.sensor
-            quat = d.sensordata[s["platform_quat"]]
-            world_from_body = Rotation.from_quat(quat[[1, 2, 3, 0]])
-            rpy = world_from_body.as_euler("ZYX")[::-1]
-            pose = np.concatenate([d.sensordata[s["platform_pos"]] - self._neutral_position, rpy])
-            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
-            velocity = np.concatenate([self._vel[3:], self._vel[:3]])
-            out.update(dict(zip(DOF, pose)))
-            out.update({f"{n}_rate": float(v) for n, v in zip(DOF, velocity)})
-            head, omega = self._head(world_from_body)
-            out.update({f"head_f{a}": float(v) for a, v in zip("xyz", head)})
-            out.update({f"head_w{a}": float(v) for a, v in zip("xyz", omega)})
+        s = sim.idx.sensor
+        quat = d.sensordata[s["platform_quat"]]
+        world_from_body = Rotation.from_quat(quat[[1, 2, 3, 0]])
+        rpy = world_from_body.as_euler("ZYX")[::-1]
+        pose = np.concatenate([d.sensordata[s["platform_pos"]] - self._neutral_position, rpy])
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
+        velocity = np.concatenate([self._vel[3:], self._vel[:3]])
+        out.update(dict(zip(DOF, pose)))
+        out.update({f"{n}_rate": float(v) for n, v in zip(DOF, velocity)})
+        head, omega = self._head(world_from_body)
+        out.update({f"head_f{a}": float(v) for a, v in zip("xyz", head)})
+        out.update({f"head_w{a}": float(v) for a, v in zip("xyz", omega)})
         return out
 
     def _head(self, world_from_body: Rotation) -> tuple[np.ndarray, np.ndarray]:
