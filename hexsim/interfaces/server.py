@@ -46,6 +46,7 @@ from hexsim.interfaces.packets import (
     PacketError,
     PacketLayout,
 )
+from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import PlantIndex, load_model
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.perception import rigid_point_specific_force
@@ -194,6 +195,10 @@ class VirtualMotionSystem:
         self.address = self.sock.getsockname()
         self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform")
         self._vel = np.zeros(6)
+        site_pos, site_quat = sim.sensor_site()  # the accelerometer's site in the platform body
+        self._body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]])
+        head = (config.geometry or MICRO_MOTION_SYSTEM).head_point
+        self._head_in_site = self._body_from_site.inv().apply(np.asarray(head) - site_pos)
 
     # ------------------------------------------------------------------ packets
     def _drain(self) -> None:
@@ -246,19 +251,12 @@ class VirtualMotionSystem:
 
     def _head(self, world_from_body: Rotation) -> tuple[np.ndarray, np.ndarray]:
         """Specific force (3,) [m/s^2] and angular velocity (3,) [rad/s] at the occupant's head, platform axes
-        (:func:`~hexsim.simulation.perception.rigid_point_specific_force` from the accelerometer's site)."""
-        from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
-
-        sim, d = self.sim, self.sim.data
-        s = sim.idx.sensor
-        site_pos, site_quat = sim._sensor_site()
-        body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]])
-        site_from_world = (world_from_body * body_from_site).inv()
-        head = (self.config.geometry or MICRO_MOTION_SYSTEM).head_point
+        (:func:`~hexsim.simulation.perception.rigid_point_specific_force` from the accelerometer's site, as
+        :func:`~hexsim.simulation.perception.point_motion` for a recorded run)."""
+        d, s, body_from_site = self.sim.data, self.sim.idx.sensor, self._body_from_site
         omega = d.sensordata[s["platform_gyro"]]
-        alpha = site_from_world.apply(d.sensordata[s["platform_angacc"]])
-        r = body_from_site.inv().apply(np.asarray(head) - site_pos)
-        f = rigid_point_specific_force(d.sensordata[s["platform_acc"]], omega, alpha, r)
+        alpha = (world_from_body * body_from_site).inv().apply(d.sensordata[s["platform_angacc"]])
+        f = rigid_point_specific_force(d.sensordata[s["platform_acc"]], omega, alpha, self._head_in_site)
         return body_from_site.apply(f), body_from_site.apply(omega)
 
     def _send(self) -> None:

@@ -382,9 +382,9 @@ class Simulator:
             constraint_violation=rec["viol"], oil_temperature=rec["temperature"], compensator_state=comp_state,
             p1_initial=self.p1_initial, saturated_samples=self.coupling.controller.saturated_samples,
             wall_time_s=self.wall_time_s, gravity=float(-self.model.opt.gravity[2]), stroke=idx.stroke.copy(),
-            timestep=self.dt, platform_quat=rec.get("platform_quat"), sensor_site=self._sensor_site())
+            timestep=self.dt, platform_quat=rec.get("platform_quat"), sensor_site=self.sensor_site())
 
-    def _sensor_site(self) -> tuple[np.ndarray, np.ndarray] | None:
+    def sensor_site(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The platform accelerometer's site in its body: position (3,) [m], orientation (4,) [w, x, y, z];
         None for a single actuator."""
         if self.config.scenario.system != "hexapod":
