@@ -94,6 +94,13 @@ class HexapodGeometry:
                 )
         return y[0] if single else y
 
+    def pose_of(self, position: np.ndarray, quat: np.ndarray) -> np.ndarray:
+        """Platform poses (N, 6) [m, rad] (module doc: relative to neutral, R = Rz(yaw) Ry(pitch) Rx(roll)) of
+        the platform body at world positions (N, 3) [m] with orientations (N, 4) [w, x, y, z] (MuJoCo's
+        framepos and framequat sensors)."""
+        rpy = Rotation.from_quat(np.asarray(quat)[:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
+        return np.concatenate([np.asarray(position) - self.neutral_position, rpy], axis=1)
+
     def forward(self, y: np.ndarray, guess: np.ndarray | None = None, *, tol: float = 1e-12, max_iter: int = 50) -> np.ndarray:
         """Platform pose (6,) from six piston positions y (6,) [m] by Newton's method.
 

@@ -165,8 +165,7 @@ class VirtualMotionSystem:
         self.config = config
         self.sim = sim = Simulator(config)
         self.period = sim.ctrl_div * sim.dt
-        geo = HexapodGeometry.from_model(sim.model)
-        self._neutral_position = geo.neutral_position
+        self.geometry = geo = HexapodGeometry.from_model(sim.model)
         if settings.host_layout.setpoints == "dof":
             def to_legs(q: np.ndarray) -> np.ndarray:
                 return geo.inverse(q, check=False)
@@ -238,8 +237,7 @@ class VirtualMotionSystem:
         s = sim.idx.sensor
         quat = d.sensordata[s["platform_quat"]]
         world_from_body = Rotation.from_quat(quat[[1, 2, 3, 0]])
-        rpy = world_from_body.as_euler("ZYX")[::-1]
-        pose = np.concatenate([d.sensordata[s["platform_pos"]] - self._neutral_position, rpy])
+        pose = self.geometry.pose_of(d.sensordata[s["platform_pos"]][None], quat[None])[0]
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
         velocity = np.concatenate([self._vel[3:], self._vel[:3]])
         out.update(dict(zip(DOF, pose)))

@@ -24,7 +24,6 @@ import time
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from compensation import MODEL_BASED, PlantTruth, SettingsError, make_compensator
@@ -371,9 +370,7 @@ class Simulator:
         t = rec["t"]
         pose = pose_ref = None
         if cfg.scenario.system == "hexapod":
-            geom = HexapodGeometry.from_model(self.model)
-            rpy = Rotation.from_quat(rec["platform_quat"][:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
-            pose = np.concatenate([rec["platform_pos"] - geom.neutral_position, rpy], axis=1)
+            pose = HexapodGeometry.from_model(self.model).pose_of(rec["platform_pos"], rec["platform_quat"])
             given = cfg.scenario.legs is not None or cfg.scenario.open_loop  # no platform setpoint then
             pose_ref = None if given else cfg.scenario.poses(t)
         return SimulationResult(
