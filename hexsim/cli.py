@@ -45,8 +45,8 @@ def _number(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The command line: ``hexsim run|compare|validate|friction|calibrate|sweep|modes|accept|bench|machine`` (``--help``
-    on each)."""
+    """The command line: ``hexsim run|compare|tune|validate|friction|calibrate|sweep|modes|accept|bench|machine|serve|fmu``
+    (``--help`` on each)."""
     parser = argparse.ArgumentParser(
         prog="hexsim",
         description="Six-DOF hydraulic motion platform simulator (Micro Motion System): the reversal bump and its compensation.",
@@ -65,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_bench(sub)
     _add_machine(sub)
     _add_serve(sub)
+    _add_fmu(sub)
     return parser
 
 
@@ -168,6 +169,37 @@ def _add_serve(sub) -> None:
     se.add_argument("--to", type=_address, default=("127.0.0.1", 5005), metavar="HOST:PORT",
                     help="--client: the motion system's address (default 127.0.0.1:5005)")
     se.add_argument("--rate", type=_number, default=100.0, help="--client: packets per second (default %(default)s)")
+
+
+def _add_fmu(sub) -> None:
+    """The ``fmu`` command's options."""
+    fm = sub.add_parser(
+        "fmu", help="a leg or the platform as an FMI 3.0 co-simulation FMU for your system model (docs/fmu.md)",
+        description="Build an FMI 3.0 co-simulation FMU (pythonfmu3) of one leg (piston or valve setpoint and an "
+        "external force in; position, velocity, acceleration, pressures, force, u_v and U_c out) or of the platform "
+        "(six DOF setpoints in; pose, specific force at the head, legs out), from a machine file and a compensator. "
+        "It runs hexsim's simulation in the Python hexsim is installed in.")
+    fm.add_argument("kind", choices=("leg", "platform"), help="which FMU")
+    _machine_option(fm)
+    fm.add_argument("--compensator", type=_compensator_arg, default="none", metavar="NAME|FILE.json",
+                    help=f"compensator: {', '.join(COMPENSATORS)} (default none), or a tuned file")
+    fm.add_argument("--out", type=pathlib.Path, default=pathlib.Path("."),
+                    help="folder to write HexsimLeg.fmu / HexsimPlatform.fmu into (default: here)")
+
+
+def cmd_fmu(args: argparse.Namespace) -> int:
+    from hexsim.interfaces.fmu import LEG_OUTPUTS, PLATFORM_INPUTS, PLATFORM_OUTPUTS, build_fmu
+
+    path = build_fmu(args.kind, args.out, args.machine, args.compensator)
+    inputs = "y_ref [m] or u_v_set [V], F_ext [N]" if args.kind == "leg" else \
+        ", ".join(f"{p.name} [{p.unit}]" for p in PLATFORM_INPUTS)
+    outputs = LEG_OUTPUTS if args.kind == "leg" else PLATFORM_OUTPUTS
+    print(f"wrote {path} (FMI 3.0 co-simulation; communication steps of whole milliseconds)")
+    print(f"  inputs: {inputs}")
+    print(f"  outputs: {', '.join(p.name for p in outputs)}")
+    print("  parameters: duration_s (at least the stop time), interpolation (2 cubic, 1 linear, 0 hold)"
+          + (", closed_loop" if args.kind == "leg" else ""))
+    return 0
 
 
 def _compensator_arg(text: str) -> str:
@@ -1292,7 +1324,8 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _show_note
             commands = {"run": cmd_run, "compare": cmd_compare, "validate": cmd_validate, "friction": cmd_friction,
                         "sweep": cmd_sweep, "modes": cmd_modes, "bench": cmd_bench, "machine": cmd_machine,
-                        "calibrate": cmd_calibrate, "accept": cmd_accept, "tune": cmd_tune, "serve": cmd_serve}
+                        "calibrate": cmd_calibrate, "accept": cmd_accept, "tune": cmd_tune, "serve": cmd_serve,
+                        "fmu": cmd_fmu}
             return commands[args.command](args)
     except HexsimError as exc:
         # one line, whatever a file put into the message (a key or a value with a line break in it)

@@ -274,3 +274,15 @@ def _valve_scenario(path: pathlib.Path, duration: float | None) -> Scenario:
     start = np.array([cols["pos_m"][0]]) if system == "actuator" and "pos_m" in cols else None
     return Scenario(f"valve:{path}", system, duration, axis, 1.0 / duration, 0.0, None, valve=(times, values),
                     start=start)
+
+
+def live_scenario(system: str, neutral: np.ndarray, duration: float, *, open_loop: bool = False,
+                  name: str = "live") -> Scenario:
+    """A scenario whose setpoint rows are written while it runs (``hexsim serve``, the FMUs): it holds the
+    legs at ``neutral`` (n,) [m] for ``duration`` [s] until a caller writes the controller's setpoint rows
+    (``Simulator.coupling.setpoints``), or with ``open_loop`` holds the valves at 0 V until it writes the
+    valve rows (``Simulator.coupling.valve``)."""
+    neutral = np.asarray(neutral, dtype=float)
+    valve = (np.zeros(1), np.zeros((1, neutral.size))) if open_loop else None
+    return Scenario(name, system, float(duration), 2 if system == "hexapod" else -1, 0.0, 0.0,
+                    legs=(np.zeros(1), neutral[None, :]), valve=valve, start=neutral.copy() if open_loop else None)

@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
 from hexsim.control.kinematics import HexapodGeometry
-from hexsim.control.scenario import Scenario
+from hexsim.control.scenario import live_scenario
 from hexsim.errors import InputError
 from hexsim.interfaces.operating_modes import OVERRUN, ModeSettings, OperatingModes
 from hexsim.interfaces.packets import (
@@ -141,13 +141,6 @@ class ServeReport:
         return out
 
 
-def live_scenario(system: str, neutral: np.ndarray, duration: float) -> Scenario:
-    """A scenario that holds the legs at ``neutral`` (n,) [m] for ``duration`` [s]: the setpoint rows the
-    server overwrites tick by tick."""
-    return Scenario("serve", system, float(duration), 2 if system == "hexapod" else -1, 0.0, 0.0,
-                    legs=(np.zeros(1), np.asarray(neutral, dtype=float)[None, :]))
-
-
 class VirtualMotionSystem:
     """The simulation behind ``hexsim serve`` (module doc): ``base`` gives the machine, controller and
     compensator (its scenario is replaced), ``settings`` the socket, layouts and modes. :meth:`run` serves
@@ -159,7 +152,7 @@ class VirtualMotionSystem:
             raise InputError(f"hexsim serve needs a hexapod machine; {base.machine_label} is a single actuator")
         self.settings = settings
         neutral = PlantIndex.from_model(load_model("hexapod", base.model, base.effects, base.geometry)).neutral_y
-        config = dataclasses.replace(base, scenario=live_scenario("hexapod", neutral, settings.duration_s),
+        config = dataclasses.replace(base, scenario=live_scenario("hexapod", neutral, settings.duration_s, name="serve"),
                                      record_rate_hz=base.controller.rate_hz, keep_last_s=settings.keep_s,
                                      progress=False)
         self.config = config

@@ -208,7 +208,7 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
 
 
 @numba.njit(cache=True)
-def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
+def run_block(mj, legs, ctl, rec, out, k0, nsteps, r0):
     """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs, in the order of
     :class:`hexsim.simulation.config.HydraulicCoupling`. Per step k: read y, ydot; push y into the sensor-delay
     ring (Python pushed it for step k0 before its controller sample); with ``ctl.div`` > 0 and k a
@@ -216,10 +216,12 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     r_j = setpoints[j], j = k // div, y_m = the delayed measured position + noise_j; U_c = 0 (mode 0),
     :func:`compensation.buffered.buffered_tick` on (u_p, y_m) (mode 1) or row j of the table (mode 2: a
     logged compensation fed forward); u = sat(u_p + U_c, ±u_v,max) (with ``ctl.div`` = 0 the setpoints
-    ``u`` (n,) [V] are given and held); every ``rec.div``-th step, a :class:`Recorder` row (the state at
+    valve setpoints ``out[0]`` (n,) [V] are given and held); every ``rec.div``-th step, a :class:`Recorder` row (the state at
     t_k, the sensors MuJoCo computes at the start of the step, the force applied over it); advance the
     legs (:func:`hexsim.plant.legs.step_legs`), write the forces to ``ctrl``, ``mj_step``. Blocks with the
-    controller inside start at a controller sample. Returns the next row; ``rec.status[0]`` = the first
+    controller inside may start between two controller samples: ``out`` = (u_v (n,), U_c (n,), the
+    compensator's statistics (4, n), y_m (n,), u_p (n,)) are the caller's, kept from one block to the next
+    (the last sample's values hold until the next). Returns the next row; ``rec.status[0]`` = the first
     step whose state is not finite, else -1.
 
     The controller sample and the two halves of a record are helpers numba inlines into this loop
@@ -234,12 +236,12 @@ def run_block(mj, legs, ctl, rec, u, k0, nsteps, r0):
     L = hist.shape[0]
     y = np.empty(n)
     yd = np.empty(n)
-    out = (u, np.zeros(n), np.zeros((4, n)), np.empty(n), np.empty(n))  # u_v, U_c, (a, b, c, s), y_m, u_p
+    u = out[0]
     acc_adr, acc_sum = rec.acc_adr, rec.acc_sum
     n_acc = acc_adr.shape[0]
     div, rec_div, n_total, rows = ctl.div, rec.div, rec.n_total, rec.k.shape[0]
     r = r0
-    j = 0
+    j = min(k0 // div, ctl.setpoints.shape[0] - 1) if div > 0 else 0  # the last controller sample's row
     for s in range(nsteps):
         k = k0 + s
         _read_legs(geo, qpos, qvel, qadr, dadr, y, yd)

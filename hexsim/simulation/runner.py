@@ -197,7 +197,9 @@ class Simulator:
         if self.config.progress and not native.kernels_cached():
             print("hexsim: compiling the simulation kernels (once, about 15 s; cached on disk)", file=sys.stderr,
                   flush=True)
-        native.run_block(self.mj, self.legs, self.ctl, self.recorder, np.zeros(n), 0, 0, 0)  # compile / load
+        # the controller's last outputs (u_v, U_c, the compensator's statistics, y_m, u_p), kept between blocks
+        self._out = (np.zeros(n), np.zeros(n), np.zeros((4, n)), np.zeros(n), np.zeros(n))
+        native.run_block(self.mj, self.legs, self.ctl, self.recorder, self._out, 0, 0, 0)  # compile / load
 
     # ------------------------------------------------------------------ stepping
     @property
@@ -215,10 +217,10 @@ class Simulator:
         return self.legs.state if self.config.engine == "native" else self.coupling.state
 
     def step(self, seconds: float | None = None) -> "Simulator":
-        """Advance by ``seconds`` [s] (rounded up to whole controller and record periods; None: to the
-        end of the scenario). Returns self. Raises PhysicsError naming the time and the leg for a
-        non-finite state or a MuJoCo warning."""
-        unit = math.lcm(self.ctrl_div, self.rec_div)
+        """Advance by ``seconds`` [s] (rounded up to whole record periods, which may end between two
+        controller samples; None: to the end of the scenario). Returns self. Raises PhysicsError naming the
+        time and the leg for a non-finite state or a MuJoCo warning."""
+        unit = self.rec_div
         if seconds is None:
             k_end = self.total
         else:
@@ -309,12 +311,11 @@ class Simulator:
         checks)."""
         ctl, dt = self.ctl, self.dt
         warnings = self.data.warning.number  # a view of MuJoCo's warning counters
-        u_v = np.zeros(self.idx.n_legs)
         chunk = max(1, int(round(0.5 / (ctl.div * dt)))) * ctl.div
         k0 = self.k
         while self.k < k_end:
             steps = min(chunk, k_end - self.k)
-            self.rows = native.run_block(self.mj, self.legs, ctl, self.recorder, u_v, self.k, steps, self.rows)
+            self.rows = native.run_block(self.mj, self.legs, ctl, self.recorder, self._out, self.k, steps, self.rows)
             _check_block(self.model, self.data, self.idx, self.recorder.status, self.legs.state.p1, warnings)
             self.k += steps
             bar.update(round(self.time - bar.n, 3))
@@ -332,15 +333,17 @@ class Simulator:
         L, n_rec = len(hist), len(recorder.k)
         while self.k < k_end:
             k = self.k
-            hist[k % L] = idx.positions(self.data)[0]
-            hyd = coupling.tick(k, hist[(k + 1) % L].copy(), legs.state.p1)
-            if hyd is not self._hyd:  # the oil warmed: new parameters
-                self._hyd = coupling.hyd = hyd
-                legs = self.legs = legs._replace(params=coupling.leg_table())
-            if coupling.supply_level is not None:
-                legs.state.p_s[:] = coupling.supply_level
-            steps = min(self.ctrl_div, k_end - k)
-            r_next = native.run_block(self.mj, legs, self.ctl, recorder, coupling.u_v, k, steps, self.rows)
+            if k % self.ctrl_div == 0:  # a controller sample (a step may have ended between two)
+                hist[k % L] = idx.positions(self.data)[0]
+                hyd = coupling.tick(k, hist[(k + 1) % L].copy(), legs.state.p1)
+                if hyd is not self._hyd:  # the oil warmed: new parameters
+                    self._hyd = coupling.hyd = hyd
+                    legs = self.legs = legs._replace(params=coupling.leg_table())
+                if coupling.supply_level is not None:
+                    legs.state.p_s[:] = coupling.supply_level
+            steps = min(self.ctrl_div - k % self.ctrl_div, k_end - k)
+            r_next = native.run_block(self.mj, legs, self.ctl, recorder, (coupling.u_v, *self._out[1:]), k, steps,
+                                      self.rows)
             _check_block(self.model, self.data, idx, recorder.status, legs.state.p1, warnings)
             rows = np.arange(self.rows, r_next) % n_rec
             recorder.ref[rows], recorder.u[rows], recorder.uc[rows] = coupling.r, coupling.u_v, coupling.u_c
