@@ -56,7 +56,8 @@ def main() -> None:
                     continue  # the others at the longest step only
                 times = np.arange(0.0, args.duration, h)
                 if scenario_name == "actuator":
-                    names, values = ["y_ref"], run.y_ref[np.round(times * 1000).astype(int), :1]
+                    # the piston setpoint at each communication point: mid-stroke (where the fade-in starts) + the sine
+                    names, values = ["y_ref"], (run.y_ref[0, 0] + scenario.axis_setpoint(times))[:, None]
                     axis = "acc"
                 else:
                     names, values = [p.name for p in PLATFORM_INPUTS], scenario.poses(times)

@@ -43,7 +43,7 @@ INTERPOLATIONS = {"hold": 0, "linear": 1, "cubic": 2}
 #: The record period [s]: the outputs' sampling inside a step and the unit of a communication step.
 RECORD_PERIOD_S = 1e-3
 #: The longest piece a step is cut into [s] (the recorder's ring holds one piece).
-_PIECE_S = 0.25
+_PIECE_S = 0.02
 
 
 class CoSimulation:
@@ -171,9 +171,8 @@ class CoSimulation:
 
     def _read(self, count: int) -> tuple[np.ndarray, np.ndarray]:
         """Read the last ``count`` records into :attr:`last`; (largest, smallest) acceleration sample among them."""
-        result = self.sim.result()
-        rows = slice(len(result.t) - count, len(result.t))
-        acc = result.acc[rows]
+        result = self.sim.result(last=count)
+        acc = result.acc
         out = self.last
         out["sample_time"] = np.array([result.t[-1]])
         out["y"], out["ydot"], out["y_ref"] = result.y[-1], result.ydot[-1], result.y_ref[-1]

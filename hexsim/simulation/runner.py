@@ -77,6 +77,7 @@ class Simulator:
         self.k = 0  # physics steps done
         self.rows = 0  # samples recorded
         self.wall_time_s = 0.0  # stepping only (compilation excluded)
+        self._geometry = None  # a hexapod's kinematics for the results' poses, made at the first result
         if config.engine == "native":
             self._setup_kernel()
 
@@ -355,25 +356,27 @@ class Simulator:
                 bar.update(round(self.time - bar.n, 3))
 
     # ------------------------------------------------------------------ results
-    def result(self) -> SimulationResult:
+    def result(self, last: int | None = None) -> SimulationResult:
         """What was recorded so far, in time order (copies; the run can go on). With ``keep_last_s`` the
-        last that many seconds."""
+        last that many seconds; with ``last`` the last that many samples at most."""
         cfg, idx = self.config, self.idx
         if cfg.engine == "native":
             self._unpack_kernel_rows()
         n_rec = len(self.rec["t"])
-        shift = self.rows % n_rec if self.rows > n_rec else 0
-        keep = min(self.rows, n_rec)
+        keep = min(self.rows, n_rec) if last is None else min(self.rows, n_rec, last)
+        rows = np.arange(self.rows - keep, self.rows) % n_rec  # the ring's positions of the samples kept
 
         def ordered(a):
-            return np.roll(a, -shift, axis=0)[:keep] if shift else a[:keep].copy()
+            return a[rows]
 
         rec = {k: ordered(v) for k, v in self.rec.items()}
         comp_state = {k: ordered(v) for k, v in self.comp_state.items()}
         t = rec["t"]
         pose = pose_ref = None
         if cfg.scenario.system == "hexapod":
-            pose = HexapodGeometry.from_model(self.model).pose_of(rec["platform_pos"], rec["platform_quat"])
+            if self._geometry is None:
+                self._geometry = HexapodGeometry.from_model(self.model)
+            pose = self._geometry.pose_of(rec["platform_pos"], rec["platform_quat"])
             given = cfg.scenario.legs is not None or cfg.scenario.open_loop  # no platform setpoint then
             pose_ref = None if given else cfg.scenario.poses(t)
         return SimulationResult(
