@@ -113,22 +113,21 @@ def spool_edge(c, x):
 
 
 @numba.njit(cache=True)
-def _rhs(z, u, c):
-    a1, a2, stroke, ps, pt, x_max, u_max, d, ka, ol, u0, form, kq, kat, cd, rho, bulk, vpl, leak, m = c[:20]
-    y, v, p1, xv, vv = z[0], z[1], z[2], z[3], z[4]
-    x_set = (u - u0) / u_max * x_max
+def _rhs(y, v, p1, xv, vv, ps, u, c):
+    """The state's derivatives (ẏ, v̇, Ṗ1, ẋ_v, v̇_v, Ṗ_s) as a tuple (no array: the RK4 loop allocates nothing)."""
+    m = c[19]
+    x_set = (u - c[10]) / c[6] * c[5]
     w = c[29]
     if w > 0:  # second-order spool loop
         x, dxv, dvv = xv, vv, w * w * (x_set - xv) - 2.0 * c[30] * w * vv
     else:
         x, dxv, dvv = x_set, 0.0, 0.0
-    ps = z[5]
     dp1, force, drawn = leg_at(c, y, v, p1, x, ps)
     if c[36] > 0:  # pressure-compensated pump into an accumulator
         dps = (c[36] * min(max((c[3] - ps) / c[37], 0.0), 1.0) - drawn) / c[38]
     else:
         dps = (c[3] - c[33] * drawn - ps) / c[34] if c[33] > 0 else 0.0
-    return np.array([v, (force - m * 9.81 * c[35]) / m, dp1, dxv, dvv, dps])
+    return v, (force - m * 9.81 * c[35]) / m, dp1, dxv, dvv, dps
 
 
 @numba.njit(cache=True)
@@ -173,14 +172,23 @@ def leg_at(c, y, v, p1, x, ps):
 
 @numba.njit(cache=True)
 def _advance(z, u, c, h, n):
-    """n classical Runge-Kutta steps of h [s] with the valve setpoint u held."""
+    """n classical Runge-Kutta steps of h [s] with the valve setpoint u held (the state z (6,) in, a new array
+    out; scalars in between)."""
+    y, v, p1, xv, vv, ps = z[0], z[1], z[2], z[3], z[4], z[5]
     for _ in range(n):
-        k1 = _rhs(z, u, c)
-        k2 = _rhs(z + 0.5 * h * k1, u, c)
-        k3 = _rhs(z + 0.5 * h * k2, u, c)
-        k4 = _rhs(z + h * k3, u, c)
-        z = z + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return z
+        a1, a2, a3, a4, a5, a6 = _rhs(y, v, p1, xv, vv, ps, u, c)
+        g = 0.5 * h
+        b1, b2, b3, b4, b5, b6 = _rhs(y + g * a1, v + g * a2, p1 + g * a3, xv + g * a4, vv + g * a5, ps + g * a6, u, c)
+        c1, c2, c3, c4, c5, c6 = _rhs(y + g * b1, v + g * b2, p1 + g * b3, xv + g * b4, vv + g * b5, ps + g * b6, u, c)
+        d1, d2, d3, d4, d5, d6 = _rhs(y + h * c1, v + h * c2, p1 + h * c3, xv + h * c4, vv + h * c5, ps + h * c6, u, c)
+        k = h / 6.0
+        y += k * (a1 + 2 * b1 + 2 * c1 + d1)
+        v += k * (a2 + 2 * b2 + 2 * c2 + d2)
+        p1 += k * (a3 + 2 * b3 + 2 * c3 + d3)
+        xv += k * (a4 + 2 * b4 + 2 * c4 + d4)
+        vv += k * (a5 + 2 * b5 + 2 * c5 + d5)
+        ps += k * (a6 + 2 * b6 + 2 * c6 + d6)
+    return np.array([y, v, p1, xv, vv, ps])
 
 
 def _drifted(c0: np.ndarray, s: Actuator, t: float) -> np.ndarray:
