@@ -86,28 +86,42 @@ def _quat_matrix(q):
 
 
 @numba.njit(cache=True)
-def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply):
+def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, out, work):
     """State z: centre of mass (3), quaternion (4), its velocity (3), angular velocity (3, world), P1 (6), each
-    leg's spool position and velocity (12), the supply pressure (1); ``supply`` (set pressure, R_s, tau_s)."""
-    q = z[3:7] / np.sqrt(np.sum(z[3:7] ** 2))
-    rot = _quat_matrix(q)
-    v, w = z[7:10], z[10:13]
-    iw = rot @ np.diag(inertia) @ rot.T
-    mm = np.zeros((6, 6))
+    leg's spool position and velocity (12), the supply pressure (1); ``supply`` (set pressure, R_s, tau_s).
+    The derivatives into ``out`` (32,); ``work`` (9, 6): scratch (the mass matrix, the force, a leg's Jacobian
+    row and the rotation), so a step allocates only the 6x6 solve."""
+    out[:] = 0.0
+    mm, f, jac, rot = work[0:6], work[6], work[7], work[8]
+    norm = math.sqrt(z[3] ** 2 + z[4] ** 2 + z[5] ** 2 + z[6] ** 2)
+    qw, qx, qy, qz = z[3] / norm, z[4] / norm, z[5] / norm, z[6] / norm
+    r00, r01, r02 = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
+    r10, r11, r12 = 2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)
+    r20, r21, r22 = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)
+    rot[0], rot[1], rot[2], rot[3], rot[4], rot[5] = r00, r01, r02, r10, r11, r12
+    vx, vy, vz, wx, wy, wz = z[7], z[8], z[9], z[10], z[11], z[12]
+    mm[:, :] = 0.0
     mm[0, 0] = mm[1, 1] = mm[2, 2] = mass
-    mm[3:, 3:] = iw
-    f = np.zeros(6)
-    f[2] = -mass * G
-    f[3:] = -np.cross(w, iw @ w)
-    out = np.zeros(32)
+    R = ((r00, r01, r02), (r10, r11, r12), (r20, r21, r22))
+    for i in range(3):  # R diag(I) R^T, the inertia in the world frame
+        for j in range(3):
+            mm[3 + i, 3 + j] = R[i][0] * inertia[0] * R[j][0] + R[i][1] * inertia[1] * R[j][1] \
+                + R[i][2] * inertia[2] * R[j][2]
+    iwx = mm[3, 3] * wx + mm[3, 4] * wy + mm[3, 5] * wz
+    iwy = mm[4, 3] * wx + mm[4, 4] * wy + mm[4, 5] * wz
+    iwz = mm[5, 3] * wx + mm[5, 4] * wy + mm[5, 5] * wz
+    f[0], f[1], f[2] = 0.0, 0.0, -mass * G
+    f[3], f[4], f[5] = -(wy * iwz - wz * iwy), -(wz * iwx - wx * iwz), -(wx * iwy - wy * iwx)
     drawn = 0.0
     for i in range(6):
-        r = rot @ b[i]
-        vec = z[0:3] + r - a[i]
-        length = np.sqrt(np.sum(vec**2))
-        n = vec / length
-        jac = np.concatenate((n, np.cross(r, n)))
-        yd = np.dot(n, v + np.cross(w, r))
+        bx, by, bz = b[i, 0], b[i, 1], b[i, 2]
+        rx, ry, rz = r00 * bx + r01 * by + r02 * bz, r10 * bx + r11 * by + r12 * bz, r20 * bx + r21 * by + r22 * bz
+        ex, ey, ez = z[0] + rx - a[i, 0], z[1] + ry - a[i, 1], z[2] + rz - a[i, 2]
+        length = math.sqrt(ex * ex + ey * ey + ez * ez)
+        nx, ny, nz = ex / length, ey / length, ez / length
+        jac[0], jac[1], jac[2] = nx, ny, nz
+        jac[3], jac[4], jac[5] = ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx
+        yd = nx * (vx + wy * rz - wz * ry) + ny * (vy + wz * rx - wx * rz) + nz * (vz + wx * ry - wy * rx)
         c = legs[i]
         x = (u[i] - c[10]) / c[6] * c[5]  # ideal spool (seed eq. 3.2)
         if c[29] > 0:  # a second-order spool loop
@@ -116,31 +130,47 @@ def _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply):
             x = xv
         dp1, force, flow = leg_at(c, length - l_min, yd, z[13 + i], x, z[31])
         drawn += flow
-        f += jac * (force - rod_mass * G * n[2])
-        mm += rod_mass * np.outer(jac, jac)
+        along = force - rod_mass * G * nz
+        for j in range(6):
+            f[j] += jac[j] * along
+            for k in range(6):
+                mm[j, k] += rod_mass * jac[j] * jac[k]
         out[13 + i] = dp1
     acc = np.linalg.solve(mm, f)
-    out[0:3] = v
-    wq = np.array([0.0, w[0], w[1], w[2]])  # dq/dt = 1/2 (0, w) (x) q, w in the world frame
-    out[3] = 0.5 * (wq[0] * q[0] - wq[1] * q[1] - wq[2] * q[2] - wq[3] * q[3])
-    out[4] = 0.5 * (wq[0] * q[1] + wq[1] * q[0] + wq[2] * q[3] - wq[3] * q[2])
-    out[5] = 0.5 * (wq[0] * q[2] - wq[1] * q[3] + wq[2] * q[0] + wq[3] * q[1])
-    out[6] = 0.5 * (wq[0] * q[3] + wq[1] * q[2] - wq[2] * q[1] + wq[3] * q[0])
-    out[7:13] = acc
+    out[0], out[1], out[2] = vx, vy, vz
+    # dq/dt = 1/2 (0, w) (x) q, w in the world frame
+    out[3] = 0.5 * (-wx * qx - wy * qy - wz * qz)
+    out[4] = 0.5 * (wx * qw + wy * qz - wz * qy)
+    out[5] = 0.5 * (-wx * qz + wy * qw + wz * qx)
+    out[6] = 0.5 * (wx * qy - wy * qx + wz * qw)
+    for j in range(6):
+        out[7 + j] = acc[j]
     if supply[1] > 0:
         out[31] = (supply[0] - supply[1] * drawn - z[31]) / supply[2]
-    return out
 
 
 @numba.njit(cache=True)
 def _advance(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, h, n):
+    """n classical Runge-Kutta steps of h [s] from z (32,) (not changed; a new state is returned)."""
+    z = z.copy()
+    k1, k2, k3, k4, zt = np.empty(32), np.empty(32), np.empty(32), np.empty(32), np.empty(32)
+    work = np.empty((9, 6))
     for _ in range(n):
-        k1 = _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
-        k2 = _rhs(z + 0.5 * h * k1, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
-        k3 = _rhs(z + 0.5 * h * k2, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
-        k4 = _rhs(z + h * k3, u, legs, a, b, mass, inertia, rod_mass, l_min, supply)
-        z = z + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-        z[3:7] /= np.sqrt(np.sum(z[3:7] ** 2))
+        _rhs(z, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, k1, work)
+        for i in range(32):
+            zt[i] = z[i] + 0.5 * h * k1[i]
+        _rhs(zt, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, k2, work)
+        for i in range(32):
+            zt[i] = z[i] + 0.5 * h * k2[i]
+        _rhs(zt, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, k3, work)
+        for i in range(32):
+            zt[i] = z[i] + h * k3[i]
+        _rhs(zt, u, legs, a, b, mass, inertia, rod_mass, l_min, supply, k4, work)
+        for i in range(32):
+            z[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
+        norm = math.sqrt(z[3] ** 2 + z[4] ** 2 + z[5] ** 2 + z[6] ** 2)
+        for i in range(3, 7):
+            z[i] /= norm
     return z
 
 
