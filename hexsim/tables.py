@@ -172,12 +172,14 @@ def read_json_object(path: str | os.PathLike, what: str) -> dict:
 def read_settings(cls, path: str | os.PathLike, what: str):
     """An instance of the frozen dataclass ``cls`` (with a ``source`` field) from the JSON object in ``path``
     holding any subset of its other fields (lists as tuples; the rest default), ``source`` the path; ``what``
-    names the settings in messages (e.g. "washout"). Raises InputError naming the file and the key for an
-    unknown key or a value ``cls`` refuses (its own InputError)."""
+    names the settings in messages (e.g. "washout"). The ``software`` key hexsim's own files carry
+    (:func:`write_json`: their provenance) is not a setting and is passed over. Raises InputError naming the
+    file and the key for an unknown key or a value ``cls`` refuses (its own InputError)."""
     import dataclasses
 
     path = pathlib.Path(path)
     doc = read_json_object(path, f"{what} parameters")
+    doc.pop("software", None)
     known = {f.name for f in dataclasses.fields(cls)} - {"source"}
     unknown = sorted(set(doc) - known)
     if unknown:
