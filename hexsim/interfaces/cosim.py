@@ -14,8 +14,8 @@ machine's rate, compensator, MuJoCo), its setpoint rows written per controller s
   makes the P loop answer every step with an acceleration spike;
 - **outputs** are read after the step: the recorder's last 1 kHz sample, taken at t_n + h - 1 ms (as
   ``hexsim run`` logs it: the position as its sensor reads it, the accelerometer as its mean over the
-  millisecond before), and the largest and smallest acceleration sample within the step (a peak hold: a reversal bump is 10-30 ms long and a master
-  stepping 10 ms would otherwise see it only by chance).
+  millisecond before), and the largest and smallest acceleration sample within the step (a peak hold: a
+  reversal bump is 10-30 ms long and a master stepping 10 ms would otherwise see it only by chance).
 
 A step must be a whole number of the 1 ms record period (1-10 ms is what the FMUs are checked at) and must
 start where the last one ended; the run lasts at most ``duration_s`` (set it to the master's stop time).
@@ -60,7 +60,8 @@ class CoSimulation:
         if interpolation not in INTERPOLATIONS:
             raise InputError(f"interpolation {interpolation!r}: one of {', '.join(INTERPOLATIONS)}")
         if open_loop and system == "hexapod":
-            raise InputError("an open-loop FMU (valve setpoints in) is a single actuator's; the platform takes DOF setpoints")
+            raise InputError("an open-loop FMU (valve setpoints in) is a single actuator's; the platform takes "
+                             "DOF setpoints")
         neutral = PlantIndex.from_model(load_model(system, base.model, base.effects, base.geometry)).neutral_y
         scenario = live_scenario(system, neutral, duration_s, open_loop=open_loop, name="fmu")
         self.config = config = dataclasses.replace(

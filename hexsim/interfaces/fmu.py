@@ -190,7 +190,8 @@ class LegSlave(_HexsimSlave):
                                        variability=Fmi3Variability.fixed, start=True,
                                        description="the P controller closes the loop on y_ref (false: u_v_set drives "
                                                    "the valve, no controller, no compensator)"))
-        self._input(Port("y_ref", "m", "piston position setpoint from the retracted end (closed loop; not set: the neutral position)"), Y_REF_START)
+        self._input(Port("y_ref", "m", "piston position setpoint from the retracted end (closed loop; not set: "
+                              "the neutral position)"), Y_REF_START)
         self._input(Port("u_v_set", "V", "valve setpoint (open loop, closed_loop = false)"), 0.0)
         self._input(Port("F_ext", "N", "external force on the piston along its axis, extending positive"), 0.0)
         for port in LEG_OUTPUTS:
@@ -249,7 +250,8 @@ class {name}({base}, Fmi3Slave):
 '''
 
 
-def build_fmu(kind: str, out_dir: str | pathlib.Path, machine: str | None = None, compensator: str = "none") -> pathlib.Path:
+def build_fmu(kind: str, out_dir: str | pathlib.Path, machine: str | None = None,
+              compensator: str = "none") -> pathlib.Path:
     """Build the FMU of ``kind`` (``"leg"`` or ``"platform"``, :data:`KINDS`) into ``out_dir`` from the machine
     file ``machine`` (None: the built-in Micro Motion System) and ``compensator`` (a built-in's name or a tuned
     file, ``hexsim tune --out``), both copied into the FMU's resources. Returns the FMU's path

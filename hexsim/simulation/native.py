@@ -215,9 +215,9 @@ def run_block(mj, legs, ctl, rec, out, k0, nsteps, r0):
     controller sample, the P controller (:class:`hexsim.control.controller.PController`): u_p = K_p (r_j - y_m),
     r_j = setpoints[j], j = k // div, y_m = the delayed measured position + noise_j; U_c = 0 (mode 0),
     :func:`compensation.buffered.buffered_tick` on (u_p, y_m) (mode 1) or row j of the table (mode 2: a
-    logged compensation fed forward); u = sat(u_p + U_c, ±u_v,max) (with ``ctl.div`` = 0 the setpoints
-    valve setpoints ``out[0]`` (n,) [V] are given and held); every ``rec.div``-th step, a :class:`Recorder` row (the state at
-    t_k, the sensors MuJoCo computes at the start of the step, the force applied over it); advance the
+    logged compensation fed forward); u = sat(u_p + U_c, ±u_v,max) (with ``ctl.div`` = 0 the valve
+    setpoints ``out[0]`` (n,) [V] are given and held); every ``rec.div``-th step, a :class:`Recorder` row
+    (the state at t_k, the sensors MuJoCo computes at the start of the step, the force applied over it); advance the
     legs (:func:`hexsim.plant.legs.step_legs`), write the forces to ``ctrl``, ``mj_step``. Blocks with the
     controller inside may start between two controller samples: ``out`` = (u_v (n,), U_c (n,), the
     compensator's statistics (4, n), y_m (n,), u_p (n,)) are the caller's, kept from one block to the next
