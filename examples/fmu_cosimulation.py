@@ -16,21 +16,10 @@ import numpy as np
 from fmpy import simulate_fmu
 
 from hexsim.control.scenario import make_scenario
-from hexsim.interfaces.cosim import INTERPOLATIONS
+from hexsim.interfaces.cosim import INTERPOLATIONS, peak_hold_reversal_peaks
 from hexsim.interfaces.fmu import PLATFORM_INPUTS, build_fmu
 from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import run_smoothness
 from hexsim.simulation.runner import simulate
-
-
-def peaks(result, run, h: float, axis: str) -> np.ndarray:
-    """Each reversal's peak from the FMU's peak-hold outputs (the largest distance of a step's acceleration
-    extremes from the run's fitted fundamental, within ±0.1 s of the reversal, one step later)."""
-    smooth = run_smoothness(run)
-    t = result["sample_time"] - h
-    fit = np.interp(t, smooth.t, smooth.fit)
-    distance = np.maximum(np.abs(result[f"{axis}_max"] - fit), np.abs(result[f"{axis}_min"] - fit))
-    return np.array([distance[np.abs(t - tr) <= 0.1].max() for tr in smooth.reversal_times])
 
 
 def main() -> None:
@@ -49,7 +38,6 @@ def main() -> None:
         start = time.perf_counter()
         run = simulate(RunConfig.from_machine(None, scenario))
         run_wall = time.perf_counter() - start
-        ran = run_smoothness(run).reversal_peaks
         for h in steps:
             for interpolation in ("cubic", "linear", "hold"):
                 if interpolation != "cubic" and h < max(steps):
@@ -72,7 +60,8 @@ def main() -> None:
                                       start_values={"duration_s": args.duration,
                                                     "interpolation": INTERPOLATIONS[interpolation]})
                 wall = time.perf_counter() - start
-                fmu = peaks(result, run, h, axis)
+                fmu, ran = peak_hold_reversal_peaks(result["sample_time"], result[f"{axis}_max"],
+                                                    result[f"{axis}_min"], run, h)
                 print(f"| {path.stem}, {scenario_name} {args.duration:g} s | {h * 1e3:g} ms | {interpolation} | "
                       f"{fmu.mean():.4f} / {ran.mean():.4f} = {fmu.mean() / ran.mean():.3f} | "
                       f"{np.max(np.abs(fmu / ran - 1)) * 100:.1f} % | {wall:.1f} / {run_wall:.1f} s = "

@@ -1196,16 +1196,11 @@ def _tune_check(args: argparse.Namespace) -> int:
     from hexsim.plant.machine import load_machine
     from hexsim.simulation.config import RunConfig
     from hexsim.measured.proof import proof
-    from hexsim.simulation.tuning import read_tuned
+    from hexsim.simulation.tuning import compensator_options
 
     machine = load_machine(args.machine)
-    options = {}
-    name = args.compensator
-    if name.endswith(".json"):
-        name, settings, model = read_tuned(name)
-        options = {"compensator_settings": settings, "compensator_model": model}
     scenario = "heave" if machine.system == "hexapod" else "actuator"
-    base = RunConfig.from_machine(machine, scenario, compensator=name, **options)
+    base = RunConfig.from_machine(machine, scenario, **compensator_options(args.compensator))
     rows = [proof(path, base) for path in args.check]
     print(f"{'log':<28} {'':<10} {'mean rev. peak':>14} {'max rev. peak':>13} {'noise ratio':>11}")
     for r in rows:
@@ -1330,16 +1325,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from hexsim.plant.machine import load_machine
     from hexsim.simulation.config import RunConfig
 
-    machine = load_machine(args.machine)
-    options = {"compensator": args.compensator}
-    if args.compensator.endswith(".json"):
-        from hexsim.simulation.tuning import read_tuned
+    from hexsim.simulation.tuning import compensator_options
 
-        name, compensator_settings, model = read_tuned(args.compensator)
-        options = {"compensator": name, "compensator_settings": compensator_settings, "compensator_model": model}
+    machine = load_machine(args.machine)
     if machine.system != "hexapod":
         raise InputError(f"hexsim serve needs a hexapod machine; --machine {machine.label} is a {machine.system}")
-    base = RunConfig.from_machine(machine, "heave", **options)
+    base = RunConfig.from_machine(machine, "heave", **compensator_options(args.compensator))
     written = serve_session(base, settings, log=args.log, rrd=args.rrd, json_path=args.json, out=print)
     for path in written:
         print(f"wrote {path}")

@@ -13,10 +13,10 @@ from fmpy.validation import validate_fmu  # noqa: E402
 from hexsim.cli import main  # noqa: E402
 from hexsim.control.scenario import make_scenario  # noqa: E402
 from hexsim.plant.machine import dump, load_machine  # noqa: E402
+from hexsim.interfaces.cosim import peak_hold_reversal_peaks  # noqa: E402
 from hexsim.interfaces.fmu import LEG_OUTPUTS, PLATFORM_INPUTS, PLATFORM_OUTPUTS, UNITS, build_fmu  # noqa: E402
 from hexsim.simulation.config import RunConfig  # noqa: E402
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM  # noqa: E402
-from hexsim.simulation.metrics import run_smoothness  # noqa: E402
 from hexsim.simulation.perception import point_motion  # noqa: E402
 from hexsim.simulation.runner import simulate  # noqa: E402
 
@@ -37,16 +37,9 @@ def fmus(tmp_path_factory):
             "quiet": build_fmu("leg", out / "quiet", machine=str(quiet)), "quiet_machine": quiet}
 
 
-def _peaks_from_the_fmu(result, run, h: float, axis: str) -> np.ndarray:
-    """Each reversal's peak as the FMU's outputs show it: the largest distance of the step's acceleration
-    extremes (``{axis}_max``, ``{axis}_min``, a peak hold over each communication step) from the run's fitted
-    fundamental, within the metrics' ±0.1 s of each reversal of ``run`` — the FMU plays its input one step
-    behind, so its reversals come h later."""
-    smooth = run_smoothness(run)
-    t = result["sample_time"] - h  # on the run's time axis
-    fit = np.interp(t, smooth.t, smooth.fit)
-    distance = np.maximum(np.abs(result[f"{axis}_max"] - fit), np.abs(result[f"{axis}_min"] - fit))
-    return np.array([distance[np.abs(t - tr) <= 0.1].max() for tr in smooth.reversal_times]), smooth.reversal_peaks
+def _peaks_from_the_fmu(result, run, h: float, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """The FMU's reversal peaks from its peak hold and the run's (the FMU plays its input one step behind)."""
+    return peak_hold_reversal_peaks(result["sample_time"], result[f"{axis}_max"], result[f"{axis}_min"], run, h)
 
 
 def test_the_fmus_validate_and_every_variable_has_its_unit_and_description(fmus):

@@ -35,6 +35,7 @@ from hexsim.errors import InputError
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import PlantIndex, load_model
 from hexsim.simulation.config import RunConfig
+from hexsim.simulation.metrics import run_smoothness
 from hexsim.simulation.perception import point_motion
 from hexsim.simulation.runner import Simulator
 
@@ -185,3 +186,19 @@ class CoSimulation:
             motion = point_motion(result, self.head)
             out["head_f"], out["head_w"] = motion.specific_force[-1], motion.angular_velocity[-1]
         return acc.max(axis=0), acc.min(axis=0)
+
+
+def peak_hold_reversal_peaks(sample_time: np.ndarray, acc_max: np.ndarray, acc_min: np.ndarray, run,
+                             delay: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each reversal's peak as a master stepping an FMU sees it, beside the run's: the largest distance of the
+    steps' acceleration extremes ``acc_max``, ``acc_min`` (M,) [m/s^2] (the peak hold, sampled at
+    ``sample_time`` (M,) [s]) from the fitted fundamental of ``run`` (a SimulationResult of the same motion,
+    :func:`hexsim.simulation.metrics.run_smoothness`), within the metrics' ±0.1 s of each of its reversals, the
+    FMU's samples moved back by ``delay`` [s] (one communication step when the setpoints are interpolated).
+    Returns (the FMU's peaks (R,), the run's peaks (R,)) [m/s^2]."""
+    smooth = run_smoothness(run)
+    t = np.asarray(sample_time) - delay
+    fit = np.interp(t, smooth.t, smooth.fit)
+    distance = np.maximum(np.abs(np.asarray(acc_max) - fit), np.abs(np.asarray(acc_min) - fit))
+    return np.array([distance[np.abs(t - tr) <= 0.1].max() for tr in smooth.reversal_times]), smooth.reversal_peaks
+

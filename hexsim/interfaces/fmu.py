@@ -162,15 +162,12 @@ class _HexsimSlave(Fmi3Slave):
         """The run's RunConfig from the machine and compensator in the resources."""
         from hexsim.plant.machine import load_machine
         from hexsim.simulation.config import RunConfig
+        from hexsim.simulation.tuning import compensator_options
 
         build, resources = self._build, self._resources
         machine = load_machine(str(resources / build["machine"]) if build.get("machine") else build.get("builtin"))
-        options = {"compensator": build.get("compensator", "none")}
-        if options["compensator"].endswith(".json"):
-            from hexsim.simulation.tuning import read_tuned
-
-            name, settings, model = read_tuned(str(resources / options["compensator"]))
-            options = {"compensator": name, "compensator_settings": settings, "compensator_model": model}
+        compensator = build.get("compensator", "none")
+        options = compensator_options(str(resources / compensator) if compensator.endswith(".json") else compensator)
         return RunConfig.from_machine(machine, "heave" if self.kind == "platform" else "actuator", **options)
 
     def _publish(self, last: dict[str, np.ndarray], ports) -> None:

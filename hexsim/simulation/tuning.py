@@ -264,6 +264,16 @@ def write_tuned(path: pathlib.Path, result: TuneResult, base: RunConfig, motions
     return doc
 
 
+def compensator_options(spec: str) -> dict:
+    """The RunConfig fields of a compensator given as a built-in's name or a tuned file (``*.json``,
+    :func:`read_tuned`): ``compensator``, and for a file its ``compensator_settings`` and ``compensator_model``.
+    Raises InputError as :func:`read_tuned`."""
+    if not spec.endswith(".json"):
+        return {"compensator": spec}
+    name, settings, model = read_tuned(spec)
+    return {"compensator": name, "compensator_settings": settings, "compensator_model": model}
+
+
 def read_tuned(path: str | pathlib.Path) -> tuple[str, CompensatorSettings, LegModel | None]:
     """(compensator name, its settings, its leg model or None) of a tuned file. Raises InputError naming
     the file and what is wrong (unreadable, not a tuned file, an unknown compensator or setting, a model
