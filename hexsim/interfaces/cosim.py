@@ -164,11 +164,10 @@ class CoSimulation:
 
     def _played(self, s: float) -> np.ndarray:
         """The setpoint at the fraction ``s`` (0 <= s < 1) of the current step (module doc): the cubic Hermite
-        of the piece (a straight line or a constant where its slopes say so)."""
+        of the piece: a straight line where both slopes are its secant ("linear"), a constant where they are 0
+        and its ends equal ("hold")."""
         p0, m0, p1, m1 = self._piece
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-        if self.interpolation == "linear":
-            return p0 + s * (p1 - p0)
         return h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
 
     def _read(self, count: int) -> tuple[np.ndarray, np.ndarray]:

@@ -54,10 +54,6 @@ class Port:
     index: int = 0
 
 
-def _axis(name: str, unit: str, text: str, key: str, index: int) -> Port:
-    return Port(name, unit, text, key, index)
-
-
 LEG_OUTPUTS = (
     Port("y", "m", "piston position from the retracted end as the position sensor reads it", "y"),
     Port("ydot", "m/s", "piston velocity", "ydot"),
@@ -285,11 +281,12 @@ def build_fmu(kind: str, out_dir: str | pathlib.Path, machine: str | None = None
             files.append(tmp / "compensator.json")
         (tmp / "hexsim_fmu.json").write_text(json.dumps(info, indent=1))
         files.append(tmp / "hexsim_fmu.json")
-        name, base = KINDS[kind], {"leg": "LegSlave", "platform": "PlatformSlave"}[kind]
+        slave = LegSlave if kind == "leg" else PlatformSlave
+        name, base = KINDS[kind], slave.__name__
         script = tmp / "script" / f"{name}.py"
         script.parent.mkdir()
         script.write_text(_SCRIPT.format(kind=kind, version=__version__, base=base, name=name))
-        check = (LegSlave if kind == "leg" else PlatformSlave)(instance_name="check", resources=str(tmp))
+        check = slave(instance_name="check", resources=str(tmp))
         check._config()  # the machine and compensator as the FMU will read them (errors here, not in the tool)
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
