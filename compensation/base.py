@@ -165,6 +165,25 @@ def observer_tick(f, S, u_p, y, u_f, v_f):
         v_f[i] = o1
 
 
+@numba.njit(cache=True)
+def sos_tick(sos, zi, x, out):
+    """One sample of ``scipy.signal.sosfilt``'s cascade of second-order sections for each of n channels, in
+    place: ``sos`` (k, 6) (a0 = 1, as ``scipy.signal.butter(..., output="sos")`` gives), the state ``zi``
+    (k, 2, n) (``sosfilt``'s ``zi`` along axis 0), the sample ``x`` (n,) in, the filtered sample in ``out``
+    (n,). Each section is ``sosfilt``'s transposed direct form II (y = b0 x + z0; z0 = b1 x - a1 y + z1;
+    z1 = b2 x - a2 y), in its order of operations: the outputs equal ``sosfilt``'s
+    (tests/test_compensation_functions.py). A controller filters one sample per tick; ``sosfilt`` called per
+    sample spends ~80 µs checking its arguments."""
+    for i in range(x.shape[0]):
+        v = x[i]
+        for s in range(sos.shape[0]):
+            y = sos[s, 0] * v + zi[s, 0, i]
+            zi[s, 0, i] = sos[s, 1] * v - sos[s, 4] * y + zi[s, 1, i]
+            zi[s, 1, i] = sos[s, 2] * v - sos[s, 5] * y
+            v = y
+        out[i] = v
+
+
 class FlowCurveObserver:
     """The flow curve a motion computer can see: filtered u_v and velocity from the measured position.
 

@@ -41,9 +41,9 @@ from dataclasses import MISSING, dataclass, fields
 from typing import NamedTuple
 
 import numpy as np
-from scipy.signal import butter, sosfilt, sosfilt_zi
+from scipy.signal import butter, sosfilt_zi
 
-from compensation.base import Compensator
+from compensation.base import Compensator, sos_tick
 from compensation.curve_learning import BAND_MPS, CurveLearner, rest_scale
 from compensation.settings import CompensatorSettings, SettingsError
 
@@ -275,13 +275,17 @@ class FeedforwardCompensator(Compensator):
         p1 = np.asarray(p1, dtype=float)
         if self._pzi is None:
             self._pzi = sosfilt_zi(self._psos)[:, :, None] * p1[None, None, :]
-        out, self._pzi = sosfilt(self._psos, p1[None, :], axis=0, zi=self._pzi)
-        return out[0]
+        out = np.empty(len(p1))
+        sos_tick(self._psos, self._pzi, p1, out)
+        return out
 
     def loop_filter(self, u_p: np.ndarray) -> np.ndarray:
-        """LP(u_p) [V] (n_legs,): one sample of the 2nd-order Butterworth (``scipy.signal.sosfilt``, state kept)."""
-        out, self._zi = sosfilt(self._sos, np.asarray(u_p, dtype=float)[None, :], axis=0, zi=self._zi)
-        return out[0]
+        """LP(u_p) [V] (n_legs,): one sample of the 2nd-order Butterworth (``scipy.signal.sosfilt``'s
+        recursion, :func:`compensation.base.sos_tick`, state kept)."""
+        u_p = np.asarray(u_p, dtype=float)
+        out = np.empty(len(u_p))
+        sos_tick(self._sos, self._zi, u_p, out)
+        return out
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         velocity, p1 = self.demand()
