@@ -138,7 +138,7 @@ def summary_table(report: dict) -> str:
                            f"max {max(peaks, default=float('nan')):.4f} {unit}; noise floor {report['noise_floor']:.4f} {unit}"),
         *((("perceptible", _perception_line(report["perception"])),) if report.get("perception") else ()),
         ("max_tracking_error", f"{report['max_tracking_error_m'] * 1e3:.2f} mm"),
-        *((("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (connects)"),)
+        *((("constraint_violation", f"{report['max_constraint_violation_m'] * 1e6:.3f} µm max (the legs' closures)"),)
           if connects else ()),
         ("valve_saturated", f"{report['valve_saturated_samples']} controller samples"),
         *(("fault", _fault_line(f, connects)) for f in report["faults"]),

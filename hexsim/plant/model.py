@@ -88,9 +88,12 @@ def model_spec(name: str, formulation: str = "full", effects=None, geometry=None
     check_formulation(formulation)
     if name == "hexapod":
         if geometry is not None and geometry.is_mjcf:
-            from hexsim.plant.user_model import user_spec
+            from hexsim.plant.user_model import cardan_spreads, user_spec
 
             spec = user_spec(geometry)
+            if formulation == "platform" and np.any(cardan_spreads(spec) > 0):
+                _say_full_model(geometry, cardan_spreads(spec))
+                formulation = "full"
         else:
             geometry = geometry or hexapod.MICRO_MOTION_SYSTEM
             spec = hexapod.scene(hexapod.build(geometry), geometry.scale)
@@ -101,6 +104,25 @@ def model_spec(name: str, formulation: str = "full", effects=None, geometry=None
     if effects is not None:
         apply_load(spec, effects)
     return spec
+
+
+#: the swing [deg] of a leg against the platform at which the notes state what a cardan's offset costs
+CARDAN_SWING_DEG = 10.0
+
+
+def _say_full_model(geometry, spreads: np.ndarray) -> None:
+    """Say (a :class:`~hexsim.errors.ModelNote`) that the hexapod of a user's MJCF whose platform-side cardans
+    keep their hinges apart (``spreads`` (n,) [m] per leg) runs on the full model, and what the offset costs."""
+    from hexsim.plant.user_legs import BALL_TOLERANCE_M, note
+
+    worst = float(np.max(spreads))
+    legs = ", ".join(str(i + 1) for i in np.flatnonzero(spreads > 0))
+    error = worst * (1.0 - np.cos(np.deg2rad(CARDAN_SWING_DEG)))
+    note(f"{geometry.mjcf} (hexapod.mjcf): legs {legs}: the platform joints' hinges sit up to {worst * 1e3:.1f} mm "
+         f"apart (a point leg allows {BALL_TOLERANCE_M * 1e3:g} mm): the full model runs, with each cardan's joint "
+         f"chain, not the platform-only model (whose legs are straight lines between two points): a run takes about "
+         f"7x as long (docs/your-hexapod.md). hexsim's inverse kinematics take each leg to its last hinge: a "
+         f"setpoint is off by up to {error * 1e3:.2f} mm at {CARDAN_SWING_DEG:g} deg of swing about the others")
 
 
 def load_model(name: str, formulation: str = "full", effects=None, geometry=None) -> mujoco.MjModel:

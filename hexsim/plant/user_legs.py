@@ -13,17 +13,22 @@ here, in the ``MjSpec``, into that form, and said as a :class:`~hexsim.errors.Mo
 * **a universal joint on two bodies** (a cross piece with one hinge, the barrel with the other): both
   hinges are put on the barrel, the cross piece's first (their order kept; MuJoCo turns a body's joints
   in order, so the motion is the same); the cross piece stays with the base (its mass no longer moves);
-* **the platform end as three hinges or a ball on bodies of their own at the rod's tip, closed by a
-  ``weld`` or ``connect`` to the platform**: those joints are taken out (their bodies then move with the
-  rod) and the closure is replaced by a ``connect`` at their common point, the ball;
+* **the platform end as two or three hinges through one point, or a ball, on bodies of their own at the
+  rod's tip, closed by a ``weld`` or ``connect`` to the platform**: those joints are taken out (their bodies
+  then move with the rod) and the closure is replaced by a ``connect`` at their common point, the ball;
 * **the file's own actuators on the slides** are replaced by hexsim's force motors; **its sensors and
   joint equalities on joints taken out** are removed; a sensor named like one of hexsim's is renamed
   ``user_<name>``;
 * **keyframes**: ``neutral`` (or the model's reference pose) is carried over joint by joint; the others
   are dropped when the joints changed.
 
-A closure whose bodies cannot be read as one of these (a chain hanging from the platform, joints other
-than hinges and balls, hinge anchors more than :data:`BALL_TOLERANCE_M` apart) is refused with one line.
+Hinges at the platform end further apart than :data:`BALL_TOLERANCE_M` and closed by a ``weld`` (a cardan
+whose two axes sit some centimetres apart, as real cardans and CAD exports have them) are not a ball: they
+are kept with their bodies, and hexsim runs that hexapod on the full model with its joint chain (the
+platform-only model's legs are straight lines between two points; :func:`hexsim.plant.model.model_spec`
+says which model runs and what the offset costs). A closure whose bodies cannot be read as one of these (a
+chain hanging from the platform, joints other than hinges and balls, hinges apart closed by a ``connect``)
+is refused with one line.
 """
 
 from __future__ import annotations
@@ -35,7 +40,9 @@ import numpy as np
 
 from hexsim.errors import InputError, ModelNote
 
-#: the hinges (or the ball) of a leg's platform joint must meet within this [m]: a ball turns about a point
+#: the hinges of a leg's platform joint within this of each other [m] are made a ball (a point leg's
+#: length then off by at most 1 mm x (1 - cos 10 deg) = 0.015 mm at 10 deg of swing); further apart, and closed
+#: by a weld, they are kept and the full model runs them
 BALL_TOLERANCE_M = 1e-3
 
 _J = mujoco.mjtObj.mjOBJ_JOINT
@@ -143,7 +150,14 @@ def _merge_cross_piece(spec: mujoco.MjSpec, m: mujoco.MjModel, rod: int) -> str 
             f"barrel, in their order (the cross piece, {m.body_mass[cross]:.3g} kg, stays with the base)")
 
 
-def _chain(m: mujoco.MjModel, top: int, body: int) -> list[int] | None:
+def hinge_spread(anchors: np.ndarray) -> float:
+    """The largest distance [m] between two of the joints' anchors (k, 3) [m]: 0 for a ball or hinges
+    through one point."""
+    anchors = np.asarray(anchors, dtype=float)
+    return float(np.max(np.linalg.norm(anchors[:, None, :] - anchors[None, :, :], axis=-1)))
+
+
+def chain(m: mujoco.MjModel, top: int, body: int) -> list[int] | None:
     """The bodies from ``body`` up to ``top`` (exclusive), if ``body`` hangs from ``top``; else None."""
     out = []
     while body not in (top, 0):
@@ -155,8 +169,11 @@ def _chain(m: mujoco.MjModel, top: int, body: int) -> list[int] | None:
 def _platform_end(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, rod: int, platform: int, leg: str,
                   removed: list[str]) -> str | None:
     """The rod's closure to the platform: an active connect or weld from a body at the rod's tip whose
-    bodies up to the rod carry three hinges or a ball, made a connect from the rod at their common point
-    (the joints taken out are added to ``removed``). Returns what it changed (None: nothing)."""
+    bodies up to the rod carry two or three hinges or a ball, made a connect from the rod at their common
+    point (the joints taken out are added to ``removed``) when the hinges meet within
+    :data:`BALL_TOLERANCE_M`; hinges further apart and closed by a weld (a cardan as CAD exports it) are kept
+    as they are, the full model running their chain (:func:`hexsim.plant.user_model.user_spec`). Returns
+    what it changed or kept (None: nothing)."""
     for eq in range(m.neq):
         if not m.eq_active0[eq] or int(m.eq_type[eq]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)):
             continue
@@ -165,28 +182,32 @@ def _platform_end(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, rod:
         if platform not in sides:
             continue
         other = sides[1 - sides.index(platform)]
-        chain = _chain(m, rod, other)
-        if chain is None:
-            if _chain(m, platform, other) is not None and other != platform:
+        bodies = chain(m, rod, other)
+        if bodies is None:
+            if chain(m, platform, other) is not None and other != platform:
                 raise InputError(f"{leg}: its platform joint hangs from the platform ({mujoco.mj_id2name(m, _B, other)}); "
                                  f"hexsim reads it at the rod's tip (bodies below the rod)")
             continue
-        joints = [j for b in chain for j in _joints(m, b)]
+        joints = [j for b in bodies for j in _joints(m, b)]
         kinds = sorted(int(m.jnt_type[j]) for j in joints)
-        if not chain:  # closed at the rod itself
+        if not bodies:  # closed at the rod itself
             if int(m.eq_type[eq]) == int(mujoco.mjtEq.mjEQ_WELD):
                 raise InputError(f"{leg}: a weld ties its rod to the platform rigidly; the platform end needs a ball "
                                  f"(a connect, a ball joint or three hinges at the rod's tip)")
             return None
-        if kinds not in ([_HINGE] * 3, [_BALL]):
+        if kinds not in ([_HINGE] * 2, [_HINGE] * 3, [_BALL]):
             raise InputError(f"{leg}: the bodies between its rod and its closure carry joints of kinds {kinds}; a "
-                             f"platform joint is three hinges or a ball")
+                             f"platform joint is two or three hinges or a ball")
         anchors = d.xanchor[joints]
-        ball = anchors.mean(axis=0)
-        spread = float(np.max(np.linalg.norm(anchors - ball, axis=1)))
+        spread = hinge_spread(anchors)
         if spread > BALL_TOLERANCE_M:
-            raise InputError(f"{leg}: the hinges of its platform joint are {spread * 1e3:.1f} mm from their common "
-                             f"point; a ball turns about one point (within {BALL_TOLERANCE_M * 1e3:g} mm)")
+            if int(m.eq_type[eq]) != int(mujoco.mjtEq.mjEQ_WELD):
+                raise InputError(f"{leg}: the hinges of its platform joint are {spread * 1e3:.1f} mm apart and a "
+                                 f"connect closes them to the platform (a ball on top of the hinges); close a cardan "
+                                 f"with a weld, or bring its hinges within {BALL_TOLERANCE_M * 1e3:g} mm of one point")
+            return (f"the platform joint's {'three' if len(joints) == 3 else 'two'} hinges sit {spread * 1e3:.1f} mm apart (a cardan as CAD "
+                    f"draws it, closed by a weld): kept with their bodies, as the file has them")
+        ball = anchors.mean(axis=0)
         on_rod = d.xmat[rod].reshape(3, 3).T @ (ball - d.xpos[rod])
         names = [mujoco.mj_id2name(m, _J, j) for j in joints]
         for name in names:
@@ -196,7 +217,8 @@ def _platform_end(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, rod:
         spec.delete(spec.equality(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, eq)))
         spec.add_equality(type=mujoco.mjtEq.mjEQ_CONNECT, objtype=_B, name1=mujoco.mj_id2name(m, _B, rod),
                           name2=mujoco.mj_id2name(m, _B, platform), data=[*on_rod, 0.0, 0.0, 0.0, 0, 0, 0, 0, 0, 0])
-        return (f"the platform joint ({'three hinges' if len(joints) == 3 else 'a ball'} on bodies at the rod's tip, "
+        what = "a ball" if kinds == [_BALL] else f"{'three' if len(joints) == 3 else 'two'} hinges through one point"
+        return (f"the platform joint ({what} on bodies at the rod's tip, "
                 f"closed by a {kind}) is made a ball at their common point, closed by a connect (those bodies move "
                 f"with the rod)")
     return None

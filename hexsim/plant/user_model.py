@@ -40,7 +40,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.plant.geometry import Geometry
-from hexsim.plant.user_legs import conform, name_everything, note
+from hexsim.plant.user_legs import BALL_TOLERANCE_M, chain, conform, hinge_spread, name_everything, note
 
 #: the physics step hexsim runs a user's hexapod at, at most [s] (the seed's 10 kHz, §3.3)
 MAX_TIMESTEP_S = 1e-4
@@ -49,6 +49,9 @@ CLOSURE_TOLERANCE_M = 1e-4
 #: the closing connects' solver parameters, as the built hexapod's (models/hexapod.py): a 0.5 ms time
 #: constant; MuJoCo's default 20 ms would make the closed loop a spring softer than the oil column
 CLOSURE_SOLREF, CLOSURE_SOLIMP = [0.0005, 1.0], [0.9999, 0.9999, 0.001, 0.5, 2.0]
+#: the custom numeric a user's spec carries with each leg's platform-side hinge spread [m] when it keeps
+#: cardans whose hinges sit apart (:func:`cardan_spreads`)
+CARDAN_NUMERIC = "hexsim_cardan_spread"
 #: a slide axis further than this from the line base joint → ball is said in a note [rad]; further than
 #: AXIS_REFUSE_RAD (2°) it is refused
 AXIS_TOLERANCE_RAD = 1e-3
@@ -82,14 +85,15 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     if key >= 0:
         mujoco.mj_resetDataKeyframe(m, d, key)
     mujoco.mj_forward(m, d)
-    anchors, tips, closures, rods = [], [], [], []
+    anchors, tips, closures, rods, spreads = [], [], [], [], []
     for i, joint in enumerate(legs, 1):
         rod = _check_leg(m, d, i, joint, g.stroke_m, where)
-        eq, anchor, tip = _closure(m, d, i, rod, platform, where)
+        eq, anchor, tip, spread = _closure(m, d, i, rod, platform, where)
         anchors.append(anchor)
         tips.append(tip)
         closures.append(eq)
         rods.append(rod)
+        spreads.append(spread)
     sensor_at = _sensor_site(m, g.mjcf_sensor_site, platform, where)
     _check_names(m, legs, platform, where)
     names = [mujoco.mj_id2name(m, _J, j) for j in legs]
@@ -106,14 +110,28 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     body.mass, body.ipos, body.iquat = float(m.body_mass[platform]), m.body_ipos[platform], m.body_iquat[platform]
     body.inertia, body.explicitinertial = m.body_inertia[platform], True
     _add(spec, anchors, sensor_at, None if key >= 0 else m.qpos0)
-    for i, (eq, rod, tip) in enumerate(zip(closures, rods, tips), 1):
+    for i, (eq, rod, tip, spread) in enumerate(zip(closures, rods, tips, spreads), 1):
         # each closure between sites, as the built hexapod's (the native kernels read them so), and as stiff:
-        # MuJoCo's default 20 ms would make the closed loop a spring softer than the oil column
+        # MuJoCo's default 20 ms would make the closed loop a spring softer than the oil column; a kept
+        # cardan's weld stays between its bodies (the rod's tip and the ball do not meet there)
         site = _body(spec, m, rod).add_site(name=f"rod{i}_tip", pos=list(tip), size=[0.02, 0.005, 0.005])
         e = spec.equalities[eq]
-        e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, site.name, f"platform_anchor{i}"
+        if spread == 0.0:
+            e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, site.name, f"platform_anchor{i}"
+        else:  # a kept cardan: its weld between sites at its last hinge (the kernels read the sites' gap)
+            e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, _cardan_site(spec, m, d, eq, platform, i), \
+                f"platform_anchor{i}"
         e.solref, e.solimp = CLOSURE_SOLREF, CLOSURE_SOLIMP
+    if any(spreads):
+        spec.add_numeric(name=CARDAN_NUMERIC, data=list(map(float, spreads)), size=len(spreads))
     return spec
+
+
+def cardan_spreads(spec: mujoco.MjSpec) -> np.ndarray:
+    """(n,) the spread [m] of each leg's platform-side hinges that ``spec`` keeps as a chain (a cardan as CAD
+    draws it, :func:`hexsim.plant.user_legs.conform`); zeros for balls (and any spec without such legs)."""
+    numeric = next((n for n in spec.numerics if n.name == CARDAN_NUMERIC), None)
+    return np.zeros(0) if numeric is None else np.array(numeric.data, dtype=float)
 
 
 def _conformed(spec: mujoco.MjSpec, m: mujoco.MjModel, legs: list[int], platform: int,
@@ -219,43 +237,101 @@ def _point(m: mujoco.MjModel, d: mujoco.MjData, eq: int, side: int) -> tuple[int
 
 
 def _closure(m: mujoco.MjModel, d: mujoco.MjData, i: int, rod: int, platform: int,
-             where: str) -> tuple[int, np.ndarray, np.ndarray]:
-    """The connect that closes leg ``i``'s loop and the leg's ball (3,) [m] in the platform's and in the
-    rod's frame."""
+             where: str) -> tuple[int, np.ndarray, np.ndarray, float]:
+    """The equality that closes leg ``i``'s loop, the leg's ball (3,) [m] in the platform's frame, its
+    rod-side end (3,) [m] in the rod's frame, and the spread of its platform joint's hinges [m]: a connect
+    between the rod and the platform (a ball: spread 0), or a weld to the platform from the bodies of a
+    cardan at the rod's tip whose hinges sit apart (:func:`hexsim.plant.user_legs.conform` keeps those; the
+    leg's ends are then its last hinge, on the platform's side, and its first, on the rod)."""
     leg = f"{where}: leg{i}"
     for eq in range(m.neq):
-        if m.eq_type[eq] != mujoco.mjtEq.mjEQ_CONNECT or not m.eq_active0[eq]:
+        if not m.eq_active0[eq]:
+            continue
+        if m.eq_type[eq] == mujoco.mjtEq.mjEQ_WELD:
+            cardan = _cardan(m, d, eq, rod, platform)
+            if cardan is not None:
+                return _checked(m, d, leg, eq, rod, platform, *cardan)
+            continue
+        if m.eq_type[eq] != mujoco.mjtEq.mjEQ_CONNECT:
             continue
         sides = [_point(m, d, eq, 0), _point(m, d, eq, 1)]
         bodies = [b for b, _ in sides]
         if sorted(bodies) != sorted([rod, platform]):
             continue
-        ball = sides[bodies.index(platform)][1]
         gap = np.linalg.norm(sides[0][1] - sides[1][1])
         if gap > CLOSURE_TOLERANCE_M:
             raise InputError(f"{leg}: its connect is open by {gap * 1e3:.2f} mm at the neutral pose (keyframe 'neutral' "
                              f"or qpos0): the legs must meet the platform there")
-        j = m.body_jntadr[m.body_parentid[rod]]
-        base = d.xanchor[j]
-        slide = m.body_jntadr[rod]
-        line = (ball - base) / np.linalg.norm(ball - base)
-        off = np.arccos(np.clip(abs(line @ d.xaxis[slide]), -1.0, 1.0))
-        if off > AXIS_REFUSE_RAD:
-            raise InputError(f"{leg}: its slide axis is {np.rad2deg(off):.2f}° off the line from its base joint to "
-                             f"its platform ball (more than {np.rad2deg(AXIS_REFUSE_RAD):g}°); a leg's piston runs along "
-                             f"that line")
-        if off > AXIS_TOLERANCE_RAD:
-            note(f"{leg}: its slide axis is {np.rad2deg(off):.2f}° off the line from its base joint to its platform "
-                 f"ball; hexsim's kinematics take the leg along that line (the piston's travel is off by "
-                 f"{(1 - np.cos(off)) * 100:.2g} % of the length change)")
-        y = d.qpos[m.jnt_qposadr[slide]]
-        if not 0.0 < y < m.jnt_range[slide, 1]:
-            raise InputError(f"{leg}: its piston sits at {y:g} m at the neutral pose, not inside its stroke")
-        on_platform = d.xmat[platform].reshape(3, 3).T @ (ball - d.xpos[platform])
-        on_rod = d.xmat[rod].reshape(3, 3).T @ (sides[bodies.index(rod)][1] - d.xpos[rod])
-        return eq, on_platform, on_rod
+        return _checked(m, d, leg, eq, rod, platform, sides[bodies.index(platform)][1], sides[bodies.index(rod)][1],
+                        0.0)
     raise InputError(f"{leg}: no active <connect> ties its rod to the platform; hexsim needs each leg's loop closed "
                      f"(the platform-side ball joint)")
+
+
+def _cardan(m: mujoco.MjModel, d: mujoco.MjData, eq: int, rod: int,
+            platform: int) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """For weld ``eq`` from a body below ``rod`` whose bodies up to the rod carry hinges apart by more than
+    :data:`hexsim.plant.user_legs.BALL_TOLERANCE_M` (a kept cardan): its last hinge's anchor, its first
+    hinge's anchor (world, (3,) [m] each) and the hinges' spread [m]; else None."""
+    sides = [int(m.site_bodyid[o]) if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE else int(o)
+             for o in (m.eq_obj1id[eq], m.eq_obj2id[eq])]
+    if platform not in sides:
+        return None
+    bodies = chain(m, rod, sides[1 - sides.index(platform)])
+    joints = sorted(j for b in bodies or [] for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]))
+    if not joints or any(m.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE for j in joints):
+        return None
+    spread = hinge_spread(d.xanchor[joints])
+    if spread <= BALL_TOLERANCE_M:
+        return None
+    return d.xanchor[joints[-1]].copy(), d.xanchor[joints[0]].copy(), spread
+
+
+def _cardan_site(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, eq: int, platform: int, i: int) -> str:
+    """Add site ``cardan{i}_end`` on the body weld ``eq`` ties to the platform, at leg ``i``'s ball
+    (``platform_anchor{i}``, the cardan's last hinge) and turned as the platform's frame, and return its name:
+    the weld made between it and ``platform_anchor{i}`` matches position and orientation at the hinge. Left
+    at the body's origin some decimetres away, the weld matched the cardan's position through the rotation of
+    its small bodies, which MuJoCo's soft constraint barely holds (the slide moved under a unit force as if
+    free: 0.36 against 0.0015-0.0064 1/kg)."""
+    sides = [int(m.site_bodyid[o]) if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE else int(o)
+             for o in (m.eq_obj1id[eq], m.eq_obj2id[eq])]
+    body = sides[1 - sides.index(platform)]
+    anchor = spec.site(f"platform_anchor{i}")
+    rot_p, rot_b = d.xmat[platform].reshape(3, 3), d.xmat[body].reshape(3, 3)
+    world = d.xpos[platform] + rot_p @ np.asarray(anchor.pos)
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, (rot_b.T @ rot_p).ravel())
+    name = f"cardan{i}_end"
+    _body(spec, m, body).add_site(name=name, pos=list(rot_b.T @ (world - d.xpos[body])), quat=list(quat),
+                                  size=[0.015, 0.005, 0.005])
+    return name
+
+
+def _checked(m: mujoco.MjModel, d: mujoco.MjData, leg: str, eq: int, rod: int, platform: int, ball: np.ndarray,
+             tip: np.ndarray, spread: float) -> tuple[int, np.ndarray, np.ndarray, float]:
+    """Leg ``leg``'s closure ``eq`` with its ball and its rod-side end (world, (3,) [m]) checked (the slide
+    along the line from the base joint to the ball, the piston inside its stroke at the neutral pose) and
+    returned as :func:`_closure` does."""
+    j = m.body_jntadr[m.body_parentid[rod]]
+    base = d.xanchor[j]
+    slide = m.body_jntadr[rod]
+    line = (ball - base) / np.linalg.norm(ball - base)
+    off = np.arccos(np.clip(abs(line @ d.xaxis[slide]), -1.0, 1.0))
+    if off > AXIS_REFUSE_RAD:
+        raise InputError(f"{leg}: its slide axis is {np.rad2deg(off):.2f}° off the line from its base joint to "
+                         f"its platform ball (more than {np.rad2deg(AXIS_REFUSE_RAD):g}°); a leg's piston runs along "
+                         f"that line")
+    if off > AXIS_TOLERANCE_RAD:
+        note(f"{leg}: its slide axis is {np.rad2deg(off):.2f}° off the line from its base joint to its platform "
+             f"ball; hexsim's kinematics take the leg along that line (the piston's travel is off by "
+             f"{(1 - np.cos(off)) * 100:.2g} % of the length change)")
+    y = d.qpos[m.jnt_qposadr[slide]]
+    if not 0.0 < y < m.jnt_range[slide, 1]:
+        raise InputError(f"{leg}: its piston sits at {y:g} m at the neutral pose, not inside its stroke")
+    on_platform = d.xmat[platform].reshape(3, 3).T @ (ball - d.xpos[platform])
+    on_rod = d.xmat[rod].reshape(3, 3).T @ (tip - d.xpos[rod])
+    return eq, on_platform, on_rod, spread
 
 
 def _sensor_site(m: mujoco.MjModel, name, platform: int, where: str) -> tuple[np.ndarray, np.ndarray]:
@@ -276,7 +352,8 @@ def _check_names(m: mujoco.MjModel, legs: list[int], platform: int, where: str) 
         _J: {f"leg{i}": legs[i - 1] for i in range(1, 7)},
         _B: {"platform": platform},
         mujoco.mjtObj.mjOBJ_SITE: {n: None for n in ["platform_centre", *(f"platform_anchor{i}" for i in range(1, 7)),
-                                                     *(f"rod{i}_tip" for i in range(1, 7))]},
+                                                     *(f"rod{i}_tip" for i in range(1, 7)),
+                                                     *(f"cardan{i}_end" for i in range(1, 7))]},
         mujoco.mjtObj.mjOBJ_SENSOR: {n: None for n in _hexsim_sensor_names()},
     }
     for kind, names in taken.items():

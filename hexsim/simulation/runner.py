@@ -89,6 +89,10 @@ class Simulator:
             m.opt.timestep = cfg.timestep
         self.model, self.data = m, mujoco.MjData(m)
         self.idx = PlantIndex.from_model(m)
+        if cfg.scenario.system == "hexapod" and cfg.model == "platform" and not self.idx.platform_only:
+            # a user MJCF the platform-only model cannot represent (cardans with their hinges apart,
+            # hexsim.plant.model.model_spec said so): the run and its outputs name the full model it ran
+            self.config = cfg = dataclasses.replace(cfg, model="full")
         self.dt = self.idx.dt
         self.ctrl_div = divider(cfg.controller.rate_hz, self.dt, "controller rate")
         self.record_rate = cfg.record_rate_hz or 1000.0
@@ -174,9 +178,10 @@ class Simulator:
 
     def _setup_kernel(self) -> None:
         m, d, idx, coupling, n = self.model, self.data, self.idx, self.coupling, self.idx.n_legs
-        eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
+        # the closures' gap recorded per sample: connects, and welds of a user MJCF's cardans, between sites
+        eq = np.flatnonzero(np.isin(m.eq_type, (mujoco.mjtEq.mjEQ_CONNECT, mujoco.mjtEq.mjEQ_WELD)))
         if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
-            raise InputError("the native engine needs connect constraints between sites")
+            raise InputError("the native engine needs connect and weld constraints between sites")
         self.mj = native.mj_view(m, d, idx, m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64))
         self._hyd = coupling.hyd  # the parameters the kernel has
         self.legs = native.Legs(coupling.leg_table(), self.dt, coupling.state.copy(),
