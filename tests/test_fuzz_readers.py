@@ -246,7 +246,7 @@ grid_items = st.lists(st.builds(lambda name, sep, values: f"{name}{sep}{values}"
 @FUZZ
 @given(items=grid_items)
 def test_any_sweep_grid_is_parsed_or_refused_with_one_clear_error(items):
-    from hexsim.cli import _parse_grid
+    from hexsim.cli.sweep import _parse_grid
 
     parser = _sweep_parser()
     try:
