@@ -178,10 +178,13 @@ class Simulator:
 
     def _setup_kernel(self) -> None:
         m, d, idx, coupling, n = self.model, self.data, self.idx, self.coupling, self.idx.n_legs
-        # the closures' gap recorded per sample: connects, and welds of a user MJCF's cardans, between sites
-        eq = np.flatnonzero(np.isin(m.eq_type, (mujoco.mjtEq.mjEQ_CONNECT, mujoco.mjtEq.mjEQ_WELD)))
+        # the closures' gap recorded per sample: the connects, and the welds between sites (a user MJCF's
+        # cardans, hexsim.plant.user_model); a weld of the user's own between bodies is not a leg's closure
+        eq = np.flatnonzero(m.eq_type == mujoco.mjtEq.mjEQ_CONNECT)
         if np.any(m.eq_objtype[eq] != mujoco.mjtObj.mjOBJ_SITE):
-            raise InputError("the native engine needs connect and weld constraints between sites")
+            raise InputError("the native engine needs connect constraints between sites")
+        eq = np.union1d(eq, np.flatnonzero((m.eq_type == mujoco.mjtEq.mjEQ_WELD)
+                                           & (m.eq_objtype == mujoco.mjtObj.mjOBJ_SITE)))
         self.mj = native.mj_view(m, d, idx, m.eq_obj1id[eq].astype(np.int64), m.eq_obj2id[eq].astype(np.int64))
         self._hyd = coupling.hyd  # the parameters the kernel has
         self.legs = native.Legs(coupling.leg_table(), self.dt, coupling.state.copy(),
