@@ -102,7 +102,7 @@ def test_a_tuned_file_round_trips_and_runs(machine, model, tmp_path, capsys):
     tuned, and writes a file that ``hexsim run --compensator FILE`` loads: the loaded compensator gives the
     same U_c as one built from the machine for the same inputs."""
     out = tmp_path / "tuned.json"
-    assert main(["tune", "actuator", "--machine", str(machine), "--duration", "12", "--out", str(out), "--jobs", "1"]) == 0
+    assert main(["tune", "actuator", "--machine", str(machine), "--duration", "6", "--out", str(out), "--jobs", "1"]) == 0
     text = capsys.readouterr().out
     assert "buffered" in text and "tuned:" in text
     name, settings, model = read_tuned(out)
