@@ -82,7 +82,8 @@ def model_spec(name: str, formulation: str = "full", effects=None, geometry=None
     Micro Motion System): built by :func:`hexsim.models.hexapod.build` in its scene, to the full precision
     of its numbers (``scene.xml`` is the Micro Motion System for viewers), or a user's MJCF adapted by
     :func:`hexsim.plant.user_model.user_spec`; ``formulation="platform"`` edits it into the platform-only
-    model (:func:`hexsim.plant.platform.platform_spec`); the single actuator has one formulation. Raises
+    model (:func:`hexsim.plant.platform.platform_spec`), except for a user MJCF whose cardans keep their hinges
+    apart, which stays full (a note says so); the single actuator has one formulation. Raises
     InputError for an unknown name or formulation, a user MJCF hexsim cannot drive, or a load the model
     cannot take."""
     check_formulation(formulation)
@@ -91,8 +92,9 @@ def model_spec(name: str, formulation: str = "full", effects=None, geometry=None
             from hexsim.plant.user_model import cardan_spreads, user_spec
 
             spec = user_spec(geometry)
-            if formulation == "platform" and np.any(cardan_spreads(spec) > 0):
-                _say_full_model(geometry, cardan_spreads(spec))
+            spreads = cardan_spreads(spec)
+            if formulation == "platform" and np.any(spreads > 0):
+                _say_full_model(geometry, spreads)
                 formulation = "full"
         else:
             geometry = geometry or hexapod.MICRO_MOTION_SYSTEM

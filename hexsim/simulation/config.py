@@ -337,7 +337,8 @@ def leg_mobility(m: mujoco.MjModel, d: mujoco.MjData, idx: PlantIndex) -> tuple[
     a0 + A f for leg forces f (n_legs,) [N]; A (n_legs, n_legs) [1/kg] is the inverse of the legs'
     effective inertia, constraints included (equality constraints only, so the map is affine: one
     ``mj_forward`` with zero force and one per unit force; on a platform-only model A = J M⁻¹ Jᵀ with J
-    the legs' Jacobian). Call with no control callback installed."""
+    the legs' Jacobian; with a weld, from the rigid constraints, :func:`_rigid_mobility`). Call with no
+    control callback installed."""
     n = idx.n_legs
     apply_leg_forces(d, idx, np.zeros(n))
     mujoco.mj_forward(m, d)
