@@ -5,11 +5,11 @@ from __future__ import annotations
 import pathlib
 
 import numpy as np
+from independent_actuator import Actuator, motion
 
 from compensation import CompensatorSettings, make_compensator
 from compensation.model_based import LegModel, Reference
 from hexsim.simulation.metrics import smoothness
-from independent_actuator import Actuator, motion
 
 
 def write_heave_pitch_profile(path: pathlib.Path, duration: float, heave_m: float) -> pathlib.Path:

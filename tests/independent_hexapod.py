@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-
 from independent_actuator import Actuator, _pack, leg_at
 from independent_actuator import write as write_log
 

@@ -16,10 +16,10 @@ from independent_cylinder import Rig, experiment
 from hexsim.cli import main
 from hexsim.measured.calibration import calibrate, features
 from hexsim.measured.discovery import apply_terms, equation_errors, equation_terms
-from hexsim.measured.scoring import Problem
-from hexsim.measured.parameters import default_parameters
 from hexsim.measured.measurement import read_log
+from hexsim.measured.parameters import default_parameters
 from hexsim.measured.replay import nominal_plant
+from hexsim.measured.scoring import Problem
 from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine, read_machine
 

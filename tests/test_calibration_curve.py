@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 import pytest
+from independent_actuator import Actuator, _pack, motion, spool_edge, write
 
 from hexsim.cli import main
 from hexsim.errors import InputError
@@ -24,7 +25,6 @@ from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import dump, load_machine
-from independent_actuator import Actuator, _pack, motion, spool_edge, write
 
 TRUTH = Actuator(area="spool", flow_gain=1.0, k_at=0.95, bulk=1.2e9, v_pl=1.0e-6, mass=44.0, coulomb=(75.0, 52.0),
                  viscous=(2600.0, 1500.0), underlap=4e-6, rounding=8e-6)

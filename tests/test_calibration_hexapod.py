@@ -16,13 +16,13 @@ import dataclasses
 
 import numpy as np
 import pytest
+from independent_actuator import Actuator
+from independent_hexapod import Hexapod, motion, write
 
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine
-from independent_actuator import Actuator
-from independent_hexapod import Hexapod, motion, write
 
 GAINS = (1.07, 0.94, 1.03, 0.96, 1.05, 0.95)  # each leg's valve, both edges
 RETURN = (0.97, 1.04, 1.0, 1.05, 0.96, 1.02)  # its return edge's, relative to its supply edge's

@@ -15,17 +15,17 @@ import re
 
 import numpy as np
 import pytest
+from independent_actuator import Actuator, motion, write
 
 from hexsim.cli import main
 from hexsim.errors import InputError
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.candidates import EFFECT_NAMES
-from hexsim.measured.scoring import STOP_MARGIN_M, Problem, left_out_text
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import ReplayProblem, Windows
 from hexsim.measured.residuals import clipped
+from hexsim.measured.scoring import STOP_MARGIN_M, Problem, left_out_text
 from hexsim.plant.machine import dump, load_machine
-from independent_actuator import Actuator, motion, write
 
 TRUTH = Actuator(area="port", flow_gain=1.07, k_at=0.95, overlap=8e-6, bulk=1.2e9, v_pl=1.0e-6, mass=44.0,
                  coulomb=(75.0, 52.0), viscous=(2600.0, 1500.0))

@@ -7,7 +7,13 @@ import pytest
 
 from hexsim.cli import main
 from hexsim.control.kinematics import HexapodGeometry
-from hexsim.control.washout import VEHICLE_COLUMNS, VehicleMotion, WashoutParams, read_vehicle, washout
+from hexsim.control.washout import (
+    VEHICLE_COLUMNS,
+    VehicleMotion,
+    WashoutParams,
+    read_vehicle,
+    washout,
+)
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import load_model
 from hexsim.simulation.cue_tuning import TUNED, tune_washout, with_values

@@ -11,7 +11,13 @@ import pytest
 
 import hexsim
 from hexsim.control.scenario import vehicle_scenario
-from hexsim.control.washout import VEHICLE_COLUMNS, VehicleMotion, WashoutParams, read_vehicle, washout
+from hexsim.control.washout import (
+    VEHICLE_COLUMNS,
+    VehicleMotion,
+    WashoutParams,
+    read_vehicle,
+    washout,
+)
 from hexsim.errors import InputError
 from hexsim.simulation.cueing import cue_report, pose_motion
 

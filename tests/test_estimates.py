@@ -11,7 +11,15 @@ import pytest
 
 from hexsim.errors import InputError
 from hexsim.measured.candidates import CANDIDATES
-from hexsim.measured.estimates import AT_A_BOUND, AT_LIMIT, FITTED, HELD, UNIDENTIFIABLE, Estimate, at_bound
+from hexsim.measured.estimates import (
+    AT_A_BOUND,
+    AT_LIMIT,
+    FITTED,
+    HELD,
+    UNIDENTIFIABLE,
+    Estimate,
+    at_bound,
+)
 from hexsim.measured.friction_id import PARAMETERS, _judge
 from hexsim.measured.parameters import Parameter
 from hexsim.measured.records import CalibrationRecord

@@ -13,6 +13,8 @@ import json
 
 import numpy as np
 import pytest
+from helpers import in_the_loop, reversal_peaks
+from independent_actuator import Actuator, motion, write
 
 from compensation import CompensatorSettings, SettingsError, make_compensator
 from compensation.model_based import LegModel, Reference
@@ -22,8 +24,6 @@ from hexsim.measured.measurement import read_log
 from hexsim.plant.machine import dump, load_machine
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.tuning import leg_model_of, read_tuned
-from helpers import in_the_loop, reversal_peaks
-from independent_actuator import Actuator, motion, write
 
 TRUTH = Actuator(area="port", flow_gain=1.07, k_at=0.95, overlap=8e-6, bulk=1.2e9, v_pl=1.0e-6, mass=44.0,
                  coulomb=(75.0, 52.0), viscous=(2600.0, 1500.0))

@@ -7,7 +7,12 @@ from scipy import optimize
 
 from hexsim.errors import InputError
 from hexsim.measured.fitting import FitOptions, fit_parameters
-from hexsim.measured.parameters import Parameter, ParameterSet, default_parameters, hexapod_parameters
+from hexsim.measured.parameters import (
+    Parameter,
+    ParameterSet,
+    default_parameters,
+    hexapod_parameters,
+)
 from hexsim.plant.machine import get_key, load_machine
 
 KEYS = ("friction.positive.coulomb_N", "friction.negative.coulomb_N", "oil.bulk_modulus_Pa")

@@ -9,11 +9,11 @@ import json
 
 import numpy as np
 import pytest
+from independent_cylinder import Rig, simulate
 
 from hexsim.cli import main
 from hexsim.measured.friction_id import identify_friction
 from hexsim.measured.measurement import read_log
-from independent_cylinder import Rig, simulate
 
 NOISE_POS, NOISE_P = 3e-4, 3e4  # [m], [Pa]: the real cylinder's noise (shared/data/servo_cylinder)
 

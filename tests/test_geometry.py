@@ -20,7 +20,13 @@ import numpy as np
 import pytest
 
 from hexsim.errors import InputError
-from hexsim.plant.machine import Machine, dump, load_machine, machine_from_document, read_machine
+from hexsim.plant.machine import (
+    Machine,
+    dump,
+    load_machine,
+    machine_from_document,
+    read_machine,
+)
 from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -11,7 +11,13 @@ import pytest
 import hexsim
 from hexsim.cli import main
 from hexsim.errors import InputError
-from hexsim.plant.machine import Machine, dump, get_key, machine_from_document, with_keys
+from hexsim.plant.machine import (
+    Machine,
+    dump,
+    get_key,
+    machine_from_document,
+    with_keys,
+)
 
 LEGS = {"leg3": {"valve": {"edge_gain_PA": 1.05, "edge_gain_AT": 0.97}}, "leg5": {"cylinder": {"leakage_m3psPa": 2e-12}}}
 
@@ -93,7 +99,13 @@ def test_which_effects_act_on_one_leg_is_read_off_each_candidate():
     each candidate changes something, a leg-level one applied to leg 3 becomes leg 3's own change, and the
     others' fields are refused in a leg's change."""
     from hexsim.errors import InputError
-    from hexsim.measured.candidates import CANDIDATES, LEG_LEVEL, applier, changed_values, touched_fields
+    from hexsim.measured.candidates import (
+        CANDIDATES,
+        LEG_LEVEL,
+        applier,
+        changed_values,
+        touched_fields,
+    )
     from hexsim.measured.replay import PlantModel
     from hexsim.plant.effects import Effects, LegChange
     from hexsim.plant.params import HydraulicParams

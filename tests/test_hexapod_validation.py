@@ -210,8 +210,8 @@ def test_the_replay_error_estimates_what_the_replay_misses_on_a_log_the_model_ma
     estimates that miss per channel to within a factor of three; halving the step (the Richardson part)
     sees less than half of it on the acceleration."""
     from hexsim.measured.hexapod_replay import HexapodProblem
-    from hexsim.measured.scoring import REPLAY_DT, RICHARDSON
     from hexsim.measured.measurement import read_log
+    from hexsim.measured.scoring import REPLAY_DT, RICHARDSON
 
     path = tmp_path / "heave.csv"
     write_log(path, simulate(RunConfig(make_scenario("heave", duration=3.0, frequency=1.0))))

@@ -17,7 +17,13 @@ import hexsim
 from hexsim.cli import main
 from hexsim.errors import InputError
 from hexsim.plant.effects import Effects
-from hexsim.plant.machine import KEYS, Machine, load_machine, read_machine, reference_markdown
+from hexsim.plant.machine import (
+    KEYS,
+    Machine,
+    load_machine,
+    read_machine,
+    reference_markdown,
+)
 from hexsim.plant.params import ControllerParams, HydraulicParams
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

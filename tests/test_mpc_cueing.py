@@ -12,8 +12,14 @@ from scipy.signal import lsim
 
 from hexsim.cli import main
 from hexsim.control.kinematics import HexapodGeometry
-from hexsim.control.mpc_cueing import (MPCParams, N_INPUT, PlatformLimits, continuous_model, move_blocks,
-                                       mpc_washout)
+from hexsim.control.mpc_cueing import (
+    N_INPUT,
+    MPCParams,
+    PlatformLimits,
+    continuous_model,
+    move_blocks,
+    mpc_washout,
+)
 from hexsim.control.scenario import make_scenario
 from hexsim.control.washout import VehicleMotion, WashoutParams, washout
 from hexsim.errors import InputError

@@ -11,7 +11,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hexsim.measured.scoring import Budget, _offset_and_scale, calibrate_sensors, score, within_budget
+from hexsim.measured.scoring import (
+    Budget,
+    _offset_and_scale,
+    calibrate_sensors,
+    score,
+    within_budget,
+)
 from hexsim.plant.params import SensorSpec
 
 

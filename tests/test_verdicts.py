@@ -16,7 +16,12 @@ import pytest
 from scipy.signal import butter, filtfilt
 
 from hexsim.control.scenario import Scenario
-from hexsim.measured.candidates import CANDIDATES, EFFECT_NAMES, plausibility, plausible_bounds
+from hexsim.measured.candidates import (
+    CANDIDATES,
+    EFFECT_NAMES,
+    plausibility,
+    plausible_bounds,
+)
 from hexsim.measured.identify import identify
 from hexsim.measured.measurement import read_log
 from hexsim.outputs.logio import write_log

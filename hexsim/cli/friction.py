@@ -28,33 +28,12 @@ def add_friction(sub) -> None:
 def cmd_friction(args: argparse.Namespace) -> int:
     from hexsim.measured.friction_id import identify_friction
     from hexsim.measured.measurement import read_log
-    from hexsim.measured.reports.friction import plot_map
+    from hexsim.measured.reports.friction import plot_map, summary
 
     check_outputs(args)
     logs = [[read_log(pathlib.Path(part), machine=args.machine, needs=("pos_m",)) for part in item.split("+")] for item in args.logs]
     result = identify_friction(logs)
-    print(f"machine: {result['machine']}")
-    print(f"friction from {result['force_source']}, M = {result['mass_kg']:g} kg, "
-          f"inclination {result['inclination_deg']:g}°, {result['experiments']} experiment(s); "
-          f"acceleration: {result['acceleration_source']}")
-    for row in result["steady"]:
-        fitted = "no fit" if row["fitted_N"] is None else f"{row['fitted_N']:7.1f} N fitted"
-        print(f"  steady {row['velocity_mps'] * 1e3:+8.1f} mm/s: F_f = {row['friction_N']:7.1f} N measured, {fitted}")
-    for side in ("positive", "negative"):
-        if "cannot_fit" in result[side]:
-            print(f"  {side:8s}: cannot fit: {result[side]['cannot_fit']}")
-            continue
-        ps = result[side]["parameters"]
-        print(f"  {side:8s}: " + ", ".join(
-            f"{k} unidentifiable" if "unidentifiable" in v else f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
-            for k, v in ps.items()) + f"  (rms {result[side]['rms_N']:.3g} N, robust scatter "
-            f"{result[side]['scatter_N']:.3g} N, {result[side]['samples']} samples)")
-        reasons: dict[str, list[str]] = {}
-        for k, v in ps.items():
-            if "unidentifiable" in v:
-                reasons.setdefault(v["unidentifiable"], []).append(k)
-        for why, names in reasons.items():
-            print(f"    {', '.join(names)}: {why}")
+    print(summary(result))
     if args.json:
         write_json(args.json, result)
         print(f"wrote {args.json}")

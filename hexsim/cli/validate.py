@@ -43,8 +43,7 @@ def add_validate(sub) -> None:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from hexsim.measured.measurement import read_log
-    from hexsim.measured.reports.validation import effect_label, plus_minus
-    from hexsim.measured.scoring import left_out_text
+    from hexsim.measured.reports.validation import log_lines, summary
     from hexsim.measured.validation import validate
 
     check_outputs(args)
@@ -59,32 +58,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(f"--report {args.report}: exists and is not a folder")
     log = read_log(args.log, machine=args.machine)
-    print(f"machine: {log.machine.label}")
-    for note in log.assumed:
-        print(f"assumed: {note}")
-    if log.missing:
-        print(f"not checked (missing columns): {', '.join(log.missing)}")
+    print("\n".join(log_lines(log)))
     doc = validate(log, report=args.report, json_path=args.json, jobs=args.jobs, without=without, model=args.model,
                    progress=not args.quiet and sys.stderr.isatty(),
                    notify=None if args.quiet or sys.stderr.isatty() else progress_line)
-    left_out = doc["windows"].get("left_out")
-    if left_out and left_out_text(left_out):
-        print(f"left out: {left_out_text(left_out)}")
-    print(f"verdict: {doc['verdict']}")
-    for line in doc["conclusions"]:
-        print(f"  {line}")
-    print(f"added effect: {doc['added_effect']}")
-    for effect in doc["added_effects"]:
-        print(f"  {effect_label(effect)}: " + ", ".join(f"{k} = {plus_minus(v)}" for k, v in effect["parameters"].items()))
-    print(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s} {'held-out RMS / budget':>22s}")
-    for ch, before in doc["error_before"].items():
-        print(f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g} {doc['held_out_rms_in_budgets'][ch]:22.3g}")
-    if doc["candidates"]:
-        print(f"{'candidate':20s} {'on top of':>16s} {'held-out gain':>13s} {'p':>9s}  verdict")
-    for c in doc["candidates"]:
-        why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
-        print(f"{effect_label(c):20s} {'+'.join(c['on_top_of']) or 'nominal':>16s} {c['held_out_gain']:+13.3f} "
-              f"{c['p_value']:9.2g}  {why}")
+    print(summary(doc))
     for path in (args.report, args.json):
         if path is not None:
             print(f"wrote {path}")

@@ -29,7 +29,14 @@ import tempfile
 from dataclasses import dataclass
 
 import numpy as np
-from pythonfmu3 import Boolean, Float64, Fmi3Causality, Fmi3Slave, Fmi3Variability, Int32
+from pythonfmu3 import (
+    Boolean,
+    Float64,
+    Fmi3Causality,
+    Fmi3Slave,
+    Fmi3Variability,
+    Int32,
+)
 from pythonfmu3.default_experiment import DefaultExperiment
 from pythonfmu3.unit import Unit
 

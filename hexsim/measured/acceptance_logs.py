@@ -24,7 +24,13 @@ from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
 from hexsim.plant.model import load_model
 from hexsim.signals import dominant_frequency, fit_fundamental
-from hexsim.simulation.acceptance import AcceptanceResult, Tolerances, at_most, within, wrap_deg
+from hexsim.simulation.acceptance import (
+    AcceptanceResult,
+    Tolerances,
+    at_most,
+    within,
+    wrap_deg,
+)
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import STANDARD_GRAVITY, smoothness
 from hexsim.simulation.runner import simulate

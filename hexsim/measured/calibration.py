@@ -48,12 +48,17 @@ from hexsim.measured.curves import curve_report, reaches_budget, with_curve
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.parameters import Parameter, ParameterSet, default_parameters, leg_null_parameter
+from hexsim.measured.parameters import (
+    Parameter,
+    ParameterSet,
+    default_parameters,
+    leg_null_parameter,
+)
 from hexsim.plant import hydraulics
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import Machine, with_keys, with_valve
-from hexsim.plant.params import FLOW_AREAS
 from hexsim.plant.model import gravity, moving_mass
+from hexsim.plant.params import FLOW_AREAS
 from hexsim.simulation.metrics import steady_segments
 
 #: Weight of a steady speed: 1 % of it plus 0.5 mm/s (a line fit over a stretch of 1 kHz positions is far
@@ -468,8 +473,8 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
     Returns the machine with ``legs.legN.valve.null_offset_V`` set (clipped to its bracket,
     :func:`hexsim.measured.parameters.leg_null_parameter`: beyond it the report says "at a bound") and the
     parameter rows for the report."""
-    from hexsim.measured.scoring import position_offsets
     from hexsim.measured.residuals import effective_n
+    from hexsim.measured.scoring import position_offsets
 
     offsets, variances = [], []
     for r in replays:

@@ -26,11 +26,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from hexsim.errors import InputError
-from hexsim.measured.scoring import (Budget, Problem, calibrate_sensors, measure_budget, residual_vector, score,
-                                    within_budget)
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import PlantModel, nominal_plant
 from hexsim.measured.residuals import effective_n
+from hexsim.measured.scoring import (
+    Budget,
+    Problem,
+    calibrate_sensors,
+    measure_budget,
+    residual_vector,
+    score,
+    within_budget,
+)
 from hexsim.plant.machine import Machine
 
 #: Fit windows replayed per log at most (spread over the log): a fit's cost stays bounded for long logs;

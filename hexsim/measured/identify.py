@@ -613,7 +613,11 @@ def static_offset_limit(problem: ReplayProblem, sim: dict[str, np.ndarray]) -> f
     offset (:func:`position_offsets` on the fit rows of the nominal replay ``sim``: the model's spread; a
     leg whose static tracking error stands out of it is left in the residual), within
     :data:`~hexsim.measured.hexapod_replay.CLOSED_LOOP_OFFSET_FLOOR_M` … ``CLOSED_LOOP_OFFSET_M``."""
-    from hexsim.measured.hexapod_replay import CLOSED_LOOP_OFFSET_FLOOR_M, CLOSED_LOOP_OFFSET_M, STATIC_SPREAD
+    from hexsim.measured.hexapod_replay import (
+        CLOSED_LOOP_OFFSET_FLOOR_M,
+        CLOSED_LOOP_OFFSET_M,
+        STATIC_SPREAD,
+    )
 
     free = position_offsets(problem, sim["position"], problem.fit_rows)
     spread = float(np.median(np.abs(free - np.median(free))))

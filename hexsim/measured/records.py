@@ -19,7 +19,6 @@ import numpy as np
 from hexsim.errors import InputError
 from hexsim.measured.estimates import Estimate
 
-
 #: What a log says of the model: ``none`` (the nominal reproduces every channel within its budget),
 #: ``explained`` (the accepted effects bring every channel within it), ``partial`` (effects accepted,
 #: structure left, or an accepted effect at the edge of its plausible range), ``unexplained`` (no library

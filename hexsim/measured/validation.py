@@ -12,6 +12,12 @@ import pathlib
 
 import numpy as np
 
+from hexsim.measured.calibration import (
+    CalibrationAdvice,
+    hexapod_hint,
+    nominal_check,
+    transient_check,
+)
 from hexsim.measured.candidates import CANDIDATES
 from hexsim.measured.identify import (
     ALPHA,
@@ -25,12 +31,11 @@ from hexsim.measured.identify import (
     identify,
     signal_labels,
 )
-from hexsim.measured.calibration import CalibrationAdvice, hexapod_hint, nominal_check, transient_check
 from hexsim.measured.measurement import MeasurementLog, read_log
-from hexsim.measured.scoring import SCALED, WITHIN, within_budget
 from hexsim.measured.records import UNSETTLED, CalibrationRecord, ValidationReport
 from hexsim.measured.reports.validation import fit_label, write_report
 from hexsim.measured.residuals import analyse
+from hexsim.measured.scoring import SCALED, WITHIN, within_budget
 from hexsim.plant.machine import KEYS
 from hexsim.plant.params import OFFSET_FIELDS
 from hexsim.simulation.metrics import STANDARD_GRAVITY

@@ -22,6 +22,7 @@ from dataclasses import dataclass, fields, replace
 from hexsim.errors import InputError
 from hexsim.plant.params import _check_nonnegative
 
+
 @dataclass(frozen=True)
 class Effects:
     """Extensions of the nominal leg model; the defaults (all zero / None) are the seed's model.

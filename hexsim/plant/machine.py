@@ -40,7 +40,12 @@ from dataclasses import dataclass, field
 from hexsim.errors import InputError
 from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.geometry import Geometry
-from hexsim.plant.params import FLOW_AREAS, ControllerParams, HydraulicParams, SensorSpec
+from hexsim.plant.params import (
+    FLOW_AREAS,
+    ControllerParams,
+    HydraulicParams,
+    SensorSpec,
+)
 
 FORMAT = "hexsim-machine"
 VERSION = 1

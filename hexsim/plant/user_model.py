@@ -40,7 +40,14 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.plant.geometry import Geometry
-from hexsim.plant.user_legs import BALL_TOLERANCE_M, chain, conform, hinge_spread, name_everything, note
+from hexsim.plant.user_legs import (
+    BALL_TOLERANCE_M,
+    chain,
+    conform,
+    hinge_spread,
+    name_everything,
+    note,
+)
 
 #: the physics step hexsim runs a user's hexapod at, at most [s] (the seed's 10 kHz, §3.3)
 MAX_TIMESTEP_S = 1e-4

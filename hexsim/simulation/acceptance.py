@@ -37,12 +37,18 @@ from hexsim.control.mpc_cueing import PlatformLimits
 from hexsim.control.scenario import SINE_DOFS, make_scenario, vehicle_scenario
 from hexsim.errors import InputError
 from hexsim.signals import fit_fundamental
-from hexsim.tables import read_json_object
 from hexsim.simulation.config import RunConfig
 from hexsim.simulation.metrics import STANDARD_GRAVITY, run_smoothness
-from hexsim.simulation.perception import DEFAULT_THRESHOLDS, AXES, Thresholds, bump_perception, point_motion
+from hexsim.simulation.perception import (
+    AXES,
+    DEFAULT_THRESHOLDS,
+    Thresholds,
+    bump_perception,
+    point_motion,
+)
 from hexsim.simulation.runner import Simulator, simulate
 from hexsim.simulation.workers import in_workers, worker_pool
+from hexsim.tables import read_json_object
 
 DOFS = ("surge", "sway", "heave", "roll", "pitch", "yaw")
 #: test frequencies [Hz]: the OMCT's one-third-decade steps from 0.1 to 15.85 Hz (Hosman & Advani 2012)

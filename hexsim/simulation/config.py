@@ -24,8 +24,8 @@ from hexsim.errors import InputError, WorkspaceError
 from hexsim.plant import hydraulics
 from hexsim.plant.effects import Effects, LegChange, merge_leg_changes
 from hexsim.plant.faults import Fault, FaultInjector
-from hexsim.plant.legs import PlantState, advance_legs, leg_table
 from hexsim.plant.geometry import Geometry
+from hexsim.plant.legs import PlantState, advance_legs, leg_table
 from hexsim.plant.model import PlantIndex, check_formulation
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.plant.platform import leg_jacobian, leg_wrench

@@ -36,7 +36,12 @@ from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.washout import VehicleMotion, WashoutParams, washout
 from hexsim.errors import InputError
 from hexsim.simulation.cueing import pose_motion, sensed
-from hexsim.simulation.perception import AXES, DEFAULT_THRESHOLDS, Thresholds, sensed_threshold
+from hexsim.simulation.perception import (
+    AXES,
+    DEFAULT_THRESHOLDS,
+    Thresholds,
+    sensed_threshold,
+)
 
 #: The rate the washout and the sensed cues are evaluated at while tuning [Hz].
 RATE_HZ = 100.0

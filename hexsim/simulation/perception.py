@@ -44,7 +44,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hexsim.control.vestibular import THRESHOLD_STIMULUS_S, VESTIBULAR_THRESHOLDS, canal, otolith
+from hexsim.control.vestibular import (
+    THRESHOLD_STIMULUS_S,
+    VESTIBULAR_THRESHOLDS,
+    canal,
+    otolith,
+)
 from hexsim.signals import LinearModel, fit_fundamental, polynomial_product
 
 #: the head's and the seat's axes, in the order of :class:`PointMotion` (translations, then rotations)

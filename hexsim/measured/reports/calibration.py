@@ -99,7 +99,9 @@ def plot_features(report: dict, path) -> None:
     """Each fitted feature's error, before (the machine file) and after calibration, against its measured
     value: speeds as relative errors [%], pressures in bar; and, with transients, each log's held-out
     windows' RMS per channel in budgets before and after; written atomically (.png, .pdf or .svg)."""
-    from matplotlib.figure import Figure  # no pyplot: the user's backend is never switched
+    from matplotlib.figure import (
+        Figure,  # no pyplot: the user's backend is never switched
+    )
 
     from hexsim.outputs.plotting import save_figure
 

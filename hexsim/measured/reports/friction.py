@@ -35,3 +35,32 @@ def plot_map(result: dict, path: pathlib.Path) -> None:
     ax.set_title("friction-velocity map: " + (names[0] if len(names) == 1 else f"{len(names)} experiments"))
     ax.legend(fontsize=8, markerscale=20)
     save_figure(fig, path, dpi=100)
+
+
+def summary(result: dict) -> str:
+    """The friction identification ``result`` (:func:`hexsim.measured.friction_id.identify_friction`) as
+    ``hexsim friction`` prints it: where the force and acceleration came from, each steady point measured and
+    fitted, each side's parameters with their standard errors (or why they cannot be identified)."""
+    lines = [f"machine: {result['machine']}",
+             f"friction from {result['force_source']}, M = {result['mass_kg']:g} kg, "
+             f"inclination {result['inclination_deg']:g}°, {result['experiments']} experiment(s); "
+             f"acceleration: {result['acceleration_source']}"]
+    for row in result["steady"]:
+        fitted = "no fit" if row["fitted_N"] is None else f"{row['fitted_N']:7.1f} N fitted"
+        lines.append(f"  steady {row['velocity_mps'] * 1e3:+8.1f} mm/s: F_f = {row['friction_N']:7.1f} N measured, "
+                     f"{fitted}")
+    for side in ("positive", "negative"):
+        if "cannot_fit" in result[side]:
+            lines.append(f"  {side:8s}: cannot fit: {result[side]['cannot_fit']}")
+            continue
+        ps = result[side]["parameters"]
+        lines.append(f"  {side:8s}: " + ", ".join(
+            f"{k} unidentifiable" if "unidentifiable" in v else f"{k} = {v['value']:.4g} ± {v['std_error']:.2g} {v['unit']}"
+            for k, v in ps.items()) + f"  (rms {result[side]['rms_N']:.3g} N, robust scatter "
+            f"{result[side]['scatter_N']:.3g} N, {result[side]['samples']} samples)")
+        reasons: dict[str, list[str]] = {}
+        for k, v in ps.items():
+            if "unidentifiable" in v:
+                reasons.setdefault(v["unidentifiable"], []).append(k)
+        lines += [f"    {', '.join(names)}: {why}" for why, names in reasons.items()]
+    return "\n".join(lines)

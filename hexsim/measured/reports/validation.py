@@ -205,3 +205,39 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
 def fit_label(fit) -> str:
     """``leakage`` or ``leakage on leg3``."""
     return fit.name if fit.leg is None else f"{fit.name} on leg{fit.leg}"
+
+
+def log_lines(log) -> list[str]:
+    """What ``hexsim validate`` says of a log before judging it: its machine, what it assumed and the checks its
+    missing columns leave out (a :class:`hexsim.measured.measurement.MeasurementLog`)."""
+    lines = [f"machine: {log.machine.label}", *(f"assumed: {note}" for note in log.assumed)]
+    if log.missing:
+        lines.append(f"not checked (missing columns): {', '.join(log.missing)}")
+    return lines
+
+
+def summary(doc: dict) -> str:
+    """The validation document ``doc`` (:func:`hexsim.measured.validation.validate`) as ``hexsim validate``
+    prints it: the windows left out, the verdict and its conclusions, the added effects with their values, each
+    channel's error before and after, and every candidate tried with why it was accepted or rejected."""
+    from hexsim.measured.scoring import left_out_text
+
+    lines = []
+    left_out = doc["windows"].get("left_out")
+    if left_out and left_out_text(left_out):
+        lines.append(f"left out: {left_out_text(left_out)}")
+    lines.append(f"verdict: {doc['verdict']}")
+    lines += [f"  {line}" for line in doc["conclusions"]]
+    lines.append(f"added effect: {doc['added_effect']}")
+    lines += [f"  {effect_label(effect)}: " + ", ".join(f"{k} = {plus_minus(v)}" for k, v in effect["parameters"].items())
+              for effect in doc["added_effects"]]
+    lines.append(f"{'channel':14s} {'NRMSE before':>13s} {'after':>9s} {'held-out RMS / budget':>22s}")
+    lines += [f"{ch:14s} {before:13.4g} {doc['error_after'][ch]:9.4g} {doc['held_out_rms_in_budgets'][ch]:22.3g}"
+              for ch, before in doc["error_before"].items()]
+    if doc["candidates"]:
+        lines.append(f"{'candidate':20s} {'on top of':>16s} {'held-out gain':>13s} {'p':>9s}  verdict")
+    for c in doc["candidates"]:
+        why = "accepted" if c["accepted"] else "; ".join(c["rejected_because"])
+        lines.append(f"{effect_label(c):20s} {'+'.join(c['on_top_of']) or 'nominal':>16s} {c['held_out_gain']:+13.3f} "
+                     f"{c['p_value']:9.2g}  {why}")
+    return "\n".join(lines)
