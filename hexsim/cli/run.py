@@ -50,7 +50,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_outputs(args)
     config = run_config(args, args.compensator)  # every option checked before the heavy imports
     thresholds = perception_thresholds(args)
-    from hexsim.outputs.logio import write_log
     from hexsim.outputs.plotting import plot_run
     from hexsim.outputs.report import run_report, summary_table
     from hexsim.outputs.rerun_log import write_rrd
@@ -94,16 +93,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.rrd:
         write_rrd(args.rrd, result, sm, perception if sm is not None else None)
         written.append(args.rrd)
-    if args.log:
-        written.extend(write_log(args.log, result))
-    for path in written:
-        print(f"wrote {path}")
-    return 0
+    return _log_and_say(args, result, written)
 
 
 def _vehicle_outputs(args: argparse.Namespace, result, thresholds) -> int:
     """``hexsim run vehicle:PATH``: the cue report on stdout, and the files asked for."""
-    from hexsim.outputs.logio import write_log
     from hexsim.outputs.plotting import plot_cueing
     from hexsim.outputs.rerun_log import write_rrd
     from hexsim.simulation.cueing import cue_report, cue_table
@@ -132,8 +126,16 @@ def _vehicle_outputs(args: argparse.Namespace, result, thresholds) -> int:
     if args.rrd:
         write_rrd(args.rrd, result, None, cueing=report)
         written.append(args.rrd)
+    return _log_and_say(args, result, written)
+
+
+def _log_and_say(args: argparse.Namespace, result, written: list) -> int:
+    """Write the run's measurement log if ``--log`` asked for it, then say every file written (``written``
+    and the log's); exit code 0."""
+    from hexsim.outputs.logio import write_log
+
     if args.log:
-        written.extend(write_log(args.log, result))
+        written = [*written, *write_log(args.log, result)]
     for path in written:
         print(f"wrote {path}")
     return 0

@@ -92,15 +92,13 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     if key >= 0:
         mujoco.mj_resetDataKeyframe(m, d, key)
     mujoco.mj_forward(m, d)
-    anchors, tips, closures, rods, spreads = [], [], [], [], []
+    closed = []  # per leg: (its closing equality, its rod, the rod's end, the platform joint's hinge spread)
+    anchors = []
     for i, joint in enumerate(legs, 1):
         rod = _check_leg(m, d, i, joint, g.stroke_m, where)
         eq, anchor, tip, spread = _closure(m, d, i, rod, platform, where)
         anchors.append(anchor)
-        tips.append(tip)
-        closures.append(eq)
-        rods.append(rod)
-        spreads.append(spread)
+        closed.append((eq, rod, tip, spread))
     sensor_at = _sensor_site(m, g.mjcf_sensor_site, platform, where)
     _check_names(m, legs, platform, where)
     names = [mujoco.mj_id2name(m, _J, j) for j in legs]
@@ -117,21 +115,25 @@ def user_spec(g: Geometry) -> mujoco.MjSpec:
     body.mass, body.ipos, body.iquat = float(m.body_mass[platform]), m.body_ipos[platform], m.body_iquat[platform]
     body.inertia, body.explicitinertial = m.body_inertia[platform], True
     _add(spec, anchors, sensor_at, None if key >= 0 else m.qpos0)
-    for i, (eq, rod, tip, spread) in enumerate(zip(closures, rods, tips, spreads), 1):
-        # each closure between sites, as the built hexapod's (the native kernels read them so), and as stiff:
-        # MuJoCo's default 20 ms would make the closed loop a spring softer than the oil column; a kept
-        # cardan's weld stays between its bodies (the rod's tip and the ball do not meet there)
+    _close_legs(spec, m, d, platform, closed)
+    return spec
+
+
+def _close_legs(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, platform: int, closed: list[tuple]) -> None:
+    """Each leg's closure (``closed``: per leg its equality, rod, rod-side end and hinge spread, as
+    :func:`_closure` gives them) made between sites, as the built hexapod's (the native kernels read the
+    sites' gap), and as stiff (:data:`CLOSURE_SOLREF`: MuJoCo's default 20 ms would make the closed loop a
+    spring softer than the oil column): a connect from ``rod{i}_tip``, a kept cardan's weld from
+    ``cardan{i}_end`` at its last hinge, to ``platform_anchor{i}``; the spreads as :data:`CARDAN_NUMERIC`."""
+    for i, (eq, rod, tip, spread) in enumerate(closed, 1):
         site = _body(spec, m, rod).add_site(name=f"rod{i}_tip", pos=list(tip), size=[0.02, 0.005, 0.005])
+        rod_side = site.name if spread == 0.0 else _cardan_site(spec, m, d, eq, platform, i)
         e = spec.equalities[eq]
-        if spread == 0.0:
-            e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, site.name, f"platform_anchor{i}"
-        else:  # a kept cardan: its weld between sites at its last hinge (the kernels read the sites' gap)
-            e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, _cardan_site(spec, m, d, eq, platform, i), \
-                f"platform_anchor{i}"
+        e.objtype, e.name1, e.name2 = mujoco.mjtObj.mjOBJ_SITE, rod_side, f"platform_anchor{i}"
         e.solref, e.solimp = CLOSURE_SOLREF, CLOSURE_SOLIMP
+    spreads = [spread for *_, spread in closed]
     if any(spreads):
         spec.add_numeric(name=CARDAN_NUMERIC, data=list(map(float, spreads)), size=len(spreads))
-    return spec
 
 
 def cardan_spreads(spec: mujoco.MjSpec) -> np.ndarray:
