@@ -63,7 +63,8 @@ def _kinds(m: mujoco.MjModel, body: int) -> list[int]:
     return [int(m.jnt_type[j]) for j in range(adr, adr + n)]
 
 
-def _joints(m: mujoco.MjModel, body: int) -> list[int]:
+def body_joints(m: mujoco.MjModel, body: int) -> list[int]:
+    """The ids of the joints of ``body``, in their order."""
     return list(range(m.body_jntadr[body], m.body_jntadr[body] + m.body_jntnum[body]))
 
 
@@ -128,7 +129,7 @@ def _merge_cross_piece(spec: mujoco.MjSpec, m: mujoco.MjModel, rod: int) -> str 
     if not (_kinds(m, barrel) == [_HINGE] and cross and _kinds(m, cross) == [_HINGE]
             and m.body_weldid[m.body_parentid[cross]] == 0):
         return None
-    outer, inner = _joints(m, cross)[0], _joints(m, barrel)[0]
+    outer, inner = body_joints(m, cross)[0], body_joints(m, barrel)[0]
     rot = np.empty(9)
     mujoco.mju_quat2Mat(rot, m.body_quat[barrel])
     rot = rot.reshape(3, 3)
@@ -148,6 +149,12 @@ def _merge_cross_piece(spec: mujoco.MjSpec, m: mujoco.MjModel, rod: int) -> str 
         j.axis = list(new_axis) if new_axis is not None else ax
     return (f"the universal joint's hinges sit on two bodies (a cross piece and the barrel); both are put on the "
             f"barrel, in their order (the cross piece, {m.body_mass[cross]:.3g} kg, stays with the base)")
+
+
+def equality_bodies(m: mujoco.MjModel, eq: int) -> list[int]:
+    """The two bodies equality ``eq`` ties (a site's body for a site)."""
+    site = int(m.eq_objtype[eq]) == int(mujoco.mjtObj.mjOBJ_SITE)
+    return [int(m.site_bodyid[o]) if site else int(o) for o in (m.eq_obj1id[eq], m.eq_obj2id[eq])]
 
 
 def hinge_spread(anchors: np.ndarray) -> float:
@@ -177,8 +184,7 @@ def _platform_end(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, rod:
     for eq in range(m.neq):
         if not m.eq_active0[eq] or int(m.eq_type[eq]) not in (int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)):
             continue
-        sides = [int(m.site_bodyid[o]) if int(m.eq_objtype[eq]) == int(mujoco.mjtObj.mjOBJ_SITE) else int(o)
-                 for o in (m.eq_obj1id[eq], m.eq_obj2id[eq])]
+        sides = equality_bodies(m, eq)
         if platform not in sides:
             continue
         other = sides[1 - sides.index(platform)]
@@ -188,7 +194,7 @@ def _platform_end(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, rod:
                 raise InputError(f"{leg}: its platform joint hangs from the platform ({mujoco.mj_id2name(m, _B, other)}); "
                                  f"hexsim reads it at the rod's tip (bodies below the rod)")
             continue
-        joints = [j for b in bodies for j in _joints(m, b)]
+        joints = [j for b in bodies for j in body_joints(m, b)]
         kinds = sorted(int(m.jnt_type[j]) for j in joints)
         if not bodies:  # closed at the rod itself
             if int(m.eq_type[eq]) == int(mujoco.mjtEq.mjEQ_WELD):

@@ -42,8 +42,10 @@ from hexsim.errors import InputError
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.user_legs import (
     BALL_TOLERANCE_M,
+    body_joints,
     chain,
     conform,
+    equality_bodies,
     hinge_spread,
     name_everything,
     note,
@@ -282,12 +284,11 @@ def _cardan(m: mujoco.MjModel, d: mujoco.MjData, eq: int, rod: int,
     """For weld ``eq`` from a body below ``rod`` whose bodies up to the rod carry hinges apart by more than
     :data:`hexsim.plant.user_legs.BALL_TOLERANCE_M` (a kept cardan): its last hinge's anchor, its first
     hinge's anchor (world, (3,) [m] each) and the hinges' spread [m]; else None."""
-    sides = [int(m.site_bodyid[o]) if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE else int(o)
-             for o in (m.eq_obj1id[eq], m.eq_obj2id[eq])]
+    sides = equality_bodies(m, eq)
     if platform not in sides:
         return None
     bodies = chain(m, rod, sides[1 - sides.index(platform)])
-    joints = sorted(j for b in bodies or [] for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]))
+    joints = sorted(j for b in bodies or [] for j in body_joints(m, b))
     if not joints or any(m.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE for j in joints):
         return None
     spread = hinge_spread(d.xanchor[joints])
@@ -303,8 +304,7 @@ def _cardan_site(spec: mujoco.MjSpec, m: mujoco.MjModel, d: mujoco.MjData, eq: i
     at the body's origin some decimetres away, the weld matched the cardan's position through the rotation of
     its small bodies, which MuJoCo's soft constraint barely holds (the slide moved under a unit force as if
     free: 0.36 against 0.0015-0.0064 1/kg)."""
-    sides = [int(m.site_bodyid[o]) if m.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_SITE else int(o)
-             for o in (m.eq_obj1id[eq], m.eq_obj2id[eq])]
+    sides = equality_bodies(m, eq)
     body = sides[1 - sides.index(platform)]
     anchor = spec.site(f"platform_anchor{i}")
     rot_p, rot_b = d.xmat[platform].reshape(3, 3), d.xmat[body].reshape(3, 3)
