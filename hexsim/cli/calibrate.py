@@ -6,7 +6,7 @@ import argparse
 import pathlib
 import sys
 
-from hexsim.cli.options import check_outputs, machine_option, parse_flow_areas
+from hexsim.cli.options import CORES, check_outputs, machine_option, parse_flow_areas
 from hexsim.errors import InputError
 from hexsim.tables import write_atomic, write_json
 
@@ -45,6 +45,9 @@ def add_calibrate(sub) -> None:
     ca.add_argument("--keep-worse", action="store_true",
                     help="write the calibrated file even when it predicts its own logs' held-out windows worse than "
                          "the prior (by default nothing is written then, exit 2)")
+    ca.add_argument("--jobs", type=int, default=CORES,
+                    help="processes that replay the logs for each fit's Jacobian (default: the cores available, "
+                         "%(default)s here; the same calibration with any number)")
     ca.add_argument("--report", type=pathlib.Path, metavar="DIR",
                     help="write report.md and features.png (measured against predicted) here")
     ca.add_argument("--json", type=pathlib.Path, help="write the report as JSON; - for stdout")
@@ -57,6 +60,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from hexsim.plant.machine import dump, load_machine, machine_from_document
 
     check_outputs(args)
+    if args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     if args.out.suffix.lower() != ".json":
         raise InputError(f"--out {args.out}: expected a .json machine file name")
     if not args.out.parent.exists():
@@ -72,7 +77,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     held = [read_log(path, machine=machine) for path in args.hold_out]
     print(f"machine: {machine.label}; calibrating on {len(logs)} log(s), {len(held)} held out", flush=True)
     calibrated, report = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation,
-                                   dynamics=args.dynamics, flow_areas=args.flow_area,
+                                   dynamics=args.dynamics, flow_areas=args.flow_area, jobs=args.jobs,
                                    notify=lambda text: print(text, file=sys.stderr, flush=True))
     print(table(report))
     worse = report.get("own_budget", {}).get("worse_than_prior", {})

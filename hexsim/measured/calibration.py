@@ -44,6 +44,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hexsim.errors import InputError, PhysicsError
+from hexsim.measured.acquisition import accelerometer_sampling
 from hexsim.measured.curves import curve_report, reaches_budget, with_curve
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
@@ -54,6 +55,7 @@ from hexsim.measured.parameters import (
     default_parameters,
     leg_null_parameter,
 )
+from hexsim.measured.replay import command_jumps
 from hexsim.plant import hydraulics
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import Machine, with_keys, with_valve
@@ -289,6 +291,12 @@ class _Evidence:
         shares = [1.0] + [ev.effective_share(m) for ev in self.replays]
         return float(np.dot(sizes, shares) / max(sum(sizes), 1))
 
+    @property
+    def jumps(self) -> bool:
+        """Whether a replayed single-actuator log's valve command jumps (a step): what shows when its sensors
+        were read (:mod:`hexsim.measured.acquisition`)."""
+        return not self.hexapod and any(command_jumps(ev.log).size for ev in self.replays)
+
 
 def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine: Machine, dynamics: str,
             built: tuple = ()) -> _Evidence:
@@ -318,7 +326,7 @@ def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine:
 
 
 def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, flow_areas: tuple[str, ...] | None,
-                 notify: Callable[[str], None], fixed: tuple[str, ...] = ()) -> tuple[dict, list[dict]]:
+                 notify: Callable[[str], None], fixed: tuple[str, ...] = (), jobs: int = 1) -> tuple[dict, list[dict]]:
     """Calibrate each flow-area form (default :func:`_forms`; with transients only, else the machine's own),
     each from the prior (a form's calibrated values are another form's far valley): with more than one, a
     screening (a few evaluations, no held-at-prior rule; a hexapod's on its logs' first segments, each replay
@@ -330,7 +338,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
     forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
     curve = _wants_curve(ev, machine, flow_areas)  # refused before any fit where it cannot be read
     options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01, xtol=XTOL, ftol=FTOL,
-                         max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV) if ev.replays else FitOptions()
+                         max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV, jobs=jobs) if ev.replays else FitOptions()
     share = ev.independent_share if ev.replays else None
     screen = len(forms) > 1
     judged = ([r.prefix(HEXAPOD_SCREEN_SEGMENTS) for r in ev.replays] if ev.hexapod else ev.replays) if screen \
@@ -344,7 +352,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
             tried.append({"flow_area": form, "refused": str(exc)})
             continue
         form_params = ParameterSet(p for p in (params if params is not None else default_parameters(
-            start, dynamics=bool(ev.replays), hexapod=ev.hexapod)) if p.key not in fixed)
+            start, dynamics=bool(ev.replays), hexapod=ev.hexapod, timing=ev.jumps)) if p.key not in fixed)
         notify(f"{'screening' if screen else 'calibrating'} {len(form_params)} parameters with the {form} flow area")
         fit = fit_parameters(ev.residual(judged), start, form_params, independent_share=share, notify=notify,
                              options=screening if screen else options)
@@ -367,7 +375,8 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
 
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
               params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
-              flow_areas: tuple[str, ...] | None = None, evidence: tuple = (), notify=None) -> tuple[Machine, dict]:
+              flow_areas: tuple[str, ...] | None = None, evidence: tuple = (), notify=None,
+              jobs: int = 1) -> tuple[Machine, dict]:
     """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
     doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
     the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
@@ -376,7 +385,8 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     transients the valve's flow-area form is chosen among ``flow_areas`` (default :func:`_forms`) by the
     held-out windows' cost (:func:`_choose_form`). ``evidence``: the replays of some of ``logs`` already built
     (:meth:`hexsim.measured.dynamics.ReplayEvidence.of_problem`: a validation's problem and budget), used
-    instead of replaying those logs' nominal again.
+    instead of replaying those logs' nominal again. ``jobs``: processes that evaluate the replays' Jacobians
+    (:class:`hexsim.measured.fitting.FitOptions`; the same calibration as one).
 
     Returns the calibrated machine (its ``calibration`` the report without the feature rows) and the
     report: per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
@@ -387,12 +397,16 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     notify = notify or (lambda text: None)
     machine, supply = supply_from_logs(logs, machine)
     ev = _gather(logs, held_out, machine, dynamics, evidence)
-    best, tried = _choose_form(ev, machine, params, flow_areas, notify, fixed=(supply["key"],) if supply else ())
+    machine, sampling = accelerometer_sampling(ev.replays, machine) if ev.jumps else (machine, None)
+    best, tried = _choose_form(ev, machine, params, flow_areas, notify, fixed=(supply["key"],) if supply else (),
+                               jobs=jobs)
     nulls = []
     if ev.hexapod:
         best["machine"], nulls = leg_null_offsets(ev.replays, best["machine"])
     best["machine"], noise = sensor_noise_from_logs(logs, best["machine"])
     report = _report(ev, machine, best, tried, logs)
+    if sampling:
+        report["acquisition"] = sampling
     report["parameters"] += nulls + ([supply] if supply else []) + ([noise] if noise else [])
     if held_out:
         report["held_out"] = _held_out(held_out, machine, best["machine"], ev.loads)

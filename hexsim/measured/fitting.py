@@ -36,6 +36,7 @@ from hexsim.measured.estimates import AT_BOUND, at_bound
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.machine import Machine
+from hexsim.simulation.workers import forked_map
 
 #: A parameter whose standard error exceeds this share of its bound range is not identified by the data.
 MAX_SE_SHARE = 0.25
@@ -63,7 +64,8 @@ class FitOptions:
     least-squares run of every parameter, no statistics and nothing held (a screening). ``correlated_se``: two
     parameters correlated beyond :data:`MAX_CORRELATION` are both kept while the worse known has a standard
     error within this share of its bracket (thousands of replayed samples separate two parameters correlated at
-    0.997 to 1e-4 of their brackets)."""
+    0.997 to 1e-4 of their brackets). ``jobs``: processes that evaluate a Jacobian's columns
+    (:func:`hexsim.simulation.workers.forked_map`; the same result as one)."""
 
     diff_step: float = 1e-4
     x_scale: float | str = 1.0
@@ -73,6 +75,7 @@ class FitOptions:
     correlated_se: float = 0.0
     xtol: float = 1e-8
     ftol: float = 1e-8
+    jobs: int = 1
 
 
 @dataclass
@@ -98,7 +101,7 @@ def bounded_fit(residual: Callable[[np.ndarray], np.ndarray], starts, lower, upp
     """Least squares of ``residual`` (x (k,) -> (n,)) inside [``lower``, ``upper``] (each (k,) or a scalar;
     infinite allowed), from the start of ``starts`` (each (k,)) with the lowest sum of squares (one start: no
     evaluation to choose it): ``scipy.optimize.least_squares`` with ``options`` (its method, diff_step,
-    x_scale, max_nfev, xtol, ftol, loss, f_scale, jac; its defaults otherwise). A residual that cannot be
+    x_scale, max_nfev, xtol, ftol, loss, f_scale, jac, workers; its defaults otherwise). A residual that cannot be
     computed at some x (a model that does not run) should return :data:`FAILED_RESIDUAL` per entry there.
     Returns scipy's result (x, fun, jac, nfev, njev, cost, success) with ``inside`` (k,) bool: the parameters
     not at a bound (:func:`hexsim.measured.estimates.at_bound`), those whose standard errors mean something."""
@@ -151,7 +154,8 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         # away where the others went
         z0 = np.clip((start[free] - lo[free]) / span[free], 0.0, 1.0)
         sol = bounded_fit(residual, [z0], 0.0, 1.0, diff_step=options.diff_step, x_scale=options.x_scale,
-                          max_nfev=options.max_nfev, xtol=options.xtol, ftol=options.ftol)
+                          max_nfev=options.max_nfev, xtol=options.xtol, ftol=options.ftol,
+                          workers=forked_map(options.jobs) if options.jobs > 1 else None)
         notify(f"fitted {len(free)} parameters: {sol.nfev} evaluations, {sol.njev} Jacobians, cost {2 * sol.cost:.4g}")
         if before is not None:
             cost = float(np.sum(before[0].residuals ** 2))

@@ -46,6 +46,7 @@ from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.replay import near_jumps
 from hexsim.plant import hydraulics
 from hexsim.plant.legs import bulk_modulus, leg_params
 from hexsim.plant.machine import Machine
@@ -124,7 +125,7 @@ def _spool_command(u_v: np.ndarray, time: np.ndarray, machine: Machine) -> np.nd
     return lsim(lti([w * w], [1.0, 2.0 * eff.spool_damping * w, w * w]), u, time - time[0], X0=None)[1]
 
 
-def flow_samples(log: MeasurementLog, machine: Machine) -> list[FlowSamples]:
+def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> list[FlowSamples]:
     """The flow balance of a single-actuator ``log`` on ``machine`` in the integral form of continuity (seed eq.
     3.6, 3.7 integrated over each interval of :data:`INTERVAL_S`: the volume that entered the chamber, from the
     piston's positions and the chamber's pressures at the interval's ends, equals the valve's flow summed over
@@ -132,8 +133,10 @@ def flow_samples(log: MeasurementLog, machine: Machine) -> list[FlowSamples]:
     signal, so a step's fast pressure jump is measured as well as a slow motion (the equation error in integral
     form, Young, Automatica 17(1), 1981). The cap side's (and with a 4-way valve and a logged ``p2_Pa`` the rod
     side's) :class:`FlowSamples`, the edges' gains those of ``machine``; intervals that come within
-    :data:`STOP_MARGIN` of either end of the stroke are left out. Raises InputError (naming the log) for a
-    hexapod log or one without ``p1_Pa``."""
+    :data:`STOP_MARGIN` of either end of the stroke are left out. ``skew`` [s], within a sample either way: the
+    state was read that long after its row's command took effect (:mod:`hexsim.measured.acquisition`), so an
+    interval gains that share of the next row's flow and loses it of its first row's (negative: the rows
+    before each end). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
     if log.system != "single-actuator":
         raise InputError(f"{log.path.name}: a flow curve is read from single-actuator logs (this one is {log.system})")
     if "p1_Pa" not in log.columns:
@@ -145,6 +148,8 @@ def flow_samples(log: MeasurementLog, machine: Machine) -> list[FlowSamples]:
     n = (len(log.time) - 1) // step
     edges = np.arange(n + 1) * step  # sample index of each interval's ends
     y = _smooth(cols["pos_m"], rate)  # the ends' positions, the transducer's noise smoothed (zero phase)
+    kinked = near_jumps(log, WINDOW_S)  # except where the smoothing reaches over the kink of a command's jump
+    y[kinked] = cols["pos_m"][kinked]
     u = _spool_command(cols["valve_cmd_V"], log.time, machine)
     p_s = cols["ps_Pa"] if "ps_Pa" in cols else np.full_like(y, hyd.supply_pressure)
     inside = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN)
@@ -155,19 +160,30 @@ def flow_samples(log: MeasurementLog, machine: Machine) -> list[FlowSamples]:
     full = P.port_width * hyd.x_v_max
     samples = np.arange(edges[-1]).reshape(n, step)[keep].ravel()  # the samples of the kept intervals
     interval = np.repeat(np.arange(int(keep.sum())), step)
+    weight = np.ones(len(samples))
+    share = float(np.clip(skew * rate, -0.999, 0.999))
+    if share != 0.0:  # the share of a row's flow the skew moves across each end of an interval
+        a, b = edges[:-1][keep], edges[1:][keep]
+        gained, lost = (b, a) if share > 0 else (a - 1, b - 1)  # later: the head of the next row, not of the first
+        ends = np.clip(np.concatenate([gained, lost]), 0, len(log.time) - 2)
+        order = np.argsort(np.concatenate([interval, np.tile(np.arange(len(a)), 2)]), kind="stable")
+        samples = np.concatenate([samples, ends])[order]
+        weight = np.concatenate([weight, np.full(len(a), abs(share)), np.full(len(a), -abs(share))])[order]
+        interval = np.concatenate([interval, np.tile(np.arange(len(a)), 2)])[order]
 
     def side(p_col: str, area: float, volume_at, k_in: float, k_out: float, mirror: bool) -> FlowSamples:
         p = cols[p_col]
         mid = 0.5 * (p[samples] + p[samples + 1])  # the period's mean pressure at each held command
-        supply = k_in * full * hydraulics.edge_flow(1.0, 0.5 * (p_s[samples] + p_s[samples + 1]) - mid, hyd) * dt
-        ret = -k_out * full * hydraulics.edge_flow(1.0, mid - hyd.tank_pressure, hyd) * dt
+        supply = k_in * full * hydraulics.edge_flow(1.0, 0.5 * (p_s[samples] + p_s[samples + 1]) - mid, hyd) * dt * weight
+        ret = -k_out * full * hydraulics.edge_flow(1.0, mid - hyd.tank_pressure, hyd) * dt * weight
         a, b = edges[:-1][keep], edges[1:][keep]
         p_mid = 0.5 * (p[a] + p[b])
         air = np.array([hyd.bulk_modulus / bulk_modulus(float(v), P) for v in p_mid]) if eff.air_fraction > 0 else 1.0
         dp = (p[b] - p[a]) * air  # entrained air: the effective bulk modulus's share
         displaced = area * (y[b] - y[a])
         if not mirror and eff.leakage:
-            displaced -= eff.leakage * np.add.reduceat((across - p)[samples] * dt, np.arange(0, len(samples), step))
+            starts = np.flatnonzero(np.r_[True, np.diff(interval) != 0])
+            displaced -= eff.leakage * np.add.reduceat((across - p)[samples] * dt * weight, starts)
         return FlowSamples(u[samples], supply, ret, interval, displaced, volume_at(0.5 * (y[a] + y[b])) * dp,
                            np.zeros_like(dp) if mirror else dp, block[keep], mirror)
 
@@ -387,7 +403,7 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine) -> FlowCurves:
     unit = dataclasses.replace(machine, effects=eff.replace(
         edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
         edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
-    samples = [s for log in logs for s in flow_samples(log, unit)]
+    samples = [s for log in logs for s in flow_samples(log, unit, machine.sensors.sample_skew)]
     if sum(len(s.displaced) for s in samples) < 100:
         raise InputError("a flow curve needs at least 100 intervals away from the stroke's ends; the logs have fewer")
     u_all = np.concatenate([s.u for s in samples])

@@ -151,20 +151,23 @@ def _relative(doc: dict, key: str, lo: float, hi: float, source: str, experiment
     return Parameter(key, lo * value, hi * value, source, experiment)
 
 
-def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool = False) -> ParameterSet:
+def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool = False, timing: bool = False
+                       ) -> ParameterSet:
     """What a data sheet brackets and constant-command experiments identify, for ``machine``: the valve's
     flow gain (rated flow or port), overlap, null offset and the edges' matching (k_AT; with a 4-way
     valve k_PB, k_BT: k_PA is the reference the flow gain carries), the supply and tank pressures, the Coulomb
     friction per direction and, on an axis with weight along it, the moving mass. ``dynamics`` (evidence from
     transients, :mod:`hexsim.measured.dynamics`): also the smooth area's gain k_a (3.11) beside the port, the
     overlap of the port-limited area, the bulk modulus and dead volumes (3.7), the viscous and static friction
-    per direction (3.9) and the moving mass on any axis (its inertia, 3.8). ``hexapod`` (the logs are a
+    per direction (3.9), the moving mass on any axis (its inertia, 3.8) and, with ``timing`` (logs whose valve
+    command jumps, which alone show it), when the logs' sensors were read (:func:`_timing_parameters`).
+    ``hexapod`` (the logs are a
     hexapod's): :func:`hexapod_parameters` instead."""
     if hexapod:
         return hexapod_parameters(machine)
     doc = machine.document()
     params = [*_valve_parameters(machine, doc, dynamics), *_supply_parameters(doc),
-              *_friction_and_oil_parameters(machine, doc, dynamics)]
+              *_friction_and_oil_parameters(machine, doc, dynamics), *(_timing_parameters(machine) if dynamics and timing else ())]
     eff = machine.effects
     if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
         mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
@@ -173,6 +176,22 @@ def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool =
                                 "speed the weight trades against the Coulomb friction), or weighing it",
                                 null_value=mass))
     return ParameterSet(p for p in params if p.upper > p.lower)
+
+
+#: The acquisition's timing is fitted within this much [s] either way: a sample of a 1 kHz log.
+SKEW_RANGE = 1e-3
+
+
+def _timing_parameters(machine: Machine) -> list[Parameter]:
+    """When the logs' sensors were read against their valve command (:mod:`hexsim.measured.acquisition`): the
+    position's and pressures' skew and, for an accelerometer sampled at an instant, that instant."""
+    why = ("within a sample of a 1 kHz log either way (converters that read after the command goes out, or a "
+           "command that reaches the valve after the sensors were read)")
+    steps = "steps of the valve command (the pressure's first millisecond, the oil spring's ringing)"
+    params = [Parameter("sensors.sample_skew_s", -SKEW_RANGE, SKEW_RANGE, why, steps)]
+    if machine.sensors.acceleration_sampling == "instant":
+        params.append(Parameter("sensors.acceleration_skew_s", -SKEW_RANGE, SKEW_RANGE, why, steps))
+    return params
 
 
 def _valve_parameters(machine: Machine, doc: dict, dynamics: bool) -> list[Parameter]:

@@ -30,8 +30,8 @@ from hexsim.plant import hydraulics, legs
 from hexsim.plant.effects import Effects, LegChange
 from hexsim.plant.legs import PlantState, leg_table, step_plant
 from hexsim.plant.model import PlantIndex, check_warnings, model_spec
-from hexsim.plant.params import HydraulicParams
-from hexsim.signals import savgol
+from hexsim.plant.params import HydraulicParams, SensorSpec
+from hexsim.signals import savgol, savgol_length
 
 #: Channels compared, in report order: name -> (log column of the single actuator, unit, floor of the scale).
 CHANNELS = {
@@ -108,9 +108,10 @@ class PlantModel:
     hydraulics: HydraulicParams
     effects: Effects
     leg_changes: tuple[LegChange, ...] = ()
+    sensors: SensorSpec | None = None  # how the log's sensors were sampled (None: as its machine file says)
 
     def replace(self, **changes) -> "PlantModel":
-        """A copy with ``changes`` (hydraulics, effects, leg_changes) applied; leg changes are kept."""
+        """A copy with ``changes`` (hydraulics, effects, leg_changes, sensors) applied; leg changes are kept."""
         return dataclasses.replace(self, **changes)
 
 
@@ -171,10 +172,55 @@ class ReplayProblem(Protocol):
         """Log times [s] of the samples of :meth:`analysis_view`."""
 
 
+#: Span [s] of the Savitzky–Golay derivative that gives a window's starting velocity (:func:`measured_velocity`).
+VELOCITY_SPAN_S = 0.021
+#: A jump of the valve command: a change between two samples larger than this share of its range. The motion
+#: kinks there, and a derivative whose span reaches over the kink is wrong on both sides of it (at a 10 V step of
+#: the reference plant R1, 77 mm/s at the instant before the piston moves).
+JUMP_SHARE = 0.02
+
+
 def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:
     """Piston velocity [m/s] from the measured position (N,) by a Savitzky–Golay derivative (cubic,
-    21 samples at 1 kHz: noise of a few µm gives < 1 mm/s)."""
-    return savgol(pos, log.sample_rate_hz, 0.021, deriv=1)
+    :data:`VELOCITY_SPAN_S`, 21 samples at 1 kHz: noise of a few µm gives < 1 mm/s)."""
+    return savgol(pos, log.sample_rate_hz, VELOCITY_SPAN_S, deriv=1)
+
+
+def command_jumps(log: MeasurementLog) -> np.ndarray:
+    """The samples (indices, ascending) at which the logged valve command has jumped from the sample before
+    (:data:`JUMP_SHARE`); none for a log without ``valve_cmd_V``."""
+    u = log.columns.get("valve_cmd_V")
+    if u is None:
+        return np.zeros(0, dtype=int)
+    return np.flatnonzero(np.abs(np.diff(u)) > JUMP_SHARE * log.machine.hydraulics.u_v_max) + 1
+
+
+def near_jumps(log: MeasurementLog, span_s: float) -> np.ndarray:
+    """(N,) bool: the samples a centred filter of ``span_s`` [s] at them reaches over a jump of the valve
+    command (:func:`command_jumps`): the motion kinks there, and the filter's output is biased."""
+    near = np.zeros(len(log.time), dtype=bool)
+    half = savgol_length(log.sample_rate_hz, span_s) // 2 + 1
+    for j in command_jumps(log):
+        near[max(j - half, 0):j + half] = True
+    return near
+
+
+def clear_of_jumps(log: MeasurementLog, windows: Windows) -> Windows:
+    """``windows`` with each start that lies within half the velocity derivative's span
+    (:data:`VELOCITY_SPAN_S`) of a jump of the logged valve command (:data:`JUMP_SHARE`) moved to just before
+    that span reaches the jump: a window starts from the measured velocity, which is right only away from the
+    kink a jump makes (a step log's windows that started at a step began 77 mm/s off, and their fitted
+    position scale pulled every other window 1 % off). Windows may then overlap by a few samples."""
+    jumps = command_jumps(log)
+    if jumps.size == 0:
+        return windows
+    half = savgol_length(log.sample_rate_hz, VELOCITY_SPAN_S) // 2 + 1
+    starts = windows.starts.copy()
+    for i, s in enumerate(starts):
+        near = jumps[(jumps > s - half) & (jumps <= s + half)]
+        if near.size:
+            starts[i] = max(int(near[0]) - half, 0)
+    return Windows(np.unique(starts), windows.length)
 
 
 def nominal_plant(log: MeasurementLog) -> PlantModel:
@@ -188,7 +234,7 @@ def nominal_plant(log: MeasurementLog) -> PlantModel:
             eff = eff.replace(mass_kg=log.mass_kg)
         if log.inclination_deg != (eff.inclination_deg or 0.0):
             eff = eff.replace(inclination_deg=log.inclination_deg)
-    return PlantModel(supply_from_log(log, hyd), eff, log.machine.leg_changes)
+    return PlantModel(supply_from_log(log, hyd), eff, log.machine.leg_changes, log.machine.sensors)
 
 
 def supply_from_log(log: MeasurementLog, hyd: HydraulicParams) -> HydraulicParams:
@@ -222,14 +268,49 @@ def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effec
     return u_b[rows], x_v[rows], v_v[rows]
 
 
-def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: float = 1e-4,
-           native: bool = True) -> dict[str, np.ndarray]:
-    """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
-    plus ``u_v`` (the valve setpoint applied).
+#: The channels a replay records at every physics step (:class:`hexsim.simulation.native.ReplayOut`).
+FINE_CHANNELS = ("position", "p1", "p_s", "acceleration", "p2")
 
-    Timing follows hexsim's own logs (:func:`hexsim.simulation.runner.simulate`): row j holds the state at its
-    time t_j (position, P1, P_s), the u_v held from t_j to t_j+1 and the acceleration averaged over the
-    steps from t_j-1 to t_j (the boxcar of hexsim's records; row 0: the step that starts at t_0). The state of row 0 is the measured one; the logged u_v drives each window open loop.
+
+def _at(fine: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``fine`` (k, N) at the fractional step indices ``index`` (n,), linear between steps, clipped to its ends."""
+    x = np.clip(index, 0.0, fine.shape[1] - 1.0)
+    lo = np.minimum(np.floor(x).astype(int), fine.shape[1] - 1)
+    hi = np.minimum(lo + 1, fine.shape[1] - 1)
+    w = x - lo
+    return fine[:, lo] * (1.0 - w) + fine[:, hi] * w
+
+
+def sampled(fine: dict[str, np.ndarray], sub: int, dt: float, spec: SensorSpec) -> dict[str, np.ndarray]:
+    """A replay's step-by-step channels ``fine`` (name -> (k, n sub), :data:`FINE_CHANNELS`; ``sub`` physics
+    steps of ``dt`` [s] per row) sampled as the log's sensors were (``spec``, the machine file's ``sensors``):
+    row j's position and pressures at t_j + ``sample_skew`` (linear between steps; hexsim's own logs: the start
+    of row j's first step), its acceleration the mean over the steps from t_j-1 to t_j (``mean``, the boxcar of
+    hexsim's records; row 0: its own first step's) or the sensor at t_j + ``acceleration_skew`` (``instant``).
+    Each (k, n)."""
+    n = fine["position"].shape[1] // sub
+    rows = np.arange(n) * sub
+    out = {ch: _at(fine[ch], rows + spec.sample_skew / dt) for ch in ("position", "p1", "p_s", "p2")}
+    acc = fine["acceleration"]
+    if spec.acceleration_sampling == "instant":
+        out["acceleration"] = _at(acc, rows + spec.acceleration_skew / dt)
+    else:
+        means = acc.reshape(acc.shape[0], n, sub).mean(axis=2)
+        out["acceleration"] = np.concatenate([acc[:, :1], means[:, :-1]], axis=1)
+    return out
+
+
+def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: float = 1e-4,
+           native: bool = True, fine: bool = False) -> dict[str, np.ndarray]:
+    """Simulated channels for each window, name -> (k, length) arrays, same names as :data:`CHANNELS`
+    plus ``u_v`` (the valve setpoint applied); ``fine``: the channels at every physics step instead
+    ((k, length sub), :data:`FINE_CHANNELS`, for :func:`sampled`).
+
+    The u_v of row j is held from t_j to t_j+1. The channels are sampled as ``model.sensors`` (else the log's
+    machine file) says its sensors were (:func:`sampled`, :class:`hexsim.plant.params.SensorSpec`): by default as hexsim's own logs
+    (:func:`hexsim.simulation.runner.simulate`), row j holding the state at its time t_j (position, P1, P_s)
+    and the acceleration averaged over the steps from t_j-1 to t_j. The state of row 0 is the measured one;
+    the logged u_v drives each window open loop.
     The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
     compiled kernel (:mod:`hexsim.simulation.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.
     Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
@@ -249,23 +330,27 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     idx = PlantIndex.from_model(m)
     state, y0 = _window_start(log, model, windows, m, d, idx)
     u_log = log.columns["valve_cmd_V"]
-    out = {name: np.empty((k, n)) for name in ("position", "p1", "p2", "p_s", "acceleration", "u_v")}
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
+    u_sched = windows.take(u_log)
+    spec = model.sensors or log.machine.sensors
+    # every step recorded where the sensors' timing asks for it (else the kernel records the rows, as hexsim's logs)
+    every_step = fine or not native or spec.sample_skew != 0.0 or spec.acceleration_sampling != "mean"
+    steps = {name: np.empty((k, n * sub if every_step else n)) for name in FINE_CHANNELS}
     mujoco.set_mjcb_control(None)
     if native:
         from hexsim.simulation import native as kernel
 
-        u_sched = windows.take(u_log)
-        out["u_v"] = u_sched
         legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
         bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,
-                                  kernel.ReplayOut(out["position"], out["p1"], out["p_s"], out["acceleration"],
-                                                   out["p2"]))
+                                  kernel.ReplayOut(*(steps[name] for name in FINE_CHANNELS)))
         if bad >= 0:
             raise PhysicsError(f"replay: non-finite P1 {bad / fs:.3f} s into a window")
     else:
-        _python_replay(log, model, windows, (m, d, idx), state, out)
+        _python_replay(log, model, windows, (m, d, idx), state, steps)
     check_warnings(m, d)
+    if fine:
+        return {**steps, "u_v": u_sched}
+    out = {**(sampled(steps, sub, dt, spec) if every_step else steps), "u_v": u_sched}
     tau = eff.sensor_delay
     if tau > 0:
         # the log's position is the sensor's: y(t - tau); shift each window's simulated trace by tau
@@ -315,30 +400,23 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
 
 def _python_replay(log, model, windows, sim, state, out) -> None:
     """The straightforward Python loop of :func:`replay` over the same compiled leg step on ``sim`` = (the
-    batch model, its data, its PlantIndex), filling ``out`` in place. Raises PhysicsError naming the
-    window and the time for a non-finite state."""
+    batch model, its data, its PlantIndex), filling the step-by-step channels ``out`` (:data:`FINE_CHANNELS`)
+    in place. Raises PhysicsError naming the window and the time for a non-finite state."""
     m, d, idx = sim
     dt = m.opt.timestep
     sub = int(round(1.0 / (log.sample_rate_hz * dt)))
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(len(windows.starts))])
     u_log, s0, n = log.columns["valve_cmd_V"], windows.starts, windows.length
-    acc, count = np.zeros(len(s0)), 0
     for j in range(n):
         u = u_log[s0 + j]
         for s_ in range(sub):
+            c = j * sub + s_
             y = d.qpos[idx.qpos_adr].copy()
             ydot = d.qvel[idx.dof_adr].copy()
-            if s_ == 0:
-                out["position"][:, j], out["p1"][:, j], out["p_s"][:, j] = y, state.p1, state.p_s
-                out["p2"][:, j] = state.p2
-                out["u_v"][:, j] = u
+            out["position"][:, c], out["p1"][:, c], out["p_s"][:, c], out["p2"][:, c] = y, state.p1, state.p_s, state.p2
             state, d.ctrl[idx.actuator_id] = step_plant(state, u, y, ydot, dt, model.hydraulics, model.effects)
             mujoco.mj_step(m, d)
-            if s_ == 0:  # the mean over the previous row's steps (boxcar, as hexsim's own records)
-                out["acceleration"][:, j] = acc / count if count else d.sensordata[acc_adr]
-                acc[:], count = 0.0, 0
-            acc += d.sensordata[acc_adr]
-            count += 1
+            out["acceleration"][:, c] = d.sensordata[acc_adr]
         if not (np.all(np.isfinite(state.p1)) and np.all(np.isfinite(d.qpos))):
             bad = int(np.flatnonzero(~np.isfinite(state.p1) | ~np.isfinite(d.qpos[idx.qpos_adr]))[0])
             raise PhysicsError(f"replay: non-finite state in the window starting at t = {log.time[s0[bad]]:.3f} s, "

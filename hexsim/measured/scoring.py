@@ -35,6 +35,7 @@ from hexsim.measured.replay import (
     PlantModel,
     ReplayProblem,
     Windows,
+    clear_of_jumps,
     measured_velocity,
     nominal_plant,
     replay,
@@ -110,7 +111,7 @@ class Problem:
     def __init__(self, log: MeasurementLog, window_s: float = WINDOW_S) -> None:
         self.log = log
         length = int(round(window_s * log.sample_rate_hz))
-        tiles = Windows.tile(len(log.time), length)
+        tiles = clear_of_jumps(log, Windows.tile(len(log.time), length))  # each start's velocity measurable
         usable, self.left_out = usable_windows(log, tiles)
         self.windows = Windows(tiles.starts[usable], length)
         self.fit_rows = np.arange(0, len(self.windows.starts), 2)

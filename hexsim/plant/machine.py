@@ -41,6 +41,7 @@ from hexsim.errors import InputError
 from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.params import (
+    ACCELERATION_SAMPLING,
     FLOW_AREAS,
     ControllerParams,
     HydraulicParams,
@@ -176,6 +177,15 @@ KEYS: tuple[Key, ...] = (
        "error a validation may calibrate (±)", "accelerometer data sheets: ±2–5 %"),
     _k("sensors.pressure_offset_Pa", "sensors.pressure_offset", "Pa", "each pressure transducer's zero error a "
        "validation may calibrate (±)", "±0.5 % of a 250 bar span (transducer data sheets)"),
+    _k("sensors.sample_skew_s", "sensors.sample_skew", "s", "when the logged position and pressures were read, "
+       "after the instant their row's valve command took effect (negative: the command reached the valve after the "
+       "sensors were read, an output latency); a log's replay samples its model there",
+       "hexsim calibrate (the logs' transients); hexsim's own logs: 0"),
+    _k("sensors.acceleration_sampling", "sensors.acceleration_sampling", "-", "how the accelerometer was sampled: "
+       "mean (over the sample interval before its row: a boxcar anti-alias filter, hexsim's own logs) or instant",
+       "hexsim calibrate (the logs' transients)", kind="text", choices=ACCELERATION_SAMPLING),
+    _k("sensors.acceleration_skew_s", "sensors.acceleration_skew", "s", "instant sampling: the accelerometer's "
+       "instant after its row's valve command took effect", "hexsim calibrate (the logs' transients)"),
     _k("controller.type", "machine.control", "-", "P (position loop per leg) or none (open loop: the valve "
        "command is given)", "seed §2.2.4", kind="text", choices=CONTROL_TYPES),
     _k("controller.kp_VPm", "controller.kp", "V/m", "P gain K_p", "hexsim (seed §3.3 tuned by hand)"),
@@ -671,8 +681,8 @@ def get_key(doc: dict, key: str):
     return node[int(index[:-1])][1] if isinstance(node[0], list) else node[int(index[:-1])]
 
 
-def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
-    """``machine`` with each dotted key of ``values`` set to its number (``valve.opening_table[i]``: the opening
+def with_keys(machine: Machine, values: dict[str, float | str]) -> Machine:
+    """``machine`` with each dotted key of ``values`` set to its number, or text for a text key (``valve.opening_table[i]``: the opening
     of point i; ``load.payload_at_m[i]``: element i of a vector; ``legs.legN.KEY``: leg N's own value of KEY,
     the ``legs`` section), the file checked again as any machine file (InputError names the key and value)."""
     doc = json.loads(json.dumps(machine.document()))
@@ -688,7 +698,7 @@ def with_keys(machine: Machine, values: dict[str, float]) -> Machine:
         elif index:  # a vector's element
             node[leaf][int(index[:-1])] = float(value)
         else:
-            node[leaf] = float(value)
+            node[leaf] = value if _BY_PATH[own].kind == "text" else float(value)
     return dataclasses.replace(machine_from_document(doc, machine.label), path=machine.path)
 
 

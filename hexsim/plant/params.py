@@ -385,6 +385,8 @@ class ControllerParams:
 
 
 #: The :class:`SensorSpec` field that bounds each channel's sensor offset.
+#: How an accelerometer channel is sampled (:attr:`SensorSpec.acceleration_sampling`).
+ACCELERATION_SAMPLING = ("mean", "instant")
 OFFSET_FIELDS = {"acceleration": "acceleration_offset", "p1": "pressure_offset", "p2": "pressure_offset",
                  "p_s": "pressure_offset"}
 
@@ -404,9 +406,19 @@ class SensorSpec:
     acceleration_scale: float = 0.05  # [-] accelerometer sensitivity within ±5 % (data sheets ±2–5 %)
     pressure_offset: float = 1.25e5  # [Pa] pressure transducer zero within ±1.25 bar (±0.5 % of a 250 bar
     # span, industrial strain-gauge transducers' data sheets)
+    # The acquisition's timing, which a replay of a log samples its model with (:mod:`hexsim.measured.acquisition`):
+    sample_skew: float = 0.0  # [s] the logged position and pressures read this long after their row's valve
+    # command took effect (negative: the command reached the valve after the sensors were read, an output
+    # latency); hexsim's own logs: 0
+    acceleration_sampling: str = "mean"  # "mean": the accelerometer's mean over the sample interval before its
+    # row (a boxcar anti-alias filter, hexsim's own logs); "instant": its value at one instant
+    acceleration_skew: float = 0.0  # [s] "instant": that instant, after the row's valve command took effect
 
     def __post_init__(self) -> None:
         _check_nonnegative(self, "position_scale", "acceleration_offset", "acceleration_scale", "pressure_offset")
+        if self.acceleration_sampling not in ACCELERATION_SAMPLING:
+            raise ValueError(f"acceleration_sampling must be one of {', '.join(ACCELERATION_SAMPLING)}, not "
+                             f"{self.acceleration_sampling!r}")
 
     def offset_limit(self, channel: str) -> float | None:
         """The largest offset [channel's unit] a sensor of ``channel`` may have (None: not bounded here)."""

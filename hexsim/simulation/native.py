@@ -153,8 +153,10 @@ class Recorder(NamedTuple):
 
 
 class ReplayOut(NamedTuple):
-    """Outputs of :func:`valve_replay`, each (k legs, n rows): position [m], P1 [Pa], P_s [Pa],
-    acceleration [m/s^2] and P2 [Pa] (rod side) of each leg."""
+    """Outputs of :func:`valve_replay`, each (k legs, n rows x sub steps) or (k, n): at every physics step of
+    each leg (or at each row's first), the position [m], P1 [Pa], P_s [Pa] and P2 [Pa] (rod side) at its start
+    and the acceleration sensor [m/s^2] over it (a row's: the mean over the row before's steps);
+    :func:`hexsim.measured.replay.sampled` samples the steps as the log's sensors were."""
 
     position: np.ndarray
     p1: np.ndarray
@@ -166,34 +168,41 @@ class ReplayOut(NamedTuple):
 @numba.njit(cache=True)
 def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
     """Open-loop replay of k independent legs, in the order of :func:`hexsim.measured.replay.replay` (which see):
-    row j's setpoints u_sched[:, j] (k, n) [V] drive the ``sub`` steps from row j to row j+1; row j of
-    ``out`` (:class:`ReplayOut`) records the position, P1 and P_s at its time and the acceleration
-    (sensordata at ``acc_adr`` (k,)) averaged over the steps of row j-1 (the boxcar of :class:`Recorder`;
-    row 0: its own first step's). ``legs.state`` changes in place. Returns -1,
-    or the first row at which P1 is not finite."""
+    row j's setpoints u_sched[:, j] (k, n) [V] drive the ``sub`` steps from row j to row j+1. With ``out``
+    (:class:`ReplayOut`) of n sub columns, column j sub + s records the position, P1, P_s and P2 at the start
+    of step s of row j and the acceleration (sensordata at ``acc_adr`` (k,)) over it; of n columns, column j
+    the state at row j's time and the acceleration averaged over the steps of row j-1 (the boxcar of
+    :class:`Recorder`; row 0: its own first step's). ``legs.state`` changes in place. Returns -1, or the first
+    row at which P1 is not finite."""
     k, n = u_sched.shape
     m_addr, d_addr, qpos, qvel, ctrl, sens, _, qadr, dadr, aadr, _, _, _, _ = mj  # once: see run_block
     P, dt, force, groups, supply_flow = legs.params, legs.dt, legs.force, legs.groups, legs.supply_flow
     S = legs.state
+    fine = out.position.shape[1] == n * sub
     y = np.empty(k)
     yd = np.empty(k)
     acc = np.zeros(k)
     count = 0
     for j in range(n):
         for s in range(sub):
+            c = j * sub + s if fine else j
             for i in range(k):
                 y[i] = qpos[qadr[i]]
                 yd[i] = qvel[dadr[i]]
-            if s == 0:
+            if fine or s == 0:
                 for i in range(k):
-                    out.position[i, j] = y[i]
-                    out.p1[i, j] = S.p1[i]
-                    out.p_s[i, j] = S.p_s[i]
-                    out.p2[i, j] = S.p2[i]
+                    out.position[i, c] = y[i]
+                    out.p1[i, c] = S.p1[i]
+                    out.p_s[i, c] = S.p_s[i]
+                    out.p2[i, c] = S.p2[i]
             step_legs(P, dt, u_sched[:, j], y, yd, S, force, groups, supply_flow)
             for i in range(k):
                 ctrl[aadr[i]] = force[i]
             _mj_step(m_addr, d_addr)
+            if fine:
+                for i in range(k):
+                    out.acceleration[i, c] = sens[acc_adr[i]]
+                continue
             if s == 0:
                 for i in range(k):
                     out.acceleration[i, j] = acc[i] / count if count > 0 else sens[acc_adr[i]]
