@@ -86,7 +86,7 @@ def test_r1s_timing_is_read_from_its_logs(r1_timing):
     assert 0.05e-3 <= timing.sample_skew <= 0.25e-3, timing.sample_skew
     assert timing.acceleration_sampling == "instant" and abs(timing.acceleration_skew) <= 0.15e-3, timing
     assert timing.state_cost[timing.sample_skew] < 0.2 * timing.state_cost[0.0], timing.state_cost
-    assert timing.acceleration_cost["mean"] > 3.0 * min(timing.acceleration_cost.values())
+    assert timing.mean_cost > 3.0 * min(timing.instant_cost.values())
 
 
 def test_r1s_step_log_is_within_its_noise_only_with_its_timing(r1_timing):

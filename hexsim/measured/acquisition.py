@@ -24,6 +24,7 @@ than :data:`GAIN`: a slow log, which cannot tell the timings apart, keeps it.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from dataclasses import dataclass
 
@@ -44,35 +45,33 @@ GAIN = 0.02
 @dataclass(frozen=True)
 class Timing:
     """The acquisition's timing read from the logs (:class:`hexsim.plant.params.SensorSpec`'s three timing
-    fields) and the cost behind it: ``state_cost`` skew [s] -> the position's and pressures' cost (sum of the
-    logs' residuals over their budgets, squared), ``acceleration_cost`` label ("mean" or "instant <skew>")
-    -> the acceleration's."""
+    fields) and the costs behind it, each the logs' residuals over their budgets, squared and summed:
+    ``state_cost`` skew [s] -> the position's and pressures', ``mean_cost`` the acceleration's sampled as its
+    interval mean, ``instant_cost`` skew [s] -> the acceleration's sampled at that instant (empty without an
+    accelerometer)."""
 
     sample_skew: float
     acceleration_sampling: str
     acceleration_skew: float
     state_cost: dict
-    acceleration_cost: dict
+    mean_cost: float
+    instant_cost: dict
 
     def keys(self) -> dict:
         """The machine file's keys of this timing (``sensors.*``)."""
         return {"sensors.sample_skew_s": self.sample_skew, "sensors.acceleration_sampling": self.acceleration_sampling,
                 "sensors.acceleration_skew_s": self.acceleration_skew}
 
-    def sentence(self) -> str:
-        """One line for a report: what was read and what it gained against hexsim's own timing."""
-        own_state, own_acc = self.state_cost[0.0], self.acceleration_cost.get("mean", 0.0)
-        state = (f"position and pressures read {self.sample_skew * 1e3:+.1f} ms after their command took effect "
-                 f"(cost {own_state:.4g} -> {self.state_cost[self.sample_skew]:.4g} in budgets squared)")
-        label = _label(self.acceleration_sampling, self.acceleration_skew)
-        acc = ("the accelerometer its mean over each sample interval" if label == "mean" else
-               f"the accelerometer at an instant {self.acceleration_skew * 1e3:+.1f} ms after the command "
-               f"(cost {own_acc:.4g} -> {self.acceleration_cost[label]:.4g})")
-        return f"the logs' timing: {state}; {acc}"
 
-
-def _label(sampling: str, skew: float) -> str:
-    return "mean" if sampling == "mean" else f"instant {skew * 1e3:+.1f} ms"
+def _cost(ev, fine: dict, spec: SensorSpec, channels: tuple[str, ...]) -> float:
+    """The replay evidence ``ev``'s residuals over its budget on ``channels``, squared and summed over all its
+    windows, with its step-by-step replay ``fine`` sampled as ``spec`` says."""
+    p = ev.problem
+    sub = int(round(1.0 / (p.log.sample_rate_hz * REPLAY_DT)))
+    sim = sampled(fine, sub, REPLAY_DT, spec)
+    part = _only_channels(p, channels)
+    rows = np.arange(len(p.windows.starts))
+    return float(np.sum(residual_vector(part, {ch: sim[ch] for ch in part.channels}, ev.budget, rows) ** 2))
 
 
 def fit_timing(replays: list, machine: Machine) -> Timing | None:
@@ -84,42 +83,31 @@ def fit_timing(replays: list, machine: Machine) -> Timing | None:
         return None
     base = machine.sensors
     state = dict.fromkeys(SKEWS, 0.0)
-    accel: dict[str, float] = {}
-    has_acc = False
+    mean, instant = 0.0, dict.fromkeys(SKEWS, 0.0)
+    with_acc = False
     for ev in single:
-        p = ev.problem
-        rows = np.arange(len(p.windows.starts))
-        sub = int(round(1.0 / (p.log.sample_rate_hz * REPLAY_DT)))
-        fine = replay(p.log, ev.model(machine), p.windows, dt=REPLAY_DT, fine=True)
-
-        def cost(spec: SensorSpec, channels: tuple[str, ...]) -> float:
-            sim = sampled(fine, sub, REPLAY_DT, spec)
-            part = _only_channels(p, channels)
-            return float(np.sum(residual_vector(part, {ch: sim[ch] for ch in part.channels}, ev.budget, rows) ** 2))
-
+        fine = replay(ev.log, ev.model(machine), ev.problem.windows, dt=REPLAY_DT, fine=True)
         for skew in SKEWS:
-            state[skew] += cost(dataclasses.replace(base, sample_skew=skew), ("position", "p1", "p2", "p_s"))
-        if "acceleration" in p.channels:
-            has_acc = True
-            for sampling, skew in (("mean", 0.0), *(("instant", s) for s in SKEWS)):
-                label = _label(sampling, skew)
-                spec = dataclasses.replace(base, acceleration_sampling=sampling, acceleration_skew=skew)
-                accel[label] = accel.get(label, 0.0) + cost(spec, ("acceleration",))
+            state[skew] += _cost(ev, fine, dataclasses.replace(base, sample_skew=skew), ("position", "p1", "p2", "p_s"))
+        if "acceleration" in ev.problem.channels:
+            with_acc = True
+            mean += _cost(ev, fine, dataclasses.replace(base, acceleration_sampling="mean"), ("acceleration",))
+            for skew in SKEWS:
+                spec = dataclasses.replace(base, acceleration_sampling="instant", acceleration_skew=skew)
+                instant[skew] += _cost(ev, fine, spec, ("acceleration",))
     skew = min(state, key=state.get)
     if state[skew] > (1.0 - GAIN) * state[0.0]:
         skew = 0.0
-    sampling, acc_skew = "mean", 0.0
-    if has_acc:
-        best = min(accel, key=accel.get)
-        if accel[best] <= (1.0 - GAIN) * accel["mean"] and best != "mean":
-            sampling, acc_skew = "instant", float(best.split()[1]) * 1e-3
-    return Timing(skew, sampling, acc_skew, state, accel)
+    if not with_acc:
+        return Timing(skew, "mean", 0.0, state, 0.0, {})
+    best = min(instant, key=instant.get)
+    if instant[best] <= (1.0 - GAIN) * mean:
+        return Timing(skew, "instant", best, state, mean, instant)
+    return Timing(skew, "mean", 0.0, state, mean, instant)
 
 
 def _only_channels(problem, channels: tuple[str, ...]):
     """A shallow copy of ``problem`` scoring only its ``channels`` that are among ``channels``."""
-    import copy
-
     out = copy.copy(problem)
     out.channels = [ch for ch in problem.channels if ch in channels]
     return out
@@ -137,15 +125,14 @@ def accelerometer_sampling(replays: list, machine: Machine) -> tuple[Machine, st
     if machine.sensors.acceleration_sampling == "instant":
         return machine, None
     timing = fit_timing(replays, machine)
-    if timing is None or not timing.acceleration_cost:
+    if timing is None or not timing.instant_cost:
         return machine, None
-    label = _label(timing.acceleration_sampling, timing.acceleration_skew)
     if timing.acceleration_sampling == "mean":
         return machine, (f"the accelerometer read as its mean over each sample interval (hexsim's own logs): no "
                          f"instant fits the logs better by {GAIN:.0%}")
     return (with_keys(machine, {"sensors.acceleration_sampling": "instant",
                                 "sensors.acceleration_skew_s": timing.acceleration_skew}),
             f"the accelerometer read at an instant, not as its mean over each sample interval: the logs' "
-            f"acceleration in budgets squared {timing.acceleration_cost['mean']:.4g} as a mean, "
-            f"{timing.acceleration_cost[label]:.4g} at {timing.acceleration_skew * 1e3:+.1f} ms (the instant then "
-            f"fitted with the other parameters)")
+            f"acceleration in budgets squared {timing.mean_cost:.4g} as a mean, "
+            f"{timing.instant_cost[timing.acceleration_skew]:.4g} at {timing.acceleration_skew * 1e3:+.1f} ms "
+            f"(the instant then fitted with the other parameters)")

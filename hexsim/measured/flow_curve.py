@@ -166,16 +166,8 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
     full = P.port_width * hyd.x_v_max
     samples = np.arange(edges[-1]).reshape(n, step)[keep].ravel()  # the samples of the kept intervals
     interval = np.repeat(np.arange(int(keep.sum())), step)
-    weight = np.ones(len(samples))
-    share = float(np.clip(skew * rate, -0.999, 0.999))
-    if share != 0.0:  # the share of a row's flow the skew moves across each end of an interval
-        a, b = edges[:-1][keep], edges[1:][keep]
-        gained, lost = (b, a) if share > 0 else (a - 1, b - 1)  # later: the head of the next row, not of the first
-        ends = np.clip(np.concatenate([gained, lost]), 0, len(log.time) - 2)
-        order = np.argsort(np.concatenate([interval, np.tile(np.arange(len(a)), 2)]), kind="stable")
-        samples = np.concatenate([samples, ends])[order]
-        weight = np.concatenate([weight, np.full(len(a), abs(share)), np.full(len(a), -abs(share))])[order]
-        interval = np.concatenate([interval, np.tile(np.arange(len(a)), 2)])[order]
+    samples, interval, weight = _skewed(samples, interval, edges[:-1][keep], edges[1:][keep],
+                                        float(np.clip(skew * rate, -0.999, 0.999)), len(log.time))
 
     def side(p_col: str, area: float, volume_at, k_in: float, k_out: float, mirror: bool) -> FlowSamples:
         p = cols[p_col]
@@ -200,6 +192,24 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
                         lambda ym: np.maximum(log.stroke_m - ym, 0.0) * hyd.area_rod + hyd.pipeline_volume_rod,
                         eff.edge_gain_pb, eff.edge_gain_bt, True))
     return out
+
+
+def _skewed(samples: np.ndarray, interval: np.ndarray, a: np.ndarray, b: np.ndarray, share: float, n: int
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The samples of the intervals from rows ``a`` to ``b`` (each (k,)) with each sample's weight in its
+    interval's flow, when the state was read ``share`` of a row after its command took effect (:func:`flow_samples`):
+    an interval gains that share of the row at its end and loses it of its first row (negative: of the rows before
+    each). ``samples`` and ``interval`` (m,) as they were, the extra rows (clipped to the ``n`` samples' range)
+    sorted in; returns (samples, interval, weight)."""
+    weight = np.ones(len(samples))
+    if share == 0.0:
+        return samples, interval, weight
+    gained, lost = (b, a) if share > 0 else (a - 1, b - 1)
+    ends = np.clip(np.concatenate([gained, lost]), 0, n - 2)
+    ids = np.concatenate([interval, np.tile(np.arange(len(a)), 2)])
+    order = np.argsort(ids, kind="stable")
+    weight = np.concatenate([weight, np.full(len(a), abs(share)), np.full(len(a), -abs(share))])
+    return np.concatenate([samples, ends])[order], ids[order], weight[order]
 
 
 def edge_grid(reach: float) -> np.ndarray:
