@@ -166,15 +166,16 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
     full = P.port_width * hyd.x_v_max
     samples = np.arange(edges[-1]).reshape(n, step)[keep].ravel()  # the samples of the kept intervals
     interval = np.repeat(np.arange(int(keep.sum())), step)
-    samples, interval, weight = _skewed(samples, interval, edges[:-1][keep], edges[1:][keep],
-                                        float(np.clip(skew * rate, -0.999, 0.999)), len(log.time))
+    a, b = edges[:-1][keep], edges[1:][keep]  # each kept interval's ends
+    samples, interval, weight = _skewed(samples, interval, a, b, float(np.clip(skew * rate, -0.999, 0.999)),
+                                        len(log.time))
 
     def side(p_col: str, area: float, volume_at, k_in: float, k_out: float, mirror: bool) -> FlowSamples:
         p = cols[p_col]
         mid = 0.5 * (p[samples] + p[samples + 1])  # the period's mean pressure at each held command
-        supply = k_in * full * hydraulics.edge_flow(1.0, 0.5 * (p_s[samples] + p_s[samples + 1]) - mid, hyd) * dt * weight
+        p_supply = 0.5 * (p_s[samples] + p_s[samples + 1])
+        supply = k_in * full * hydraulics.edge_flow(1.0, p_supply - mid, hyd) * dt * weight
         ret = -k_out * full * hydraulics.edge_flow(1.0, mid - hyd.tank_pressure, hyd) * dt * weight
-        a, b = edges[:-1][keep], edges[1:][keep]
         p_mid = 0.5 * (p[a] + p[b])
         air = np.array([hyd.bulk_modulus / bulk_modulus(float(v), P) for v in p_mid]) if eff.air_fraction > 0 else 1.0
         dp = (p[b] - p[a]) * air  # entrained air: the effective bulk modulus's share
@@ -262,11 +263,10 @@ class FlowCurves:
     """What :func:`fit_flow_curves` read: the P→A and A→T edges' curves (:class:`EdgeCurve`; the rod side's
     P→B and B→T of a 4-way valve follow the A→T and P→A shapes, with their own gains), the oil's
     ``bulk_modulus`` [Pa] and the cap side's dead volume ``pipeline_volume`` [m^3] (from the compressed
-    volume, held weakly at the machine's), the ``weight`` the held-out windows chose for the slope-change penalty, their flow error at each
-    weight tried (``held_out``: weight -> rms [m^3/s]; ``held_out_se``: weight -> the standard error of its
-    square), the rms flow error of the fit (``rms``) against the
-    measured flow's (``flow_rms``), and the commands the logs reached (``reached``: lowest, highest [V] at the
-    spool)."""
+    volume, held weakly at the machine's), the ``weight`` the held-out windows chose for the slope-change
+    penalty, their flow error at each weight tried (``held_out``: weight -> rms [m^3/s]; ``held_out_se``:
+    weight -> the standard error of its square), the rms flow error of the fit (``rms``) against the measured
+    flow's (``flow_rms``), and the commands the logs reached (``reached``: lowest, highest [V] at the spool)."""
 
     pa: EdgeCurve
     at: EdgeCurve

@@ -161,13 +161,13 @@ def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool =
     overlap of the port-limited area, the bulk modulus and dead volumes (3.7), the viscous and static friction
     per direction (3.9), the moving mass on any axis (its inertia, 3.8) and, with ``timing`` (logs whose valve
     command jumps, which alone show it), when the logs' sensors were read (:func:`_timing_parameters`).
-    ``hexapod`` (the logs are a
-    hexapod's): :func:`hexapod_parameters` instead."""
+    ``hexapod`` (the logs are a hexapod's): :func:`hexapod_parameters` instead."""
     if hexapod:
         return hexapod_parameters(machine)
     doc = machine.document()
     params = [*_valve_parameters(machine, doc, dynamics), *_supply_parameters(doc),
-              *_friction_and_oil_parameters(machine, doc, dynamics), *(_timing_parameters(machine) if dynamics and timing else ())]
+              *_friction_and_oil_parameters(machine, doc, dynamics),
+              *(_timing_parameters(machine) if dynamics and timing else ())]
     eff = machine.effects
     if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
         mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()

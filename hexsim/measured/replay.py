@@ -307,9 +307,9 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     ((k, length sub), :data:`FINE_CHANNELS`, for :func:`sampled`).
 
     The u_v of row j is held from t_j to t_j+1. The channels are sampled as ``model.sensors`` (else the log's
-    machine file) says its sensors were (:func:`sampled`, :class:`hexsim.plant.params.SensorSpec`): by default as hexsim's own logs
-    (:func:`hexsim.simulation.runner.simulate`), row j holding the state at its time t_j (position, P1, P_s)
-    and the acceleration averaged over the steps from t_j-1 to t_j. The state of row 0 is the measured one;
+    machine file) says its sensors were (:func:`sampled`, :class:`hexsim.plant.params.SensorSpec`): by default
+    as hexsim's own logs (:func:`hexsim.simulation.runner.simulate`), row j holding the state at its time t_j
+    (position, P1, P_s) and the acceleration averaged over the steps from t_j-1 to t_j. The state of row 0 is the measured one;
     the logged u_v drives each window open loop.
     The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
     compiled kernel (:mod:`hexsim.simulation.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.

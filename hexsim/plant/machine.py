@@ -682,9 +682,10 @@ def get_key(doc: dict, key: str):
 
 
 def with_keys(machine: Machine, values: dict[str, float | str]) -> Machine:
-    """``machine`` with each dotted key of ``values`` set to its number, or text for a text key (``valve.opening_table[i]``: the opening
-    of point i; ``load.payload_at_m[i]``: element i of a vector; ``legs.legN.KEY``: leg N's own value of KEY,
-    the ``legs`` section), the file checked again as any machine file (InputError names the key and value)."""
+    """``machine`` with each dotted key of ``values`` set to its number, or its text for a text key
+    (``valve.opening_table[i]``: the opening of point i; ``load.payload_at_m[i]``: element i of a vector;
+    ``legs.legN.KEY``: leg N's own value of KEY, the ``legs`` section), the file checked again as any machine
+    file (InputError names the key and value)."""
     doc = json.loads(json.dumps(machine.document()))
     for key, value in values.items():
         path, _, index = key.partition("[")

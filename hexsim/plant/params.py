@@ -384,9 +384,9 @@ class ControllerParams:
         return dataclasses.replace(self, **changes)
 
 
-#: The :class:`SensorSpec` field that bounds each channel's sensor offset.
 #: How an accelerometer channel is sampled (:attr:`SensorSpec.acceleration_sampling`).
 ACCELERATION_SAMPLING = ("mean", "instant")
+#: The :class:`SensorSpec` field that bounds each channel's sensor offset.
 OFFSET_FIELDS = {"acceleration": "acceleration_offset", "p1": "pressure_offset", "p2": "pressure_offset",
                  "p_s": "pressure_offset"}
 
