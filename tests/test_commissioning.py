@@ -15,11 +15,13 @@ import json
 import pathlib
 import sys
 
+import numpy as np
 import pytest
 
 from compensation import CompensatorSettings, make_compensator
 from hexsim.cli import main
 from hexsim.measured.proof import passenger_view
+from hexsim.plant import hydraulics
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import dump, load_machine, with_keys
 from hexsim.simulation.config import RunConfig
@@ -102,3 +104,21 @@ def test_commissioning_refuses_a_tuned_file_without_a_model_and_names_it(commiss
     assert main(["tune", "--from-logs", str(folder / "run0.csv"), "--compensator", str(seedish), "--machine",
                  str(folder / "machine.json"), "--out", str(tmp_path / "x.json")]) == 2
     assert "holds no leg model" in capsys.readouterr().err
+
+
+def test_near_null_the_commissioned_curve_keeps_the_shape_a_compensated_run_cannot_show(commissioned):
+    """A compensated run jumps the command across null at every reversal, so its flows say little there, and
+    the flow balance alone drew a straight line from null (at 10 and 20 mV 3.6x and 1.9x R1's opening relative
+    to its opening at 0.1 V). The commissioned curve keeps the starting form's shape there, which is R1's (an
+    opening rising as x_v^2 from null): within 25 % of R1's at 10 and 20 mV, the flows' own reading above."""
+    _, _, _, folder = commissioned
+    plant, r1 = _plant()
+    p = {**plant.SEED, **r1.R1}
+    hyd = load_machine(folder / "machine_1.json").hydraulics
+
+    def shape(opening):
+        return np.array([opening(u) / opening(0.1) for u in (0.01, 0.02)])
+
+    truth = shape(lambda u: plant.port_area(u * p["xvmax"] / p["uvmax"], **p["area_kw"]))
+    ours = shape(lambda u: float(hydraulics.flow_areas(np.array([u * hyd.x_v_max / hyd.u_v_max]), hyd)[0][0]))
+    assert np.all(np.abs(ours / truth - 1.0) < 0.25), (ours, truth)

@@ -20,7 +20,7 @@ from hexsim.measured.flow_curve import fit_flow_curves
 from hexsim.measured.measurement import read_log
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import load_machine, with_valve
-from hexsim.plant.params import HydraulicParams
+from hexsim.plant.params import HydraulicParams, thin_curve
 
 PA = ((-0.05, 0.0), (0.2, 0.01), (0.5, 0.05), (0.9, 0.16), (1.0, 0.18), (3.0, 0.5), (10.0, 1.0))
 AT = ((0.02, 0.0), (0.5, 0.04), (10.0, 0.9))
@@ -101,3 +101,17 @@ def test_the_corner_is_where_the_valve_has_it(curves):
     knots = fc.pa.knots[(fc.pa.knots > corner - 0.2) & (fc.pa.knots < corner + 0.2)]
     changes = [(slope(k - 0.01) - slope(k + 0.01), k) for k in knots]
     assert abs(max(changes)[1] - corner) < 0.04, (corner, max(changes))
+
+
+def test_the_machine_files_points_follow_an_edge_opening_as_x_squared_from_null():
+    """Near null, where the reversals happen, the points a machine file keeps of a curve follow its shape: a
+    metering edge opening as x_v^2 up to a port corner at 0.89 V (R1's shape) within 10 % from 5 mV of a 10 V
+    valve (a tolerance of the curve's largest value alone put the first point at 35 mV: a straight line up to
+    7x the edge's opening at 5 mV)."""
+    u = np.linspace(0.0, 10.0, 20001)
+    gain = 0.0981  # the opening at 1 V of an edge opening as x_v^2 (fraction of the full opening)
+    opening = np.where(u < 0.89, gain * u**2, gain * 0.89**2 + 2 * gain * 0.89 * 0.5 * (u - 0.89))
+    knots = np.array(thin_curve(u, opening))
+    followed = PchipInterpolator(knots[:, 0], knots[:, 1])
+    near = np.array([0.005, 0.01, 0.02, 0.04])
+    assert np.all(np.abs(followed(near) / np.interp(near, u, opening) - 1.0) < 0.10), followed(near)

@@ -6,7 +6,8 @@ through the rest in a few milliseconds. The motions the compensator is tuned for
 elsewhere, slowly, over and over (a 50 mm, 0.5 Hz sine crosses a port-limited spool's corner at 0.9 V four
 times a period), and every log of the machine running them measures the valve's flow there. So commissioning
 is run, log, learn, run again: each edge's curve is read again from the flows of the commissioning logs and of
-the calibration's own logs (the calibrated file names them; :func:`hexsim.measured.flow_curve.fit_flow_curves`),
+the calibration's own logs (the calibrated file names them; :func:`hexsim.measured.flow_curve.fit_flow_curves`,
+held to the calibrated machine's openings where the flows say little: near null, which a compensated run jumps),
 the machine file takes the curves (flow area ``curve``: :func:`hexsim.measured.curves.curve_machine`), and the
 tuned file's leg model (:class:`compensation.model_based.LegModel`) is built again from that machine, its
 compensator and settings kept; the predicted figures are those of the new model. A user runs it on the machine
@@ -73,7 +74,7 @@ def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = 
     for log in logs:
         if log.system != "single-actuator":
             raise InputError(f"{log.path}: commissioning reads single-actuator logs (this is {log.system})")
-    curves = fit_flow_curves(logs, machine)
+    curves = fit_flow_curves(logs, machine, toward_machine=True)
     new = curve_machine(machine, curves)
     new = dataclasses.replace(new, description=(machine.description + " Commissioned by hexsim tune --from-logs.").strip())
     model = leg_model_of(RunConfig.from_machine(new, "actuator"))

@@ -91,6 +91,7 @@ def curve_report(curves: FlowCurves, form: str, machine: Machine) -> dict:
     return {"from_form": form, "flow_curve_PA": [list(p) for p in hyd.flow_curve_pa],
             "flow_curve_AT": [list(p) for p in (hyd.flow_curve_at or hyd.flow_curve_pa)],
             "reach_V": {"PA": curves.pa.reach, "AT": curves.at.reach}, "regularisation": curves.weight,
+            "held_to_machine": curves.prior_strength,
             "bulk_modulus_Pa": curves.bulk_modulus, "dead_volume_cap_m3": curves.pipeline_volume,
             "held_out_flow_rms_m3": {f"{w:g}": v for w, v in curves.held_out.items()},
             "flow_rms_m3": curves.rms, "measured_flow_rms_m3": curves.flow_rms,

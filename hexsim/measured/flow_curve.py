@@ -28,6 +28,15 @@ number of corners is the data's. The absolute values and a robust loss on the fl
 the noisiest term) are iteratively reweighted least squares (Holland & Welsch 1977), each step a bounded
 linear least squares on the normal equations.
 
+**Held to the machine** (``toward_machine``: commissioning, :mod:`hexsim.measured.commissioning`): logs of a
+compensated machine jump the command across null at every reversal, so near null their flows say little, and
+the penalty alone draws a straight line from null there: on R1, 2.4x its opening at 20 mV, and a compensator
+inverting it left reversal peaks 1.6x those of the calibrated curve. The openings at the knots are then held
+to the calibrated machine's, each relative to its own size (a Gaussian prior: Tikhonov, or ridge, toward the
+machine; a shut edge held no tighter than its opening :data:`FLOOR_V` past where it opens), with the strongest
+of :data:`STRENGTHS` whose held-out windows are within one standard error of the best: where the flows tell
+(a corner the sine crosses slowly), they win; where they do not, the calibration's shape stays.
+
 **Into the machine file** (:meth:`FlowCurves.points`): each edge's fitted curve thinned to at most
 :data:`hexsim.plant.params.MAX_CURVE_POINTS` points through which the monotone cubic (PCHIP) of flow area
 "curve" follows it (:func:`hexsim.plant.params.thin_curve`); beyond the largest command the logs reach, the calibrated
@@ -84,6 +93,12 @@ REACH_QUANTILE, MIN_REACH_V = 0.998, 0.1
 CORNER_SHARE = 0.15
 #: Bounds of 1/E [1/Pa]: a bulk modulus within 0.1 … 3 GPa (aerated oil … stiff mineral oil in steel).
 _BETA = (1.0 / 3.0e9, 1.0 / 1.0e8)
+#: Strengths tried for holding a commissioning's curves to the machine's openings (:func:`_machine_openings`),
+#: as a share of the flows' weighted sum of squares per knot: none, then from faint to as much as the flows.
+STRENGTHS = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+#: The openings are held relative to the machine's own, but never to less than its opening this far [V] past
+#: where its edge opens.
+FLOOR_V = 0.02
 #: Iterations of the reweighted least squares (robust loss and l1 penalty).
 IRLS_STEPS = 6
 #: Exchanges of the bounds held tried before a bounded least squares is solved from scratch (:func:`_box_lsq`).
@@ -266,7 +281,9 @@ class FlowCurves:
     volume, held weakly at the machine's), the ``weight`` the held-out windows chose for the slope-change
     penalty, their flow error at each weight tried (``held_out``: weight -> rms [m^3/s]; ``held_out_se``:
     weight -> the standard error of its square), the rms flow error of the fit (``rms``) against the measured
-    flow's (``flow_rms``), and the commands the logs reached (``reached``: lowest, highest [V] at the spool)."""
+    flow's (``flow_rms``), the commands the logs reached (``reached``: lowest, highest [V] at the spool), and
+    the strength the openings were held to the machine's with (``prior_strength``, one of :data:`STRENGTHS`;
+    0 where they were not held)."""
 
     pa: EdgeCurve
     at: EdgeCurve
@@ -278,6 +295,7 @@ class FlowCurves:
     flow_rms: float
     reached: tuple[float, float]
     held_out_se: dict = dataclasses.field(default_factory=dict)
+    prior_strength: float = 0.0
 
     def points(self, prior: Machine) -> tuple[list[list[float]], list[list[float]]]:
         """Each edge's points for the machine file (``valve.flow_curve_PA``, ``valve.flow_curve_AT``): the curve
@@ -408,12 +426,13 @@ def _held_solution(r: np.ndarray, z: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     return x
 
 
-def fit_flow_curves(logs: list[MeasurementLog], machine: Machine) -> FlowCurves:
+def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine: bool = False) -> FlowCurves:
     """Each edge's curve read from ``logs``' flow balance on ``machine`` (its areas, null offset, spool loop,
     bulk modulus and dead volume; the curves carry the edges' gains: P→A and A→T read with unit gains, a 4-way
     valve's rod side with its gains relative to them), the slope-change penalty's weight chosen by held-out
     windows, then fitted again with knots added either side of each corner the first fit found
-    (:func:`_refined`: the knots go where the flows ask for them) (module doc).
+    (:func:`_refined`: the knots go where the flows ask for them); with ``toward_machine`` the openings held to
+    ``machine``'s as strongly as the held-out windows allow (module doc: "Held to the machine").
 
     Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 100 intervals
     away from the stops remain."""
@@ -428,11 +447,12 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine) -> FlowCurves:
     reach = [max(float(np.quantile(w[w > 0], REACH_QUANTILE)) if np.count_nonzero(w > 0) > 50 else 0.0,
                  MIN_REACH_V) for w in (u_all, -u_all)]
     grids = (edge_grid(reach[0]), edge_grid(reach[1]))
-    opened = _fit_on(samples, reach, *grids, machine)
-    shut = _fit_on(samples, reach, *(g[g >= 0.0] for g in grids), machine)
+    opened = _fit_on(samples, reach, *grids, machine, toward_machine=toward_machine)
+    shut = _fit_on(samples, reach, *(g[g >= 0.0] for g in grids), machine, toward_machine=toward_machine)
     # the simpler shut edges unless the underlap predicts the held-out windows better by one standard error
     first = shut if _held_out_ms(shut)[0] <= sum(_held_out_ms(opened)) else opened
-    second = _fit_on(samples, reach, _refined(first.pa), _refined(first.at), machine, first.weight)
+    second = _fit_on(samples, reach, _refined(first.pa), _refined(first.at), machine, first.weight,
+                     toward_machine, first.prior_strength)
     return dataclasses.replace(second, held_out=first.held_out, held_out_se=first.held_out_se,
                                reached=(float(u_all.min()), float(u_all.max())))
 
@@ -444,12 +464,14 @@ def _held_out_ms(curves: FlowCurves) -> tuple[float, float]:
 
 
 def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: np.ndarray, machine: Machine,
-            weight: float | None = None) -> FlowCurves:
+            weight: float | None = None, toward_machine: bool = False, strength: float | None = None) -> FlowCurves:
     """The curves on the knots ``pa`` and ``at`` (V, each edge's up to its ``reach``): the flows' robust weights
     (soft-L1 as reweighted least squares, three passes), then the penalty's ``weight`` chosen by the blocked
     held-out windows where it is not given (the smoothest within one standard error of the best: Hastie,
     Tibshirani & Friedman, The Elements of Statistical Learning, 2nd ed., §7.10; a compensator inverts this
-    curve, and a wiggle the held-out windows cannot tell from the best fit is a bump at every crossing)."""
+    curve, and a wiggle the held-out windows cannot tell from the best fit is a bump at every crossing); with
+    ``toward_machine``, the openings held to ``machine``'s with the ``strength`` the held-out windows choose
+    where it is not given (:func:`_machine_openings`; the strongest within one standard error of the best)."""
     A, b, block, most = _edge_rows(samples, pa, at)
     keep = (most[:, 0] <= reach[0]) & (most[:, 1] <= reach[1])  # an interval beyond an edge's reach is not its
     A, b, block = A[keep], b[keep], block[keep]
@@ -473,24 +495,59 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     grams = [((A[block == k].T * (w[block == k] / c**2)) @ A[block == k],
               (A[block == k].T * (w[block == k] / c**2)) @ b[block == k]) for k in range(FOLDS)]
     gram, rhs = sum(g for g, _ in grams) + prior_gram, sum(r for _, r in grams) + prior_rhs
-    held_out, spread = {}, {}
+    folds = _Folds(A, b, w, block, grams, D, x, bounds)
+    scores: dict = {}
     if weight is None:
-        for trial in WEIGHTS:
-            folds = []
-            for k, (gk, rk) in enumerate(grams):
-                xk = _solve(gram - gk, rhs - rk, D, trial * unit_penalty, x, bounds)
-                sel = block == k
-                folds.append(float(np.sum(w[sel] * (A[sel] @ xk - b[sel]) ** 2) / np.sum(w[sel])))
-            held_out[trial] = float(np.sqrt(np.mean(folds)))
-            spread[trial] = float(np.std(folds) / math.sqrt(FOLDS))  # the mean square's standard error
-        best = min(held_out, key=held_out.get)
-        weight = max(wt for wt in WEIGHTS if held_out[wt] ** 2 <= held_out[best] ** 2 + spread[best])
+        scores = {trial: folds.held_out(gram, rhs, trial * unit_penalty) for trial in WEIGHTS}
+        weight = _within_one_se(scores)
+    if toward_machine:
+        P, t = _machine_openings(machine, pa, at)
+        unit_prior = float(np.sum(w * b * b)) / c**2 / len(t)  # strength 1: the openings ~ the flows
+        if strength is None:
+            strength = _within_one_se({k: folds.held_out(gram + k * unit_prior * (P.T @ P), rhs + k * unit_prior
+                                                         * (P.T @ t), weight * unit_penalty) for k in STRENGTHS})
+        gram, rhs = gram + strength * unit_prior * (P.T @ P), rhs + strength * unit_prior * (P.T @ t)
     x = _solve(gram, rhs, D, weight * unit_penalty, x, bounds)
     k_pa = len(pa) - 1
     curves = (EdgeCurve(pa, np.concatenate([[0.0], np.cumsum(x[:k_pa])])),
               EdgeCurve(at, np.concatenate([[0.0], np.cumsum(x[k_pa:m - 2])])))
-    return FlowCurves(*curves, 1.0 / x[-2], x[-1] / x[-2], weight, held_out,
-                      float(np.sqrt(np.mean((A @ x - b) ** 2))), float(np.sqrt(np.mean(b * b))), (0.0, 0.0), spread)
+    return FlowCurves(*curves, 1.0 / x[-2], x[-1] / x[-2], weight,
+                      {k: math.sqrt(ms) for k, (ms, _) in scores.items()},
+                      float(np.sqrt(np.mean((A @ x - b) ** 2))), float(np.sqrt(np.mean(b * b))), (0.0, 0.0),
+                      {k: se for k, (_, se) in scores.items()}, strength or 0.0)
+
+
+@dataclass(frozen=True)
+class _Folds:
+    """The blocked held-out windows of one fit: its rows ``A`` (n, m), flows ``b`` (n,), robust weights ``w``
+    (n,) and windows ``block`` (n,), each window's normal equations ``grams`` ((m, m), (m,)), the penalty's
+    rows ``D``, the start ``x`` and the ``bounds``."""
+
+    A: np.ndarray
+    b: np.ndarray
+    w: np.ndarray
+    block: np.ndarray
+    grams: list
+    D: np.ndarray
+    x: np.ndarray
+    bounds: tuple
+
+    def held_out(self, gram: np.ndarray, rhs: np.ndarray, penalty: float) -> tuple[float, float]:
+        """The windows' weighted mean square flow error, each predicted by the fit of the normal equations
+        ``gram``, ``rhs`` without it (the slope changes weighted ``penalty``), and its standard error."""
+        errors = []
+        for k, (gk, rk) in enumerate(self.grams):
+            xk = _solve(gram - gk, rhs - rk, self.D, penalty, self.x, self.bounds)
+            sel = self.block == k
+            errors.append(float(np.sum(self.w[sel] * (self.A[sel] @ xk - self.b[sel]) ** 2) / np.sum(self.w[sel])))
+        return float(np.mean(errors)), float(np.std(errors) / math.sqrt(FOLDS))
+
+
+def _within_one_se(scores: dict) -> float:
+    """Of the trials ``scores`` (trial -> (held-out mean square, its standard error)), ordered from the least to
+    the most smoothing or holding, the last within one standard error of the best (the one-standard-error rule)."""
+    best = min(scores, key=lambda k: scores[k][0])
+    return max(k for k, (ms, _) in scores.items() if ms <= scores[best][0] + scores[best][1])
 
 
 def _refined(edge: EdgeCurve) -> np.ndarray:
@@ -503,6 +560,30 @@ def _refined(edge: EdgeCurve) -> np.ndarray:
     extra = [k[j] + (k[j + 1] - k[j]) * q for i in np.flatnonzero(change) + 1 for j in (i - 1, i)
              for q in (0.25, 0.5, 0.75)]
     return np.unique(np.concatenate([k, extra]))
+
+
+def _machine_openings(machine: Machine, pa: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(P (k, m), t (k,)) with |P x - t|^2 the squared departures of the curves' openings at their knots ``pa``
+    and ``at`` (past null) from ``machine``'s (its flow-area form and edge gains), each relative to that
+    opening, at least its opening :data:`FLOOR_V` past where the edge opens (so an edge the machine holds shut
+    is not held shut: a dead band a calibration gave a valve that has none is still read open)."""
+    hyd, eff = machine.hydraulics, machine.effects
+    full = math.pi * hyd.spool_diameter * hyd.x_v_max
+    m = len(pa) + len(at)  # the rises of both edges (k_pa - 1 + k_at - 1), 1/E and V_pl/E
+    rows, targets, offset = [], [], 0
+    for knots, side, gain in ((pa, 0, eff.edge_gain_pa), (at, 1, eff.edge_gain_at)):
+        fine = np.linspace(float(knots[0]), float(knots[-1]) + 2.0 * FLOOR_V, 4001)
+        area = hydraulics.flow_areas((1.0 if side == 0 else -1.0) * fine * hyd.x_v_max / hyd.u_v_max, hyd)[side]
+        opening = np.maximum.accumulate(area * gain / full)
+        opens = float(fine[np.argmax(opening > 0.0)]) if np.any(opening > 0.0) else float(knots[0])
+        o = np.interp(knots[1:], fine, opening)
+        scale = np.maximum(o, float(np.interp(opens + FLOOR_V, fine, opening)))
+        block = np.zeros((len(o), m))
+        block[:, offset:offset + len(o)] = np.tril(np.ones((len(o), len(o)))) / scale[:, None]  # rises -> openings
+        rows.append(block)
+        targets.append(o / scale)
+        offset += len(o)
+    return np.vstack(rows), np.concatenate(targets)
 
 
 def _prior_unknowns(machine: Machine, pa: np.ndarray, at: np.ndarray) -> np.ndarray:
