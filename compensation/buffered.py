@@ -36,7 +36,7 @@ way up and on the way down, which one curve cannot match (seed ch. 6 recommends 
 
 Written once, compiled: :func:`buffered_tick` is the compensator's sample; the classes hold its state
 as named records (:class:`BufferedParams`, :class:`~compensation.base.ObserverState`,
-:class:`Buffers`) and call it from Python; the compiled runner (:mod:`hexsim.simulation.native`) calls the same
+:class:`Buffers`) and call it from Python; the compiled runner (:mod:`hexsim.engine.native`) calls the same
 function on the same records inside its loop.
 """
 

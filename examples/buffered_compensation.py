@@ -23,12 +23,12 @@ import numpy as np  # noqa: E402
 
 from compensation.functions import function2  # noqa: E402
 from hexsim.control.scenario import make_scenario  # noqa: E402
+from hexsim.engine.config import RunConfig  # noqa: E402
+from hexsim.engine.runner import simulate  # noqa: E402
 from hexsim.plant import hydraulics  # noqa: E402
 from hexsim.plant.params import HydraulicParams  # noqa: E402
 from hexsim.plant.temperature import WarmUp  # noqa: E402
-from hexsim.simulation.config import RunConfig  # noqa: E402
-from hexsim.simulation.metrics import run_smoothness  # noqa: E402
-from hexsim.simulation.runner import simulate  # noqa: E402
+from hexsim.studies.metrics import run_smoothness  # noqa: E402
 
 
 def ideal_compensation(u: np.ndarray, p: HydraulicParams, p1: float, s: float) -> np.ndarray:

@@ -16,10 +16,10 @@ import numpy as np
 from fmpy import simulate_fmu
 
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.interfaces.cosim import INTERPOLATIONS, peak_hold_reversal_peaks
 from hexsim.interfaces.fmu import PLATFORM_INPUTS, build_fmu
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 
 
 def main() -> None:

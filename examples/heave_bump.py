@@ -19,9 +19,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hexsim.control.scenario import make_scenario  # noqa: E402
-from hexsim.simulation.config import RunConfig  # noqa: E402
-from hexsim.simulation.metrics import run_smoothness  # noqa: E402
-from hexsim.simulation.runner import simulate  # noqa: E402
+from hexsim.engine.config import RunConfig  # noqa: E402
+from hexsim.engine.runner import simulate  # noqa: E402
+from hexsim.studies.metrics import run_smoothness  # noqa: E402
 
 
 def main() -> None:

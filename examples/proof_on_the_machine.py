@@ -41,14 +41,14 @@ import numpy as np
 
 from compensation import make_compensator
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.commissioning import commission
 from hexsim.measured.measurement import read_log
 from hexsim.measured.proof import passenger_view
 from hexsim.plant.machine import dump, load_machine
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
-from hexsim.simulation.tuning import read_tuned, retuned, tune, write_tuned
+from hexsim.studies.tuning import read_tuned, retuned, tune, write_tuned
 
 HERE = pathlib.Path(__file__).resolve().parent
 REFERENCE = HERE.parent.parent / "shared" / "reference-plants"

@@ -25,10 +25,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hexsim.control.scenario import make_scenario  # noqa: E402
+from hexsim.engine.config import RunConfig  # noqa: E402
+from hexsim.engine.runner import simulate  # noqa: E402
 from hexsim.plant import hydraulics  # noqa: E402
 from hexsim.plant.params import ControllerParams, HydraulicParams  # noqa: E402
-from hexsim.simulation.config import RunConfig  # noqa: E402
-from hexsim.simulation.runner import simulate  # noqa: E402
 
 M = 40.0  # [kg] seed app. A; the same number is in models/single_actuator.xml
 

@@ -8,7 +8,7 @@ source's geometry and supply, friction from ``hexsim friction`` on the paired ru
 
 For each log it runs ``hexsim.simulate`` on the log's own valve command (``valve:LOG.csv``, open loop,
 from the log's first position) and compares the steady motions, measured and simulated, with the same
-function (:func:`hexsim.simulation.metrics.steady_segments`): speed and the chamber pressure that run
+function (:func:`hexsim.studies.metrics.steady_segments`): speed and the chamber pressure that run
 logged (p1 in the pA runs, p2 in the pB runs). It prints the table of docs/servo-cylinder.md and plots
 position and pressure, measured against simulated, for one log.
 
@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 import hexsim  # noqa: E402
 from hexsim.control.scenario import make_scenario  # noqa: E402
 from hexsim.measured.measurement import read_log  # noqa: E402
-from hexsim.simulation.metrics import steady_segments  # noqa: E402
+from hexsim.studies.metrics import steady_segments  # noqa: E402
 
 DATA = pathlib.Path(__file__).resolve().parent / "data" / "servo_cylinder"
 

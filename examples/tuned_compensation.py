@@ -35,13 +35,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hexsim.control.scenario import make_scenario  # noqa: E402
+from hexsim.engine.config import RunConfig  # noqa: E402
+from hexsim.engine.runner import simulate  # noqa: E402
 from hexsim.plant.machine import load_machine  # noqa: E402
 from hexsim.plant.temperature import WarmUp  # noqa: E402
-from hexsim.simulation.comparison import compare  # noqa: E402
-from hexsim.simulation.config import RunConfig  # noqa: E402
-from hexsim.simulation.metrics import run_smoothness  # noqa: E402
-from hexsim.simulation.runner import simulate  # noqa: E402
-from hexsim.simulation.tuning import leg_model_of  # noqa: E402
+from hexsim.studies.comparison import compare  # noqa: E402
+from hexsim.studies.metrics import run_smoothness  # noqa: E402
+from hexsim.studies.tuning import leg_model_of  # noqa: E402
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]

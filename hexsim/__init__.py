@@ -24,8 +24,8 @@ The Python face, everything a notebook needs (imported on first use, so ``import
 
 The chain, one module per stage: :mod:`hexsim.control.scenario` → :mod:`hexsim.control.kinematics` →
 :mod:`hexsim.control.controller` → :mod:`compensation` → :mod:`hexsim.plant.legs` (valve, chamber, friction,
-effects) → :mod:`hexsim.simulation.runner` (MuJoCo) → :mod:`hexsim.simulation.metrics` and
-:mod:`hexsim.simulation.perception` → outputs; a vehicle's motion enters through :mod:`hexsim.control.washout`.
+effects) → :mod:`hexsim.engine.runner` (MuJoCo) → :mod:`hexsim.studies.metrics` and
+:mod:`hexsim.studies.perception` → outputs; a vehicle's motion enters through :mod:`hexsim.control.washout`.
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ __version__ = "0.1.0"
 
 #: public name -> (module, attribute)
 _FACE = {
-    "simulate": ("hexsim.simulation.runner", "simulate"),
-    "Simulator": ("hexsim.simulation.runner", "Simulator"),
-    "RunConfig": ("hexsim.simulation.config", "RunConfig"),
-    "SimulationResult": ("hexsim.simulation.config", "SimulationResult"),
+    "simulate": ("hexsim.engine.runner", "simulate"),
+    "Simulator": ("hexsim.engine.runner", "Simulator"),
+    "RunConfig": ("hexsim.engine.config", "RunConfig"),
+    "SimulationResult": ("hexsim.engine.config", "SimulationResult"),
     "Scenario": ("hexsim.control.scenario", "Scenario"),
     "HydraulicParams": ("hexsim.plant.params", "HydraulicParams"),
     "ControllerParams": ("hexsim.plant.params", "ControllerParams"),
@@ -50,15 +50,15 @@ _FACE = {
     "WarmUp": ("hexsim.plant.temperature", "WarmUp"),
     "Compensator": ("compensation.base", "Compensator"),
     "CompensatorSettings": ("compensation.base", "CompensatorSettings"),
-    "smoothness": ("hexsim.simulation.metrics", "run_smoothness"),
-    "compare": ("hexsim.simulation.comparison", "compare"),
-    "sweep": ("hexsim.simulation.sweeps", "sweep"),
-    "perception": ("hexsim.simulation.perception", "bump_perception"),
+    "smoothness": ("hexsim.studies.metrics", "run_smoothness"),
+    "compare": ("hexsim.studies.comparison", "compare"),
+    "sweep": ("hexsim.studies.sweeps", "sweep"),
+    "perception": ("hexsim.studies.perception", "bump_perception"),
     "vehicle_scenario": ("hexsim.control.scenario", "vehicle_scenario"),
     "WashoutParams": ("hexsim.control.washout", "WashoutParams"),
-    "cue_report": ("hexsim.simulation.cueing", "cue_report"),
-    "acceptance": ("hexsim.simulation.acceptance", "run_acceptance"),
-    "Tolerances": ("hexsim.simulation.acceptance", "Tolerances"),
+    "cue_report": ("hexsim.studies.cueing", "cue_report"),
+    "acceptance": ("hexsim.studies.acceptance", "run_acceptance"),
+    "Tolerances": ("hexsim.studies.acceptance", "Tolerances"),
     "read_log": ("hexsim.measured.measurement", "read_log"),
     "validate": ("hexsim.measured.validation", "validate"),
 }

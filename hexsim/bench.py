@@ -7,7 +7,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``bare_mj_step_platform``: the same on the platform-only model (:mod:`hexsim.plant.platform`);
 * ``hexapod_platform`` / ``hexapod_platform_uncompensated``: heave on the platform-only model with the
   buffered compensator / without;
-* ``hexapod_full``: :func:`hexsim.simulation.runner.simulate` on heave with the buffered compensator: six legs'
+* ``hexapod_full``: :func:`hexsim.engine.runner.simulate` on heave with the buffered compensator: six legs'
   hydraulics at 10 kHz, P control and the buffered compensator at 500 Hz (compiled,
   :func:`compensation.buffered.buffered_tick`), all inside the kernel, sensors recorded at 1 kHz — (b);
 * ``hexapod_python``: the same with the Python control callback and the Python compensator, for the
@@ -19,7 +19,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator — (d);
 * ``actuator_bare_fast``: bare ``mj_step`` of the single-actuator model at dt = 1e-3 s, no callback: the
   floor under ``actuator_fast``;
-* ``replay_kernel``: the compiled valve replay (:mod:`hexsim.simulation.native`) of one single-actuator window.
+* ``replay_kernel``: the compiled valve replay (:mod:`hexsim.engine.native`) of one single-actuator window.
 
 Besides, the start-up of the command line: ``hexsim --help`` (``python -m hexsim --help`` in a fresh
 interpreter) against ``python -c pass``, the median of ``repeats`` (at least 3) of each, as a ratio.
@@ -55,7 +55,7 @@ from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 def _bare(duration: float, system: str = "hexapod", timestep: float | None = None, model: str = "full") -> float:
     """Wall time [s] of ``duration`` simulated seconds of bare ``mj_step``, the legs held by their static
     forces (on the platform-only model: the wrench of those forces, set once)."""
-    from hexsim.simulation.config import apply_leg_forces, static_leg_forces
+    from hexsim.engine.config import apply_leg_forces, static_leg_forces
 
     m = load_model(system, model)
     if timestep is not None:
@@ -74,8 +74,8 @@ def _bare(duration: float, system: str = "hexapod", timestep: float | None = Non
 def _full(system: str, compensator: str, duration: float, engine: str = "native", timestep: float | None = None,
           model: str = "full") -> float:
     from hexsim.control.scenario import make_scenario
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
 
     scenario = make_scenario("heave" if system == "hexapod" else "actuator", duration=duration, frequency=2.0)
     return simulate(RunConfig(scenario, compensator=compensator, engine=engine, timestep=timestep,
@@ -89,8 +89,8 @@ def _sweep(jobs: int, start_method: str | None = None) -> float:
     """Wall time [s] of a sweep of :data:`SWEEP_RUNS` runs (heave, 20 s at 1 Hz, buffered, one seed each)
     with ``jobs`` workers started by ``start_method`` (None: the default), start-up included."""
     from hexsim.control.scenario import make_scenario
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.sweeps import expand, run_sweep
+    from hexsim.engine.config import RunConfig
+    from hexsim.studies.sweeps import expand, run_sweep
 
     scenario = make_scenario("heave", duration=20.0, frequency=1.0)
     points = expand({"seed": list(range(SWEEP_RUNS))},
@@ -147,11 +147,11 @@ def _calibration_logs(folder) -> list:
     import pathlib
 
     from hexsim.control.scenario import make_scenario
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
     from hexsim.measured.measurement import read_log
     from hexsim.outputs.logio import write_log
     from hexsim.plant.machine import load_machine
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
 
     machine = load_machine("servo_cylinder")
     logs = []
@@ -172,11 +172,11 @@ def _transient_logs(folder) -> list:
     import pathlib
 
     from hexsim.control.scenario import make_scenario
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
     from hexsim.measured.measurement import read_log
     from hexsim.outputs.logio import write_log
     from hexsim.plant.machine import load_machine, machine_from_document, set_keys
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
 
     prior = load_machine(None)
     doc = set_keys(prior.document(), [("valve.flow_area", "port"), ("valve.edge_gain_PA", 1.05),
@@ -199,12 +199,12 @@ def _hexapod_logs(folder) -> list:
     import pathlib
 
     from hexsim.control.scenario import make_scenario
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
     from hexsim.measured.measurement import read_log
     from hexsim.outputs.logio import write_log
     from hexsim.plant.effects import Effects, LegChange
     from hexsim.plant.params import HydraulicParams
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
 
     gains = (1.06, 0.95, 1.03, 0.97, 1.08, 0.94)
     legs = tuple(LegChange.of(i + 1, edge_gain_pa=g, edge_gain_at=1.02 * g) for i, g in enumerate(gains))
@@ -287,7 +287,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False, cali
     if calibrate:
         out["calibration"] = _calibration(repeats)
     if sweep:
-        from hexsim.simulation.workers import default_start_method
+        from hexsim.engine.workers import default_start_method
 
         rounds = [(_sweep(1), _sweep(2), _sweep(2, "spawn")) for _ in range(repeats)]  # round the cases too
         one, two, spawned = (statistics.median(r[i] for r in rounds) for i in range(3))

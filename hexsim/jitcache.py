@@ -1,7 +1,7 @@
 """numba's on-disk cache across files: drop a compiled function's cache when a callee's file changed.
 
 numba keys the cache of a ``cache=True`` function on its own file's time stamp only; a compiled function
-that calls into another file (the runners in :mod:`hexsim.simulation.native` call :func:`hexsim.plant.legs.step_legs`
+that calls into another file (the runners in :mod:`hexsim.engine.native` call :func:`hexsim.plant.legs.step_legs`
 and :func:`compensation.buffered.buffered_tick`) would keep running the old callee after an edit there
 (numba documents that changes in other files are not detected). :func:`guard` keeps a marker next to
 the cache with the callees' time stamps and sizes and flushes the cache when they differ.

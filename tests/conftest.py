@@ -14,9 +14,9 @@ for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import pytest  # noqa: E402
 
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.plant.params import ControllerParams, HydraulicParams
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -9,7 +9,7 @@ from independent_actuator import Actuator, motion
 
 from compensation import CompensatorSettings, make_compensator
 from compensation.model_based import LegModel, Reference
-from hexsim.simulation.metrics import smoothness
+from hexsim.studies.metrics import smoothness
 
 
 def write_heave_pitch_profile(path: pathlib.Path, duration: float, heave_m: float) -> pathlib.Path:
@@ -39,7 +39,7 @@ def in_the_loop(name: str, model: LegModel, settings: CompensatorSettings | None
 
 def truth_smoothness(truth: Actuator, duration: float, compensate=None, frequency: float = 0.5,
                      amplitude: float = 0.05):
-    """The smoothness (:func:`hexsim.simulation.metrics.smoothness`) of the independent actuator on a
+    """The smoothness (:func:`hexsim.studies.metrics.smoothness`) of the independent actuator on a
     closed-loop sine: its acceleration without sensor noise, from the third period."""
     cols = motion(truth, duration, frequency, amplitude, np.random.default_rng(1), noise=(2e-6, 2e3, 0.0),
                   compensate=compensate)

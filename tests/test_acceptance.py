@@ -15,7 +15,7 @@ from hexsim.errors import InputError
 from hexsim.plant import hydraulics
 from hexsim.plant.model import load_model
 from hexsim.plant.params import HydraulicParams
-from hexsim.simulation.acceptance import Tolerances, describing_function, envelope
+from hexsim.studies.acceptance import Tolerances, describing_function, envelope
 
 
 def test_heave_frequency_response_matches_the_linearised_position_loop():

@@ -95,7 +95,7 @@ def test_a_scenario_can_be_named_as_on_the_command_line():
 
 
 def test_sweep_varies_parameters_by_name_and_refuses_unknown_ones():
-    from hexsim.simulation.sweeps import vary
+    from hexsim.studies.sweeps import vary
 
     base = hexsim.RunConfig(hexsim.Scenario.sine("heave", frequency=2.0, duration=1.5))
     c = vary(base, {"kp": 250.0, "bulk_modulus": 1.2e9, "frequency": 4.0, "seed": 3, "buffer_time": 1.0})

@@ -234,8 +234,8 @@ def test_each_run_is_a_recording_of_its_own_with_the_bump_on_its_own_axis(heave_
     from types import SimpleNamespace
 
     from hexsim.control.scenario import make_scenario
+    from hexsim.engine.config import RunConfig
     from hexsim.outputs.rerun_log import recording_id
-    from hexsim.simulation.config import RunConfig
 
     run = SimpleNamespace(config=RunConfig(make_scenario("heave")))
     assert recording_id(run) != recording_id(run)
@@ -267,7 +267,7 @@ def test_json_dash_writes_the_document_to_stdout_and_the_summary_to_stderr(capsy
 @pytest.mark.parametrize("suffix, magic", [(".svg", b"<?xml"), (".pdf", b"%PDF")])
 def test_plot_writes_the_format_its_suffix_names(heave_run, tmp_path, suffix, magic):
     from hexsim.outputs.plotting import plot_run
-    from hexsim.simulation.metrics import run_smoothness
+    from hexsim.studies.metrics import run_smoothness
 
     path = tmp_path / f"run{suffix}"
     plot_run(path, heave_run, run_smoothness(heave_run))

@@ -20,12 +20,12 @@ import pytest
 
 from compensation import CompensatorSettings, make_compensator
 from hexsim.cli import main
+from hexsim.engine.config import RunConfig
 from hexsim.measured.proof import passenger_view
 from hexsim.plant import hydraulics
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import dump, load_machine, with_keys
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.tuning import FORMAT, leg_model_of, read_tuned
+from hexsim.studies.tuning import FORMAT, leg_model_of, read_tuned
 
 REFERENCE = pathlib.Path(__file__).resolve().parents[2] / "shared" / "reference-plants"
 pytestmark = pytest.mark.skipif(not (REFERENCE / "plant.py").exists(),

@@ -1,6 +1,6 @@
 """The seed's chapter-5 findings and the compensation targets, reproduced in simulation.
 
-Runs go through hexsim.simulation.comparison (two worker processes), which measures on the last quarter of each run.
+Runs go through hexsim.studies.comparison (two worker processes), which measures on the last quarter of each run.
 Margins: the seed's figures are qualitative, so the tests check directions and ratios with room for the
 run-to-run spread seen between seeds (about ±15 % on the final reversal peaks).
 """
@@ -13,10 +13,10 @@ from helpers import write_heave_pitch_profile
 
 from compensation import CompensatorSettings
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
 from hexsim.plant.params import HydraulicParams
 from hexsim.plant.temperature import WarmUp
-from hexsim.simulation.comparison import compare
-from hexsim.simulation.config import RunConfig
+from hexsim.studies.comparison import compare
 
 
 def _by_name(entries):

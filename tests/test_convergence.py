@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from hexsim.control.scenario import make_scenario
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import run_smoothness
-from hexsim.simulation.runner import simulate
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
+from hexsim.studies.metrics import run_smoothness
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from hexsim.control.washout import (
 )
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import load_model
-from hexsim.simulation.cue_tuning import TUNED, tune_washout, with_values
+from hexsim.studies.cue_tuning import TUNED, tune_washout, with_values
 
 
 def _lane_change() -> VehicleMotion:

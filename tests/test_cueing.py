@@ -19,7 +19,7 @@ from hexsim.control.washout import (
     washout,
 )
 from hexsim.errors import InputError
-from hexsim.simulation.cueing import cue_report, pose_motion
+from hexsim.studies.cueing import cue_report, pose_motion
 
 
 def _stop(duration=14.0, decel=2.0, fs=100.0):

@@ -10,8 +10,8 @@ import compensation.curve_learning as cl
 from compensation.model_based import AdaptiveFeedforward, Reference
 from compensation.settings import CompensatorSettings
 from hexsim.control.scenario import make_scenario
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.tuning import leg_model_of
+from hexsim.engine.config import RunConfig
+from hexsim.studies.tuning import leg_model_of
 
 BINS = 61
 SAMPLES = 40.0  # each bin's weight in the regression's normal equations (the gram's diagonal)

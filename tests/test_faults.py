@@ -9,9 +9,9 @@ import pytest
 
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.plant.faults import Fault
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 
 T0 = 0.8
 

@@ -19,11 +19,11 @@ from independent_actuator import Actuator, motion, write
 from compensation import CompensatorSettings, SettingsError, make_compensator
 from compensation.model_based import LegModel, Reference
 from hexsim.cli import main
+from hexsim.engine.config import RunConfig
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.plant.machine import dump, load_machine
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.tuning import leg_model_of, read_tuned
+from hexsim.studies.tuning import leg_model_of, read_tuned
 
 TRUTH = Actuator(area="port", flow_gain=1.07, k_at=0.95, overlap=8e-6, bulk=1.2e9, v_pl=1.0e-6, mass=44.0,
                  coulomb=(75.0, 52.0), viscous=(2600.0, 1500.0))

@@ -12,6 +12,8 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 from hexsim.cli import main  # noqa: E402
 from hexsim.control.scenario import make_scenario  # noqa: E402
+from hexsim.engine.config import RunConfig  # noqa: E402
+from hexsim.engine.runner import simulate  # noqa: E402
 from hexsim.interfaces.cosim import peak_hold_reversal_peaks  # noqa: E402
 from hexsim.interfaces.fmu import (  # noqa: E402
     LEG_OUTPUTS,
@@ -22,9 +24,7 @@ from hexsim.interfaces.fmu import (  # noqa: E402
 )
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM  # noqa: E402
 from hexsim.plant.machine import dump, load_machine  # noqa: E402
-from hexsim.simulation.config import RunConfig  # noqa: E402
-from hexsim.simulation.perception import point_motion  # noqa: E402
-from hexsim.simulation.runner import simulate  # noqa: E402
+from hexsim.studies.perception import point_motion  # noqa: E402
 
 DURATION = 8.0
 

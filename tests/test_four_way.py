@@ -23,7 +23,7 @@ from hexsim.control.scenario import make_scenario
 from hexsim.measured.friction_id import identify_friction
 from hexsim.measured.measurement import read_log
 from hexsim.plant import hydraulics
-from hexsim.simulation.metrics import steady_segments
+from hexsim.studies.metrics import steady_segments
 
 P_S, F_C = 50e5, 40.0
 HYD = hexsim.HydraulicParams(valve_type="4-way", flow_area="sharp", bore_diameter=0.025, rod_diameter=0.016,

@@ -91,7 +91,7 @@ def test_second_geometry_statics_equal_jt_f_by_hand():
     (n_i; (a_i - c) × n_i) from the file's joint circles, and w the platform's weight plus what each leg
     hangs on it: its rod's weight along it and (S/L) g⊥ across it (S the barrel's and rod's first moment
     about the base joint; a leg is a two-force member plus its own weight)."""
-    from hexsim.simulation.config import static_leg_forces
+    from hexsim.engine.config import static_leg_forces
 
     machine = load_machine("large_motion_base")
     g = machine.geometry
@@ -177,10 +177,10 @@ def test_user_mjcf_runs_heave_with_hydraulics_and_gives_its_oil_spring_modes(tmp
     file, the step 1 ms and MuJoCo's soft default connects in the file): the heave runs on both
     formulations with the seed's hydraulics and shows the reversal bump; its heave mode is the six oil
     columns E A1² / (y A1 + V_pl) along the legs carrying the plate, by hand within 3 %."""
-    from hexsim.simulation import modes as modes_module
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.metrics import run_smoothness
-    from hexsim.simulation.runner import simulate
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
+    from hexsim.studies import modes as modes_module
+    from hexsim.studies.metrics import run_smoothness
 
     _ball_hexapod(tmp_path / "sps.xml")
     machine = _user_machine(tmp_path, {"mjcf_legs": [f"ram{i}" for i in range(1, 7)], "mjcf_platform": "top",
@@ -208,9 +208,9 @@ def test_user_mjcf_runs_heave_with_hydraulics_and_gives_its_oil_spring_modes(tmp
 def test_user_mjcf_rerun_scene_closes_every_leg(tmp_path):
     """rerun's 3D view of a user MJCF: the base balls turned so that each rod's tip meets its platform ball
     at every drawn sample (to 0.1 mm)."""
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
     from hexsim.outputs.rerun_log import scene_qpos
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
 
     _ball_hexapod(tmp_path / "sps.xml")
     machine = _user_machine(tmp_path, {"mjcf_platform": "top"})

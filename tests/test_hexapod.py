@@ -10,11 +10,11 @@ import pytest
 from helpers import write_heave_pitch_profile
 
 from hexsim.control.scenario import Scenario, make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.signals import fit_fundamental
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import STANDARD_GRAVITY, run_smoothness
-from hexsim.simulation.runner import simulate
+from hexsim.studies.metrics import STANDARD_GRAVITY, run_smoothness
 
 
 def test_platform_at_rest_stays_at_rest():
@@ -48,10 +48,10 @@ def test_payload_shifts_the_static_leg_forces_as_the_jacobian_predicts():
     # A 150 kg payload at (0.25, -0.1, 0.3) m: the change of the legs' static forces solves J^T df = w, the
     # payload's weight as a wrench at the platform frame's origin (J = dy/dpose by finite differences of the IK)
     from hexsim.control.kinematics import HexapodGeometry
+    from hexsim.engine.runner import Simulator
     from hexsim.plant.effects import Effects
     from hexsim.plant.model import load_model
     from hexsim.plant.params import HydraulicParams
-    from hexsim.simulation.runner import Simulator
 
     hold = Scenario("hold", "hexapod", 1.0, 2, 0.5, 2.0, 0.0)
     mass, at = 150.0, np.array([0.25, -0.1, 0.3])
@@ -156,8 +156,8 @@ def test_scenario_options_are_checked():
 
 
 def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
+    from hexsim.engine import config
     from hexsim.errors import PhysicsError
-    from hexsim.simulation import config
 
     real = config.advance_legs
 
@@ -172,8 +172,8 @@ def test_non_finite_state_raises_naming_time_and_leg(monkeypatch):
 
 
 def test_native_engine_raises_on_a_non_finite_state_naming_time_and_leg(monkeypatch):
+    from hexsim.engine import config
     from hexsim.errors import PhysicsError
-    from hexsim.simulation import config
 
     real = config.leg_table
 
@@ -192,8 +192,8 @@ def test_island_discovery_off_changes_nothing(monkeypatch):
     one island (either formulation), so the run must be bit-identical to one with discovery on."""
     import mujoco
 
+    from hexsim.engine import runner
     from hexsim.plant import model
-    from hexsim.simulation import runner
 
     def discovering(name, formulation="full", effects=None, geometry=None):
         m = model.load_model(name, formulation, effects, geometry)
@@ -237,7 +237,7 @@ def test_one_leg_may_differ_from_the_others():
 
 def test_oil_spring_modes_of_the_600_kg_platform():
     # Issue 14: hand-computed 27.8/27.8/31.8/42.2/42.2/55.2 Hz (platform, E A1^2 / V1 per leg at mid-stroke)
-    from hexsim.simulation.modes import oil_spring_modes
+    from hexsim.studies.modes import oil_spring_modes
 
     modes = oil_spring_modes()
     np.testing.assert_allclose([mode.frequency_hz for mode in modes], [27.8, 27.8, 31.8, 42.2, 42.2, 55.2], rtol=0.02)

@@ -16,12 +16,12 @@ import pytest
 from compensation import CompensatorSettings
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.measured import validation
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects, LegChange
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)
 
@@ -161,10 +161,10 @@ def test_payload_from_the_legs_p1_offsets_by_statics():
     the change of the legs' P1 gives the payload back, and six unrelated offsets are not taken for one."""
     import mujoco
 
+    from hexsim.engine.config import static_leg_forces
     from hexsim.measured.hexapod_replay import payload_from_statics
     from hexsim.plant.model import PlantIndex, load_model, reset_neutral
     from hexsim.plant.params import HydraulicParams
-    from hexsim.simulation.config import static_leg_forces
 
     def leg_forces(extra_kg, at):
         m = load_model("hexapod")

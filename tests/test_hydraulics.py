@@ -11,7 +11,7 @@ from hexsim.errors import InputError
 from hexsim.plant import hydraulics
 from hexsim.plant.model import load_model
 from hexsim.plant.params import HydraulicParams
-from hexsim.simulation.metrics import run_smoothness
+from hexsim.studies.metrics import run_smoothness
 
 P = HydraulicParams()
 # Appendix A, typed in from the seed (not from HydraulicParams): the analytic references. g = 9.81, the

@@ -10,7 +10,7 @@ import pathlib
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 #: hexsim's packages in data-path order; a module may import its own package and those before it.
-ORDER = ["shared", "plant", "control", "simulation", "outputs", "measured", "interfaces", "commands"]
+ORDER = ["shared", "plant", "control", "engine", "studies", "outputs", "measured", "interfaces", "commands"]
 SHARED = {"errors", "tables", "signals", "jitcache", "models"}  # models: the MJCF and its builder
 COMMANDS = {"cli", "bench", "__init__", "__main__"}
 

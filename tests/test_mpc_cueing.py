@@ -22,13 +22,13 @@ from hexsim.control.mpc_cueing import (
 )
 from hexsim.control.scenario import make_scenario
 from hexsim.control.washout import VehicleMotion, WashoutParams, washout
+from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import load_model
-from hexsim.simulation.acceptance import platform_limits
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.cueing import pose_motion, sensed
-from hexsim.simulation.perception import canal, otolith
+from hexsim.studies.acceptance import platform_limits
+from hexsim.studies.cueing import pose_motion, sensed
+from hexsim.studies.perception import canal, otolith
 
 HEAD = MICRO_MOTION_SYSTEM.head_point
 RATE = 500.0

@@ -1,4 +1,4 @@
-"""The compiled runners (hexsim.simulation.native) against the straightforward Python loops over the same compiled leg
+"""The compiled runners (hexsim.engine.native) against the straightforward Python loops over the same compiled leg
 step (hexsim.plant.legs.step_plant, MuJoCo's control callback): same trajectories, every effect switched on."""
 
 import numpy as np
@@ -6,13 +6,13 @@ import pytest
 
 from compensation import CompensatorSettings
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import PlantModel, Windows, replay
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
 from hexsim.plant.params import HydraulicParams
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 
 
 def test_native_replay_equals_the_python_loop(tmp_path):
@@ -50,7 +50,7 @@ def _same_run(a, b):
 
 
 def test_native_engine_equals_the_python_callback_on_the_hexapod_with_a_compensator():
-    """The compiled leg kernel (hexsim.simulation.native.run_block) against the numpy control callback: heave, with
+    """The compiled leg kernel (hexsim.engine.native.run_block) against the numpy control callback: heave, with
     the buffered compensator adapting (buffers of 0.5 s) and the oil warming."""
     from compensation import CompensatorSettings
     from hexsim.plant.temperature import WarmUp
@@ -111,17 +111,17 @@ def test_keeping_the_last_seconds_records_the_tail_of_the_full_run(compensator, 
 
 
 def test_the_mujoco_adapter_the_kernels_rely_on():
-    # hexsim/simulation/native.py calls mj_step of the library the bindings loaded (found by a glob in the mujoco
+    # hexsim/engine/native.py calls mj_step of the library the bindings loaded (found by a glob in the mujoco
     # package) on the raw mjModel*/mjData* of the private MjModel._address / MjData._address. This checks
     # both on the installed MuJoCo: ten steps through that route equal ten mujoco.mj_step calls exactly.
     import ctypes
 
     import mujoco
 
+    from hexsim.engine import native
     from hexsim.plant.model import load_model
-    from hexsim.simulation import native
 
-    hint = (f"MuJoCo {mujoco.__version__} changed what hexsim/simulation/native.py relies on to step MuJoCo from compiled "
+    hint = (f"MuJoCo {mujoco.__version__} changed what hexsim/engine/native.py relies on to step MuJoCo from compiled "
             "code; update the adapter there (see docs/performance.md, The compiled loop)")
     m = load_model("hexapod")
     runs = [mujoco.MjData(m), mujoco.MjData(m)]

@@ -10,8 +10,8 @@ from scipy.spatial.transform import Rotation
 
 import hexsim
 from hexsim.signals import savgol
-from hexsim.simulation.metrics import run_smoothness
-from hexsim.simulation.perception import (
+from hexsim.studies.metrics import run_smoothness
+from hexsim.studies.perception import (
     AXES,
     ISO_PERCEPTION_THRESHOLD,
     bump_perception,
@@ -148,7 +148,7 @@ def test_heave_bumps_are_felt_through_the_seat_and_the_oracle_leaves_far_less():
 
 def test_a_users_thresholds_override_the_defaults(tmp_path):
     from hexsim.errors import InputError
-    from hexsim.simulation.perception import Thresholds
+    from hexsim.studies.perception import Thresholds
 
     path = tmp_path / "thr.json"
     path.write_text('{"z_mps2": 0.05, "yaw_degps": 3.0, "seat_mps2": 0.5, "source": "our drivers"}')

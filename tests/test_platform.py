@@ -19,11 +19,11 @@ from helpers import write_heave_pitch_profile
 
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import Scenario, make_scenario
+from hexsim.engine.config import RunConfig, static_leg_forces
+from hexsim.engine.runner import simulate
 from hexsim.plant.faults import Fault
 from hexsim.plant.model import PlantIndex, load_model, reset_neutral
-from hexsim.simulation.config import RunConfig, static_leg_forces
-from hexsim.simulation.metrics import run_smoothness
-from hexsim.simulation.runner import simulate
+from hexsim.studies.metrics import run_smoothness
 
 
 def _statics(formulation: str, legs=None) -> np.ndarray:
@@ -92,8 +92,8 @@ def test_the_platform_model_has_no_constraints_so_their_pipeline_is_off(monkeypa
     """hexsim switches MuJoCo's constraint pipeline off on the platform-only model (its end stops are
     forces, contacts are off, there are no joints with limits and no equalities): a run with it on
     again, end stop hit included, is the same to the bit."""
+    from hexsim.engine import runner
     from hexsim.plant import model
-    from hexsim.simulation import runner
 
     m = load_model("hexapod", "platform")
     assert m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONSTRAINT

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hexsim.measured.proof import accelerometer_noise, between_peaks, ratio, verdict
-from hexsim.simulation.metrics import smoothness
+from hexsim.studies.metrics import smoothness
 
 F = 0.5  # Hz: reversals of 0.05 sin(2 pi F t) at t = 0.5, 1.5, 2.5, … s
 

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
 from hexsim.interfaces.host import HostClient, motion_script
 from hexsim.interfaces.operating_modes import (
@@ -36,7 +37,6 @@ from hexsim.interfaces.packets import (
 )
 from hexsim.interfaces.server import ServeSettings, VirtualMotionSystem
 from hexsim.plant.machine import load_machine
-from hexsim.simulation.config import RunConfig
 
 NEUTRAL = np.full(6, 0.1)
 STROKE = np.tile([0.0, 0.2], (6, 1))

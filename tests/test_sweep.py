@@ -6,8 +6,8 @@ import json
 
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.sweeps import evaluate_point
+from hexsim.engine.config import RunConfig
+from hexsim.studies.sweeps import evaluate_point
 
 
 def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):

@@ -144,9 +144,9 @@ def test_a_public_convention_runs_heave_and_gives_its_modes(tmp_path, case):
     close at the neutral pose, a 3 s heave at 2 Hz runs with the hydraulics and tracks within 10 mm, and the six
     oil-spring modes come out with one heave mode; what hexsim changed is said in notes."""
     from hexsim.control.scenario import make_scenario
-    from hexsim.simulation import modes as modes_module
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
+    from hexsim.studies import modes as modes_module
 
     public_hexapod(tmp_path / "public.xml", **CONVENTIONS[case])
     machine = _machine(tmp_path, "public.xml")
@@ -230,10 +230,10 @@ def test_cardans_with_hinges_apart_run_on_the_full_model_with_their_chain(tmp_pa
     (its cardans' hinges at one point) does within 0.2 mm; six oil-spring modes with one heave mode, each
     within 3 % of the point-leg version's (the weld's soft rotation left in, they were 2-10 % high)."""
     from hexsim.control.scenario import make_scenario
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
     from hexsim.plant.model import PlantIndex
-    from hexsim.simulation import modes as modes_module
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import simulate
+    from hexsim.studies import modes as modes_module
 
     runs, frequencies = {}, {}
     for cardan in (0.0295, 0.0):

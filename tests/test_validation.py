@@ -17,14 +17,14 @@ import pytest
 
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.measured.candidates import EFFECT_NAMES
 from hexsim.measured.estimates import STATUSES
 from hexsim.measured.records import EstimateRow, ValidationReport
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
 from hexsim.plant.params import HydraulicParams
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 
 DURATION = 6.0  # [s] per log (the shortest actuator scenario): 13 replay windows of 0.45 s
 

@@ -16,6 +16,8 @@ import pytest
 from scipy.signal import butter, filtfilt
 
 from hexsim.control.scenario import Scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.measured.candidates import (
     CANDIDATES,
     EFFECT_NAMES,
@@ -27,8 +29,6 @@ from hexsim.measured.measurement import read_log
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
 from hexsim.plant.params import HydraulicParams
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.runner import simulate
 from hexsim.tables import read_numeric_csv
 
 DURATION = 6.0

@@ -47,7 +47,7 @@ def add_accept(sub) -> None:
 
 def cmd_accept(args: argparse.Namespace) -> int:
     from hexsim.control.washout import WashoutParams
-    from hexsim.simulation.acceptance import Tolerances
+    from hexsim.studies.acceptance import Tolerances
 
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
@@ -63,9 +63,9 @@ def cmd_accept(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     if machine.system != "hexapod":
         raise InputError(f"--machine {machine.label}: the motion tests are a hexapod's; this machine is a {machine.system}")
+    from hexsim.engine.config import RunConfig
     from hexsim.outputs.acceptance_report import write_report
-    from hexsim.simulation.acceptance import run_acceptance
-    from hexsim.simulation.config import RunConfig
+    from hexsim.studies.acceptance import run_acceptance
 
     if args.log:  # every log checked before the tests run
         from hexsim.measured.acceptance_logs import read_test_log

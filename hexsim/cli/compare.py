@@ -15,8 +15,8 @@ from hexsim.cli.options import (
     thresholds_option,
     worker_options,
 )
+from hexsim.engine.workers import worker_count
 from hexsim.errors import InputError
-from hexsim.simulation.workers import worker_count
 from hexsim.tables import write_json
 
 
@@ -41,7 +41,7 @@ def add_compare(sub) -> None:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from hexsim.outputs.plotting import plot_compare
-    from hexsim.simulation.comparison import compare, league_table
+    from hexsim.studies.comparison import compare, league_table
 
     check_outputs(args)
     given = tuple(n.strip() for n in args.compensators.split(",") if n.strip())
@@ -55,7 +55,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     base = run_config(args, "none")
     labelled = []
     for path in dict.fromkeys(n for n in given if n.endswith(".json")):
-        from hexsim.simulation.tuning import read_tuned
+        from hexsim.studies.tuning import read_tuned
 
         name, settings, model = read_tuned(path)  # InputError naming the file
         labelled.append((f"{pathlib.Path(path).name} ({name})", dataclasses.replace(

@@ -37,7 +37,7 @@ def cmd_cue_tune(args: argparse.Namespace) -> int:
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
     from hexsim.plant.machine import load_machine
     from hexsim.plant.model import load_model
-    from hexsim.simulation.cue_tuning import tune_washout
+    from hexsim.studies.cue_tuning import tune_washout
 
     check_outputs(args)
     if args.out.suffix.lower() != ".json" or not args.out.parent.exists():

@@ -27,7 +27,7 @@ def add_modes(sub) -> None:
 
 def cmd_modes(args: argparse.Namespace) -> int:
     from hexsim.plant.machine import load_machine
-    from hexsim.simulation.modes import modes_table, oil_spring_modes
+    from hexsim.studies.modes import modes_table, oil_spring_modes
 
     check_outputs(args)
     machine = load_machine(args.machine)

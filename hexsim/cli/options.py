@@ -70,7 +70,7 @@ def thresholds_option(p: argparse.ArgumentParser) -> None:
 
 
 def perception_thresholds(args: argparse.Namespace):
-    from hexsim.simulation.perception import DEFAULT_THRESHOLDS, Thresholds
+    from hexsim.studies.perception import DEFAULT_THRESHOLDS, Thresholds
 
     return DEFAULT_THRESHOLDS if getattr(args, "thresholds", None) is None else Thresholds.from_file(args.thresholds)
 
@@ -193,12 +193,12 @@ def run_config(args: argparse.Namespace, compensator: str):
         raise InputError(str(exc)) from None
     model = None
     if compensator.endswith(".json"):
-        from hexsim.simulation.tuning import read_tuned
+        from hexsim.studies.tuning import read_tuned
 
         compensator, settings, model = read_tuned(compensator)
     warm_up = WarmUp(delta_c=args.warm_up, duration_s=scenario.duration) if args.warm_up else None
     faults = tuple(Fault.parse(text) for text in args.fault)
-    from hexsim.simulation.config import (
+    from hexsim.engine.config import (
         RunConfig,  # MuJoCo and the kernels: only once the options are checked
     )
 
@@ -213,10 +213,10 @@ def run_config(args: argparse.Namespace, compensator: str):
 
 def _platform_envelope(machine, hydraulics, effects):
     """(PlatformLimits, head point (3,) [m]) of a hexapod machine for the MPC cueing: its envelope at the
-    neutral pose (:func:`hexsim.simulation.acceptance.platform_limits`) and its occupant's head."""
+    neutral pose (:func:`hexsim.studies.acceptance.platform_limits`) and its occupant's head."""
+    from hexsim.engine.config import RunConfig
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
-    from hexsim.simulation.acceptance import platform_limits
-    from hexsim.simulation.config import RunConfig
+    from hexsim.studies.acceptance import platform_limits
 
     base = RunConfig(scenario=make_scenario("heave", duration=6.0), hydraulics=hydraulics,
                      controller=machine.controller, machine=machine.name if machine.path is None else str(machine.path),
@@ -251,12 +251,12 @@ def check_outputs(args: argparse.Namespace) -> None:
 
 
 def workers(args: argparse.Namespace):
-    """The Dask client of ``--scheduler`` for the command's duration (hexsim.simulation.workers.dask_client), or nothing."""
+    """The Dask client of ``--scheduler`` for the command's duration (hexsim.engine.workers.dask_client), or nothing."""
     if getattr(args, "scheduler", None) is None:
         return contextlib.nullcontext()
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
-    from hexsim.simulation.workers import dask_client
+    from hexsim.engine.workers import dask_client
 
     return dask_client(args.scheduler, args.jobs)
 

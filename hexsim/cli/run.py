@@ -50,11 +50,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_outputs(args)
     config = run_config(args, args.compensator)  # every option checked before the heavy imports
     thresholds = perception_thresholds(args)
+    from hexsim.engine.runner import simulate
     from hexsim.outputs.plotting import plot_run
     from hexsim.outputs.report import run_report, summary_table
     from hexsim.outputs.rerun_log import write_rrd
-    from hexsim.simulation.metrics import run_smoothness
-    from hexsim.simulation.runner import simulate
+    from hexsim.studies.metrics import run_smoothness
 
     try:
         result = simulate(config)
@@ -75,7 +75,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         sm = run_smoothness(result)
         perception = None
         if config.scenario.system == "hexapod":
-            from hexsim.simulation.perception import bump_perception
+            from hexsim.studies.perception import bump_perception
 
             perception = bump_perception(result, sm, thresholds=thresholds)
         report = run_report(result, sm, perception)
@@ -100,7 +100,7 @@ def _vehicle_outputs(args: argparse.Namespace, result, thresholds) -> int:
     """``hexsim run vehicle:PATH``: the cue report on stdout, and the files asked for."""
     from hexsim.outputs.plotting import plot_cueing
     from hexsim.outputs.rerun_log import write_rrd
-    from hexsim.simulation.cueing import cue_report, cue_table
+    from hexsim.studies.cueing import cue_report, cue_table
 
     cfg = result.config
     report = cue_report(result, thresholds)

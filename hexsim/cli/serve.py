@@ -71,9 +71,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
                              duration_s=3600.0 if args.duration is None else args.duration, keep_s=args.keep,
                              modes=ModeSettings(engage_s=args.engage_time, host_timeout_s=args.timeout),
                              host_layout=host, state_layout=state)
+    from hexsim.engine.config import RunConfig
     from hexsim.plant.machine import load_machine
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import compensator_options
+    from hexsim.studies.tuning import compensator_options
 
     machine = load_machine(args.machine)
     if machine.system != "hexapod":

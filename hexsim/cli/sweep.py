@@ -13,8 +13,8 @@ from hexsim.cli.options import (
     scenario_options,
     worker_options,
 )
+from hexsim.engine.workers import START_METHODS, worker_count
 from hexsim.errors import HexsimError, InputError
-from hexsim.simulation.workers import START_METHODS, worker_count
 from hexsim.tables import write_atomic, write_json
 
 #: Options a sweep grid may vary (argparse dest names).
@@ -80,7 +80,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     import csv
     import io
 
-    from hexsim.simulation.sweeps import METRICS, expand, run_sweep
+    from hexsim.studies.sweeps import METRICS, expand, run_sweep
 
     check_outputs(args)
     if args.jobs < 1:

@@ -14,8 +14,8 @@ from hexsim.cli.options import (
     worker_options,
 )
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.workers import worker_count
 from hexsim.errors import InputError
-from hexsim.simulation.workers import worker_count
 from hexsim.tables import write_json
 
 
@@ -76,8 +76,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
     motions = tuple(m.strip() for m in (args.motions or default).split(",") if m.strip())
     for m in motions:
         check_machine_scenario(machine, make_scenario(m, duration=args.duration))
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import (
+    from hexsim.engine.config import RunConfig
+    from hexsim.studies.tuning import (
         CANDIDATES,
         DEAD_BAND_TOLERANCE_V,
         neighbours,
@@ -125,10 +125,10 @@ def _tune_from_logs(args: argparse.Namespace) -> int:
     for out in (args.out, args.machine_out):
         if out is not None and out.resolve() == pathlib.Path(args.compensator).resolve():
             raise InputError(f"{out}: would overwrite the tuned file the logs ran with; write the improved one elsewhere")
+    from hexsim.engine.config import RunConfig
     from hexsim.measured.commissioning import commission
     from hexsim.plant.machine import dump, load_machine
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import retuned
+    from hexsim.studies.tuning import retuned
 
     machine = load_machine(args.machine)
     learned = commission(list(args.from_logs), machine)
@@ -155,10 +155,10 @@ def _tune_check(args: argparse.Namespace) -> int:
     for path in args.check:
         if not path.exists():
             raise InputError(f"--check {path}: no such file")
+    from hexsim.engine.config import RunConfig
     from hexsim.measured.proof import proof
     from hexsim.plant.machine import load_machine
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import compensator_options
+    from hexsim.studies.tuning import compensator_options
 
     machine = load_machine(args.machine)
     scenario = "heave" if machine.system == "hexapod" else "actuator"

@@ -15,7 +15,7 @@ _law = numba.njit(cache=True, inline="always")
 def p_output(kp, r, y_measured):
     """u_p = K_p (r - y_measured) [V]: the P controller's output (seed §2.2.4, Fig. 2.6) for setpoint r and
     measured piston position y_measured [m] (scalars or arrays of one shape), K_p [V/m]. Compiled into the
-    kernel (:func:`hexsim.simulation.native.run_block`); the Python engine runs the same source interpreted."""
+    kernel (:func:`hexsim.engine.native.run_block`); the Python engine runs the same source interpreted."""
     return kp * (r - y_measured)
 
 

@@ -52,7 +52,7 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
     """The :class:`~compensation.model_based.LegModel` of a machine: ``hyd`` and ``eff`` its hydraulics and
     effects (a machine file's), ``p_rest`` (n,) [Pa] each leg's bottom-chamber pressure at rest,
     ``inertia`` (n, n) [kg] the legs' inertia matrix (leg forces = inertia @ leg accelerations; the
-    inverse of :func:`hexsim.simulation.config.leg_mobility`'s A), ``load`` (n,) [N] the rest loads (4-way
+    inverse of :func:`hexsim.engine.config.leg_mobility`'s A), ``load`` (n,) [N] the rest loads (4-way
     valves), ``u_ref`` [V] where the linear curve meets the flow curve (its slope is the mean chord at
     ±u_ref, as the oracle's), ``kp`` [V/m] the P gain the compensator runs beside (0: unknown). Raises
     SettingsError (a ValueError) for a model whose inverse :func:`compensation.model_based.check_model` refuses."""

@@ -22,7 +22,7 @@ Its model, linear about the neutral pose (small angles, Euler rates as body rate
   the accelerations modest.
 
 Constraints, from the machine (:class:`PlatformLimits`, built by
-:func:`hexsim.simulation.acceptance.platform_limits` from the machine file as ``hexsim accept``'s envelope
+:func:`hexsim.studies.acceptance.platform_limits` from the machine file as ``hexsim accept``'s envelope
 is): each leg's extension through the kinematics' Jacobian at neutral within its stroke, each leg's
 velocity within what the flow curve passes at full valve opening against the rest pressures, each leg's
 force (the legs' effective inertia times their accelerations) within what the supply and tank pressures

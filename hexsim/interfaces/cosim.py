@@ -1,7 +1,7 @@
 """A hexsim run stepped by a co-simulation master: the engine of ``hexsim fmu``'s FMUs (:mod:`hexsim.interfaces.fmu`).
 
 The master sets the inputs at each communication point t_n and asks for a step of h to t_n + h. Inside, the
-run is the same :class:`~hexsim.simulation.runner.Simulator` as ``hexsim run`` (hydraulics, P controller at the
+run is the same :class:`~hexsim.engine.runner.Simulator` as ``hexsim run`` (hydraulics, P controller at the
 machine's rate, compensator, MuJoCo), its setpoint rows written per controller sample:
 
 - **setpoints** between communication points are played one communication step behind (as a motion
@@ -31,13 +31,13 @@ import numpy as np
 
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import live_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import Simulator
 from hexsim.errors import InputError
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import PlantIndex, load_model
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import run_smoothness
-from hexsim.simulation.perception import point_motion
-from hexsim.simulation.runner import Simulator
+from hexsim.studies.metrics import run_smoothness
+from hexsim.studies.perception import point_motion
 
 #: How inputs become setpoints between communication points (module doc), with the FMU's integer for each.
 INTERPOLATIONS = {"hold": 0, "linear": 1, "cubic": 2}
@@ -192,7 +192,7 @@ def peak_hold_reversal_peaks(sample_time: np.ndarray, acc_max: np.ndarray, acc_m
     """Each reversal's peak as a master stepping an FMU sees it, beside the run's: the largest distance of the
     steps' acceleration extremes ``acc_max``, ``acc_min`` (M,) [m/s^2] (the peak hold, sampled at
     ``sample_time`` (M,) [s]) from the fitted fundamental of ``run`` (a SimulationResult of the same motion,
-    :func:`hexsim.simulation.metrics.run_smoothness`), within the metrics' ±0.1 s of each of its reversals, the
+    :func:`hexsim.studies.metrics.run_smoothness`), within the metrics' ±0.1 s of each of its reversals, the
     FMU's samples moved back by ``delay`` [s] (one communication step when the setpoints are interpolated).
     Returns (the FMU's peaks (R,), the run's peaks (R,)) [m/s^2]."""
     smooth = run_smoothness(run)

@@ -163,9 +163,9 @@ class _HexsimSlave(Fmi3Slave):
 
     def _config(self):
         """The run's RunConfig from the machine and compensator in the resources."""
+        from hexsim.engine.config import RunConfig
         from hexsim.plant.machine import load_machine
-        from hexsim.simulation.config import RunConfig
-        from hexsim.simulation.tuning import compensator_options
+        from hexsim.studies.tuning import compensator_options
 
         build, resources = self._build, self._resources
         machine = load_machine(str(resources / build["machine"]) if build.get("machine") else build.get("builtin"))

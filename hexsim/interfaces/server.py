@@ -4,7 +4,7 @@ The host sends setpoint packets (:mod:`hexsim.interfaces.packets`) at its own ra
 (the machine's, 500 Hz for the built-in) the server takes the packets that arrived, hands the P loops the
 piston setpoints of the operating modes (:mod:`hexsim.interfaces.operating_modes`: engage, neutral, park,
 host lost, rejected packets), advances the whole simulation one period — the same
-:class:`~hexsim.simulation.runner.Simulator` as ``hexsim run`` (hydraulics, the bump, the compensator,
+:class:`~hexsim.engine.runner.Simulator` as ``hexsim run`` (hydraulics, the bump, the compensator,
 MuJoCo) — and sends the platform's state back at ``state_rate_hz``. The periods are paced to the wall clock:
 between ticks the loop waits in ``select`` on the socket (reading packets as they arrive, their arrival
 timed), the last fraction of a millisecond in a spin. A tick that starts late is not skipped: the loop
@@ -35,6 +35,8 @@ from tqdm import tqdm
 
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import live_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import Simulator
 from hexsim.errors import InputError
 from hexsim.interfaces.operating_modes import OVERRUN, ModeSettings, OperatingModes
 from hexsim.interfaces.packets import (
@@ -48,9 +50,7 @@ from hexsim.interfaces.packets import (
 )
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import PlantIndex, load_model
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.perception import rigid_point_specific_force
-from hexsim.simulation.runner import Simulator
+from hexsim.studies.perception import rigid_point_specific_force
 
 #: the last stretch before a deadline spent spinning instead of in ``select`` [s]
 SPIN_S = 3e-4
@@ -242,8 +242,8 @@ class VirtualMotionSystem:
 
     def _head(self, world_from_body: Rotation) -> tuple[np.ndarray, np.ndarray]:
         """Specific force (3,) [m/s^2] and angular velocity (3,) [rad/s] at the occupant's head, platform axes
-        (:func:`~hexsim.simulation.perception.rigid_point_specific_force` from the accelerometer's site, as
-        :func:`~hexsim.simulation.perception.point_motion` for a recorded run)."""
+        (:func:`~hexsim.studies.perception.rigid_point_specific_force` from the accelerometer's site, as
+        :func:`~hexsim.studies.perception.point_motion` for a recorded run)."""
         d, s, body_from_site = self.sim.data, self.sim.idx.sensor, self._body_from_site
         omega = d.sensordata[s["platform_gyro"]]
         alpha = (world_from_body * body_from_site).inv().apply(d.sensordata[s["platform_angacc"]])
@@ -321,7 +321,7 @@ class VirtualMotionSystem:
         self.sock.close()
 
     def result(self):
-        """The recording (:class:`~hexsim.simulation.config.SimulationResult`, the last ``keep_s``)."""
+        """The recording (:class:`~hexsim.engine.config.SimulationResult`, the last ``keep_s``)."""
         return self.sim.result()
 
     def report(self) -> ServeReport:

@@ -1,5 +1,5 @@
 """Motion acceptance tests on measured logs: the same figures from a log of the test as from the simulated
-machine, side by side (:mod:`hexsim.simulation.acceptance`).
+machine, side by side (:mod:`hexsim.studies.acceptance`).
 
 A hexapod log (``docs/measurement-log.md``) of a test motion carries the platform setpoint (``dof_ref_*``) and
 the legs' measured positions; the degree of freedom that moves most is the test's, its dominant frequency
@@ -20,20 +20,20 @@ import numpy as np
 
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import DOF_NAMES, FILE_COLUMNS, Scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
 from hexsim.plant.model import load_model
 from hexsim.signals import dominant_frequency, fit_fundamental
-from hexsim.simulation.acceptance import (
+from hexsim.studies.acceptance import (
     AcceptanceResult,
     Tolerances,
     at_most,
     within,
     wrap_deg,
 )
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import STANDARD_GRAVITY, smoothness
-from hexsim.simulation.runner import simulate
+from hexsim.studies.metrics import STANDARD_GRAVITY, smoothness
 
 #: a sine DOF's name by its index in a pose (acceptance's names)
 _DOF_BY_AXIS = ("surge", "sway", "heave", "roll", "pitch", "yaw")

@@ -8,7 +8,7 @@ several commands (as the real servo cylinder's 1, 3 and 5 V runs, ``examples/dat
 **Features** (:func:`features`, measured on each log with the same functions a simulated run is read
 with): every stretch of constant command (|u_v| > 0.05 V) gives
 
-* a *steady motion* in the middle of the stroke (:func:`hexsim.simulation.metrics.steady_segments`): the
+* a *steady motion* in the middle of the stroke (:func:`hexsim.studies.metrics.steady_segments`): the
   speed and the median of each logged chamber pressure (p1, p2; ps if logged);
 * an *end-stop plateau* where the command holds the piston against a stop: the chamber the valve
   connects to the supply reads P_s, the other the tank (4-way valve; the 3-way valve's cap side reads
@@ -61,7 +61,7 @@ from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import Machine, with_keys, with_valve
 from hexsim.plant.model import gravity, moving_mass
 from hexsim.plant.params import FLOW_AREAS
-from hexsim.simulation.metrics import steady_segments
+from hexsim.studies.metrics import steady_segments
 
 #: Weight of a steady speed: 1 % of it plus 0.5 mm/s (a line fit over a stretch of 1 kHz positions is far
 #: more precise; the weight says how closely the steady model is asked to follow, not the sensor).

@@ -243,10 +243,10 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     if log.system != "hexapod" or p1 is None:
         return None
     from hexsim.control.scenario import Scenario
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import Simulator
     from hexsim.measured.hexapod_replay import payload_from_statics
     from hexsim.measured.replay import supply_from_log
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import Simulator
 
     hyd = supply_from_log(log, log.machine.hydraulics)
     rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0), hydraulics=hyd,

@@ -63,8 +63,8 @@ def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = 
     compensator among them) and, with ``own_logs``, the calibration's own (:func:`calibration_logs`), on
     ``machine``; the machine with them and its leg model. Raises InputError naming the log for a hexapod log,
     one without the valve command, position or ``p1_Pa``, or too few samples away from the stroke's ends."""
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.tuning import leg_model_of
+    from hexsim.engine.config import RunConfig
+    from hexsim.studies.tuning import leg_model_of
 
     if machine.system != "single-actuator":
         raise InputError(f"{machine.label}: commissioning from logs reads a single actuator's valve (this machine is "

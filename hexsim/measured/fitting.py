@@ -31,12 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from hexsim.engine.workers import forked_map
 from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.estimates import AT_BOUND, at_bound
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant.machine import Machine
-from hexsim.simulation.workers import forked_map
 
 #: A parameter whose standard error exceeds this share of its bound range is not identified by the data.
 MAX_SE_SHARE = 0.25
@@ -65,7 +65,7 @@ class FitOptions:
     parameters correlated beyond :data:`MAX_CORRELATION` are both kept while the worse known has a standard
     error within this share of its bracket (thousands of replayed samples separate two parameters correlated at
     0.997 to 1e-4 of their brackets). ``jobs``: processes that evaluate a Jacobian's columns
-    (:func:`hexsim.simulation.workers.forked_map`; the same result as one)."""
+    (:func:`hexsim.engine.workers.forked_map`; the same result as one)."""
 
     diff_step: float = 1e-4
     x_scale: float | str = 1.0

@@ -257,9 +257,9 @@ def _check_length(log: MeasurementLog, n: int) -> None:
 
 def _steady_friction(log: MeasurementLog, hyd: HydraulicParams) -> list[dict]:
     """At each steady motion of an open-loop experiment (constant valve command, mid-stroke,
-    :func:`hexsim.simulation.metrics.steady_segments`): its speed and the median friction force F_L - M g
+    :func:`hexsim.studies.metrics.steady_segments`): its speed and the median friction force F_L - M g
     cos θ there (the acceleration is nil). Empty without a valve command column."""
-    from hexsim.simulation.metrics import steady_segments
+    from hexsim.studies.metrics import steady_segments
 
     if "valve_cmd_V" not in log.columns:
         return []

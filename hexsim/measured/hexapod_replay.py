@@ -4,7 +4,7 @@ model's own loop, every channel compared.
 Why closed loop for the hexapod: the six legs share one platform, so a leg cannot be replayed on its own
 the way :func:`hexsim.measured.replay.replay` replays the single actuator in windows, and an open-loop valve
 replay of the whole platform drifts within a fraction of a second. The replay therefore runs the full
-chain of :func:`hexsim.simulation.runner.simulate` (compiled engine, 10 kHz): the piston setpoints are the
+chain of :func:`hexsim.engine.runner.simulate` (compiled engine, 10 kHz): the piston setpoints are the
 logged ``leg{i}_ref_m`` (held between rows), the P controller has the logged K_p and rate, and the
 compensation the machine applied is fed forward as logged, U_c = u_v - K_p (r - y) from the logged
 valve commands, positions and setpoints (a compensator that acted on the machine is not in the model).
@@ -18,6 +18,8 @@ import math
 import numpy as np
 
 from hexsim.control.scenario import Scenario
+from hexsim.engine.config import RunConfig, SimulationResult
+from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.residuals import noise_of
@@ -25,8 +27,6 @@ from hexsim.plant.effects import Effects, LegChange
 from hexsim.plant.model import check_formulation
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.signals import near_reversals, savgol, zero_order_hold
-from hexsim.simulation.config import RunConfig, SimulationResult
-from hexsim.simulation.runner import simulate
 
 #: Start of the log left out of the error [s]: the model starts at rest in the neutral pose.
 SETTLE_S = 0.5
@@ -50,7 +50,7 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     many seconds of the log (the replay starts at rest, so a prefix is the same run cut short); ``model``:
     the hexapod formulation (``"platform"`` or ``"full"``). Raises InputError if the log is not a hexapod
     log or lacks the leg setpoints and valve commands, WorkspaceError / PhysicsError as
-    :func:`hexsim.simulation.runner.simulate`."""
+    :func:`hexsim.engine.runner.simulate`."""
     if log.system != "hexapod":
         raise InputError(f"{log.path}: closed-loop hexapod replay needs a hexapod log (this is {log.system})")
     _check_closed_loop(log)

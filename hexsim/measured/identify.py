@@ -49,6 +49,7 @@ import numpy as np
 from scipy import stats
 from tqdm import tqdm
 
+from hexsim.engine.workers import in_workers, worker_pool
 from hexsim.errors import PhysicsError
 from hexsim.measured.candidates import (
     AT_EDGE_WORDS,
@@ -86,7 +87,6 @@ from hexsim.measured.scoring import (
     within_budget,
 )
 from hexsim.measured.statistics import fit_statistics
-from hexsim.simulation.workers import in_workers, worker_pool
 
 #: Level of the one-sided held-out test, shared by the candidates of one round (Bonferroni).
 ALPHA = 0.05

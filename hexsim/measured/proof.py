@@ -11,14 +11,14 @@ import numpy as np
 from scipy import signal, stats
 
 from hexsim.control.scenario import Scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency, fit_fundamental
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import REVERSAL_WINDOW, Smoothness, smoothness
-from hexsim.simulation.perception import ISO_PERCEPTION_THRESHOLD, iso2631
-from hexsim.simulation.runner import simulate
+from hexsim.studies.metrics import REVERSAL_WINDOW, Smoothness, smoothness
+from hexsim.studies.perception import ISO_PERCEPTION_THRESHOLD, iso2631
 
 #: Periods at the start of a log left out of its smoothness (the fade-in and the compensator's start).
 PROOF_SKIP_PERIODS = 2.0
@@ -219,7 +219,7 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
 class PassengerView:
     """A machine's run as its passenger gets it (:func:`passenger_view`): the reversal bump on the acceleration
     (``reversal_peaks`` [m/s^2], each the largest departure from the fundamental within ±0.1 s of a reversal,
-    :func:`hexsim.simulation.metrics.smoothness`; their ``mean`` and ``max``), the ISO 2631-1 W_k weighted false
+    :func:`hexsim.studies.metrics.smoothness`; their ``mean`` and ``max``), the ISO 2631-1 W_k weighted false
     cue at the seat over the whole window (``seat_peak`` [m/s^2]: every reversal and every crossing of a corner
     of the valve's curve between them) and its multiple of the perception threshold (``seat_ratio``, 0.015 m/s^2:
     ISO 2631-1:1997 Annex C), and the ``noise_ratio``."""
@@ -252,7 +252,7 @@ def passenger_view(t: np.ndarray, acc: np.ndarray, setpoint: np.ndarray, frequen
     """The :class:`PassengerView` of an acceleration ``acc`` [m/s^2] along a vertical axis, sampled at t (N,) [s]
     (uniform), from ``t_start`` [s]: its reversal peaks where ``setpoint`` (N,) [m] turns (moved to the measured
     motion's turns when ``velocity`` (N,) [m/s] is given), the W_k weighting (ISO 2631-1 Annex A, vertical,
-    :func:`hexsim.simulation.perception.iso2631`) of its departure from the fundamental at ``frequency`` [Hz],
+    :func:`hexsim.studies.perception.iso2631`) of its departure from the fundamental at ``frequency`` [Hz],
     started a period earlier so that the filter has settled. Raises ValueError for a window shorter than a
     period."""
     sm = smoothness(t, acc, frequency, t_start, setpoint, name="acceleration", unit="m/s^2", velocity=velocity)

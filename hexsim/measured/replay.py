@@ -1,5 +1,5 @@
 """Replaying a measurement log through the model: the same hydraulics and MuJoCo mechanics as
-:func:`hexsim.simulation.runner.simulate`, with the log in place of the scenario.
+:func:`hexsim.engine.runner.simulate`, with the log in place of the scenario.
 
 **Valve replay** of a single-actuator log (identification and the per-channel errors): the logged valve
 setpoints u_v drive the model open loop over windows short enough that the integrating position does
@@ -268,7 +268,7 @@ def spool_history(u_log: np.ndarray, fs: float, hyd: HydraulicParams, eff: Effec
     return u_b[rows], x_v[rows], v_v[rows]
 
 
-#: The channels a replay records at every physics step (:class:`hexsim.simulation.native.ReplayOut`).
+#: The channels a replay records at every physics step (:class:`hexsim.engine.native.ReplayOut`).
 FINE_CHANNELS = ("position", "p1", "p_s", "acceleration", "p2")
 
 
@@ -308,11 +308,11 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
 
     The u_v of row j is held from t_j to t_j+1. The channels are sampled as ``model.sensors`` (else the log's
     machine file) says its sensors were (:func:`sampled`, :class:`hexsim.plant.params.SensorSpec`): by default
-    as hexsim's own logs (:func:`hexsim.simulation.runner.simulate`), row j holding the state at its time t_j
+    as hexsim's own logs (:func:`hexsim.engine.runner.simulate`), row j holding the state at its time t_j
     (position, P1, P_s) and the acceleration averaged over the steps from t_j-1 to t_j. The state of row 0 is the measured one;
     the logged u_v drives each window open loop.
     The measured position the log holds is compared with y(t - tau_y) when the model has a sensor delay. ``native``: the valve replay runs in the
-    compiled kernel (:mod:`hexsim.simulation.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.
+    compiled kernel (:mod:`hexsim.engine.native`); False: a Python loop over the same compiled leg step. Single-actuator logs only.
     Raises InputError if the log lacks what the mode needs, PhysicsError on a MuJoCo warning or a
     non-finite state.
     """
@@ -338,7 +338,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     steps = {name: np.empty((k, n * sub if every_step else n)) for name in FINE_CHANNELS}
     mujoco.set_mjcb_control(None)
     if native:
-        from hexsim.simulation import native as kernel
+        from hexsim.engine import native as kernel
 
         legs = kernel.Legs(leg_table(hyd, eff, k), dt, state, np.arange(k), np.zeros(k), np.zeros((1, k)), np.zeros(k))
         bad = kernel.valve_replay(kernel.mj_view(m, d, idx), legs, acc_adr, u_sched, sub,

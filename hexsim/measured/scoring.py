@@ -43,7 +43,7 @@ from hexsim.measured.replay import (
 from hexsim.measured.residuals import clipped, noise_of
 from hexsim.plant.machine import with_keys
 from hexsim.signals import near_reversals
-from hexsim.simulation.metrics import STANDARD_GRAVITY
+from hexsim.studies.metrics import STANDARD_GRAVITY
 
 #: Valve-replay window [s]: long enough to see a flow offset integrate, short enough not to drift away.
 WINDOW_S = 0.3

@@ -38,7 +38,7 @@ from hexsim.measured.residuals import analyse
 from hexsim.measured.scoring import SCALED, WITHIN, within_budget
 from hexsim.plant.machine import KEYS
 from hexsim.plant.params import OFFSET_FIELDS
-from hexsim.simulation.metrics import STANDARD_GRAVITY
+from hexsim.studies.metrics import STANDARD_GRAVITY
 from hexsim.tables import StdoutTarget
 
 #: A payload read from the legs' P1 offsets is reported when it is at least this heavy [kg] and the offsets

@@ -1,6 +1,6 @@
 """The acceptance report: every measured figure with its tolerance and pass/fail, per compensator, as
 Markdown with its figures (Bode plots of the frequency response and the OMCT, the turn-around bumps) and
-JSON. Only shows: the figures come from :mod:`hexsim.simulation.acceptance`."""
+JSON. Only shows: the figures come from :mod:`hexsim.studies.acceptance`."""
 
 from __future__ import annotations
 

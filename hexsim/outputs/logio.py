@@ -12,7 +12,7 @@ import pathlib
 
 import numpy as np
 
-from hexsim.simulation.config import SimulationResult
+from hexsim.engine.config import SimulationResult
 from hexsim.tables import write_atomic
 
 
@@ -45,7 +45,7 @@ def log_columns(result: SimulationResult) -> dict[str, np.ndarray]:
     for k, axis in enumerate("xyz"):
         cols[f"platform_gyro_{axis}_radps"] = result.gyro[:, k]
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
-    from hexsim.simulation.perception import point_motion
+    from hexsim.studies.perception import point_motion
 
     head = point_motion(result, (result.config.geometry or MICRO_MOTION_SYSTEM).head_point)
     for k, axis in enumerate("xyz"):

@@ -12,8 +12,8 @@ from matplotlib.figure import (
 )
 
 from compensation.base import STATE_UNITS
-from hexsim.simulation.config import SimulationResult
-from hexsim.simulation.metrics import Smoothness
+from hexsim.engine.config import SimulationResult
+from hexsim.studies.metrics import Smoothness
 from hexsim.tables import write_atomic
 
 #: Lowest spectrum amplitude drawn, relative to the largest line (-100 dB).
@@ -34,7 +34,7 @@ def plot_run(path: str | os.PathLike, result: SimulationResult, sm: Smoothness, 
     against its fundamental and its noise with the reversal peaks, the flow curve (seed Fig. 3.10),
     pressures, tracking errors, the spectrum, for a compensated run the compensator's parameters
     and compensation curve and, with ``perception`` (a hexapod's
-    :class:`~hexsim.simulation.perception.BumpPerception`), the false cue as the occupant senses it against
+    :class:`~hexsim.studies.perception.BumpPerception`), the false cue as the occupant senses it against
     the thresholds. Every time panel spans the whole run."""
     sc = result.config.scenario
     compensated = result.config.compensator_name != "none"
@@ -78,8 +78,8 @@ def plot_open_loop(path: str | os.PathLike, result: SimulationResult) -> None:
 def plot_cueing(path: str | os.PathLike, result: SimulationResult, report) -> None:
     """The figure of a ``vehicle:`` run (atomically; .png, .pdf or .svg): per axis the sensed cue of the
     vehicle, the ideal platform (the washout alone) and the simulator with the sensed threshold, then the
-    platform's pose against its setpoint; ``report``: the run's :class:`~hexsim.simulation.cueing.CueReport`."""
-    from hexsim.simulation.perception import AXES
+    platform's pose against its setpoint; ``report``: the run's :class:`~hexsim.studies.cueing.CueReport`."""
+    from hexsim.studies.perception import AXES
 
     traces = {"vehicle": report.sensed_vehicle, "ideal": report.sensed_ideal, "simulator": report.sensed_simulator}
     fig = Figure(figsize=(13, 12), layout="constrained")
@@ -116,7 +116,7 @@ def plot_cueing(path: str | os.PathLike, result: SimulationResult, report) -> No
 def _perception_panels(a, b, p) -> tuple:
     """The false cue at the seat, ISO 2631-1 weighted, against the Annex C threshold (a), and the vestibular
     models' output at the head as a multiple of each axis' sensed threshold (b)."""
-    from hexsim.simulation.perception import AXES, ISO_WEIGHTINGS
+    from hexsim.studies.perception import AXES, ISO_WEIGHTINGS
 
     for k, axis in enumerate("xyz"):
         a.plot(p.t, p.weighted[:, k], lw=0.8, label=f"{axis} ({ISO_WEIGHTINGS[axis]})")

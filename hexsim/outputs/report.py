@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from hexsim.simulation.config import SimulationResult
-from hexsim.simulation.metrics import Smoothness, max_tracking_error, steady_segments
+from hexsim.engine.config import SimulationResult
+from hexsim.studies.metrics import Smoothness, max_tracking_error, steady_segments
 
 
 def run_report(result: SimulationResult, sm: Smoothness, perception=None) -> dict:
     """The metrics of a run (JSON keys documented in docs/outputs.md). SI units throughout.
-    ``perception``: the run's :class:`~hexsim.simulation.perception.BumpPerception` (a hexapod's), reported
+    ``perception``: the run's :class:`~hexsim.studies.perception.BumpPerception` (a hexapod's), reported
     under ``"perception"``; None: the key is null."""
     sc, cfg = result.config.scenario, result.config
     return {
@@ -56,7 +56,7 @@ def run_report(result: SimulationResult, sm: Smoothness, perception=None) -> dic
 
 def open_loop_report(result: SimulationResult) -> dict:
     """The figures of an open-loop run (a ``valve:`` scenario): per leg the steady motions at each
-    constant valve setpoint (:func:`hexsim.simulation.metrics.steady_segments`: speed, P1 and, with a
+    constant valve setpoint (:func:`hexsim.studies.metrics.steady_segments`: speed, P1 and, with a
     4-way valve, P2), the piston's range and the lowest and highest pressures. SI units."""
     sc, cfg = result.config.scenario, result.config
     four_way = cfg.hydraulics.four_way

@@ -21,9 +21,9 @@ import rerun.blueprint as rrb
 from scipy.spatial.transform import Rotation
 
 from hexsim.control.kinematics import HexapodGeometry, rotation_matrices
+from hexsim.engine.config import SimulationResult
 from hexsim.plant.model import leg_bodies, load_model
-from hexsim.simulation.config import SimulationResult
-from hexsim.simulation.metrics import Smoothness
+from hexsim.studies.metrics import Smoothness
 from hexsim.tables import write_atomic
 
 VIEW_RATE_HZ = 50.0  # [Hz] rate of the 3D scene in the recording
@@ -199,18 +199,18 @@ def _geom_shape(m: mujoco.MjModel, g: int):
 def write_rrd(path: str | os.PathLike, result: SimulationResult, sm: Smoothness | None, perception=None,
               cueing=None) -> None:
     """Write the recording of a run to ``path`` (atomically); ``sm`` None (an open-loop or vehicle run): no
-    smoothness analysis in it; ``perception`` (a :class:`~hexsim.simulation.perception.BumpPerception`):
+    smoothness analysis in it; ``perception`` (a :class:`~hexsim.studies.perception.BumpPerception`):
     the sensed false cue under ``/perception`` with its thresholds; ``cueing`` (a vehicle run's
-    :func:`~hexsim.simulation.cueing.cue_report`): the sensed cues of vehicle, ideal platform and simulator
+    :func:`~hexsim.studies.cueing.cue_report`): the sensed cues of vehicle, ideal platform and simulator
     per axis under ``/cueing``."""
     write_atomic(path, lambda tmp: _write(tmp, result, sm, perception, cueing))
 
 
 def _head(rec, result: SimulationResult, times) -> None:
     """The occupant's head: specific force [m/s^2] and angular velocity [rad/s], head axes (the platform's),
-    from the platform's rigid-body state (:func:`hexsim.simulation.perception.point_motion`)."""
+    from the platform's rigid-body state (:func:`hexsim.studies.perception.point_motion`)."""
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
-    from hexsim.simulation.perception import point_motion
+    from hexsim.studies.perception import point_motion
 
     head = point_motion(result, (result.config.geometry or MICRO_MOTION_SYSTEM).head_point)
     for k, axis in enumerate("xyz"):
@@ -222,8 +222,8 @@ def _head(rec, result: SimulationResult, times) -> None:
 
 def _cueing(rec, report) -> None:
     """Per axis the sensed cue of the vehicle, the ideal platform and the simulator, and the threshold
-    (``report``: a :class:`~hexsim.simulation.cueing.CueReport`)."""
-    from hexsim.simulation.perception import AXES
+    (``report``: a :class:`~hexsim.studies.cueing.CueReport`)."""
+    from hexsim.studies.perception import AXES
 
     times = rr.TimeColumn("time", duration=report.t)
     series = {"vehicle": (report.sensed_vehicle, [40, 90, 170]), "ideal": (report.sensed_ideal, [230, 150, 30]),
@@ -240,7 +240,7 @@ def _cueing(rec, report) -> None:
 def _perception(rec, p) -> None:
     """The seat's ISO-weighted false cue per axis with the Annex C threshold, and the head's vestibular output
     per axis as a multiple of its sensed threshold."""
-    from hexsim.simulation.perception import AXES
+    from hexsim.studies.perception import AXES
 
     times = rr.TimeColumn("time", duration=p.t)
     for k, axis in enumerate("xyz"):

@@ -72,7 +72,7 @@ class Geometry:
     ``rod_com_m`` [m] from the platform joint back along the rod. Platform (frame and payload): mass,
     principal inertia (3,) about its centre of mass ``platform_com_m`` (3,) [m, platform frame];
     ``sensor_at_m`` (3,) [m, platform frame]: the accelerometer and gyro (site ``platform_centre``).
-    The occupant (:mod:`hexsim.simulation.perception`): ``head_at_m`` (3,) [m, platform frame], the head's
+    The occupant (:mod:`hexsim.studies.perception`): ``head_at_m`` (3,) [m, platform frame], the head's
     vestibular organs, and ``seat_at_m``, the seat's cushion where whole-body vibration enters; None: a
     seated occupant above the platform's centre (:attr:`seat_point`, :attr:`head_point`).
     Drawing only: ``platform_size_m`` (the platform's box), ``barrel_length_m``, ``rod_length_m``

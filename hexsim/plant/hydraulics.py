@@ -132,7 +132,7 @@ def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams
     apart near null), thinned (:func:`hexsim.plant.params.thin_curve`), each edge opening ``open_earlier_V``
     [V] earlier (negative: later; the dead band narrower or wider by twice it, an underlap or more overlap
     than the file's). What a calibration may have got wrong near null, as a machine to try a compensator on
-    (:mod:`hexsim.simulation.tuning`'s neighbours). The edge gains stay the effects'."""
+    (:mod:`hexsim.studies.tuning`'s neighbours). The edge gains stay the effects'."""
     from hexsim.plant.params import thin_curve
 
     u = np.unique(np.concatenate([np.linspace(-0.2, 0.5, 701), np.linspace(0.5, p.u_v_max, 951)]))

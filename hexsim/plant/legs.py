@@ -2,7 +2,7 @@
 compiles and Python calls.
 
 This module is the single source of the leg physics (seed ch. 3, eq. 3.2–3.4, 3.7–3.9, and the
-extensions of :class:`hexsim.plant.effects.Effects`). The compiled runners (:mod:`hexsim.simulation.native`) call
+extensions of :class:`hexsim.plant.effects.Effects`). The compiled runners (:mod:`hexsim.engine.native`) call
 :func:`step_legs` inside their loops; the array functions of :mod:`hexsim.plant.hydraulics` (flow curve,
 friction curve, statics) map the same scalar functions over arrays; the Python control callback
 (``engine="python"``) calls :func:`step_plant`, which runs :func:`step_legs` too. There is no second

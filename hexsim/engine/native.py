@@ -219,7 +219,7 @@ def valve_replay(mj, legs, acc_adr, u_sched, sub, out):
 @numba.njit(cache=True)
 def run_block(mj, legs, ctl, rec, out, k0, nsteps, r0):
     """``nsteps`` physics steps k0 … k0+nsteps-1 of n legs, in the order of
-    :class:`hexsim.simulation.config.HydraulicCoupling`. Per step k: read y, ydot; push y into the sensor-delay
+    :class:`hexsim.engine.config.HydraulicCoupling`. Per step k: read y, ydot; push y into the sensor-delay
     ring (Python pushed it for step k0 before its controller sample); with ``ctl.div`` > 0 and k a
     controller sample, the P controller (:class:`hexsim.control.controller.PController`): u_p = K_p (r_j - y_m),
     r_j = setpoints[j], j = k // div, y_m = the delayed measured position + noise_j; U_c = 0 (mode 0),

@@ -4,7 +4,7 @@ Workers are forked from the calling process where the platform can (Linux), so t
 scipy, MuJoCo and the compiled kernels already imported, in milliseconds; spawned workers (the only way
 on macOS and Windows, or ``start_method="spawn"``) import all of it first, about 2.5 s each on a 2-vCPU
 machine. Each worker loads its own MuJoCo model. MuJoCo's control callback is process-global: at the
-fork the caller runs no simulation, so none is installed (:func:`hexsim.simulation.runner.simulate` installs it
+fork the caller runs no simulation, so none is installed (:func:`hexsim.engine.runner.simulate` installs it
 only for a python-engine run and always removes it), and a worker installs its own.
 
 With a Dask scheduler (``scheduler``: ``"local"`` for a :class:`distributed.LocalCluster` of ``jobs``
@@ -39,8 +39,8 @@ def _warm_up() -> None:
     numba's disk cache (by setting a run up, which calls the kernel for zero steps), before the first task:
     a 0.4 s run would otherwise pay 1.5 s of imports and 0.2 s of loading in every worker."""
     from hexsim.control.scenario import make_scenario
-    from hexsim.simulation.config import RunConfig
-    from hexsim.simulation.runner import Simulator
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import Simulator
 
     Simulator(RunConfig(make_scenario("heave", duration=6.0)))
 
@@ -95,8 +95,8 @@ def worker_pool(jobs: int, start_method: str | None = None) -> Iterator[Executor
     if method not in multiprocessing.get_all_start_methods():
         raise InputError(f"start method {method!r} is not available here; choose one of "
                          f"{', '.join(multiprocessing.get_all_start_methods())}")
-    import hexsim.simulation.config  # noqa: F401
-    import hexsim.simulation.native  # noqa: F401 - imported once here, inherited by forked workers
+    import hexsim.engine.config  # noqa: F401
+    import hexsim.engine.native  # noqa: F401 - imported once here, inherited by forked workers
 
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context(method)) as pool:
         with warnings.catch_warnings():

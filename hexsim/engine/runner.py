@@ -1,15 +1,15 @@
 """The one runner: scenario → IK → P control → compensator → faults → leg plant → ``mj_step`` → recorder.
 
-:class:`Simulator` sets a run up from a :class:`~hexsim.simulation.config.RunConfig`, advances it in steps
+:class:`Simulator` sets a run up from a :class:`~hexsim.engine.config.RunConfig`, advances it in steps
 (:meth:`Simulator.step`) or to the end (:meth:`Simulator.run`) and hands back what it recorded so far
 (:meth:`Simulator.result`); :func:`simulate` is the one-call form every command uses (``run``,
 ``compare``, ``sweep``, the hexapod log replay, the identifier). Two loops drive the same stages:
 
-* ``engine="native"`` (default): :func:`hexsim.simulation.native.run_block` steps legs and MuJoCo in compiled code;
+* ``engine="native"`` (default): :func:`hexsim.engine.native.run_block` steps legs and MuJoCo in compiled code;
   the P controller and the built-in buffered/directional compensators run inside it, any other
   compensator (a user's own, the iterative ones, the oracle), faults and warming oil are sampled in
   Python at every controller tick between kernel calls;
-* ``engine="python"``: :class:`~hexsim.simulation.config.HydraulicCoupling` as MuJoCo's control callback
+* ``engine="python"``: :class:`~hexsim.engine.config.HydraulicCoupling` as MuJoCo's control callback
   (``mujoco.set_mjcb_control``), the straightforward loop over the same compiled leg step that the
   tests hold the compiled loop against. The callback is process-global; it is installed only while a
   step runs and always removed.
@@ -31,6 +31,18 @@ from compensation.base import Compensator, ReplayedCompensation
 from hexsim.control.controller import PController
 from hexsim.control.feedforward import check_loop, leg_model
 from hexsim.control.kinematics import HexapodGeometry
+from hexsim.engine import native
+from hexsim.engine.config import (
+    ControlSchedule,
+    HydraulicCoupling,
+    RunConfig,
+    SimulationResult,
+    check_timestep,
+    divider,
+    leg_mobility,
+    piston_setpoints,
+    static_leg_forces,
+)
 from hexsim.errors import InputError, PhysicsError, WorkspaceError
 from hexsim.plant import hydraulics
 from hexsim.plant.faults import FaultInjector
@@ -43,18 +55,6 @@ from hexsim.plant.model import (
 )
 from hexsim.plant.platform import with_end_stops
 from hexsim.signals import zero_order_hold
-from hexsim.simulation import native
-from hexsim.simulation.config import (
-    ControlSchedule,
-    HydraulicCoupling,
-    RunConfig,
-    SimulationResult,
-    check_timestep,
-    divider,
-    leg_mobility,
-    piston_setpoints,
-    static_leg_forces,
-)
 
 #: recorded channels of shape (samples, n_legs)
 _LEG_CHANNELS = ("y", "ydot", "y_ref", "u_v", "u_c", "p1", "p2", "force")
@@ -263,7 +263,7 @@ class Simulator:
         """Samples self.rows … k_end / rec_div with :class:`HydraulicCoupling` as MuJoCo's control
         callback: every ``rec_div``-th step k records the state at t_k (the sensors MuJoCo evaluates at the
         start of the step, P1 before the step's update; the accelerometer as its mean over the steps
-        k-rec_div … k-1, as the kernel's :class:`~hexsim.simulation.native.Recorder`), kept in the arrays as a ring."""
+        k-rec_div … k-1, as the kernel's :class:`~hexsim.engine.native.Recorder`), kept in the arrays as a ring."""
         d, idx, coupling, rec = self.data, self.idx, self.coupling, self.rec
         mujoco.set_mjcb_control(coupling)
         try:

@@ -1,7 +1,7 @@
 """``hexsim sweep``: a grid of runs (scenario, controller and compensator settings) in worker processes.
 
-Each grid point is one :class:`~hexsim.simulation.config.RunConfig`; the points run in ``jobs`` worker
-processes (:func:`hexsim.simulation.workers.worker_pool`: forked where the platform can, each with its own MuJoCo
+Each grid point is one :class:`~hexsim.engine.config.RunConfig`; the points run in ``jobs`` worker
+processes (:func:`hexsim.engine.workers.worker_pool`: forked where the platform can, each with its own MuJoCo
 model). Rows come back in grid order whatever order the workers finish in, and every run is seeded by
 its configuration alone, so a sweep gives the same numbers with any number of workers and any start
 method (tests/test_sweep.py checks it against serial runs).
@@ -19,12 +19,12 @@ import numpy as np
 from tqdm import tqdm
 
 from hexsim.control.scenario import make_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
+from hexsim.engine.workers import in_workers, worker_pool
 from hexsim.errors import InputError
-from hexsim.simulation.comparison import final_window_start
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import max_tracking_error, run_smoothness
-from hexsim.simulation.runner import simulate
-from hexsim.simulation.workers import in_workers, worker_pool
+from hexsim.studies.comparison import final_window_start
+from hexsim.studies.metrics import max_tracking_error, run_smoothness
 
 #: Metric columns of a sweep row, after the grid's own columns. Wall times are printed, not tabled, so
 #: the same sweep writes the same bytes.
@@ -81,7 +81,7 @@ def evaluate_point(config: RunConfig, result=None) -> dict:
 def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
               start_method: str | None = None, evaluate=evaluate_point) -> tuple[list[dict], float]:
     """Run every point with ``jobs`` worker processes (1: in this process) started by ``start_method``,
-    or on the active Dask client's workers (see :func:`hexsim.simulation.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
+    or on the active Dask client's workers (see :func:`hexsim.engine.workers.worker_pool`). Returns the rows (grid settings + :data:`METRICS`, in
     grid order) and the wall time [s] of the whole sweep, start-up included. ``evaluate(config) -> dict``
     (a module-level function, sent to the workers) reduces a run; default the :data:`METRICS`. Raises
     InputError for a start method the platform does not have."""

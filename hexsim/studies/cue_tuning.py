@@ -11,8 +11,8 @@ machine's platform:
   the three rotations, each inside a plausible bracket; the limits, damping, the tilt's rate limit (below the
   canals' threshold) and the rotation centre stay as given (the start file or the defaults);
 - **the cost** of a manoeuvre: on the *ideal* platform (the washout's poses followed exactly,
-  :func:`hexsim.simulation.cueing.pose_motion` at the driver's head), each axis' sensed-cue error (the
-  vestibular models' output, :func:`hexsim.simulation.cueing.sensed`) as an rms in units of that axis' sensed
+  :func:`hexsim.studies.cueing.pose_motion` at the driver's head), each axis' sensed-cue error (the
+  vestibular models' output, :func:`hexsim.studies.cueing.sensed`) as an rms in units of that axis' sensed
   threshold (Benson et al. 1986/1989, the perception's thresholds), summed in squares over the six axes; the
   legs' stroke, through the exact inverse kinematics of the machine's geometry, must keep ``margin_m`` to each end:
   every millimetre beyond costs as much as a threshold's rms error everywhere;
@@ -35,8 +35,8 @@ from scipy.optimize import differential_evolution
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.washout import VehicleMotion, WashoutParams, washout
 from hexsim.errors import InputError
-from hexsim.simulation.cueing import pose_motion, sensed
-from hexsim.simulation.perception import (
+from hexsim.studies.cueing import pose_motion, sensed
+from hexsim.studies.perception import (
     AXES,
     DEFAULT_THRESHOLDS,
     Thresholds,

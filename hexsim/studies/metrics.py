@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hexsim.engine.config import SimulationResult
 from hexsim.signals import fit_fundamental, zero_crossings
-from hexsim.simulation.config import SimulationResult
 
 #: Half-width [s] of the window around a velocity reversal in which its peak is taken.
 REVERSAL_WINDOW = 0.1

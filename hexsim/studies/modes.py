@@ -4,7 +4,7 @@ Linearised about the neutral pose at rest, each leg is a spring, the oil column 
 k_i = E A1^2 / (y_i A1 + V_pl) (seed eq. 3.7 with the valve closed: at rest the spool sits in the overlap,
 so no flow; the rod side is held at P_s by the supply and adds no stiffness). The inertia is MuJoCo's:
 the legs' mobility A (n_legs, n_legs) [1/kg], slide accelerations per unit leg force with the platform,
-the legs' own bodies and the closed-loop constraints (:func:`hexsim.simulation.config.leg_mobility`). Free
+the legs' own bodies and the closed-loop constraints (:func:`hexsim.engine.config.leg_mobility`). Free
 vibration in the leg coordinates, ÿ = -A K y, gives ω^2 = eig(A K). Each mode shape is carried to the
 platform's six degrees of freedom through the inverse of the IK Jacobian dy/dpose, and named by the
 degree of freedom that holds most of its kinetic energy (the platform's own 6×6 inertia at its
@@ -22,12 +22,12 @@ import numpy as np
 
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import DOF_NAMES
+from hexsim.engine.config import leg_mobility
 from hexsim.errors import InputError
 from hexsim.plant.effects import Effects
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 from hexsim.plant.params import HydraulicParams
-from hexsim.simulation.config import leg_mobility
 
 #: Names of the platform's degrees of freedom in the order of a pose (x, y, z, roll, pitch, yaw).
 MOTIONS = ("surge", "sway", "heave", "roll", "pitch", "yaw")

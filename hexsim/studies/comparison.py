@@ -14,11 +14,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from compensation import COMPENSATORS
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import Smoothness, run_smoothness
-from hexsim.simulation.perception import DEFAULT_THRESHOLDS, Thresholds, bump_perception
-from hexsim.simulation.runner import simulate
-from hexsim.simulation.workers import in_workers, worker_pool
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import simulate
+from hexsim.engine.workers import in_workers, worker_pool
+from hexsim.studies.metrics import Smoothness, run_smoothness
+from hexsim.studies.perception import DEFAULT_THRESHOLDS, Thresholds, bump_perception
 
 #: Order of the league table: the baseline first, the yardstick last.
 ORDER = ("none", "iterative-1", "iterative-2", "buffered", "directional", "feedforward", "adaptive", "oracle")
@@ -129,7 +129,7 @@ def compare(base: RunConfig, names: tuple[str, ...] = ORDER, jobs: int = 2,
             labelled: tuple[tuple[str, RunConfig], ...] = ()) -> list[Entry]:
     """Run ``base`` once per compensator in ``names`` (``none`` is always included), then each of the
     ``labelled`` configurations (label, config: e.g. a tuned file's compensator with its settings and leg
-    model, :func:`hexsim.simulation.tuning.read_tuned`), with ``jobs`` worker processes; returns the entries
+    model, :func:`hexsim.studies.tuning.read_tuned`), with ``jobs`` worker processes; returns the entries
     in that order, labelled, with the reduction of the mean reversal peak vs none and, for a hexapod, the
     bumps felt with the perception ``thresholds``. Raises ValueError for an unknown name."""
     names = tuple(dict.fromkeys(("none", *names)))

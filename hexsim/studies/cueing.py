@@ -1,13 +1,13 @@
 """The cue report of a ``vehicle:`` run: what the driver senses in the simulator against the vehicle.
 
 Three motions of the driver's head are sensed with the vestibular models of
-:mod:`hexsim.simulation.perception` (otoliths on specific force less 1 g, canals on angular velocity):
+:mod:`hexsim.studies.perception` (otoliths on specific force less 1 g, canals on angular velocity):
 
 * the **vehicle**'s (the input file, at the head, vehicle axes);
 * the **ideal platform**'s: the washout's setpoints as a rigid platform would follow them exactly (their
   kinematics, :func:`pose_motion`) -- what the cueing algorithm alone gives;
 * the **simulator**'s: the simulated hexapod (hydraulics, controller, compensator) from its recorded
-  rigid-body state (:func:`~hexsim.simulation.perception.point_motion`).
+  rigid-body state (:func:`~hexsim.studies.perception.point_motion`).
 
 Per axis the report gives the sensed-cue error against the vehicle (rms, and the correlation coefficient,
 as the motion-cueing literature reports them, e.g. Grant & Reid 1997, Telban & Cardullo 2005) and the
@@ -32,7 +32,7 @@ from scipy.signal import find_peaks
 from scipy.spatial.transform import Rotation
 
 from hexsim.signals import zero_crossings
-from hexsim.simulation.perception import (
+from hexsim.studies.perception import (
     AXES,
     DEFAULT_THRESHOLDS,
     ISO_WEIGHTINGS,

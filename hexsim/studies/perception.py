@@ -191,7 +191,7 @@ class PointMotion:
 
 def point_motion(result, point_m) -> PointMotion:
     """The motion at ``point_m`` (3,) [m, platform frame] of a hexapod run ``result``
-    (:class:`~hexsim.simulation.config.SimulationResult`), from the platform's recorded rigid-body state:
+    (:class:`~hexsim.engine.config.SimulationResult`), from the platform's recorded rigid-body state:
     the accelerometer's specific force, the gyro's angular velocity (both in the sensor site's frame) and the
     angular acceleration (world frame, rotated into the site's frame with the site's recorded orientation),
     carried to the point with :func:`rigid_point_specific_force` and expressed in the platform's axes.
@@ -284,16 +284,16 @@ def _max(x: np.ndarray) -> float | None:
 
 def bump_perception(result, sm=None, head_m=None, seat_m=None, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> BumpPerception:
     """Each reversal bump of a sine run as the occupant senses it (module doc). ``result``: a hexapod
-    :class:`~hexsim.simulation.config.SimulationResult`; ``sm``: its
-    :class:`~hexsim.simulation.metrics.Smoothness` (window, frequency, reversal times; None:
-    :func:`~hexsim.simulation.metrics.run_smoothness` of the result). ``head_m``, ``seat_m``
+    :class:`~hexsim.engine.config.SimulationResult`; ``sm``: its
+    :class:`~hexsim.studies.metrics.Smoothness` (window, frequency, reversal times; None:
+    :func:`~hexsim.studies.metrics.run_smoothness` of the result). ``head_m``, ``seat_m``
     (3,) [m, platform frame]: default the machine's (:attr:`hexsim.plant.geometry.Geometry.head_point`);
     ``thresholds``: :class:`Thresholds` (default Benson's and ISO 2631-1's).
     The false cue on each axis is the signal minus its offset and fundamental at the drive frequency over
     the analysis window (as the seed's acceleration noise, §2.3.1). Raises ValueError for a single-actuator
     run."""
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
-    from hexsim.simulation.metrics import run_smoothness
+    from hexsim.studies.metrics import run_smoothness
 
     sm = run_smoothness(result) if sm is None else sm
     geometry = result.config.geometry or MICRO_MOTION_SYSTEM

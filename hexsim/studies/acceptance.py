@@ -11,7 +11,7 @@ measured figure against a tolerance file the user writes (:class:`Tolerances`, `
   the setpoint's (the describing-function method of AGARD-AR-144, 1979): gain [dB] and phase [deg];
 * **turn-around check** per degree of freedom: the seed's slow sine (0.5 Hz, 50 mm / 5 deg), the largest
   reversal bump (acceleration minus its fundamental, g or rad/s^2) and how many bumps a seated occupant
-  feels (:mod:`hexsim.simulation.perception`);
+  feels (:mod:`hexsim.studies.perception`);
 * **leg balance**: in heave, each leg's force (mean and fundamental) against the six legs' mean [%];
 * **repeatability**: the heave test run twice (position-sensor noise of another seed), the largest
   difference of the platform's vertical acceleration [g];
@@ -35,19 +35,19 @@ import numpy as np
 
 from hexsim.control.mpc_cueing import PlatformLimits
 from hexsim.control.scenario import SINE_DOFS, make_scenario, vehicle_scenario
+from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import Simulator, simulate
+from hexsim.engine.workers import in_workers, worker_pool
 from hexsim.errors import InputError
 from hexsim.signals import fit_fundamental
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import STANDARD_GRAVITY, run_smoothness
-from hexsim.simulation.perception import (
+from hexsim.studies.metrics import STANDARD_GRAVITY, run_smoothness
+from hexsim.studies.perception import (
     AXES,
     DEFAULT_THRESHOLDS,
     Thresholds,
     bump_perception,
     point_motion,
 )
-from hexsim.simulation.runner import Simulator, simulate
-from hexsim.simulation.workers import in_workers, worker_pool
 from hexsim.tables import read_json_object
 
 DOFS = ("surge", "sway", "heave", "roll", "pitch", "yaw")
@@ -340,8 +340,8 @@ def _at_rest(base: RunConfig):
     and tank pressures. The model and its rest pressures are set up once. Returns (the geometry,
     :class:`hexsim.control.mpc_cueing.PlatformLimits`)."""
     from hexsim.control.kinematics import HexapodGeometry
+    from hexsim.engine.config import leg_mobility
     from hexsim.plant import hydraulics
-    from hexsim.simulation.config import leg_mobility
 
     sim = Simulator(dataclasses.replace(base, scenario=make_scenario("heave", duration=6.0), progress=False))
     geo = HexapodGeometry.from_model(sim.model)

@@ -3,7 +3,7 @@
 Given a machine (calibrated or built in) and the motions of interest, every candidate (the seed's
 buffered and directional compensators at their defaults and at other buffer lengths, the model-based
 feedforward at three loop filters, the adaptive feedforward at two adaptation times) runs each motion
-through the sweep path (:func:`hexsim.simulation.sweeps.run_sweep`: worker processes, or Dask with a
+through the sweep path (:func:`hexsim.studies.sweeps.run_sweep`: worker processes, or Dask with a
 scheduler), judged on the final window of each run (the last quarter, where the adaptive ones have
 settled), on the machine as calibrated and on its :func:`neighbours` (a drifting null, the valve's edges a
 tolerance off the file's), the compensator keeping the calibrated machine's leg model. The tuned compensator
@@ -29,11 +29,11 @@ import numpy as np
 
 from compensation import MODEL_BASED, NAMES, CompensatorSettings, SettingsError
 from compensation.model_based import LegModel
+from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
-from hexsim.simulation.comparison import final_window_start
-from hexsim.simulation.config import RunConfig
-from hexsim.simulation.metrics import run_smoothness
-from hexsim.simulation.sweeps import Point, evaluate_point, run_sweep
+from hexsim.studies.comparison import final_window_start
+from hexsim.studies.metrics import run_smoothness
+from hexsim.studies.sweeps import Point, evaluate_point, run_sweep
 from hexsim.tables import read_json_object, write_json
 
 #: Version of the tuned-compensator file.
@@ -58,7 +58,7 @@ def leg_model_of(config: RunConfig) -> LegModel:
     """The leg model a model-based compensator gets on ``config``'s machine and scenario start (built from
     the machine file, :func:`hexsim.control.feedforward.leg_model`). Raises InputError for a machine whose
     inverse would give an extreme or unstable compensation (the reason named)."""
-    from hexsim.simulation.runner import Simulator
+    from hexsim.engine.runner import Simulator
 
     return Simulator(dataclasses.replace(config, compensator="feedforward", compensator_model=None)).compensator.model
 
@@ -78,11 +78,11 @@ class Candidate:
 
 
 def evaluate_tuning(config: RunConfig) -> dict:
-    """The sweep's figures of one run (:func:`hexsim.simulation.sweeps.evaluate_point`) plus, for a
-    hexapod, the bumps of the final window a seated occupant feels (:mod:`hexsim.simulation.perception`).
+    """The sweep's figures of one run (:func:`hexsim.studies.sweeps.evaluate_point`) plus, for a
+    hexapod, the bumps of the final window a seated occupant feels (:mod:`hexsim.studies.perception`).
     Runs in a worker process."""
-    from hexsim.simulation.perception import bump_perception
-    from hexsim.simulation.runner import simulate
+    from hexsim.engine.runner import simulate
+    from hexsim.studies.perception import bump_perception
 
     result = simulate(config)
     row = evaluate_point(config, result)

@@ -1,7 +1,7 @@
 """What a run is and what it gives: :class:`RunConfig`, :class:`SimulationResult`, the coupling of the
 leg hydraulics to MuJoCo (:class:`HydraulicCoupling`, the control callback of the ``python`` engine and
 the controller sample of both), the start-up statics and the piston setpoints. The loop that steps a
-run is :mod:`hexsim.simulation.runner`.
+run is :mod:`hexsim.engine.runner`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from hexsim.plant.platform import leg_jacobian, leg_wrench
 from hexsim.plant.temperature import WarmUp
 from hexsim.signals import zero_order_hold
 
-#: Ways to run the loop: the compiled runner (hexsim.simulation.native) and the Python control callback, a
+#: Ways to run the loop: the compiled runner (hexsim.engine.native) and the Python control callback, a
 #: straightforward loop over the same compiled leg step (hexsim.plant.legs) that also runs Python compensators.
 ENGINES = ("native", "python")
 
@@ -51,7 +51,7 @@ class RunConfig:
     # cls(n_legs, rate_hz, u_v_max, settings) returning a compensation.Compensator (runs in Python)
     compensator: str | Callable[..., Compensator] = "none"
     compensator_settings: CompensatorSettings = field(default_factory=CompensatorSettings)
-    # the leg model a model-based compensator inverts (a tuned file's, hexsim.simulation.tuning.read_tuned);
+    # the leg model a model-based compensator inverts (a tuned file's, hexsim.studies.tuning.read_tuned);
     # None: built from the machine (hexsim.control.feedforward.leg_model)
     compensator_model: LegModel | None = field(default=None, repr=False, compare=False)
     warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C
@@ -59,7 +59,7 @@ class RunConfig:
     seed: int = 0
     record_rate_hz: float | None = None
     progress: bool = False
-    engine: str = "native"  # "native": compiled runner (hexsim.simulation.native); "python": the control callback
+    engine: str = "native"  # "native": compiled runner (hexsim.engine.native); "python": the control callback
     timestep: float | None = None  # physics step [s]; None: the model's 1e-4 s (the seed's 10 kHz)
     keep_last_s: float | None = None  # keep only the last this many seconds of the recording (long runs:
     # memory stays flat; metrics and outputs cover that window); None: the whole run
