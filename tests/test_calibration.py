@@ -14,12 +14,13 @@ import pytest
 from independent_cylinder import Rig, experiment
 
 from hexsim.cli import main
-from hexsim.measured.calibration import calibrate, features
+from hexsim.measured.calibration import calibrate
 from hexsim.measured.discovery import apply_terms, equation_errors, equation_terms
 from hexsim.measured.measurement import read_log
 from hexsim.measured.parameters import default_parameters
 from hexsim.measured.replay import nominal_plant
 from hexsim.measured.scoring import Problem
+from hexsim.measured.steady import features
 from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine, read_machine
 
@@ -233,7 +234,7 @@ def test_features_of_a_real_run_are_its_steady_motions_and_end_stop_plateaus():
 
 
 def test_validate_says_calibrate_first_when_the_nominal_is_visibly_off_a_constant_command_log():
-    from hexsim.measured.calibration import nominal_check
+    from hexsim.measured.advice import nominal_check
 
     log = read_log(DATA / "cyl_1V_s2_pB.csv", machine=NOMINAL)
     check = nominal_check(log)

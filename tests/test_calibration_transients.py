@@ -243,11 +243,11 @@ def test_a_calibration_that_cannot_reach_its_own_logs_budget_says_so(calibrated,
 
 
 def test_validate_advises_from_the_identifications_own_replay_not_a_second_one(tmp_path, monkeypatch):
-    """The "never calibrated" advice of ``hexsim validate`` (:func:`hexsim.measured.calibration.transient_check`)
+    """The "never calibrated" advice of ``hexsim validate`` (:func:`hexsim.measured.advice.transient_check`)
     calibrates on the replay problem and nominal budget the identification built: evidence made from them
     is the evidence a calibration would build (same residual, same held-out errors), and with it no log is
     replayed into evidence again."""
-    from hexsim.measured.calibration import transient_check
+    from hexsim.measured.advice import transient_check
     from hexsim.measured.dynamics import ReplayEvidence
     from hexsim.measured.scoring import measure_budget
 

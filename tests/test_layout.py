@@ -86,9 +86,9 @@ MEASURED_FLOORS = (
     {"estimates", "statistics", "measurement", "residuals"},
     {"parameters", "records", "replay", "acceptance_logs"},
     {"fitting", "hexapod_replay", "proof"},
-    {"scoring", "flow_curve", "friction_id"},
+    {"scoring", "flow_curve", "friction_id", "steady"},
     {"calibration", "acquisition", "curves", "dynamics", "candidates", "discovery", "identify"},
-    {"reports.calibration", "reports.friction", "reports.validation"},
+    {"reports.calibration", "reports.friction", "reports.validation", "advice"},
     {"validation", "commissioning"},
 )
 #: The two sides of the floor above scoring: a machine's nominal, and the effects the nominal lacks.

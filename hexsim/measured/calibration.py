@@ -5,28 +5,17 @@ seal friction. Before effects are judged (``hexsim validate``), they are fitted,
 on calibration experiments: open-loop runs at constant valve commands in both directions and at
 several commands (as the real servo cylinder's 1, 3 and 5 V runs, ``examples/data/servo_cylinder``).
 
-**Features** (:func:`features`, measured on each log with the same functions a simulated run is read
-with): every stretch of constant command (|u_v| > 0.05 V) gives
-
-* a *steady motion* in the middle of the stroke (:func:`hexsim.studies.metrics.steady_segments`): the
-  speed and the median of each logged chamber pressure (p1, p2; ps if logged);
-* an *end-stop plateau* where the command holds the piston against a stop: the chamber the valve
-  connects to the supply reads P_s, the other the tank (4-way valve; the 3-way valve's cap side reads
-  P_s or the tank).
-
-**Model** (:func:`predict`): the steady motion of the machine file at that command against the load
-along the axis (:func:`hexsim.plant.hydraulics.steady_state`: flow continuity in each chamber, seed eq.
-3.4/3.7 with dP/dt = 0, and the piston's force balance, eq. 3.8 with the friction of eq. 3.9); at an
-end stop P_s and P_t.
+**Features and model** (:mod:`hexsim.measured.steady`): the steady motions and end-stop plateaus of every
+stretch of constant command, and the machine file's steady motion at each.
 
 **Parameters** (:mod:`hexsim.measured.parameters`: :class:`ParameterSet`, :func:`default_parameters`):
 machine-file keys, each with bounds, the bounds' source and the experiment that identifies it. A value
 edits the machine file by its key, so a calibrated nominal is a machine file like any other.
 
 **Fit** (:func:`calibrate`, the optimizer :mod:`hexsim.measured.fitting`): bounded least squares
-(``scipy.optimize.least_squares``) on the features, weighted by :data:`SPEED_SIGMA_REL` /
-:data:`SPEED_SIGMA_ABS` and :data:`PRESSURE_SIGMA`; standard errors and correlations from the Jacobian,
-s^2 (J^T J)^-1 with s^2 the residual variance (:mod:`hexsim.measured.statistics`). A parameter the data
+(``scipy.optimize.least_squares``) on the features, weighted as :mod:`hexsim.measured.steady` says
+(:data:`~hexsim.measured.steady.SPEED_SIGMA_REL`, :data:`~hexsim.measured.steady.SPEED_SIGMA_ABS`,
+:data:`~hexsim.measured.steady.PRESSURE_SIGMA`); standard errors and correlations from the Jacobian, s^2 (J^T J)^-1 with s^2 the residual variance (:mod:`hexsim.measured.statistics`). A parameter the data
 cannot separate (a standard error above a quarter of its bound range, or a correlation beyond 0.98 with
 another, whichever has the larger relative error) is held at its prior and the rest refitted; the report
 says why and which experiment would identify it. A fit at a bound is reported as such: a hint that the
@@ -43,7 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hexsim.errors import InputError, PhysicsError
+from hexsim.errors import InputError
 from hexsim.measured.acquisition import accelerometer_sampling
 from hexsim.measured.curves import curve_report, reaches_budget, with_curve
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
@@ -56,139 +45,20 @@ from hexsim.measured.parameters import (
     leg_null_parameter,
 )
 from hexsim.measured.replay import command_jumps
-from hexsim.plant import hydraulics
+from hexsim.measured.steady import (
+    PRESSURE_SIGMA,
+    SPEED_SIGMA_ABS,
+    SPEED_SIGMA_REL,
+    Feature,
+    axis_load,
+    feature_errors,
+    features,
+    predict,
+    steady_residual,
+)
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import Machine, with_keys, with_valve
-from hexsim.plant.model import gravity, moving_mass
 from hexsim.plant.params import FLOW_AREAS
-from hexsim.studies.metrics import steady_segments
-
-#: Weight of a steady speed: 1 % of it plus 0.5 mm/s (a line fit over a stretch of 1 kHz positions is far
-#: more precise; the weight says how closely the steady model is asked to follow, not the sensor).
-SPEED_SIGMA_REL = 0.01
-SPEED_SIGMA_ABS = 5e-4
-#: Weight of a median pressure [Pa]: 0.3 bar (the real rig's transducer noise; offsets of that size are common).
-PRESSURE_SIGMA = 3e4
-#: End-stop plateau: the last share of a stretch, slower than END_SPEED [m/s], its median within END_MARGIN_M
-#: [m] of the observed end of the travel.
-END_SHARE, END_SPEED, END_MARGIN_M = 0.4, 1e-3, 2e-3
-@dataclass(frozen=True)
-class Feature:
-    """One measured quantity of a calibration experiment: which log, the stretch's command u_V [V] and
-    time span, ``kind`` ("steady" or "end stop"), ``quantity`` ("velocity", "p1", "p2", "ps"), the measured
-    value (m/s or Pa) and its weight ``sigma`` (same unit)."""
-
-    log: str
-    kind: str
-    u_V: float
-    t_start_s: float
-    t_end_s: float
-    quantity: str
-    measured: float
-    sigma: float
-
-
-_PRESSURES = (("p1", "p1_Pa"), ("p2", "p2_Pa"), ("ps", "ps_Pa"))
-
-
-def features(log: MeasurementLog) -> list[Feature]:
-    """The calibration features of an open-loop constant-command log (module doc). Raises InputError for a
-    log without a valve command or without a stretch of constant command that moves the piston."""
-    if log.system != "single-actuator":
-        raise InputError(f"{log.path}: calibration reads single-actuator logs (this is {log.system})")
-    c = log.columns
-    t, u, y = log.time, c["valve_cmd_V"], c["pos_m"]
-    pressures = {name: c[col] for name, col in _PRESSURES if col in c}
-    name = log.path.name
-    out = []
-    for row in steady_segments(t, u, y, pressures):
-        v = row["velocity_mps"]
-        out.append(Feature(name, "steady", row["u_V"], row["t_start_s"], row["t_end_s"], "velocity", v,
-                           SPEED_SIGMA_REL * abs(v) + SPEED_SIGMA_ABS))
-        out += [Feature(name, "steady", row["u_V"], row["t_start_s"], row["t_end_s"], q, row[q], PRESSURE_SIGMA)
-                for q in pressures]
-    lo, hi = float(np.min(y)), float(np.max(y))
-    change = np.flatnonzero(np.diff(u) != 0) + 1
-    bounds = np.concatenate([[0], change, [len(t)]])
-    fs = log.sample_rate_hz
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        if abs(u[a]) <= 0.05 or b - a < 0.2 * fs:
-            continue
-        tail = np.arange(int(b - END_SHARE * (b - a)), b)
-        stop = hi if u[a] > 0 else lo
-        speed = abs(np.polynomial.polynomial.polyfit(t[tail], y[tail], 1)[1])
-        if speed > END_SPEED or abs(float(np.median(y[tail])) - stop) > END_MARGIN_M:
-            continue
-        out += [Feature(name, "end stop", float(u[a]), float(t[tail[0]]), float(t[tail[-1]]), q,
-                        float(np.median(p[tail])), PRESSURE_SIGMA) for q, p in pressures.items()]
-    if not any(f.kind == "steady" for f in out):
-        raise InputError(f"{log.path}: no stretch of constant valve command moves the piston through mid-stroke; "
-                         f"calibration needs open-loop runs at constant commands (docs/calibration.md)")
-    return out
-
-
-def axis_load(log: MeasurementLog) -> tuple[float | None, float]:
-    """(the moving mass the log's sidecar declares [kg] or None, g cos(inclination) along its axis
-    [m/s^2]): what :func:`predict` needs of a log to compute the weight the piston lifts."""
-    declared = log.mass_kg if "mass_kg" in log.sidecar else None
-    return declared, gravity() * math.cos(math.radians(log.inclination_deg))
-
-
-def _load_force(machine: Machine, load: tuple[float | None, float]) -> float:
-    """M g cos(inclination) [N] with M the mass the log declares (that experiment's stated condition),
-    else the machine's (the one being calibrated), else the model's."""
-    declared, g_axis = load
-    mass = declared if declared is not None else machine.effects.mass_kg
-    return (mass if mass is not None else moving_mass()) * g_axis
-
-
-def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> np.ndarray:
-    """The model's value of each feature (same order, same units) on ``machine``; ``loads``: each log's
-    :func:`axis_load` (the weight along the axis is the machine's mass on it). A stretch the valve cannot move against its load predicts
-    no motion (velocity 0, pressures at their limits)."""
-    hyd, eff = machine.hydraulics, machine.effects
-    cache: dict[tuple[str, float], hydraulics.SteadyState | None] = {}
-    out = np.empty(len(feats))
-    for i, f in enumerate(feats):
-        if f.kind == "end stop":
-            feeds = "p1" if f.u_V > 0 else "p2"
-            if f.quantity == "ps":
-                out[i] = hyd.supply_pressure
-            elif not hyd.four_way:
-                out[i] = hyd.supply_pressure if f.u_V > 0 else hyd.tank_pressure
-            else:
-                out[i] = hyd.supply_pressure if f.quantity == feeds else hyd.tank_pressure
-            continue
-        key = (f.log, f.u_V)
-        if key not in cache:
-            try:
-                cache[key] = hydraulics.steady_state(f.u_V, _load_force(machine, loads[f.log]), hyd, eff=eff)
-            except ValueError:
-                cache[key] = None
-        s = cache[key]
-        if s is None:
-            out[i] = 0.0 if f.quantity == "velocity" else hyd.supply_pressure
-        else:
-            out[i] = {"velocity": s.velocity, "p1": s.p1, "p2": s.p2, "ps": hyd.supply_pressure}[f.quantity]
-    return out
-
-
-def steady_residual(feats: list[Feature], loads: dict) -> Callable[[Machine], np.ndarray]:
-    """The weighted residual (predicted - measured) / sigma of the steady ``feats`` as a function of the machine."""
-    measured = np.array([f.measured for f in feats])
-    sigma = np.array([f.sigma for f in feats])
-    return lambda m: (predict(feats, m, loads) - measured) / sigma
-
-
-def _errors(feats: list[Feature], predicted: np.ndarray) -> dict:
-    """Speed errors (relative) and pressure errors [Pa] of predictions against the features."""
-    speed = [abs(p / f.measured - 1.0) for f, p in zip(feats, predicted) if f.quantity == "velocity" and f.measured]
-    press = [abs(p - f.measured) for f, p in zip(feats, predicted) if f.quantity != "velocity"]
-    return {"speeds": len(speed), "speed_error_mean": float(np.mean(speed)) if speed else None,
-            "speed_error_max": float(np.max(speed)) if speed else None, "pressures": len(press),
-            "pressure_error_mean_Pa": float(np.mean(press)) if press else None,
-            "pressure_error_max_Pa": float(np.max(press)) if press else None}
-
 
 #: Evaluations of one least-squares run on transients (each a replay of the fit windows and a Jacobian of as
 #: many replays as parameters): a full calibration, and the screening of a flow-area form (far from an
@@ -549,8 +419,8 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
     if ev.replays or ev.steady:
         report["own_budget"] = own_budget(report)
     if ev.feats:
-        report["fit"] = {"before": _errors(ev.feats, predict(ev.feats, machine, ev.loads)),
-                         "after": _errors(ev.feats, predict(ev.feats, calibrated, ev.loads))}
+        report["fit"] = {"before": feature_errors(ev.feats, predict(ev.feats, machine, ev.loads)),
+                         "after": feature_errors(ev.feats, predict(ev.feats, calibrated, ev.loads))}
     return report
 
 
@@ -620,7 +490,7 @@ def _leave_one_log_out(ev: _Evidence, best: dict) -> list[dict]:
         mine = [f for f in ev.feats if f.log == log.path.name]
         refit = fit_parameters(steady_residual(rest, ev.loads), calibrated, params, best["fit"].held)
         predicted = predict(mine, params.apply(calibrated, refit.values), ev.loads)
-        rows.append({"log": str(log.path), **_errors(mine, predicted)})
+        rows.append({"log": str(log.path), **feature_errors(mine, predicted)})
     return rows
 
 
@@ -676,8 +546,8 @@ def _held_out(logs: list[MeasurementLog], prior: Machine, calibrated: Machine, l
     out: dict = {"logs": [str(log.path) for log in logs]}
     if steady:
         out_feats = [f for log in steady for f in features(log)]
-        out["before"] = _errors(out_feats, predict(out_feats, prior, loads))
-        out["after"] = _errors(out_feats, predict(out_feats, calibrated, loads))
+        out["before"] = feature_errors(out_feats, predict(out_feats, prior, loads))
+        out["after"] = feature_errors(out_feats, predict(out_feats, calibrated, loads))
     moving = [ReplayEvidence.of(log, prior, every_window=True) for log in logs if log not in steady]
     if moving:
         out["transients"] = [{"before": ev.errors(prior), "after": ev.errors(calibrated)} for ev in moving]
@@ -700,108 +570,3 @@ def _add_priors(report: dict, machine: Machine, params: ParameterSet) -> None:
     """Each parameter row's prior (the machine's value before calibration), in place."""
     for row, value in zip(report["parameters"], params.priors(machine)):
         row["prior"] = float(value)
-
-
-#: A nominal this far off a log's steady motions is "visibly off": validate says to calibrate first.
-OFF_SPEED, OFF_PRESSURE = 0.03, 1e5
-
-
-@dataclass(frozen=True)
-class CalibrationAdvice:
-    """What ``hexsim validate`` says of an uncalibrated machine's nominal before any effect: whether it is
-    ``off`` the log, the ``sentence`` put first among the conclusions ("calibrate first"; empty when there is
-    nothing to say), the parameters a calibration on this log alone ``moved`` (key, prior, value, std_error,
-    unit, status) and the check's own figures (``figures``: steady speed and pressure errors, or the held-out
-    RMS in budgets before and after). :meth:`as_dict` is the validation JSON's ``nominal_check``."""
-
-    off: bool
-    sentence: str = ""
-    moved: tuple[dict, ...] = ()
-    figures: dict = dataclasses.field(default_factory=dict)
-
-    def as_dict(self) -> dict:
-        return {"off": self.off, **self.figures} | ({"moved": list(self.moved), "sentence": self.sentence}
-                                                   if self.sentence else {})
-
-
-def nominal_check(log: MeasurementLog) -> CalibrationAdvice | None:
-    """How far an uncalibrated machine is from an open-loop constant-command log's steady motions (the
-    advice's figures: :func:`_errors`), and, if visibly off (speeds beyond :data:`OFF_SPEED` or pressures
-    beyond :data:`OFF_PRESSURE` [Pa]), which parameters a calibration on this log alone moves beyond two
-    standard errors and 5 % of their bracket, in the sentence ``hexsim validate`` puts first ("calibrate
-    first"). None for a machine that was calibrated, or a log without a steady motion."""
-    if log.machine.calibration is not None or log.system != "single-actuator" or "valve_cmd_V" not in log.columns:
-        return None
-    try:
-        feats = features(log)
-    except InputError:
-        return None
-    loads = {log.path.name: axis_load(log)}
-    err = _errors(feats, predict(feats, log.machine, loads))
-    off = (err["speed_error_max"] or 0.0) > OFF_SPEED or (err["pressure_error_max_Pa"] or 0.0) > OFF_PRESSURE
-    if not off:
-        return CalibrationAdvice(False, figures=err)
-    _, report = calibrate([log], log.machine, cross_validate=False, dynamics="never")
-    moved = _moved(report)
-    what = []
-    if err["speed_error_max"]:
-        what.append(f"speeds up to {err['speed_error_max']:.1%} off")
-    if err["pressure_error_max_Pa"]:
-        what.append(f"pressures up to {err['pressure_error_max_Pa'] / 1e5:.2f} bar off")
-    changes = _changes(moved)
-    return CalibrationAdvice(True, f"The machine's nominal is visibly off this log's steady motions ({', '.join(what)}): "
-                             f"calibrate first (hexsim calibrate, docs/calibration.md), then judge effects on the "
-                             f"calibrated machine" + (f"; a calibration on this log alone moves {changes}" if changes
-                                                      else "") + ".", tuple(moved), err)
-
-
-def _moved(report: dict) -> list[dict]:
-    """The parameters a calibration moved beyond two standard errors and 5 % of their bracket."""
-    return [{k: r[k] for k in ("key", "prior", "value", "std_error", "unit", "status")} for r in report["parameters"]
-            if r["status"] != HELD
-            and abs(r["value"] - r["prior"]) > max(2.0 * r["std_error"], 0.05 * (r["upper"] - r["lower"]))]
-
-
-def _changes(moved: list[dict]) -> str:
-    return ", ".join(f"{r['key']} {r['prior']:.4g} → {r['value']:.4g} {r['unit']}"
-                     + (" (at a bound)" if r["status"] == AT_A_BOUND else "") for r in moved)
-
-
-def transient_check(log: MeasurementLog, evidence=None) -> CalibrationAdvice | None:
-    """For a log that is no constant-command experiment, judged against a machine that was never calibrated:
-    what a calibration from this log's own transients (:mod:`hexsim.measured.dynamics`, the machine's own
-    flow-area form) moves and how far it brings the held-out windows, as the sentence ``hexsim validate``
-    puts first when its verdict is not ``none``: the nominal may be what is off, not an effect. ``evidence``:
-    the log's replay already built (:meth:`hexsim.measured.dynamics.ReplayEvidence.of_problem` on a
-    validation's problem and nominal budget), else built here. None for a calibrated machine, a hexapod
-    log, or a log the replay cannot use."""
-    if log.machine.calibration is not None or log.system != "single-actuator":
-        return None
-    try:
-        _, report = calibrate([log], log.machine, flow_areas=(log.machine.hydraulics.flow_area,),
-                              cross_validate=False, dynamics="always", evidence=(evidence,) if evidence else ())
-    except (InputError, PhysicsError):  # a log the replay cannot use: validate's own answer stands alone
-        return None
-    before = report["transients"][0]["before"]["held_out_rms_in_budgets"]
-    after = report["transients"][0]["after"]["held_out_rms_in_budgets"]
-    moved = _moved(report)
-    worst = max(before, key=lambda ch: before[ch])
-    sentence = (f"This machine was never calibrated, and a calibration of its nominal from this log's own transients "
-                f"brings the held-out {worst} from {before[worst]:.3g} to {after[worst]:.3g} budgets"
-                + (f", moving {_changes(moved)}" if moved else "") + ": calibrate on calibration experiments of the "
-                "machine first (hexsim calibrate, docs/calibration.md), then judge effects on the calibrated machine; "
-                "an effect found on the uncalibrated file may be the nominal's error.")
-    return CalibrationAdvice(bool(moved), sentence, tuple(moved),
-                             {"held_out_rms_in_budgets": {"before": before, "after": after}})
-
-
-def hexapod_hint(log: MeasurementLog) -> CalibrationAdvice:
-    """For a hexapod log judged against a machine that was never calibrated: the sentence ``hexsim validate``
-    puts first when its verdict is not ``none``. Not measured (a hexapod's calibration takes minutes,
-    :func:`calibrate`): six valves each within their data sheet's tolerance, a payload and the oil are
-    the first suspects of a replay that misses on every leg."""
-    return CalibrationAdvice(True, (
-        f"The machine {log.machine.label} was never calibrated: each leg's valve (its edges' flow gains within a "
-        f"data sheet's ±10 %), the oil's bulk modulus, the seals' friction and the payload may be what is off, not an "
-        f"effect. Calibrate it first on a closed-loop log of the machine (hexsim calibrate LOG --out CAL.json, "
-        f"docs/calibration.md), then judge effects with --machine CAL.json."))

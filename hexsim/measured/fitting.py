@@ -4,7 +4,7 @@ call it), and the calibration's use of it: a :class:`~hexsim.measured.parameters
 machine's weighted residual, with the rule that holds a parameter the data cannot identify at its prior.
 
 The residual is a function of a machine (:class:`hexsim.plant.machine.Machine`): the steady features'
-(:func:`hexsim.measured.calibration.steady_residual`), a log's replay (:class:`hexsim.measured.dynamics.
+(:func:`hexsim.measured.steady.steady_residual`), a log's replay (:class:`hexsim.measured.dynamics.
 ReplayEvidence`), or both concatenated. The parameters are searched in normalised coordinates
 z = (x − lower) / (upper − lower) ∈ [0, 1] (``scipy.optimize.least_squares``, trf); standard errors and
 correlations from :func:`hexsim.measured.statistics.fit_statistics`.

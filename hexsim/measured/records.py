@@ -2,7 +2,7 @@
 (:class:`CalibrationRecord`, from a machine file's ``calibration`` block as :func:`hexsim.measured.calibration.
 calibrate` writes it), the verdict (:data:`Verdict`) and the validation report (:class:`ValidationReport`, the
 JSON document ``hexsim validate`` writes and :func:`hexsim.measured.validation.validate` returns). The advice a
-validation gives on an uncalibrated machine is :class:`hexsim.measured.calibration.CalibrationAdvice`; the
+validation gives on an uncalibrated machine is :class:`hexsim.measured.advice.CalibrationAdvice`; the
 identification's outcome :class:`hexsim.measured.identify.Identification`.
 
 The block is read here and only here: the budget's calibration uncertainty and model floor

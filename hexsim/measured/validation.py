@@ -12,7 +12,7 @@ import pathlib
 
 import numpy as np
 
-from hexsim.measured.calibration import (
+from hexsim.measured.advice import (
     CalibrationAdvice,
     hexapod_hint,
     nominal_check,
