@@ -23,7 +23,7 @@ from hexsim.measured.candidates import (
 )
 from hexsim.measured.replay import PlantModel
 from hexsim.plant.effects import Effects
-from hexsim.plant.machine import KEYS
+from hexsim.plant.machine_keys import KEYS
 from hexsim.plant.params import HydraulicParams
 
 

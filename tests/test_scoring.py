@@ -93,10 +93,10 @@ def test_the_score_sums_each_window_over_its_budget_and_measures_the_held_out_wi
 
 
 def _judged(before, after, x, se, rms_before=1.0, rms_after=0.5, tolerance=0.0, tried=1):
-    """The judge (:func:`hexsim.measured.identify.judge`) on hand-made window costs: six windows of five
+    """The judge (:func:`hexsim.measured.effect_fit.judge`) on hand-made window costs: six windows of five
     samples (the first not scored), the odd ones held out; a null offset u_0 (plausible -2…2 V, no effect at
     0) fitted to ``x`` ± ``se`` on a base whose held-out windows cost ``before`` and leave ``rms_before``."""
-    from hexsim.measured.identify import FitResult, judge
+    from hexsim.measured.effect_fit import FitResult, judge
     from hexsim.measured.scoring import Scored
 
     measured = {"p1": np.zeros((6, 5))}

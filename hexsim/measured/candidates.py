@@ -14,7 +14,7 @@ flagged and never reported as a finding.
 
 What an effect changes in the plant is the machine's side, not the fit's: its parameters are fields of
 :class:`~hexsim.plant.effects.Effects` or :class:`~hexsim.plant.params.HydraulicParams` (whose zero value
-is the seed's model), each one key of the machine file (:data:`hexsim.plant.machine.KEYS`, by component:
+is the seed's model), each one key of the machine file (:data:`hexsim.plant.machine_keys.KEYS`, by component:
 valve, cylinder, oil, supply, load, sensors), and its equations are in the compiled leg step
 (:mod:`hexsim.plant.legs`), written once for simulation and replay alike. A new effect is therefore a
 field, its machine-file key, its equations and a :class:`Candidate` here.

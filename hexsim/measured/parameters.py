@@ -10,7 +10,7 @@ the model without it has); :meth:`Parameter.estimate` turns a fitted value into 
 (:data:`hexsim.measured.candidates.CANDIDATES`) and friction (:data:`hexsim.measured.friction_id.PARAMETERS`)
 declare theirs with it.
 
-A calibration parameter's key sets its field, its unit (the machine file's, :data:`hexsim.plant.machine.KEYS`)
+A calibration parameter's key sets its field, its unit (the machine file's, :data:`hexsim.plant.machine_keys.KEYS`)
 and how it edits the model (:func:`hexsim.plant.machine.with_keys`): a calibrated nominal is a machine file like
 any other; a :class:`ParameterSet` reads their priors from a machine (the nominal,
 :class:`hexsim.plant.machine.Machine`) and writes values into one. :func:`default_parameters` is what a data
@@ -27,7 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from hexsim.measured.estimates import Estimate
-from hexsim.plant.machine import KEYS, Machine, get_key, shared_path, with_keys
+from hexsim.plant.machine import Machine, get_key, shared_path, with_keys
+from hexsim.plant.machine_keys import KEYS
 from hexsim.plant.model import moving_mass
 
 _UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}

@@ -19,24 +19,21 @@ from hexsim.measured.advice import (
     transient_check,
 )
 from hexsim.measured.candidates import CANDIDATES
+from hexsim.measured.effect_fit import ALPHA, MIN_EXCESS_SHARE, WORSE_REL, signal_labels
 from hexsim.measured.identify import (
-    ALPHA,
     FIT_PER_ROUND,
     MAX_EFFECTS,
-    MIN_EXCESS_SHARE,
     SEARCH_SEGMENTS,
-    WORSE_REL,
     Identification,
     default_candidates,
     identify,
-    signal_labels,
 )
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.records import UNSETTLED, CalibrationRecord, ValidationReport
 from hexsim.measured.reports.validation import fit_label, write_report
 from hexsim.measured.residuals import analyse
 from hexsim.measured.scoring import SCALED, WITHIN, within_budget
-from hexsim.plant.machine import KEYS
+from hexsim.plant.machine_keys import KEYS
 from hexsim.plant.params import OFFSET_FIELDS
 from hexsim.studies.metrics import STANDARD_GRAVITY
 from hexsim.tables import StdoutTarget
