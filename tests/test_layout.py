@@ -83,7 +83,7 @@ def test_every_package_is_installed():
 #: the reports, the validation that composes them. A module imports only modules on floors below its own, or
 #: on its own floor those of its own side (:data:`SIDES`).
 MEASURED_FLOORS = (
-    {"estimates", "statistics", "measurement", "residuals"},
+    {"estimates", "statistics", "measurement", "residuals", "box_lsq"},
     {"parameters", "records", "replay", "acceptance_logs"},
     {"fitting", "hexapod_replay", "proof"},
     {"scoring", "flow_curve", "friction_id", "steady"},
@@ -114,3 +114,22 @@ def test_calibration_and_identification_stand_side_by_side_on_scoring():
             if floor[used] > floor[name] or (floor[used] == floor[name] and not same_side):
                 wrong.append(f"hexsim/measured/{name.replace('.', '/')}.py:{line} imports hexsim.measured.{used}")
     assert not wrong, "\n".join(wrong)
+
+
+#: A module a newcomer reads in one sitting, a function on one screen (issue 54's "done when").
+MAX_MODULE_LINES, MAX_FUNCTION_LINES = 600, 60
+
+
+def test_no_module_over_600_lines_and_no_function_over_60_in_hexsim():
+    long = []
+    for path in sorted((ROOT / "hexsim").rglob("*.py")):
+        text = path.read_text()
+        name = path.relative_to(ROOT).as_posix()
+        if len(text.splitlines()) > MAX_MODULE_LINES:
+            long.append(f"{name}: {len(text.splitlines())} lines")
+        for node in ast.walk(ast.parse(text, name)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                size = node.end_lineno - node.lineno + 1
+                if size > MAX_FUNCTION_LINES:
+                    long.append(f"{name}:{node.lineno} {node.name}: {size} lines")
+    assert not long, "\n".join(long)

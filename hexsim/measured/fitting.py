@@ -168,22 +168,33 @@ def fit_parameters(residual_of: Callable[[Machine], np.ndarray], machine: Machin
         if not options.rule:
             return Fit(params, x, np.zeros(len(params)), np.eye(len(params)), sol.fun, held)
         share = 1.0 if independent_share is None else independent_share(params.apply(machine, x))
-        stats = fit_statistics(sol.jac, sol.fun, free=_inside(sol), n_independent=share * len(sol.fun))
-        se_z, corr = stats.std_errors, stats.correlation
-        worst, why = _weak_at_bound(sol, residual, (prior[free] - lo[free]) / span[free])
-        x[free] = lo[free] + sol.x * span[free]  # the residual's closure wrote its trial values there
-        if worst is None:
-            worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
-        se = np.zeros(len(params))
-        se[free] = se_z * span[free]
-        full = np.eye(len(params))
-        full[np.ix_(free, free)] = corr
-        fit = Fit(params, x.copy(), se, full, sol.fun, dict(held))
+        fit, worst, why = _judged(sol, residual, params, free, x, prior, held, share, options)
         if worst is None:
             return fit
         notify(f"held at its prior: {params[free[worst]].key} ({why})")
         before = (fit, params[free[worst]].key)
         held[params[free[worst]].key] = why
+
+
+def _judged(sol, residual: Callable[[np.ndarray], np.ndarray], params: ParameterSet, free: list[int], x: np.ndarray,
+            prior: np.ndarray, held: dict[str, str], share: float, options: FitOptions) -> tuple[Fit, int | None, str]:
+    """The :class:`Fit` of the solution ``sol`` on the ``free`` parameters (scaled to their brackets; ``x`` the
+    values, ``share`` the independent samples per residual) with its standard errors and correlations
+    (:func:`hexsim.measured.statistics.fit_statistics`), and the free parameter to hold next: its index in
+    ``free`` and why (weak at a bound, :func:`_weak_at_bound`, else unidentified, :func:`_unidentified`), or
+    None."""
+    lo, span = params.lower, params.span
+    stats = fit_statistics(sol.jac, sol.fun, free=_inside(sol), n_independent=share * len(sol.fun))
+    se_z, corr = stats.std_errors, stats.correlation
+    worst, why = _weak_at_bound(sol, residual, (prior[free] - lo[free]) / span[free])
+    x[free] = lo[free] + sol.x * span[free]  # the residual's closure wrote its trial values there
+    if worst is None:
+        worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
+    se = np.zeros(len(params))
+    se[free] = se_z * span[free]
+    full = np.eye(len(params))
+    full[np.ix_(free, free)] = corr
+    return Fit(params, x.copy(), se, full, sol.fun, dict(held)), worst, why
 
 
 def _blind(safe: Callable[[np.ndarray], np.ndarray], params: ParameterSet, prior: np.ndarray,

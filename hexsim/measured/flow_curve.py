@@ -54,12 +54,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
-from scipy.optimize import lsq_linear
 from scipy.signal import lsim, lti, savgol_filter
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
+from hexsim.measured.box_lsq import box_lsq
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import near_jumps
 from hexsim.plant import hydraulics
@@ -101,8 +100,6 @@ STRENGTHS = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 FLOOR_V = 0.02
 #: Iterations of the reweighted least squares (robust loss and l1 penalty).
 IRLS_STEPS = 6
-#: Exchanges of the bounds held tried before a bounded least squares is solved from scratch (:func:`_box_lsq`).
-PIVOTS = 8
 
 
 @dataclass(frozen=True)
@@ -158,19 +155,13 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
     state was read that long after its row's command took effect (:mod:`hexsim.measured.acquisition`), so an
     interval gains that share of the next row's flow and loses it of its first row's (negative: the rows
     before each end). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
-    if log.system != "single-actuator":
-        raise InputError(f"{log.path.name}: a flow curve is read from single-actuator logs (this one is {log.system})")
-    if "p1_Pa" not in log.columns:
-        raise InputError(f"{log.path.name}: a flow curve needs the chamber pressure (column p1_Pa)")
     hyd, eff = machine.hydraulics, machine.effects
     rate, cols = log.sample_rate_hz, log.columns
     dt = 1.0 / rate
     step = max(1, int(round(INTERVAL_S * rate)))
     n = (len(log.time) - 1) // step
     edges = np.arange(n + 1) * step  # sample index of each interval's ends
-    y = _smooth(cols["pos_m"], rate)  # the ends' positions, the transducer's noise smoothed (zero phase)
-    kinked = near_jumps(log, WINDOW_S)  # except where the smoothing reaches over the kink of a command's jump
-    y[kinked] = cols["pos_m"][kinked]
+    y = _end_positions(log)
     u = _spool_command(cols["valve_cmd_V"], log.time, machine)
     p_s = cols["ps_Pa"] if "ps_Pa" in cols else np.full_like(y, hyd.supply_pressure)
     inside = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN)
@@ -208,6 +199,20 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
                         lambda ym: np.maximum(log.stroke_m - ym, 0.0) * hyd.area_rod + hyd.pipeline_volume_rod,
                         eff.edge_gain_pb, eff.edge_gain_bt, True))
     return out
+
+
+def _end_positions(log: MeasurementLog) -> np.ndarray:
+    """(n,) [m]: the piston's positions as the intervals' ends read them, the transducer's noise smoothed (zero
+    phase, :func:`_smooth`) except where the smoothing would reach over the kink of a command's jump (the raw
+    position there). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
+    if log.system != "single-actuator":
+        raise InputError(f"{log.path.name}: a flow curve is read from single-actuator logs (this one is {log.system})")
+    if "p1_Pa" not in log.columns:
+        raise InputError(f"{log.path.name}: a flow curve needs the chamber pressure (column p1_Pa)")
+    y = _smooth(log.columns["pos_m"], log.sample_rate_hz)
+    kinked = near_jumps(log, WINDOW_S)
+    y[kinked] = log.columns["pos_m"][kinked]
+    return y
 
 
 def _skewed(samples: np.ndarray, interval: np.ndarray, a: np.ndarray, b: np.ndarray, share: float, n: int
@@ -360,7 +365,7 @@ def _solve(gram: np.ndarray, rhs: np.ndarray, D: np.ndarray, weight: float, x0: 
            bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """The unknowns inside ``bounds`` minimising x^T gram x - 2 rhs^T x + weight sum |D x|: the absolute values
     reweighted (:data:`IRLS_STEPS` times), each step a bounded linear least squares on the equilibrated normal
-    equations (:func:`_box_lsq`; the bounds ``x0`` or the step before held are its first guess)."""
+    equations (:func:`hexsim.measured.box_lsq.box_lsq`; the bounds ``x0`` or the step before held are its first guess)."""
     lo, hi = bounds
     x = np.clip(x0, lo, hi)
     held = np.where(x <= lo, -1, np.where(x >= hi, 1, 0))
@@ -372,57 +377,8 @@ def _solve(gram: np.ndarray, rhs: np.ndarray, D: np.ndarray, weight: float, x0: 
         gs = g / scale[:, None] / scale[None, :]  # equilibrated
         r = np.linalg.cholesky(gs + 1e-10 * np.eye(len(gs))).T
         z = np.linalg.solve(r.T, rhs / scale)
-        xs, held = _box_lsq(r, z, lo * scale, hi * scale, held)
+        xs, held = box_lsq(r, z, lo * scale, hi * scale, held)
         x = xs / scale
-    return x
-
-
-def _box_lsq(r: np.ndarray, z: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-             held: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """argmin |r x - z| over lo <= x <= hi for a square, nonsingular, upper triangular ``r`` (n, n), and the
-    bounds it holds (n,) (-1 at lo, +1 at hi, 0 free, as ``lsq_linear``'s ``active_mask``).
-
-    The problem is strictly convex, so a point that meets its optimality (Karush-Kuhn-Tucker) conditions is its
-    one minimum. The unconstrained solution is checked first; then, from the bounds ``held`` (those the
-    previous reweighting step held, or the warm start sits on; else those the unconstrained solution crosses),
-    up to :data:`PIVOTS` exchanges of the bounds held (a free unknown beyond a bound is held at it, a held one
-    whose gradient pulls it inside is freed; block principal pivoting, Portugal, Judice & Vicente 1994), each
-    the least squares on the free columns (:func:`_held_solution`). Only if none is optimal does
-    ``scipy.optimize.lsq_linear``'s bounded-variable least squares (bvls) solve it from scratch (its active-set
-    iterations each a least squares on the free columns: about 50 of them on a 376-unknown curve, 0.65 s).
-    Same minimum either way, to rounding."""
-    x = scipy.linalg.solve_triangular(r, z)
-    if np.all((x >= lo) & (x <= hi)):
-        return x, np.zeros(len(x), dtype=int)
-    tol = 1e-10 * max(float(np.linalg.norm(r.T @ z, np.inf)), 1e-300)
-    guess = held if np.any(held) else np.where(x < lo, -1, np.where(x > hi, 1, 0))
-    for _ in range(PIVOTS):
-        x = _held_solution(r, z, lo, hi, guess)
-        grad = r.T @ (r @ x - z)  # the cost's gradient: >= 0 where x is held at lo, <= 0 at hi
-        free = guess == 0
-        below, above = free & (x < lo), free & (x > hi)
-        inside = ((guess < 0) & (grad < -tol)) | ((guess > 0) & (grad > tol))
-        if not (np.any(below) or np.any(above) or np.any(inside)):
-            return x, guess
-        guess = np.where(below, -1, np.where(above, 1, np.where(inside, 0, guess)))
-    result = lsq_linear(r, z, bounds=(lo, hi), method="bvls")
-    return result.x, result.active_mask.astype(int)
-
-
-def _held_solution(r: np.ndarray, z: np.ndarray, lo: np.ndarray, hi: np.ndarray, held: np.ndarray) -> np.ndarray:
-    """The minimum of |r x - z| (``r`` upper triangular (n, n)) with the unknowns ``held`` (n,) (-1, +1) at their
-    lower or upper bound and the others free: the free columns' QR from r's by deleting the held ones
-    (``scipy.linalg.qr_delete``, Givens rotations from the identity), then one triangular solve."""
-    x = np.where(held < 0, lo, np.where(held > 0, hi, 0.0))
-    fixed = np.flatnonzero(held)
-    rhs = z - r[:, fixed] @ x[fixed]
-    q, rf = np.eye(len(z)), r.copy()
-    blocks = np.split(fixed, np.flatnonzero(np.diff(fixed) > 1) + 1) if len(fixed) else []
-    for block in blocks[::-1]:  # from the last: the indices before it hold
-        q, rf = scipy.linalg.qr_delete(q, rf, int(block[0]), len(block), which="col", overwrite_qr=True,
-                                       check_finite=False)
-    k = len(z) - len(fixed)
-    x[held == 0] = scipy.linalg.solve_triangular(rf[:k, :k], (q.T @ rhs)[:k])
     return x
 
 

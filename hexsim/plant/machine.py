@@ -252,22 +252,8 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
         raise InputError(f"{where}: key 'format' must be {FORMAT!r}, got {doc.get('format')!r} (is this a machine file?)")
     if doc.get("version") != VERSION:
         raise InputError(f"{where}: key 'version' is {doc.get('version')!r}; this hexsim reads version {VERSION}")
-    meta = {k: doc[k] for k in _META if k in doc}
-    for k in ("name", "description"):
-        if k in meta and not isinstance(meta[k], str):
-            raise InputError(f"{where}: key {k!r} must be a string, got {meta[k]!r}")
-    sources = meta.get("sources", {})
-    if not isinstance(sources, dict) or not all(isinstance(v, str) for v in sources.values()):
-        raise InputError(f"{where}: key 'sources' must be an object of key: text (where each value comes from)")
-    for key in sources:
-        if key not in KEY_BY_PATH and not is_leg_path(key):
-            raise InputError(f"{where}: sources names {key!r}, which is not a machine-file key")
-    calibration = meta.get("calibration")
-    if calibration is not None and not isinstance(calibration, dict):
-        raise InputError(f"{where}: key 'calibration' must be an object (as hexsim calibrate writes it)")
-    system = meta.get("system", "hexapod")
-    if system not in SYSTEMS:
-        raise InputError(f"{where}: key 'system' is {system!r}; expected one of {', '.join(SYSTEMS)}")
+    meta = _checked_meta(doc, where)
+    sources, calibration, system = meta.get("sources", {}), meta.get("calibration"), meta.get("system", "hexapod")
     flat = _flatten({k: v for k, v in doc.items() if k not in _META}, where)
     for key in flat:
         if key not in KEY_BY_PATH:
@@ -309,6 +295,29 @@ def machine_from_document(doc: object, where: str = "machine file") -> Machine:
                    calibration=calibration, legs=legs)
     defaulted = tuple(k.path for k in KEYS if k.path not in flat and not machine._omitted(k))
     return dataclasses.replace(machine, defaulted=defaulted)
+
+
+def _checked_meta(doc: dict, where: str) -> dict:
+    """The machine file's keys outside its sections (:data:`_META`), each checked: ``name`` and ``description``
+    text, ``sources`` an object naming machine-file keys, ``calibration`` an object, ``system`` one of
+    :data:`SYSTEMS`. Raises InputError naming the file and the key."""
+    meta = {k: doc[k] for k in _META if k in doc}
+    for k in ("name", "description"):
+        if k in meta and not isinstance(meta[k], str):
+            raise InputError(f"{where}: key {k!r} must be a string, got {meta[k]!r}")
+    sources = meta.get("sources", {})
+    if not isinstance(sources, dict) or not all(isinstance(v, str) for v in sources.values()):
+        raise InputError(f"{where}: key 'sources' must be an object of key: text (where each value comes from)")
+    for key in sources:
+        if key not in KEY_BY_PATH and not is_leg_path(key):
+            raise InputError(f"{where}: sources names {key!r}, which is not a machine-file key")
+    calibration = meta.get("calibration")
+    if calibration is not None and not isinstance(calibration, dict):
+        raise InputError(f"{where}: key 'calibration' must be an object (as hexsim calibrate writes it)")
+    system = meta.get("system", "hexapod")
+    if system not in SYSTEMS:
+        raise InputError(f"{where}: key 'system' is {system!r}; expected one of {', '.join(SYSTEMS)}")
+    return meta
 
 
 def _legs(section: object, system: str, hyd: HydraulicParams, effects: Effects,

@@ -196,22 +196,8 @@ class HydraulicParams:
             )
         if not (math.isfinite(self.null_offset) and abs(self.null_offset) < self.u_v_max):
             raise InputError(f"HydraulicParams.null_offset must be inside ±u_v_max, got {self.null_offset!r}")
-        if not (isinstance(self.overlap, (int, float)) and math.isfinite(self.overlap)):
-            raise InputError(f"HydraulicParams.overlap must be a finite number, got {self.overlap!r}")
-        if self.overlap < 0 and self.flow_area != "sharp":
-            raise InputError(
-                f"HydraulicParams.overlap {self.overlap!r} m: an underlap (negative overlap) needs the sharp-edged "
-                f"flow area (flow_area='sharp', eq. 3.3); the smooth area (3.11) has no opening at x_v = 0")
-        if self.overlap <= -self.x_v_max:
-            raise InputError(f"HydraulicParams.overlap ({self.overlap} m): an underlap must be smaller than the "
-                             f"spool stroke x_v_max ({self.x_v_max} m)")
         if self.valve_type not in ("3-way", "4-way"):
             raise InputError(f"HydraulicParams.valve_type must be '3-way' or '4-way', got {self.valve_type!r}")
-        if self.overlap >= self.x_v_max:
-            raise InputError(
-                f"HydraulicParams.overlap ({self.overlap} m) must be smaller than the spool stroke x_v_max "
-                f"({self.x_v_max} m)"
-            )
         if not (math.isfinite(self.cavitation_pressure) and -101325.0 <= self.cavitation_pressure < self.tank_pressure):
             raise InputError(
                 f"HydraulicParams.cavitation_pressure ({self.cavitation_pressure} Pa, gauge) must be between absolute "
@@ -223,8 +209,27 @@ class HydraulicParams:
             )
         if self.flow_area not in FLOW_AREAS:
             raise InputError(f"HydraulicParams.flow_area must be one of {', '.join(FLOW_AREAS)}, got {self.flow_area!r}")
+        self._check_overlap()
         self._check_table()
         self._check_curves()
+
+    def _check_overlap(self) -> None:
+        """InputError unless the overlap O_l suits the spool stroke and the flow area (an underlap needs the
+        sharp edge, eq. 3.3; the smooth area's k_a x_v^2, eq. 3.11, must meet the port's opening)."""
+        if not (isinstance(self.overlap, (int, float)) and math.isfinite(self.overlap)):
+            raise InputError(f"HydraulicParams.overlap must be a finite number, got {self.overlap!r}")
+        if self.overlap < 0 and self.flow_area != "sharp":
+            raise InputError(
+                f"HydraulicParams.overlap {self.overlap!r} m: an underlap (negative overlap) needs the sharp-edged "
+                f"flow area (flow_area='sharp', eq. 3.3); the smooth area (3.11) has no opening at x_v = 0")
+        if self.overlap <= -self.x_v_max:
+            raise InputError(f"HydraulicParams.overlap ({self.overlap} m): an underlap must be smaller than the "
+                             f"spool stroke x_v_max ({self.x_v_max} m)")
+        if self.overlap >= self.x_v_max:
+            raise InputError(
+                f"HydraulicParams.overlap ({self.overlap} m) must be smaller than the spool stroke x_v_max "
+                f"({self.x_v_max} m)"
+            )
         limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
         if self.flow_area in ("smooth", "port") and self.overlap >= limit:
             raise InputError(
