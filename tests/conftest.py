@@ -45,8 +45,11 @@ LONGEST_FIRST = ("test_commissioning.py", "test_feedforward.py", "test_flow_curv
 
 def pytest_collection_modifyitems(config, items):
     """The files of :data:`LONGEST_FIRST` first, in that order, then the rest as collected (a stable sort:
-    each file's tests keep their order)."""
+    each file's tests keep their order); their tests marked ``slow`` (``pytest -m "not slow"`` leaves them out)."""
     rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    for item in items:
+        if item.path.name in rank:
+            item.add_marker(pytest.mark.slow)
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
 
 
