@@ -34,7 +34,6 @@ from hexsim.measured.parameters import Parameter
 from hexsim.measured.replay import PlantModel
 from hexsim.plant.effects import SHARED_FIELDS, Effects, LegChange
 from hexsim.plant.machine import SYSTEMS
-from hexsim.plant.model import moving_mass
 from hexsim.plant.params import HydraulicParams
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
@@ -306,8 +305,8 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber (a 4-way valve: "
               "C_l (P2 - P1), from the rod side)"),
     Candidate("load", (_p("M", "kg", 5.0, 400.0), _p("inclination", "deg", 0.0, 89.0, no_effect=0.0)),
-              lambda log: ((log.mass_kg or moving_mass(), max(log.inclination_deg, 1.0)),
-                           (1.5 * (log.mass_kg or moving_mass()), 30.0)),
+              lambda log: ((log.moving_mass_kg, max(log.inclination_deg, 1.0)),
+                           (1.5 * log.moving_mass_kg, 30.0)),
               "a moving mass of 5-400 kg per axis (seed app. A: 40 kg) and any inclination short of "
               "horizontal",
               _load, "moving mass and inclination of the axis differ from the declared (seed ch. 4: gravity not "

@@ -44,7 +44,7 @@ from hexsim.measured.residuals import effective_n, noise_of
 from hexsim.measured.scoring import score
 from hexsim.measured.statistics import fit_statistics
 from hexsim.plant import hydraulics
-from hexsim.plant.model import gravity, moving_mass
+from hexsim.plant.model import gravity
 
 SMOOTH_S = 0.021  # [s] Savitzky–Golay window (cubic) of the derivatives and of every term
 MIN_T = 4.0  # a term is kept when |coefficient| >= MIN_T standard errors
@@ -205,7 +205,7 @@ def equation_errors(log, model: PlantModel) -> dict[str, tuple[np.ndarray, np.nd
     if p1 is not None and rod_side is not None:
         ydot = _smooth(y, n, 1, fs)
         ydd = _smooth(y, n, 2, fs)
-        mass = eff.mass_kg or log.mass_kg or moving_mass()
+        mass = eff.mass_kg or log.moving_mass_kg
         incl = eff.inclination_deg if eff.inclination_deg is not None else log.inclination_deg
         f_hyd = p1 * hyd.area_bottom - rod_side * hyd.area_rod - hydraulics.friction_force(ydot, hyd)
         force_target = mass * ydd - _smooth(f_hyd, n) + mass * gravity() * math.cos(math.radians(incl))

@@ -42,7 +42,7 @@ from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.parameters import Parameter
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.statistics import fit_statistics
-from hexsim.plant.model import gravity, moving_mass
+from hexsim.plant.model import gravity
 from hexsim.plant.params import HydraulicParams
 from hexsim.signals import savgol, savgol_length
 
@@ -217,7 +217,7 @@ def friction_samples(runs: MeasurementLog | list[MeasurementLog], hyd: Hydraulic
     c = log.columns
     f_l, source = load_force(log, hyd)
     fs = log.sample_rate_hz
-    mass = log.mass_kg or moving_mass()
+    mass = log.moving_mass_kg
     g_axis = gravity() * np.cos(np.deg2rad(log.inclination_deg))
     pos = c["pos_m"]
     n = len(log.time)
@@ -265,7 +265,7 @@ def _steady_friction(log: MeasurementLog, hyd: HydraulicParams) -> list[dict]:
         return []
     f_l, _ = load_force(log, hyd)
     g_axis = gravity() * np.cos(np.deg2rad(log.inclination_deg))
-    weight = (log.mass_kg or moving_mass()) * g_axis
+    weight = log.moving_mass_kg * g_axis
     rows = steady_segments(log.time, log.columns["valve_cmd_V"], log.columns["pos_m"], {"f_l": f_l})
     return [{"log": log.path.name, "u_V": r["u_V"], "velocity_mps": r["velocity_mps"], "friction_N": r["f_l"] - weight}
             for r in rows]
@@ -457,7 +457,7 @@ def identify_friction(logs: MeasurementLog | list) -> dict:
     windows = np.concatenate([np.where(p.window >= 0, p.window + o, -1) for p, o in zip(parts, offsets)])
     out = {"log": ", ".join(str(log.path) for log in experiments), "machine": first.machine.label,
            "experiments": len(experiments), "force_source": parts[0].force_source,
-           "acceleration_source": parts[0].acceleration_source, "mass_kg": first.mass_kg or moving_mass(),
+           "acceleration_source": parts[0].acceleration_source, "mass_kg": first.moving_mass_kg,
            "inclination_deg": first.inclination_deg, "assumed": first.assumed,
            "equation": "seed eq. (3.9), the simulator's friction curve (hexsim.plant.hydraulics.friction_force)"}
     fitted = {}

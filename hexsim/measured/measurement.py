@@ -87,6 +87,12 @@ class MeasurementLog:
     def duration(self) -> float:
         return float(self.time[-1] - self.time[0])
 
+    @property
+    def moving_mass_kg(self) -> float:
+        """The moving mass [kg] of the logged run: the sidecar's or the machine's declared mass
+        (:attr:`mass_kg`), else the model's (:attr:`hexsim.plant.machine.Machine.moving_mass_kg`)."""
+        return self.mass_kg if self.mass_kg is not None else self.machine.moving_mass_kg
+
 
 def _number(side: dict, key: str, where: str, *, positive: bool = True) -> float:
     value = side[key]
@@ -217,7 +223,7 @@ def _sidecar_settings(side: dict, side_name: pathlib.Path, machine: Machine) -> 
                    single and f"stroke {machine.hydraulics.stroke:g} m (machine {machine.label})")
     mass = value(side, "mass_kg", str(side_name), load.mass_kg, single and (
         f"moving mass {load.mass_kg:g} kg (machine {machine.label})" if load.mass_kg is not None
-        else f"moving mass from the model (40 kg, seed app. A; machine {machine.label})"))
+        else f"moving mass from the model ({machine.moving_mass_kg:g} kg; machine {machine.label})"))
     incl0 = load.inclination_deg or 0.0
     incl = value(side, "inclination_deg", str(side_name), incl0,
                  single and f"inclination {incl0:g}° from vertical (machine {machine.label})", positive=False)

@@ -29,7 +29,6 @@ import numpy as np
 from hexsim.measured.estimates import Estimate
 from hexsim.plant.machine import Machine, get_key, shared_path, with_keys
 from hexsim.plant.machine_keys import KEYS
-from hexsim.plant.model import moving_mass
 
 _UNITS = {k.path: k.unit for k in KEYS} | {"valve.opening_table": "-"}
 
@@ -171,7 +170,7 @@ def default_parameters(machine: Machine, dynamics: bool = False, hexapod: bool =
               *(_timing_parameters(machine) if dynamics and timing else ())]
     eff = machine.effects
     if dynamics or eff.inclination_deg is None or eff.inclination_deg < 80.0:
-        mass = eff.mass_kg if eff.mass_kg is not None else moving_mass()
+        mass = machine.moving_mass_kg
         params.append(Parameter("load.mass_kg", 0.5 * mass, 2.0 * mass, "the moving mass within half to twice the "
                                 "guess (not weighed)", "the piston held at rest (P1 then carries the weight alone: at "
                                 "speed the weight trades against the Coulomb friction), or weighing it",

@@ -29,7 +29,7 @@ from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import Machine
-from hexsim.plant.model import gravity, moving_mass
+from hexsim.plant.model import gravity
 from hexsim.studies.metrics import steady_segments
 
 #: Weight of a steady speed: 1 % of it plus 0.5 mm/s (a line fit over a stretch of 1 kHz positions is far
@@ -107,8 +107,7 @@ def load_force(machine: Machine, load: tuple[float | None, float]) -> float:
     """M g cos(inclination) [N] with M the mass the log declares (that experiment's stated condition),
     else the machine's (the one being calibrated), else the model's."""
     declared, g_axis = load
-    mass = declared if declared is not None else machine.effects.mass_kg
-    return (mass if mass is not None else moving_mass()) * g_axis
+    return (declared if declared is not None else machine.moving_mass_kg) * g_axis
 
 
 def predict(feats: list[Feature], machine: Machine, loads: dict[str, float]) -> np.ndarray:

@@ -103,6 +103,14 @@ class Machine:
         return f"{self.name} ({'built-in' if self.path is None else self.path})"
 
     @property
+    def moving_mass_kg(self) -> float:
+        """The moving mass M [kg] this machine's runs carry: its ``load.mass_kg``, or where that is null the
+        model's (the single actuator's slide in the MJCF, :func:`hexsim.plant.model.moving_mass`)."""
+        from hexsim.plant.model import moving_mass
+
+        return self.effects.mass_kg if self.effects.mass_kg is not None else moving_mass()
+
+    @property
     def open_loop(self) -> bool:
         return self.control == "none"
 
