@@ -459,10 +459,11 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     if toward_machine:
         P, t = _machine_openings(machine, pa, at)
         unit_prior = float(np.sum(w * b * b)) / c**2 / len(t)  # strength 1: the openings ~ the flows
+        held_gram, held_rhs = unit_prior * (P.T @ P), unit_prior * (P.T @ t)
         if strength is None:
-            strength = _within_one_se({k: folds.held_out(gram + k * unit_prior * (P.T @ P), rhs + k * unit_prior
-                                                         * (P.T @ t), weight * unit_penalty) for k in STRENGTHS})
-        gram, rhs = gram + strength * unit_prior * (P.T @ P), rhs + strength * unit_prior * (P.T @ t)
+            strength = _within_one_se({k: folds.held_out(gram + k * held_gram, rhs + k * held_rhs,
+                                                         weight * unit_penalty) for k in STRENGTHS})
+        gram, rhs = gram + strength * held_gram, rhs + strength * held_rhs
     x = _solve(gram, rhs, D, weight * unit_penalty, x, bounds)
     k_pa = len(pa) - 1
     curves = (EdgeCurve(pa, np.concatenate([[0.0], np.cumsum(x[:k_pa])])),
