@@ -14,7 +14,7 @@ from hexsim.control.scenario import Scenario
 from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
-from hexsim.measured.measurement import read_log
+from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency, fit_fundamental
 from hexsim.studies.metrics import REVERSAL_WINDOW, Smoothness, smoothness
@@ -148,7 +148,7 @@ def accelerometer_noise(t: np.ndarray, acc: np.ndarray) -> float:
     return float(np.sqrt(np.median(psd[f >= fs / 10]) * fs / 2))
 
 
-def _proof_columns(log, path: pathlib.Path) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
+def _proof_columns(log: MeasurementLog) -> tuple[np.ndarray, np.ndarray, int, np.ndarray, np.ndarray]:
     """(the legs' setpoints (n, legs) [m], their positions (n, legs) [m], the accelerometer's axis (-1: the
     single actuator's), the setpoint judged (n,) [m] and the acceleration on it (n,) [m/s^2]) of a proof's
     ``log``: a hexapod's on the translation whose setpoint moves most. Raises InputError naming what it
@@ -159,12 +159,12 @@ def _proof_columns(log, path: pathlib.Path) -> tuple[np.ndarray, np.ndarray, int
         pos = np.column_stack([cols[f"leg{i}_pos_m"] for i in range(1, log.n_legs + 1)])
         dofs = [k for k in ("x", "y", "z") if f"dof_ref_{k}_m" in cols and f"platform_acc_{k}_mps2" in cols]
         if not dofs:
-            raise InputError(f"{path}: a proof needs a translation's setpoint and the platform accelerometer on it "
+            raise InputError(f"{log.path}: a proof needs a translation's setpoint and the platform accelerometer on it "
                              "(dof_ref_{x,y,z}_m and platform_acc_{x,y,z}_mps2)")
         k = max(dofs, key=lambda d: np.ptp(cols[f"dof_ref_{d}_m"]))
         return ref, pos, "xyz".index(k), cols[f"dof_ref_{k}_m"], cols[f"platform_acc_{k}_mps2"]
     if "acc_mps2" not in cols:
-        raise InputError(f"{path}: a proof needs the accelerometer (acc_mps2)")
+        raise InputError(f"{log.path}: a proof needs the accelerometer (acc_mps2)")
     return cols["ref_m"][:, None], cols["pos_m"][:, None], -1, cols["ref_m"], cols["acc_mps2"]
 
 
@@ -183,7 +183,7 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
     log = read_log(path, base.machine or None, needs=("pos_m",))
     t = log.time - log.time[0]
     cols = log.columns
-    ref, pos, axis, setpoint, acc = _proof_columns(log, path)
+    ref, pos, axis, setpoint, acc = _proof_columns(log)
     try:
         frequency = dominant_frequency(t, setpoint)
     except ValueError:
