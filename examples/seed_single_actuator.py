@@ -28,6 +28,7 @@ from hexsim.control.scenario import make_scenario  # noqa: E402
 from hexsim.engine.config import RunConfig  # noqa: E402
 from hexsim.engine.runner import simulate  # noqa: E402
 from hexsim.plant import hydraulics  # noqa: E402
+from hexsim.plant.machine import Machine  # noqa: E402
 from hexsim.plant.params import ControllerParams, HydraulicParams  # noqa: E402
 
 M = 40.0  # [kg] seed app. A; the same number is in models/single_actuator.xml
@@ -49,8 +50,9 @@ def main() -> None:
     runs = {}
     for area in ("sharp", "smooth"):
         p = HydraulicParams(flow_area=area)
-        runs[area] = simulate(RunConfig(make_scenario("actuator", duration=args.duration), hydraulics=p,
-                                        controller=controller, record_rate_hz=5000.0))
+        machine = Machine(hydraulics=p, controller=controller)
+        runs[area] = simulate(RunConfig(make_scenario("actuator", duration=args.duration), machine,
+                                        record_rate_hz=5000.0))
     p = HydraulicParams()
     f_mid = hydraulics.eigenfrequency(M, p, stroke=0.2)
     f_lo, f_hi = hydraulics.eigenfrequency(M, p, y=0.15), hydraulics.eigenfrequency(M, p, y=0.05)

@@ -204,13 +204,15 @@ def _hexapod_logs(folder) -> list:
     from hexsim.measured.measurement import read_log
     from hexsim.outputs.logio import write_log
     from hexsim.plant.effects import Effects, LegChange
+    from hexsim.plant.machine import Machine
     from hexsim.plant.params import HydraulicParams
 
     gains = (1.06, 0.95, 1.03, 0.97, 1.08, 0.94)
     legs = tuple(LegChange.of(i + 1, edge_gain_pa=g, edge_gain_at=1.02 * g) for i, g in enumerate(gains))
-    config = RunConfig(make_scenario("heave", duration=20.0, frequency=1.0), model="full", timestep=5e-5,
-                       hydraulics=HydraulicParams(bulk_modulus=1.2e9), leg_changes=legs,
-                       effects=Effects(payload_kg=40.0, payload_at_m=(0.05, -0.03, 0.0)))
+    machine = Machine(hydraulics=HydraulicParams(bulk_modulus=1.2e9),
+                      effects=Effects(payload_kg=40.0, payload_at_m=(0.05, -0.03, 0.0)))
+    config = RunConfig(make_scenario("heave", duration=20.0, frequency=1.0), machine, model="full", timestep=5e-5,
+                       leg_changes=legs)
     path = pathlib.Path(folder) / "hexapod_heave.csv"
     write_log(path, simulate(config), noise=np.random.default_rng(3))
     return [read_log(path)]

@@ -16,6 +16,7 @@ import pytest  # noqa: E402
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
+from hexsim.plant.machine import Machine
 from hexsim.plant.params import ControllerParams, HydraulicParams
 
 
@@ -61,15 +62,15 @@ SEED_CONTROLLER = ControllerParams(rate_hz=10_000.0, position_noise=0.0)
 @pytest.fixture(scope="session")
 def actuator_sharp():
     sc = make_scenario("actuator", duration=6.0)
-    return simulate(RunConfig(sc, hydraulics=HydraulicParams(flow_area="sharp"), controller=SEED_CONTROLLER,
-                              record_rate_hz=10_000.0))
+    machine = Machine(hydraulics=HydraulicParams(flow_area="sharp"), controller=SEED_CONTROLLER)
+    return simulate(RunConfig(sc, machine, record_rate_hz=10_000.0))
 
 
 @pytest.fixture(scope="session")
 def actuator_smooth():
     sc = make_scenario("actuator", duration=6.0)
-    return simulate(RunConfig(sc, hydraulics=HydraulicParams(flow_area="smooth"), controller=SEED_CONTROLLER,
-                              record_rate_hz=10_000.0))
+    machine = Machine(hydraulics=HydraulicParams(flow_area="smooth"), controller=SEED_CONTROLLER)
+    return simulate(RunConfig(sc, machine, record_rate_hz=10_000.0))
 
 
 @pytest.fixture(scope="session")

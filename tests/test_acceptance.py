@@ -24,8 +24,9 @@ def test_heave_frequency_response_matches_the_linearised_position_loop():
     sine's fundamental sees their mean); heave moves every leg alike. The describing function of the
     simulated hexapod (oil spring, friction, 500 Hz sampling, sensor noise) follows it to 4 Hz."""
     hyd = HydraulicParams(flow_area="sharp", overlap=0.0)
-    base = hexsim.RunConfig("heave", hydraulics=hyd)
-    p1 = hexsim.simulate(hexsim.RunConfig(hexsim.Scenario.sine("heave", duration=6.0), hydraulics=hyd)).p1_initial[0]
+    base = hexsim.RunConfig("heave", machine=hexsim.Machine(hydraulics=hyd))
+    p1 = hexsim.simulate(hexsim.RunConfig(hexsim.Scenario.sine("heave", duration=6.0),
+                                          hexsim.Machine(hydraulics=hyd))).p1_initial[0]
     du = 1e-3
     k_v = (hydraulics.static_velocity(du, p1, hyd) - hydraulics.static_velocity(-du, p1, hyd)) / (2 * du)
     k_p = base.controller.kp

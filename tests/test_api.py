@@ -105,6 +105,43 @@ def test_sweep_varies_parameters_by_name_and_refuses_unknown_ones():
         vary(base, {"colour": "red"})
 
 
+def test_a_run_holds_its_whole_machine_and_edits_it_one_way(tmp_path):
+    """RunConfig carries the Machine (not its parts as loose fields): the parts are read from it, a name or a
+    file is read once, ``with_machine`` is the one edit, and the outputs name what the run was on."""
+    from hexsim.outputs.logio import sidecar
+    from hexsim.plant.machine import dump
+    from hexsim.studies.sweeps import vary
+
+    servo = hexsim.load_machine("servo_cylinder")
+    by_name = hexsim.RunConfig("actuator", "servo_cylinder")
+    assert by_name.machine == servo and by_name.hydraulics is by_name.machine.hydraulics
+    assert (by_name.controller, by_name.effects, by_name.geometry) == (servo.controller, servo.effects, None)
+    assert by_name.machine_label == by_name.machine_spec == "servo_cylinder"
+    path = tmp_path / "rig.json"
+    path.write_text(dump(servo.document()))
+    from_file = hexsim.RunConfig.from_machine(path, "actuator")
+    assert from_file.machine_label == from_file.machine_spec == str(path)
+    assert from_file.hydraulics == servo.hydraulics
+    # one way to edit it: the run's machine changes, the file it came from does not
+    stiffer = by_name.with_machine(hydraulics=by_name.hydraulics.replace(bulk_modulus=1.2e9))
+    assert stiffer.hydraulics.bulk_modulus == 1.2e9 and servo.hydraulics.bulk_modulus != 1.2e9
+    assert stiffer.machine_label == "servo_cylinder with parameters changed" and stiffer.machine_spec is None
+    assert vary(by_name, {"bulk_modulus": 1.2e9}).machine == stiffer.machine
+    # the default is the built-in; an edited built-in's log does not claim to be the built-in
+    default = hexsim.RunConfig(hexsim.Scenario.sine("heave", frequency=3.0, duration=1.5))
+    assert default.machine == hexsim.Machine() and default.machine_label == "micro_motion_system"
+    edited = hexsim.simulate(default.with_machine(controller=default.controller.replace(kp=250.0)))
+    assert "machine" not in sidecar(edited) and sidecar(edited)["controller"]["kp_V_per_m"] == 250.0
+    assert sidecar(hexsim.simulate(default))["machine"] == "micro_motion_system"
+    # a leg changed for the run goes on top of the machine's own legs
+    legs = (hexsim.LegChange.of(2, leakage=1e-12),)
+    assert hexsim.RunConfig("heave", leg_changes=legs).legs == legs
+    with pytest.raises(InputError, match="machine must be a Machine, a built-in's name or a machine file, got 3"):
+        hexsim.RunConfig("heave", 3)
+    with pytest.raises(InputError, match="no such machine file"):
+        hexsim.RunConfig("heave", str(tmp_path / "missing.json"))
+
+
 def test_import_hexsim_is_quick_and_loads_no_simulator():
     code = "import sys, hexsim; print(any(m in sys.modules for m in ('mujoco', 'numba', 'scipy')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout

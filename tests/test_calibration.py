@@ -289,7 +289,7 @@ def test_a_3_way_vertical_leg_calibrates_and_names_the_weight_friction_trade(tmp
         u = np.where(t < 0.1, 0.0, np.where(t < 1.6, volts, -volts))
         valve = tmp_path / f"u{volts:g}.csv"
         np.savetxt(valve, np.column_stack([t, u]), delimiter=",", header="time_s,valve_cmd_V", comments="")
-        run = hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{valve}"), hydraulics=truth))
+        run = hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{valve}"), hexsim.Machine(hydraulics=truth)))
         write_log(tmp_path / f"log{volts:g}.csv", run, noise=np.random.default_rng(1))
         logs.append(read_log(tmp_path / f"log{volts:g}.csv"))
     _, report = calibrate(logs, load_machine(None), cross_validate=False)

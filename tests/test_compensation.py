@@ -14,6 +14,7 @@ from helpers import write_heave_pitch_profile
 from compensation import CompensatorSettings
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
+from hexsim.plant.machine import Machine
 from hexsim.plant.params import HydraulicParams
 from hexsim.plant.temperature import WarmUp
 from hexsim.studies.comparison import compare
@@ -29,7 +30,8 @@ def seed_league():
     seed's own flow area (eq. 3.11 at every opening: the seed's Fig. 5.9/5.10 come from that model; with the
     port-limited area the seed's rule lets function (2)'s a ratchet up on the single actuator too, after
     ~20 s, as on the hexapod; hexsim's per-side rule, the default, keeps it convergent: tested on heave below)."""
-    base = RunConfig(make_scenario("actuator", duration=32.0), hydraulics=HydraulicParams(flow_area="quadratic"),
+    base = RunConfig(make_scenario("actuator", duration=32.0),
+                     Machine(hydraulics=HydraulicParams(flow_area="quadratic")),
                      compensator_settings=CompensatorSettings(held_maximum="seed"))
     return _by_name(compare(base, ("iterative-1", "iterative-2"), jobs=2))
 

@@ -32,6 +32,8 @@ HYD = hexsim.HydraulicParams(valve_type="4-way", flow_area="sharp", bore_diamete
                              coulomb_neg=F_C, static_pos=0.0, static_neg=0.0, arctan_gain=1e4,
                              arctan_normalised=True)
 LOAD = hexsim.Effects(mass_kg=3.0, inclination_deg=90.0)  # horizontal: no weight along the axis
+MACHINE = hexsim.Machine(system="single-actuator", hydraulics=HYD, effects=LOAD,
+                         controller=hexsim.ControllerParams(rate_hz=1000.0))
 
 
 def _hand(u: float) -> tuple[float, float, float]:
@@ -62,8 +64,7 @@ def _valve_file(tmp_path, levels=(4.0, -4.0), hold=1.0):
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     path = _valve_file(tmp_path_factory.mktemp("valve"))
-    return hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{path}"), hydraulics=HYD, effects=LOAD,
-                                            controller=hexsim.ControllerParams(rate_hz=1000.0)))
+    return hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{path}"), MACHINE))
 
 
 def test_constant_command_reaches_the_hand_computed_speed_and_pressures(run):
@@ -82,8 +83,7 @@ def test_constant_command_reaches_the_hand_computed_speed_and_pressures(run):
 
 def test_both_engines_step_the_4_way_leg_alike(tmp_path):
     path = _valve_file(tmp_path, levels=(3.0, -2.0), hold=0.4)
-    cfgs = [hexsim.RunConfig(make_scenario(f"valve:{path}"), hydraulics=HYD, effects=LOAD, engine=e,
-                             controller=hexsim.ControllerParams(rate_hz=1000.0)) for e in ("native", "python")]
+    cfgs = [hexsim.RunConfig(make_scenario(f"valve:{path}"), MACHINE, engine=e) for e in ("native", "python")]
     a, b = (hexsim.simulate(c) for c in cfgs)
     for name in ("y", "p1", "p2", "force"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
@@ -111,8 +111,7 @@ def test_friction_from_both_chambers_recovers_the_coulomb_level(tmp_path):
     from hexsim.outputs.logio import write_log
 
     path = _valve_file(tmp_path, levels=(6.0, -6.0, 3.0, -3.0), hold=(0.6, 1.2, 1.4, 1.6))
-    run = hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{path}"), hydraulics=HYD, effects=LOAD,
-                                           controller=hexsim.ControllerParams(rate_hz=1000.0)))
+    run = hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{path}"), MACHINE))
     write_log(tmp_path / "open.csv", run)
     machine = hexsim.Machine(system="single-actuator", hydraulics=HYD, effects=LOAD, control="none")
     result = identify_friction(read_log(tmp_path / "open.csv", machine=machine, needs=("pos_m",)))
@@ -202,7 +201,8 @@ def test_a_real_4_way_log_against_the_builtin_3_way_machine_is_refused_with_one_
 
 def test_a_hexapod_runs_on_4_way_valves_and_records_both_chambers():
     hyd = hexsim.HydraulicParams(valve_type="4-way")
-    result = hexsim.simulate(hexsim.RunConfig(hexsim.Scenario.sine("heave", duration=6.0, frequency=1.0), hydraulics=hyd))
+    result = hexsim.simulate(hexsim.RunConfig(hexsim.Scenario.sine("heave", duration=6.0, frequency=1.0),
+                                              hexsim.Machine(hydraulics=hyd)))
     statics = hydraulics.rest_pressures(np.full(6, 1246.79), hyd)
     assert result.p1[0] == pytest.approx(statics[0], rel=1e-4) and result.p2[0] == pytest.approx(statics[1], rel=1e-4)
     # both chambers move, and the piston's balance P1 A1 - P2 A2 - F_f = F links them: over whole periods
@@ -252,8 +252,8 @@ def test_discovery_finds_a_leak_across_one_4_way_legs_piston_on_that_leg(tmp_pat
     machine = hexsim.Machine(hydraulics=hyd)
     found = {}
     for name, legs in (("nominal", ()), ("leak", (LegChange.of(2, leakage=leak),))):
-        result = hexsim.simulate(hexsim.RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=8,
-                                                  hydraulics=hyd, leg_changes=legs))
+        result = hexsim.simulate(hexsim.RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), machine, seed=8,
+                                                  leg_changes=legs))
         write_log(tmp_path / f"{name}.csv", result, noise=np.random.default_rng(5))
         problem = HexapodProblem(read_log(tmp_path / f"{name}.csv", machine=machine))
         assert "leg2_p2_Pa" in problem.log.columns

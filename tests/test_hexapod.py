@@ -13,6 +13,7 @@ from hexsim.control.scenario import Scenario, make_scenario
 from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
+from hexsim.plant.machine import Machine
 from hexsim.signals import fit_fundamental
 from hexsim.studies.metrics import STANDARD_GRAVITY, run_smoothness
 
@@ -55,7 +56,7 @@ def test_payload_shifts_the_static_leg_forces_as_the_jacobian_predicts():
 
     hold = Scenario("hold", "hexapod", 1.0, 2, 0.5, 2.0, 0.0)
     mass, at = 150.0, np.array([0.25, -0.1, 0.3])
-    p1 = [Simulator(RunConfig(hold, effects=Effects(payload_kg=kg, payload_at_m=tuple(at)))).p1_initial
+    p1 = [Simulator(RunConfig(hold, machine=Machine(effects=Effects(payload_kg=kg, payload_at_m=tuple(at))))).p1_initial
           for kg in (0.0, mass)]
     df = (p1[1] - p1[0]) * HydraulicParams().area_bottom
     m = load_model("hexapod")
@@ -218,7 +219,7 @@ def test_one_leg_may_differ_from_the_others():
     from hexsim.plant.effects import Effects, LegChange
 
     sc = make_scenario("heave", duration=1.5, frequency=2.0)
-    every = simulate(RunConfig(sc, effects=Effects(leakage=3e-12), seed=1))
+    every = simulate(RunConfig(sc, machine=Machine(effects=Effects(leakage=3e-12)), seed=1))
     each = simulate(RunConfig(sc, leg_changes=tuple(LegChange.of(i, leakage=3e-12) for i in range(1, 7)), seed=1))
     assert np.array_equal(every.p1, each.p1) and np.array_equal(every.y, each.y)
     nominal = simulate(RunConfig(sc, seed=1))

@@ -80,7 +80,7 @@ def test_a_run_on_a_machine_with_legs_is_the_run_with_those_leg_changes(tmp_path
     plain = hexsim.simulate(hexsim.RunConfig(scenario, model="platform"))
     assert np.array_equal(from_file.p1, in_python.p1) and not np.array_equal(from_file.p1, plain.p1)
     both = hexsim.RunConfig.from_machine(machine, scenario, leg_changes=(hexsim.LegChange.of(3, leakage=1e-12),))
-    assert dict(both.leg_changes[0].values) == {"edge_gain_pa": 1.05, "edge_gain_at": 0.97, "leakage": 1e-12}
+    assert dict(both.legs[0].values) == {"edge_gain_pa": 1.05, "edge_gain_at": 0.97, "leakage": 1e-12}
 
 
 def test_machine_set_edits_a_legs_key_and_refuses_a_shared_one(tmp_path, capsys):

@@ -22,6 +22,7 @@ from hexsim.errors import InputError
 from hexsim.measured import validation
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects, LegChange
+from hexsim.plant.machine import Machine
 
 BAR_PER_LPM = 1e5 / (1e-3 / 60)
 
@@ -37,12 +38,12 @@ def answers(tmp_path_factory):
     cases = {
         "none": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), compensator="buffered",
                           compensator_settings=CompensatorSettings(buffer_time=1.0, fade_time=0.2), seed=3),
-        "supply_pressure": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=4,
-                                     effects=Effects(supply_resistance=r_s * BAR_PER_LPM, supply_time_constant=0.03)),
+        "supply_pressure": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), Machine(effects=Effects(
+            supply_resistance=r_s * BAR_PER_LPM, supply_time_constant=0.03)), seed=4),
         "leg": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=8,
                          leg_changes=(LegChange.of(leg, leakage=c_l),)),
-        "payload": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), seed=9,
-                             effects=Effects(payload_kg=payload[0], payload_at_m=(payload[1], payload[2], 0.0))),
+        "payload": RunConfig(make_scenario("heave", duration=3.0, frequency=1.0), Machine(effects=Effects(
+            payload_kg=payload[0], payload_at_m=(payload[1], payload[2], 0.0))), seed=9),
     }
     out = {"r_s": r_s, "leg_truth": (leg, c_l), "payload_truth": payload}
     for name, config in cases.items():
@@ -248,13 +249,15 @@ def test_validate_replays_on_the_full_model_when_asked(tmp_path):
     assert "(model: full)" in (tmp_path / "report" / "report.md").read_text()
 
 
-def _independent_log(path, seed, duration=4.0, position_noise=2e-6, **changes):
+def _independent_log(path, seed, duration=4.0, position_noise=2e-6, effects=None, **changes):
     """A noisy log of the *full* multi-body model at 5e-5 s (an independent plant for the platform-only
-    replay at 1e-4 s), 1 Hz heave, with ``changes`` (effects=…, leg_changes=…) hidden in it."""
+    replay at 1e-4 s), 1 Hz heave, with ``effects`` (the machine's) and ``changes`` (leg_changes=…) hidden in
+    it."""
     from hexsim.outputs import logio
 
-    result = simulate(RunConfig(make_scenario("heave", duration=duration, frequency=1.0), model="full",
-                                timestep=5e-5, seed=seed, **changes))
+    result = simulate(RunConfig(make_scenario("heave", duration=duration, frequency=1.0),
+                                Machine(effects=effects or Effects()), model="full", timestep=5e-5, seed=seed,
+                                **changes))
     cols = logio.add_sensor_noise(logio.log_columns(result), np.random.default_rng(seed))
     rng = np.random.default_rng(seed + 1)
     for name in cols:  # the position transducer's own noise level

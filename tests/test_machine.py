@@ -80,8 +80,7 @@ def test_the_builtin_machine_from_its_file_runs_the_same_run_to_the_bit(tmp_path
     m = load_machine(path)
     assert (m.hydraulics, m.controller, m.effects) == (HydraulicParams(), ControllerParams(), Effects())
     scenario = hexsim.Scenario.sine("actuator", duration=6.0, frequency=1.0)
-    ours = hexsim.simulate(hexsim.RunConfig(scenario, hydraulics=m.hydraulics, controller=m.controller,
-                                            effects=m.effects, machine=str(path)))
+    ours = hexsim.simulate(hexsim.RunConfig(scenario, machine=m))
     default = hexsim.simulate(hexsim.RunConfig(scenario))
     for name in ("y", "p1", "p2", "force", "acc", "u_v"):
         assert np.array_equal(getattr(ours, name), getattr(default, name)), name

@@ -12,6 +12,7 @@ from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import PlantModel, Windows, replay
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
+from hexsim.plant.machine import Machine
 from hexsim.plant.params import HydraulicParams
 
 
@@ -93,7 +94,7 @@ def test_replayed_compensation_in_the_kernel_equals_the_python_reference():
 def test_native_engine_equals_the_python_callback_with_every_effect():
     every = Effects(supply_resistance=5e9, supply_time_constant=0.03, spool_frequency=60.0, spool_damping=0.6,
                     spool_play=0.05, leakage=2e-12, sensor_delay=0.002, mass_kg=55.0, inclination_deg=20.0)
-    base = RunConfig(make_scenario("actuator", duration=1.5, frequency=2.0), effects=every, seed=2)
+    base = RunConfig(make_scenario("actuator", duration=1.5, frequency=2.0), machine=Machine(effects=every), seed=2)
     _same_run(simulate(base), simulate(RunConfig(**{**base.__dict__, "engine": "python"})))
 
 

@@ -7,6 +7,7 @@ import json
 from hexsim.cli import main
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
+from hexsim.plant.machine import Machine
 from hexsim.studies.sweeps import evaluate_point
 
 
@@ -23,7 +24,7 @@ def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):
     for row, jrow in zip(rows, data["rows"]):
         from hexsim.plant.params import ControllerParams
 
-        serial = evaluate_point(RunConfig(scenario, controller=ControllerParams(kp=float(row["kp"])),
+        serial = evaluate_point(RunConfig(scenario, Machine(controller=ControllerParams(kp=float(row["kp"]))),
                                           seed=int(row["seed"])))
         for key, value in serial.items():
             assert jrow[key] == value, key  # bit-identical, whichever worker ran it

@@ -24,6 +24,7 @@ from hexsim.measured.estimates import STATUSES
 from hexsim.measured.records import EstimateRow, ValidationReport
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
+from hexsim.plant.machine import Machine
 from hexsim.plant.params import HydraulicParams
 
 DURATION = 6.0  # [s] per log (the shortest actuator scenario): 13 replay windows of 0.45 s
@@ -62,7 +63,8 @@ def truth(effect: str, rng: np.random.Generator) -> tuple[Effects, HydraulicPara
 
 def _make_log(folder, effect: str, seed: int) -> str:
     e, h = truth(effect, np.random.default_rng(seed))
-    result = simulate(RunConfig(make_scenario("actuator", duration=DURATION), hydraulics=h, effects=e, seed=seed))
+    result = simulate(RunConfig(make_scenario("actuator", duration=DURATION), Machine(hydraulics=h, effects=e),
+                                seed=seed))
     path = folder / f"{effect}.csv"
     write_log(path, result, noise=np.random.default_rng(seed + 1))
     return str(path)

@@ -28,6 +28,7 @@ from hexsim.measured.identify import identify
 from hexsim.measured.measurement import read_log
 from hexsim.outputs.logio import write_log
 from hexsim.plant.effects import Effects
+from hexsim.plant.machine import Machine
 from hexsim.plant.params import HydraulicParams
 from hexsim.tables import read_numeric_csv
 
@@ -57,7 +58,7 @@ def _reference(kind: str) -> tuple[np.ndarray, np.ndarray]:
 def _make(folder, name: str, reference: str, effects: Effects, hyd: HydraulicParams, seed: int) -> str:
     t, r = _reference(reference)
     sc = Scenario(name, "actuator", DURATION, -1, 0.5, 1.0, legs=(t, r[:, None]))
-    result = simulate(RunConfig(sc, hydraulics=hyd, effects=effects, timestep=FINE, seed=seed))
+    result = simulate(RunConfig(sc, machine=Machine(hydraulics=hyd, effects=effects), timestep=FINE, seed=seed))
     path = folder / f"{name}.csv"
     write_log(path, result, noise=np.random.default_rng(seed + 1))
     return str(path)

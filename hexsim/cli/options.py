@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import os
 import pathlib
@@ -202,11 +203,10 @@ def run_config(args: argparse.Namespace, compensator: str):
         RunConfig,  # MuJoCo and the kernels: only once the options are checked
     )
 
-    return RunConfig(scenario=scenario, hydraulics=hydraulics, controller=controller, compensator=compensator,
-                     machine=machine.name if machine.path is None else str(machine.path),
-                     geometry=machine.geometry if machine.system == "hexapod" else None,
-                     leg_changes=machine.leg_changes, compensator_settings=settings, compensator_model=model,
-                     warm_up=warm_up, effects=effects, faults=faults, seed=args.seed,
+    machine = dataclasses.replace(machine, hydraulics=hydraulics, controller=controller, effects=effects)
+    return RunConfig(scenario=scenario, machine=machine, compensator=compensator,
+                     compensator_settings=settings, compensator_model=model,
+                     warm_up=warm_up, faults=faults, seed=args.seed,
                      engine=args.engine, keep_last_s=args.keep_last, model=args.model,
                      timestep=args.timestep, progress=not getattr(args, "quiet", True) and sys.stderr.isatty())
 
@@ -218,9 +218,8 @@ def _platform_envelope(machine, hydraulics, effects):
     from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
     from hexsim.studies.acceptance import platform_limits
 
-    base = RunConfig(scenario=make_scenario("heave", duration=6.0), hydraulics=hydraulics,
-                     controller=machine.controller, machine=machine.name if machine.path is None else str(machine.path),
-                     geometry=machine.geometry, leg_changes=machine.leg_changes, effects=effects)
+    base = RunConfig(make_scenario("heave", duration=6.0),
+                     dataclasses.replace(machine, hydraulics=hydraulics, effects=effects))
     return platform_limits(base), (machine.geometry or MICRO_MOTION_SYSTEM).head_point
 
 

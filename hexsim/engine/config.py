@@ -6,7 +6,10 @@ run is :mod:`hexsim.engine.runner`.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
@@ -26,6 +29,7 @@ from hexsim.plant.effects import Effects, LegChange, merge_leg_changes
 from hexsim.plant.faults import Fault, FaultInjector
 from hexsim.plant.geometry import Geometry
 from hexsim.plant.legs import PlantState, advance_legs, leg_table
+from hexsim.plant.machine import Machine, load_machine
 from hexsim.plant.model import PlantIndex, check_formulation
 from hexsim.plant.params import ControllerParams, HydraulicParams
 from hexsim.plant.platform import leg_jacobian, leg_wrench
@@ -37,16 +41,34 @@ from hexsim.signals import zero_order_hold
 ENGINES = ("native", "python")
 
 
+@functools.lru_cache(maxsize=8)
+def _built_in(name: str) -> Machine:
+    return load_machine(name)
+
+
+def _as_built(machine: Machine) -> bool:
+    """Whether ``machine`` (not read from a file) is its built-in as shipped (not edited in Python)."""
+    try:
+        built = _built_in(machine.name)
+    except InputError:
+        return False
+    return (machine.hydraulics, machine.controller, machine.effects, machine.legs, machine.geometry) == (
+        built.hydraulics, built.controller, built.effects, built.legs, built.geometry)
+
+
 @dataclass(frozen=True)
 class RunConfig:
-    """Everything that defines one run. ``scenario``: a :class:`Scenario`, or a name as on the command
-    line (``"heave"`` … ``"yaw"``, ``"actuator"``, ``"file:PATH"``) built with its defaults.
-    ``record_rate_hz`` None: 1 kHz, the rate of the measurement-log example (``docs/measurement-log.md``);
-    it must divide the 10 kHz physics rate. Raises InputError naming the setting that is wrong."""
+    """Everything that defines one run: a ``scenario`` on a ``machine``, with a compensator and the run's own
+    options. ``scenario``: a :class:`Scenario`, or a name as on the command line (``"heave"`` … ``"yaw"``,
+    ``"actuator"``, ``"file:PATH"``) built with its defaults. ``machine``: a
+    :class:`hexsim.plant.machine.Machine` (its hydraulics, controller, effects, legs and hexapod geometry are the
+    run's; edit them with :meth:`with_machine`), a built-in's name or a machine file's path (read with
+    :func:`hexsim.plant.machine.load_machine`); default (or None) the built-in Micro Motion System (seed appendix A).
+    ``record_rate_hz`` None: 1 kHz, the rate of the measurement-log example (``docs/measurement-log.md``); it
+    must divide the 10 kHz physics rate. Raises InputError naming the setting that is wrong."""
 
     scenario: Scenario | str
-    hydraulics: HydraulicParams = field(default_factory=HydraulicParams)
-    controller: ControllerParams = field(default_factory=ControllerParams)
+    machine: Machine | str | None = field(default_factory=Machine)
     # a built-in by name (compensation.COMPENSATORS), or a class/factory called as
     # cls(n_legs, rate_hz, u_v_max, settings) returning a compensation.Compensator (runs in Python)
     compensator: str | Callable[..., Compensator] = "none"
@@ -55,7 +77,6 @@ class RunConfig:
     # None: built from the machine (hexsim.control.feedforward.leg_model)
     compensator_model: LegModel | None = field(default=None, repr=False, compare=False)
     warm_up: WarmUp | None = None  # oil warming during the run (seed §5.5); None: constant 35 °C
-    effects: Effects = field(default_factory=Effects)  # extensions of the seed model; default: none
     seed: int = 0
     record_rate_hz: float | None = None
     progress: bool = False
@@ -67,24 +88,24 @@ class RunConfig:
     # U_c per controller sample (n_ticks, n_legs) [V] replayed instead of a compensator (measured-data
     # replay, hexsim.measured.hexapod_replay); None: the compensator named above
     feedforward: np.ndarray | None = field(default=None, repr=False, compare=False)
-    # legs whose parameters differ from the others' (a leaking seal, a worn edge on one leg); default none
+    # the run's own changes to single legs on top of the machine's (a leaking seal, a worn edge on one leg in
+    # a study or a validation candidate); the run's legs are :attr:`legs`
     leg_changes: tuple[LegChange, ...] = ()
     # the hexapod's formulation (hexsim.plant.model.FORMULATIONS): "platform" (default), the platform-only
     # model built from the MJCF (hexsim.plant.platform), ~4x faster; "full", the multi-body MJCF with leg
     # bodies and closing constraints, the reference it is tested against (tests/test_platform.py)
     model: str = "platform"
-    # the machine the parameters came from, as hexsim.plant.machine.load_machine reads it back (a built-in's
-    # name or a machine file's path; Machine.spec); outputs name it. None: parameters given in Python
-    machine: str | None = None
-    # the hexapod's geometry and masses or its user MJCF (hexsim.plant.geometry.Geometry, a machine file's
-    # hexapod section); None: the built-in Micro Motion System
-    geometry: Geometry | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.scenario, str):
             object.__setattr__(self, "scenario", make_scenario(self.scenario))
         if not isinstance(self.scenario, Scenario):
             raise InputError(f"scenario must be a Scenario or a scenario name, got {self.scenario!r}")
+        if not isinstance(self.machine, Machine):
+            if not (self.machine is None or isinstance(self.machine, (str, os.PathLike))):
+                raise InputError(f"machine must be a Machine, a built-in's name or a machine file, "
+                                 f"got {self.machine!r}")
+            object.__setattr__(self, "machine", load_machine(self.machine))
         check_formulation(self.model)
         if not (isinstance(self.compensator, str) or callable(self.compensator)):
             raise InputError(f"compensator must be a name or a Compensator class, got {self.compensator!r}")
@@ -98,31 +119,62 @@ class RunConfig:
             divider(self.controller.rate_hz, self.timestep, f"controller rate (timestep {self.timestep:g} s)")
             divider(self.record_rate_hz or 1000.0, self.timestep, f"record rate (timestep {self.timestep:g} s)")
 
-
     @classmethod
     def from_machine(cls, machine, scenario: Scenario | str, **options) -> "RunConfig":
         """A run of ``scenario`` on ``machine`` (a :class:`hexsim.plant.machine.Machine`, a machine file or a
-        built-in's name): its hydraulics, controller, effects and legs' own values, named in the outputs; ``options`` are the
-        other fields (compensator, seed, timestep, …). Raises InputError for a machine file that is not
-        valid."""
-        from hexsim.plant.machine import Machine, load_machine
+        built-in's name); ``options`` are the other fields (compensator, seed, timestep, …). Raises InputError
+        for a machine file that is not valid."""
+        return cls(scenario, machine=machine, **options)
 
-        m = machine if isinstance(machine, Machine) else load_machine(machine)
-        geometry = m.geometry if m.system == "hexapod" else None
-        options["leg_changes"] = merge_leg_changes(m.leg_changes, tuple(options.get("leg_changes", ())))
-        return cls(scenario, hydraulics=m.hydraulics, controller=m.controller, effects=m.effects, machine=m.spec,
-                   geometry=geometry, **options)
+    def with_machine(self, **parts) -> "RunConfig":
+        """This run on its machine with ``parts`` replaced (``hydraulics``, ``controller``, ``effects``,
+        ``sensors``, ``geometry``, … :class:`hexsim.plant.machine.Machine`'s fields): the one way a study or a
+        test edits the machine a run is on."""
+        return dataclasses.replace(self, machine=dataclasses.replace(self.machine, **parts))
+
+    @property
+    def hydraulics(self) -> HydraulicParams:
+        """The machine's valve, cylinder, oil and supply (seed appendix A's parameters)."""
+        return self.machine.hydraulics
+
+    @property
+    def controller(self) -> ControllerParams:
+        """The machine's controller (K_p, rate, position noise)."""
+        return self.machine.controller
+
+    @property
+    def effects(self) -> Effects:
+        """The machine's effects beyond the seed model (load, sensors, leakage, …)."""
+        return self.machine.effects
+
+    @property
+    def geometry(self) -> Geometry | None:
+        """The hexapod's geometry and masses (its machine file's ``hexapod`` section); None on a single
+        actuator."""
+        return self.machine.geometry if self.machine.system == "hexapod" else None
+
+    @property
+    def legs(self) -> tuple[LegChange, ...]:
+        """Every leg's own values: the machine file's ``legs`` with the run's :attr:`leg_changes` on top."""
+        return merge_leg_changes(self.machine.leg_changes, self.leg_changes)
 
     @property
     def machine_label(self) -> str:
-        """The machine as outputs name it: the machine file or built-in the run came from, or for
-        parameters given in Python the built-in default or "… with parameters changed in Python"."""
-        if self.machine is not None:
-            return self.machine
-        if (self.hydraulics == HydraulicParams() and self.controller == ControllerParams()
-                and self.effects == Effects() and not self.leg_changes):
-            return "micro_motion_system"
-        return "micro_motion_system with parameters changed in Python"
+        """The machine as outputs name it: the machine file or built-in the run came from, or for a machine
+        edited in Python or by options "NAME with parameters changed"."""
+        m = self.machine
+        if m.path is not None:
+            return str(m.path)
+        if _as_built(m):
+            return m.name
+        return f"{m.name} with parameters changed"
+
+    @property
+    def machine_spec(self) -> str | None:
+        """What :func:`hexsim.plant.machine.load_machine` reads the run's machine back from (the file's path,
+        a built-in's name), None for a built-in edited in Python."""
+        m = self.machine
+        return str(m.path) if m.path is not None else (m.name if _as_built(m) else None)
 
     @property
     def compensator_name(self) -> str:
@@ -239,7 +291,7 @@ class HydraulicCoupling:
         self.dt = idx.dt
         self.effects = config.effects
         self.faults = faults
-        self.leg_changes = tuple(config.leg_changes)
+        self.leg_changes = config.legs
         self.groups = np.zeros(idx.n_legs, dtype=np.intp)  # one supply manifold for all legs
         n = idx.n_legs
         self.state = PlantState.at_rest(p1_initial, np.zeros(n), hyd, p2=p2_initial)

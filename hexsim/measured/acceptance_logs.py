@@ -61,7 +61,7 @@ def read_test_log(path: pathlib.Path, base: RunConfig):
     test's pose axis, its frequency [Hz]). Raises InputError naming the log for a single-actuator log, one
     without a ``dof_ref_*`` column or leg positions, a setpoint that does not move, or fewer than three
     periods of it."""
-    log = read_log(path, base.machine or None, needs=("pos_m",))
+    log = read_log(path, base.machine, needs=("pos_m",))
     if log.system != "hexapod":
         raise InputError(f"{path}: a single actuator's log; the motion tests are a hexapod's")
     present = [c for c in FILE_COLUMNS if c in log.columns]

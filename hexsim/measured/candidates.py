@@ -248,8 +248,8 @@ def payload_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     from hexsim.measured.replay import supply_from_log
 
     hyd = supply_from_log(log, log.machine.hydraulics)
-    rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0), hydraulics=hyd,
-                               effects=log.machine.effects, geometry=log.machine.geometry)).p1_initial
+    rest = Simulator(RunConfig(Scenario("rest", "hexapod", 1.0, 2, 0.5, 1.0, 0.0),
+                               replace(log.machine, hydraulics=hyd))).p1_initial
     first = log.time - log.time[0] <= 0.1
     if ref is not None:
         first &= np.cumsum(np.any(np.abs(ref - ref[0]) > REST_TOLERANCE_M, axis=1)) == 0

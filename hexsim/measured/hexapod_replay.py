@@ -13,6 +13,7 @@ The run starts from the model's neutral pose at rest; the first :data:`SETTLE_S`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -71,9 +72,10 @@ def replay_hexapod(log: MeasurementLog, hydraulics: HydraulicParams | None = Non
     held = lambda x: zero_order_hold(t, x, ticks)  # noqa: E731
     feedforward = held(u_v) - controller.kp * (held(ref) - held(savgol(pos, log.sample_rate_hz, FEEDFORWARD_SMOOTH_S, axis=0)))
     scenario = Scenario(f"log:{log.path.name}", "hexapod", duration, 2, 1.0, 0.0, legs=(t, ref))
-    config = RunConfig(scenario, hydraulics=hydraulics or log.machine.hydraulics, controller=controller,
-                       effects=effects or log.machine.effects, feedforward=feedforward, timestep=timestep,
-                       leg_changes=tuple(leg_changes), model=model, geometry=log.machine.geometry)
+    machine = dataclasses.replace(log.machine, hydraulics=hydraulics or log.machine.hydraulics, controller=controller,
+                                  effects=effects or log.machine.effects)
+    config = RunConfig(scenario, machine, feedforward=feedforward, timestep=timestep, leg_changes=tuple(leg_changes),
+                       model=model)
     return simulate(config)
 
 

@@ -180,7 +180,7 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
     samples with the white noise the log shows (:func:`accelerometer_noise`). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the
     peaks between reversals, against the predicted, within the uncertainty their scatter gives or by how much
     not and where. Raises InputError naming the log and what it lacks."""
-    log = read_log(path, base.machine or None, needs=("pos_m",))
+    log = read_log(path, base.machine, needs=("pos_m",))
     t = log.time - log.time[0]
     cols = log.columns
     ref, pos, axis, setpoint, acc = _proof_columns(log)

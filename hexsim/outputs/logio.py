@@ -64,17 +64,17 @@ def sidecar(result: SimulationResult, folder: pathlib.Path | None = None) -> dic
     controller = ({"type": "none"} if cfg.scenario.open_loop else
                   {"type": "P", "kp_V_per_m": cfg.controller.kp, "rate_hz": cfg.controller.rate_hz})
     machine = {}
-    if cfg.machine is not None:
-        given = pathlib.Path(cfg.machine)
+    if cfg.machine_spec is not None:
+        given = pathlib.Path(cfg.machine_spec)
         machine = {"machine": os.path.relpath(given.resolve(), (folder or pathlib.Path()).resolve())
-                   if given.suffix == ".json" else cfg.machine}
+                   if given.suffix == ".json" else cfg.machine_spec}
     return {
         "system": "single-actuator" if cfg.scenario.system == "actuator" else "hexapod",
         "sample_rate_hz": round(rate, 6),
         "controller": controller,
         **machine,
         "parameters": ("seed appendix A (nominal)" if cfg.hydraulics == type(cfg.hydraulics)()
-                       and cfg.effects == type(cfg.effects)() and not cfg.leg_changes
+                       and cfg.effects == type(cfg.effects)() and not cfg.legs
                        else "hexsim with parameters other than the seed's (not stated here)"),
         "oil_temperature_C": 35.0,
         "acquisition": {"accelerometer": "mean over each sample interval (boxcar anti-alias filter)",

@@ -360,7 +360,7 @@ def _at_rest(base: RunConfig):
         force_map=np.linalg.solve(mobility, jac),  # leg forces per unit pose acceleration [N/(m/s^2)]
         force_up=(hyd.supply_pressure - p1) * hyd.area_bottom * np.ones(6),
         force_down=(p1 - hyd.tank_pressure) * hyd.area_bottom * np.ones(6),
-        source=f"machine {base.machine or 'built-in'}")
+        source=f"machine {base.machine_label}")
 
 
 def envelope(base: RunConfig, dofs: tuple[str, ...]) -> dict[str, dict]:

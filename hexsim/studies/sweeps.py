@@ -117,9 +117,13 @@ _SCENARIO_KEYS = ("duration", "amplitude", "frequency")
 def vary(base: RunConfig, settings: dict) -> RunConfig:
     """``base`` with ``settings`` applied: a scenario name or keyword (``scenario``, ``duration``,
     ``amplitude``, ``frequency``: the scenario is rebuilt by :func:`hexsim.control.scenario.make_scenario`), a
-    :class:`RunConfig` field (``compensator``, ``seed``, ``engine``, ``timestep``, ``effects``, …), a
-    field of :class:`~hexsim.plant.params.HydraulicParams`, :class:`~hexsim.plant.params.ControllerParams` or
-    :class:`~compensation.CompensatorSettings`. Raises InputError naming an unknown setting."""
+    :class:`RunConfig` field (``machine``, ``compensator``, ``seed``, ``engine``, ``timestep``, …), a part of
+    the machine (``hydraulics``, ``controller``, ``effects``) or a field of
+    :class:`~hexsim.plant.params.HydraulicParams`, :class:`~hexsim.plant.params.ControllerParams` or
+    :class:`~compensation.CompensatorSettings` (on the machine ``machine`` names where it is varied too). Raises
+    InputError naming an unknown setting."""
+    if "machine" in settings:
+        base = dataclasses.replace(base, machine=settings["machine"])
     sc_keys = {k: v for k, v in settings.items() if k in _SCENARIO_KEYS or k == "scenario"}
     changes: dict = {}
     if sc_keys:
@@ -128,21 +132,26 @@ def vary(base: RunConfig, settings: dict) -> RunConfig:
                                                     "amplitude": base.scenario.amplitude,
                                                     "frequency": base.scenario.frequency}
         changes["scenario"] = make_scenario(name, **{**kept, **sc_keys})
-    groups = {"hydraulics": base.hydraulics, "controller": base.controller,
+    groups = {"hydraulics": base.hydraulics, "controller": base.controller, "effects": base.effects,
               "compensator_settings": base.compensator_settings}
     fields = {f.name for f in dataclasses.fields(RunConfig)}
+    parts: dict = {}
     for key, value in settings.items():
-        if key in _SCENARIO_KEYS or key == "scenario":
+        if key in _SCENARIO_KEYS or key in ("scenario", "machine"):
             continue
         owner = next((g for g, obj in groups.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
-        if owner is not None:
+        if key in groups:  # a whole group (``effects=Effects(...)``)
+            owner, groups[key] = None, value
+            (changes if key == "compensator_settings" else parts)[key] = value
+        elif owner is not None:
             groups[owner] = dataclasses.replace(groups[owner], **{key: value})
-            changes[owner] = groups[owner]
+            (changes if owner == "compensator_settings" else parts)[owner] = groups[owner]
         elif key in fields:
             changes[key] = value
         else:
             raise InputError(f"sweep: {key!r} is not a scenario keyword, a RunConfig field or a parameter")
-    return dataclasses.replace(base, **changes)
+    config = dataclasses.replace(base, **changes)
+    return config.with_machine(**parts) if parts else config
 
 
 def sweep(base: RunConfig, grid: dict[str, list], *, jobs: int = 2, progress: bool = False) -> list[dict]:

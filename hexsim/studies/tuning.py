@@ -117,7 +117,7 @@ class Neighbour:
 
         changes = {}
         if self.open_earlier_V:
-            changes["hydraulics"] = hydraulics.as_curve(config.hydraulics, self.open_earlier_V)
+            config = config.with_machine(hydraulics=hydraulics.as_curve(config.hydraulics, self.open_earlier_V))
         if self.warm_k:
             duration = config.scenario.duration
             changes["warm_up"] = WarmUp(self.warm_k, duration, null_drift=self.null_rate * duration / self.warm_k)
