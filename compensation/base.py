@@ -172,7 +172,7 @@ def sos_tick(sos, zi, x, out):
     (k, 2, n) (``sosfilt``'s ``zi`` along axis 0), the sample ``x`` (n,) in, the filtered sample in ``out``
     (n,). Each section is ``sosfilt``'s transposed direct form II (y = b0 x + z0; z0 = b1 x - a1 y + z1;
     z1 = b2 x - a2 y), in its order of operations: the outputs equal ``sosfilt``'s
-    (tests/test_compensation_functions.py). A controller filters one sample per tick; ``sosfilt`` called per
+    (tests/compensators/test_compensation_functions.py). A controller filters one sample per tick; ``sosfilt`` called per
     sample spends ~80 µs checking its arguments."""
     for i in range(x.shape[0]):
         v = x[i]
@@ -191,7 +191,7 @@ class FlowCurveObserver:
     ``cutoff_hz`` (``scipy.signal.butter``); u_v passes the same filter so the pair keeps the same phase
     (seed §4.4 filters the valve setpoint "with the same filter to obtain a flow-curve as realistic as
     possible"). The filter runs one sample per controller tick (:func:`observer_tick`, compiled; the
-    same recursion as ``scipy.signal.lfilter``, which tests/test_compensation_functions.py checks).
+    same recursion as ``scipy.signal.lfilter``, which tests/compensators/test_compensation_functions.py checks).
     Also keeps the seed's online estimate of the desired slope s = (max ẏ - min ẏ) / (max u_v - min u_v)
     (§5.3) in :attr:`slope`. Arrays (n_legs,). Raises SettingsError for a cutoff at or above Nyquist.
     """

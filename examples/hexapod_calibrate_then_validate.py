@@ -1,6 +1,6 @@
 """Calibrate, then validate, on a hexapod that is not its machine file.
 
-The machine is the hexapod of ``tests/test_calibration_hexapod.py`` (``tests/independent_hexapod.py``: its
+The machine is the hexapod of ``tests/measured/test_calibration_hexapod.py`` (``tests/independent_hexapod.py``: its
 own legs, platform dynamics, inverse kinematics and controller, RK4, no hexsim import), off the built-in
 file within data-sheet tolerances: each leg's valve 4-7 % off with its own return edge, port-limited
 valves, softer oil, more friction, a 60 kg payload off centre. hexsim is told nothing but the built-in file:

@@ -13,7 +13,7 @@ Cases, each timed ``repeats`` times (median reported) over ``duration`` simulate
 * ``hexapod_python``: the same with the Python control callback and the Python compensator, for the
   gain of the kernel;
 * ``hexapod_uncompensated``: heave without a compensator;
-* ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/test_convergence.py):
+* ``hexapod_fast``: the fastest scheme that passes the convergence test (tests/engine/test_convergence.py):
   dt = 1e-3 s, uncompensated heave — (c); with a compensator the 1e-3 s step misses the 2 % bound on
   single reversal peaks (docs/performance.md);
 * ``actuator_full`` / ``actuator_fast``: the single actuator at dt = 1e-4 s / 1e-3 s, no compensator — (d);
@@ -282,7 +282,7 @@ def run_bench(duration: float = 2.0, repeats: int = 3, sweep: bool = False, cali
     out["ratio_platform_bare_to_bare"] = ratio["bare_mj_step_platform"]
     out["ratio_hexapod_platform_to_bare"] = ratio["hexapod_platform"]
     out["ratio_hexapod_fast_to_bare"] = ratio["hexapod_fast"]
-    out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/test_convergence.py)"
+    out["fast_scheme"] = "dt = 1e-3 s, uncompensated (tests/engine/test_convergence.py)"
     out["ratio_actuator_fast_to_bare_fast"] = (out["cases"]["actuator_fast"]["wall_per_sim_s"]
                                                / out["cases"]["actuator_bare_fast"]["wall_per_sim_s"])
     out["startup"] = _startup(repeats)

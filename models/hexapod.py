@@ -3,7 +3,7 @@
 hexsim compiles the hexapod from :func:`build` (``hexsim.plant.model.load_model``); the rigid-body facts
 live in the spec built here and Python reads them back from ``MjModel`` (STYLE.md §2). The committed
 ``micro_motion_system.xml`` is ``build().to_xml()``, for people and viewers (``scene.xml`` includes it):
-run ``python models/hexapod.py`` after changing a number; ``tests/test_models.py`` checks the XML is the
+run ``python models/hexapod.py`` after changing a number; ``tests/plant/test_models.py`` checks the XML is the
 builder's. MuJoCo's XML writer prints 6 significant digits, so the XML places the joints to about 1 µm
 (the compiled spec: to the numbers below, as hexsim runs it); the test bounds that difference.
 
@@ -17,7 +17,7 @@ Geometry (a small hexapod of the Micro Motion System's class: 600 kg payload, 0.
 - base joints 0.15 m above the floor; neutral platform height 0.15 + 0.5027 m.
 
 With this layout heave ±0.06 m needs pistons 0.052…0.150 m and roll/pitch ±6° needs 0.069…0.134 m,
-inside the 0…0.2 m stroke (checked in tests/test_kinematics.py). Coordinates are rounded to 1 nm
+inside the 0…0.2 m stroke (checked in tests/control/test_kinematics.py). Coordinates are rounded to 1 nm
 (``_nm``), the resolution of the MJCF this builder replaced, so the compiled model is the same to the bit.
 """
 

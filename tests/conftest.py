@@ -33,15 +33,15 @@ def pytest_cmdline_main(config):
     return None
 
 
-#: The longest test files, longest first (`pytest --durations=25`, which the suite prints, on 2 cores at e528574:
-#: the slowest setups are a calibration each — transients 144 s, validation 110, the curve calibration 107, the
-#: hexapod's 103, commissioning 97, hexapod validation 94, feedforward 72 — and the longest calls 106 s and less).
-#: The whole suite is 31 CPU minutes on two workers that finish within a minute of each other.
-#: Handed out first, the two workers finish together; in the alphabetical order the validation files came
-#: last and one worker ran them alone for minutes.
-LONGEST_FIRST = ("test_commissioning.py", "test_feedforward.py", "test_flow_curves.py", "test_calibration_hexapod.py",
-                 "test_calibration_curve.py", "test_calibration.py", "test_calibration_transients.py",
-                 "test_validation.py", "test_hexapod_validation.py", "test_verdicts.py", "test_cli.py")
+#: The longest test files, longest first (their setups and calls summed, `pytest --durations=0` on 2 cores at
+#: 27f3f4f: the independent hexapod's calibration 225 s, the hexapod validations 163, the transients' calibration
+#: 149, feedforward 117, the curve calibration 101, calibration 70, validation 34, verdicts 31, the command line 27,
+#: commissioning 27, the flow curves 4; the whole suite 20 CPU minutes on two workers that finish within a minute
+#: of each other). Handed out first, the two workers finish together; in the alphabetical order the validation
+#: files came last and one worker ran them alone for minutes. They are also the files marked ``slow``.
+LONGEST_FIRST = ("test_calibration_hexapod.py", "test_hexapod_validation.py", "test_calibration_transients.py",
+                 "test_feedforward.py", "test_calibration_curve.py", "test_calibration.py", "test_validation.py",
+                 "test_verdicts.py", "test_cli.py", "test_commissioning.py", "test_flow_curves.py")
 
 
 def pytest_collection_modifyitems(config, items):

@@ -93,7 +93,7 @@ class RunConfig:
     leg_changes: tuple[LegChange, ...] = ()
     # the hexapod's formulation (hexsim.plant.model.FORMULATIONS): "platform" (default), the platform-only
     # model built from the MJCF (hexsim.plant.platform), ~4x faster; "full", the multi-body MJCF with leg
-    # bodies and closing constraints, the reference it is tested against (tests/test_platform.py)
+    # bodies and closing constraints, the reference it is tested against (tests/plant/test_platform.py)
     model: str = "platform"
 
     def __post_init__(self) -> None:

@@ -5,7 +5,7 @@ The physics is :func:`hexsim.plant.legs.step_legs` (seed eq. 3.2–3.4, 3.7–3.
 module holds only the loops around it. The loop calls ``mj_step`` of the MuJoCo library the Python
 bindings loaded, by symbol name, on the raw ``mjModel*`` / ``mjData*`` (``MjModel._address``), reading
 and writing ``qpos``/``qvel``/``ctrl``/``sensordata`` through the bindings' numpy views of the same
-memory. tests/test_native.py checks the loops against the Python control callback.
+memory. tests/engine/test_native.py checks the loops against the Python control callback.
 """
 
 from __future__ import annotations

@@ -153,7 +153,7 @@ def no_islands(m: mujoco.MjModel) -> mujoco.MjModel:
     """``m`` with MuJoCo's constraint-island discovery switched off (``mjDSBL_ISLAND``, where this MuJoCo
     has it), in place. The hexapod is one island (every leg is tied to the platform) and the single
     actuators are one body each, so discovering islands at every step is work without effect: the
-    results are bit-identical (tests/test_hexapod.py) and a hexapod step is about 10 % cheaper."""
+    results are bit-identical (tests/engine/test_hexapod.py) and a hexapod step is about 10 % cheaper."""
     flag = getattr(mujoco.mjtDisableBit, "mjDSBL_ISLAND", None)
     if flag is not None:
         m.opt.disableflags |= int(flag)

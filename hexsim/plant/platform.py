@@ -20,7 +20,7 @@ free body, and each leg is computed from the platform's pose:
   the leg's first moment of mass about the base pivot along the leg (barrel m_c r_c + rod m_r r_r(y)),
   the platform carries (S/L) g⊥ across the leg (g⊥ = g - (g·u) u) and the rod's weight along it. The
   point mass already puts m_r g there, so the correction (S/L - m_r) g⊥ is applied at the anchor. The
-  static leg forces then equal the full model's (tests/test_platform.py);
+  static leg forces then equal the full model's (tests/plant/test_platform.py);
 * **end stops**: the full model's piston limit (a soft constraint, time constant τ and damping ratio ζ
   from its ``solreflimit``) as a one-sided spring-damper on the leg's effective mass m_e (from the
   mobility at the neutral pose): F = m_e (δ/τ² + 2ζ δ̇/τ) while the piston is beyond its range by δ,

@@ -4,7 +4,7 @@ Each grid point is one :class:`~hexsim.engine.config.RunConfig`; the points run 
 processes (:func:`hexsim.engine.workers.worker_pool`: forked where the platform can, each with its own MuJoCo
 model). Rows come back in grid order whatever order the workers finish in, and every run is seeded by
 its configuration alone, so a sweep gives the same numbers with any number of workers and any start
-method (tests/test_sweep.py checks it against serial runs).
+method (tests/studies/test_sweep.py checks it against serial runs).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import pytest
 import hexsim
 from hexsim.errors import InputError
 
-README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+README = pathlib.Path(__file__).resolve().parents[2] / "README.md"
 
 
 def _readme_python_blocks() -> list[str]:

@@ -11,7 +11,7 @@ import pytest
 
 from hexsim.plant.model import MODELS, check_warnings, model_path, reset_neutral
 
-MODELS_DIR = pathlib.Path(__file__).resolve().parents[1] / "models"
+MODELS_DIR = pathlib.Path(__file__).resolve().parents[2] / "models"
 
 
 @pytest.mark.parametrize("xml", sorted(MODELS_DIR.glob("*.xml")), ids=lambda p: p.name)

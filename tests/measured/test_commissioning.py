@@ -27,7 +27,7 @@ from hexsim.plant.geometry import Geometry
 from hexsim.plant.machine import dump, load_machine, with_keys
 from hexsim.studies.tuning import FORMAT, leg_model_of, read_tuned
 
-REFERENCE = pathlib.Path(__file__).resolve().parents[2] / "shared" / "reference-plants"
+REFERENCE = pathlib.Path(__file__).resolve().parents[3] / "shared" / "reference-plants"
 pytestmark = pytest.mark.skipif(not (REFERENCE / "plant.py").exists(),
                                 reason="the reference plants live beside the project (../shared/reference-plants)")
 DURATION = 24.0

@@ -6,7 +6,7 @@ with one effect switched on at parameter values drawn at random (fixed seed), pl
 identifier sees only the CSV and its sidecar. Four effects that disturb different channels are answered here
 (the supply's pressure, a leak's position and P1, a sensor delay's timing, a load's acceleration); every
 library effect is named, with its value, on an independent plant calibrated first in
-tests/test_calibration_transients.py.
+tests/measured/test_calibration_transients.py.
 """
 
 import json

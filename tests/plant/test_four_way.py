@@ -152,7 +152,7 @@ def test_friction_reads_a_force_only_log_and_names_what_a_log_lacks(tmp_path, ca
     assert len(err) == 1 and "needs column 'force_N', or 'p1_Pa' and 'ps_Pa'" in err[0] and "the log has pos_m" in err[0]
 
 
-DATA = __import__("pathlib").Path(__file__).resolve().parents[1] / "examples" / "data" / "servo_cylinder"
+DATA = __import__("pathlib").Path(__file__).resolve().parents[2] / "examples" / "data" / "servo_cylinder"
 
 
 def test_real_cylinder_friction_from_paired_runs_matches_the_measured_force():

@@ -29,7 +29,7 @@ from hexsim.plant.machine import (
 )
 from hexsim.plant.model import PlantIndex, load_model, reset_neutral
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 #: sha256 over the compiled Micro Motion System's geometry and masses (full and platform-only models, the
 #: arrays of :data:`FINGERPRINT_FIELDS`) as hexsim compiled it before the geometry was data (commit 0e0246c,

@@ -26,7 +26,7 @@ from hexsim.plant.machine import (
 )
 from hexsim.plant.params import ControllerParams, HydraulicParams
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def test_show_set_read_round_trips(tmp_path, capsys):

@@ -24,7 +24,7 @@ from hexsim.measured.replay import sampled
 from hexsim.plant.machine import load_machine, with_keys, with_valve
 from hexsim.plant.params import SensorSpec, thin_curve
 
-REFERENCE = pathlib.Path(__file__).resolve().parents[2] / "shared" / "reference-plants"
+REFERENCE = pathlib.Path(__file__).resolve().parents[3] / "shared" / "reference-plants"
 pytestmark = pytest.mark.skipif(not REFERENCE.is_dir(), reason="../shared/reference-plants is not here")
 
 

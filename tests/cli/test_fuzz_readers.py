@@ -8,7 +8,7 @@ endings. For every generated input the contract holds: the reader returns, or ra
 one line on stderr without a traceback, and no output file is left behind.
 
 CI runs a fixed, derandomised budget of :data:`EXAMPLES` examples per property. A longer campaign:
-``HEXSIM_FUZZ_EXAMPLES=5000 pytest tests/test_fuzz_readers.py -p no:xdist`` (random, not derandomised,
+``HEXSIM_FUZZ_EXAMPLES=5000 pytest tests/cli/test_fuzz_readers.py -p no:xdist`` (random, not derandomised,
 when HEXSIM_FUZZ_RANDOM=1).
 """
 

@@ -24,7 +24,7 @@ from hexsim.measured.steady import features
 from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine, read_machine
 
-DATA = pathlib.Path(__file__).resolve().parents[1] / "examples" / "data" / "servo_cylinder"
+DATA = pathlib.Path(__file__).resolve().parents[2] / "examples" / "data" / "servo_cylinder"
 NOMINAL = load_machine("servo_cylinder")  # the user's machine file: the source's geometry, guessed valve
 
 #: Machines whose nominal departs from the file within data-sheet tolerances, each moving other parameters.
@@ -180,7 +180,7 @@ def test_default_parameters_know_their_key_unit_bounds_and_source():
 
 
 def test_a_log_too_short_for_either_kind_of_evidence_is_refused(tmp_path, capsys):
-    """A closed-loop log is evidence from its transients (tests/test_calibration_transients.py); one
+    """A closed-loop log is evidence from its transients (tests/measured/test_calibration_transients.py); one
     shorter than four replay windows is neither a constant-command experiment nor that: one line, no file."""
     assert main(["run", "actuator", "--duration", "3", "--frequency", "1", "--log", str(tmp_path / "sine.csv")]) == 0
     capsys.readouterr()
@@ -315,7 +315,7 @@ def test_a_calibration_worse_than_its_prior_on_its_own_logs_writes_nothing(tmp_p
     assert own["worse_than_prior"] == {"position": [2.05, 4.12]} and not own["reached"]
     monkeypatch.setattr(calibration, "calibrate", lambda logs, machine, **_: (machine, {"own_budget": own}))
     monkeypatch.setattr(reports, "table", lambda report: "")
-    log = str(pathlib.Path(__file__).parents[1] / "examples" / "data" / "servo_cylinder" / "cyl_1V_s1_pA.csv")
+    log = str(pathlib.Path(__file__).parents[2] / "examples" / "data" / "servo_cylinder" / "cyl_1V_s1_pA.csv")
     out = tmp_path / "cal.json"
     assert main(["calibrate", log, "--machine", "servo_cylinder", "--out", str(out)]) == 2
     err = capsys.readouterr().err
