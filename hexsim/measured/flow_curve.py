@@ -35,7 +35,12 @@ inverting it left reversal peaks 1.6x those of the calibrated curve. The opening
 to the calibrated machine's, each relative to its own size (a Gaussian prior: Tikhonov, or ridge, toward the
 machine; a shut edge held no tighter than its opening :data:`FLOOR_V` past where it opens), with the strongest
 of :data:`STRENGTHS` whose held-out windows are within one standard error of the best: where the flows tell
-(a corner the sine crosses slowly), they win; where they do not, the calibration's shape stays.
+(a corner the sine crosses slowly), they win; where they do not, the calibration's shape stays. Two more choices
+follow the machine there: edges that open before null on the machine (an underlapped valve) are read so unless
+the shut ones predict the held-out windows better (the logs' jumps across null cannot show the underlap, and a
+dead band read into the curve is jumped by the compensator at every reversal), and the slope-change penalty is the
+smoothest within :data:`WIGGLE_MARGIN` of the best where that is wider than a standard error (a compensator
+inverts the curve, and a wiggle is a bump at every crossing).
 
 **Into the machine file** (:meth:`FlowCurves.points`): each edge's fitted curve thinned to at most
 :data:`hexsim.plant.params.MAX_CURVE_POINTS` points through which the monotone cubic (PCHIP) of flow area
@@ -98,6 +103,14 @@ STRENGTHS = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: The openings are held relative to the machine's own, but never to less than its opening this far [V] past
 #: where its edge opens.
 FLOOR_V = 0.02
+#: A commissioning's curve (``toward_machine``) is read with the smoothest penalty weight whose held-out flow error
+#: (rms) is within this share of the best, where that is wider than one standard error. Long logs of a compensated
+#: machine make the standard error small, and the held-out flows then chose weights that let the curve wiggle by
+#: ±0.5-1 % every 20 mV at low speed, a wiggle the flows cannot tell from the best fit and a compensator inverting
+#: the curve turns into a bump at every crossing: on the independent port-limited actuator the second commissioning
+#: chose 1e-7 (1e-5 within 2.5 %) and its reversals went from 0.037 to 0.128 m/s²; on R1 1e-6 (1e-5 within 3.4 %),
+#: 0.029 to 0.037.
+WIGGLE_MARGIN = 0.05
 #: Iterations of the reweighted least squares (robust loss and l1 penalty).
 IRLS_STEPS = 6
 
@@ -405,12 +418,25 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
     grids = (edge_grid(reach[0]), edge_grid(reach[1]))
     opened = _fit_on(samples, reach, *grids, machine, toward_machine=toward_machine)
     shut = _fit_on(samples, reach, *(g[g >= 0.0] for g in grids), machine, toward_machine=toward_machine)
-    # the simpler shut edges unless the underlap predicts the held-out windows better by one standard error
-    first = shut if _held_out_ms(shut)[0] <= sum(_held_out_ms(opened)) else opened
+    # the simpler shut edges unless the underlap predicts the held-out windows better by one standard error; in a
+    # commissioning, the machine's own edges (shut or opening before null) unless the other predicts them better
+    if toward_machine and _opens_before_null(machine):
+        first = opened if _held_out_ms(opened)[0] <= sum(_held_out_ms(shut)) else shut
+    else:
+        first = shut if _held_out_ms(shut)[0] <= sum(_held_out_ms(opened)) else opened
     second = _fit_on(samples, reach, _refined(first.pa), _refined(first.at), machine, first.weight,
                      toward_machine, first.prior_strength)
     return dataclasses.replace(second, held_out=first.held_out, held_out_se=first.held_out_se,
                                reached=(float(u_all.min()), float(u_all.max())))
+
+
+def _opens_before_null(machine: Machine) -> bool:
+    """Whether either edge of ``machine``'s valve opens before null: P→A below it or A→T above it, at
+    :data:`FLOOR_V` from null (an underlapped valve, which a commissioning must not read shut: the compensator
+    would then jump a dead band the valve does not have at every reversal)."""
+    hyd = machine.hydraulics
+    x = FLOOR_V * hyd.x_v_max / hyd.u_v_max
+    return bool(hydraulics.flow_areas(-x, hyd)[0] > 0.0 or hydraulics.flow_areas(x, hyd)[1] > 0.0)
 
 
 def _held_out_ms(curves: FlowCurves) -> tuple[float, float]:
@@ -455,7 +481,7 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     scores: dict = {}
     if weight is None:
         scores = {trial: folds.held_out(gram, rhs, trial * unit_penalty) for trial in WEIGHTS}
-        weight = _within_one_se(scores)
+        weight = _within_one_se(scores, WIGGLE_MARGIN if toward_machine else 0.0)
     if toward_machine:
         P, t = _machine_openings(machine, pa, at)
         unit_prior = float(np.sum(w * b * b)) / c**2 / len(t)  # strength 1: the openings ~ the flows
@@ -500,11 +526,13 @@ class _Folds:
         return float(np.mean(errors)), float(np.std(errors) / math.sqrt(FOLDS))
 
 
-def _within_one_se(scores: dict) -> float:
+def _within_one_se(scores: dict, margin: float = 0.0) -> float:
     """Of the trials ``scores`` (trial -> (held-out mean square, its standard error)), ordered from the least to
-    the most smoothing or holding, the last within one standard error of the best (the one-standard-error rule)."""
+    the most smoothing or holding, the last within one standard error of the best (the one-standard-error rule),
+    or within ``margin`` of the best's rms where that is wider."""
     best = min(scores, key=lambda k: scores[k][0])
-    return max(k for k, (ms, _) in scores.items() if ms <= scores[best][0] + scores[best][1])
+    ms, se = scores[best]
+    return max(k for k, (m, _) in scores.items() if m <= ms + max(se, ((1.0 + margin) ** 2 - 1.0) * ms))
 
 
 def _refined(edge: EdgeCurve) -> np.ndarray:

@@ -115,3 +115,37 @@ def test_the_machine_files_points_follow_an_edge_opening_as_x_squared_from_null(
     followed = PchipInterpolator(knots[:, 0], knots[:, 1])
     near = np.array([0.005, 0.01, 0.02, 0.04])
     assert np.all(np.abs(followed(near) / np.interp(near, u, opening) - 1.0) < 0.10), followed(near)
+
+
+def test_a_commissioning_keeps_an_underlapped_valve_open_at_null(tmp_path):
+    """A compensated machine's runs say little near null, and read on their own the held-out windows can prefer
+    edges shut at null (the simpler choice): on an underlapped spool (independent_actuator's "spool": both edges
+    open 6 µm before null, rounded) the commissioning's curve then had a dead band the valve lacks, and the
+    compensator jumping it at every reversal was 2.1x worse than none. Held to a machine whose edges open before
+    null (``toward_machine``), the curves stay open there unless the shut edges predict better. The log is a
+    triangle, whose command jumps across null at each reversal as a compensated run's does (read without the
+    machine's edges, its curves came out shut)."""
+    spool = Actuator(area="spool", underlap=6e-6, rounding=8e-6, port_width=0.85, flow_gain=1.04, k_at=0.93,
+                     bulk=1.4e9, mass=42.0)
+    t = np.arange(0.0, 10.0, 1e-3)  # a triangle: the command jumps across null at each reversal, as compensated
+    triangle = spool.stroke / 2 + np.clip(t / 2.0, 0, 1) * 0.05 * (2 / np.pi) * np.arcsin(np.sin(np.pi * t))
+    log = write(motion(spool, 10.0, 0.5, 0.05, np.random.default_rng(9), reference=triangle), tmp_path / "tri.csv",
+                "0.5 Hz, 50 mm triangle")
+    machine = with_valve(load_machine(None), flow_area="curve", flow_curve_PA=[[-0.2, 0.0], [0.0, 0.008],
+                                                                                [1.0, 0.09], [10.0, 0.95]],
+                         flow_curve_AT=[[-0.2, 0.0], [0.0, 0.008], [1.0, 0.09], [10.0, 0.95]])
+    fc = fit_flow_curves([read_log(log, machine=machine)], machine, toward_machine=True)
+    for edge in (fc.pa, fc.at):
+        assert edge.knots[0] < 0.0 and edge.opening(np.array([-0.02]))[0] > 0.0, (edge.knots[:4], edge.openings[:4])
+
+
+def test_a_commissioning_keeps_no_wiggle_the_held_out_flows_barely_prefer():
+    """The penalty weight of a commissioning's curve: the smoothest within one standard error of the best or, where
+    wider, within 5 % of its rms (a curve a compensator inverts; worked by hand: the scores are mean squares)."""
+    from hexsim.measured.flow_curve import WIGGLE_MARGIN, _within_one_se
+
+    scores = {1e-7: (1.0, 1e-3), 1e-6: (1.014, 1e-3), 1e-5: (1.09, 1e-3), 1e-4: (1.3, 1e-3)}
+    assert _within_one_se(scores) == 1e-7  # one standard error alone
+    assert WIGGLE_MARGIN == 0.05 and _within_one_se(scores, WIGGLE_MARGIN) == 1e-5  # 1.09 < 1.05^2 = 1.1025
+    assert _within_one_se({**scores, 1e-5: (1.11, 1e-3)}, WIGGLE_MARGIN) == 1e-6
+    assert _within_one_se({1e-7: (1.0, 0.2), 1e-6: (1.15, 1e-3)}, WIGGLE_MARGIN) == 1e-6  # a wide error wins
