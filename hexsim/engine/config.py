@@ -162,12 +162,7 @@ class RunConfig:
     def machine_label(self) -> str:
         """The machine as outputs name it: the machine file or built-in the run came from, or for a machine
         edited in Python or by options "NAME with parameters changed"."""
-        m = self.machine
-        if m.path is not None:
-            return str(m.path)
-        if _as_built(m):
-            return m.name
-        return f"{m.name} with parameters changed"
+        return self.machine_spec or f"{self.machine.name} with parameters changed"
 
     @property
     def machine_spec(self) -> str | None:
