@@ -119,8 +119,9 @@ def vary(base: RunConfig, settings: dict) -> RunConfig:
     ``amplitude``, ``frequency``: the scenario is rebuilt by :func:`hexsim.control.scenario.make_scenario`), a
     :class:`RunConfig` field (``machine``, ``compensator``, ``seed``, ``engine``, ``timestep``, …), a part of
     the machine (``hydraulics``, ``controller``, ``effects``) or a field of
-    :class:`~hexsim.plant.params.HydraulicParams`, :class:`~hexsim.plant.params.ControllerParams` or
-    :class:`~compensation.CompensatorSettings` (on the machine ``machine`` names where it is varied too). Raises
+    :class:`~hexsim.plant.params.HydraulicParams`, :class:`~hexsim.plant.params.ControllerParams`,
+    :class:`~hexsim.plant.effects.Effects` or :class:`~compensation.CompensatorSettings` (on the machine
+    ``machine`` names where it is varied too). Raises
     InputError naming an unknown setting."""
     if "machine" in settings:
         base = dataclasses.replace(base, machine=settings["machine"])
@@ -139,17 +140,17 @@ def vary(base: RunConfig, settings: dict) -> RunConfig:
     for key, value in settings.items():
         if key in _SCENARIO_KEYS or key in ("scenario", "machine"):
             continue
-        owner = next((g for g, obj in groups.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
         if key in groups:  # a whole group (``effects=Effects(...)``)
-            owner, groups[key] = None, value
-            (changes if key == "compensator_settings" else parts)[key] = value
-        elif owner is not None:
-            groups[owner] = dataclasses.replace(groups[owner], **{key: value})
-            (changes if owner == "compensator_settings" else parts)[owner] = groups[owner]
-        elif key in fields:
-            changes[key] = value
+            owner, groups[key] = key, value
         else:
-            raise InputError(f"sweep: {key!r} is not a scenario keyword, a RunConfig field or a parameter")
+            owner = next((g for g, obj in groups.items() if key in {f.name for f in dataclasses.fields(obj)}), None)
+            if owner is None:
+                if key not in fields:
+                    raise InputError(f"sweep: {key!r} is not a scenario keyword, a RunConfig field or a parameter")
+                changes[key] = value
+                continue
+            groups[owner] = dataclasses.replace(groups[owner], **{key: value})
+        (changes if owner == "compensator_settings" else parts)[owner] = groups[owner]
     config = dataclasses.replace(base, **changes)
     return config.with_machine(**parts) if parts else config
 
