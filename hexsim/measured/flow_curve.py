@@ -11,8 +11,9 @@ openings, so each edge's curve is a linear least-squares problem whose answer do
 starts, and 1/E and V_pl/E are two more linear unknowns.
 
 **The curves** (:func:`fit_flow_curves`): each edge's opening is piecewise linear on a fine grid of commands
-(:func:`edge_grid`: 20 mV near null, 5 % of the command beyond, from 0.2 V below null, where an underlapped
-edge opens, to the largest command the logs reach on that edge), rising from zero (every answer a valve's).
+(:func:`edge_grid`: 5 mV near null, 2 % of the command beyond, from 0.5 V below null, where the rounded edges
+of an underlapped spool still pass flow, to the largest command the logs reach on that edge), rising from zero
+(every answer a valve's).
 Whether an edge opens before null at all is the held-out windows' answer too: the curves are fitted shut at and
 below null and with the knots below null, and the underlap kept only where it predicts the held-out windows
 better by more than one standard error (a straight ramp through null costs the slope-change penalty nothing,
@@ -87,8 +88,11 @@ FOLDS = 5
 WEIGHTS = (1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 #: The grid of each edge's curve: knots below null where an underlapped edge may open [V], then from null a
 #: spacing of the larger of GRID_MIN_V and GRID_REL times the command (a corner is placed to within a knot:
-#: 18 mV at 0.9 V).
-BELOW_NULL_V = (-0.2, -0.12, -0.07, -0.04, -0.02, -0.01)
+#: 18 mV at 0.9 V). Below null as far as 0.5 V (5 % of a 10 V valve's command): a rounded edge that opens 6 µm
+#: before null still passes flow 0.2 V below it, and a curve held shut there from 0.2 V had a corner the valve
+#: lacks, its flow gain 15 % off either side of it; a compensator inverting it removed 60 % of the independent
+#: underlapped spool's bump, and 87 % read from 0.5 V (``examples/proof_on_the_machine.py``).
+BELOW_NULL_V = (-0.5, -0.4, -0.3, -0.2, -0.12, -0.07, -0.04, -0.02, -0.01)
 GRID_MIN_V, GRID_REL = 0.005, 0.02
 #: An edge's curve is read up to this quantile of the commands that open it (a few outlying samples do not
 #: stretch it over commands the logs barely visit); at least MIN_REACH_V.
