@@ -128,14 +128,19 @@ def flow_areas(x_v, p: HydraulicParams):
 
 def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams:
     """``p`` with its valve's openings as each edge's curve (flow area "curve"): its own form's P→A opening at
-    the command u and A→T opening at -u (:func:`flow_areas`, over 0.2 V below null to u_v,max, a millivolt
-    apart near null), thinned (:func:`hexsim.plant.params.thin_curve`), each edge opening ``open_earlier_V``
+    the command u and A→T opening at -u (:func:`flow_areas`, from 0.2 V below null, or from where the file's curve
+    or table opens if lower, to u_v,max, a millivolt apart near null), thinned
+    (:func:`hexsim.plant.params.thin_curve`), each edge opening ``open_earlier_V``
     [V] earlier (negative: later; the dead band narrower or wider by twice it, an underlap or more overlap
     than the file's). What a calibration may have got wrong near null, as a machine to try a compensator on
     (:mod:`hexsim.studies.tuning`'s neighbours). The edge gains stay the effects'."""
     from hexsim.plant.params import thin_curve
 
-    u = np.unique(np.concatenate([np.linspace(-0.2, 0.5, 701), np.linspace(0.5, p.u_v_max, 951)]))
+    firsts = ([c[0][0] for c in (p.flow_curve_pa, p.flow_curve_at) if c] if p.flow_area == "curve" else
+              [p.opening_table[0][0]] if p.flow_area == "table" and p.opening_table else [])
+    lo = min(-0.2, *firsts)  # an underlapped valve's curve read from its flows opens up to 0.5 V before null
+    u = np.unique(np.concatenate([np.linspace(lo, 0.5, int(round((0.5 - lo) / 1e-3)) + 1),
+                                  np.linspace(0.5, p.u_v_max, 951)]))
     x = u / p.u_v_max * p.x_v_max
     full = np.pi * p.spool_diameter * p.x_v_max
     edges = []

@@ -183,3 +183,19 @@ def test_an_underlapped_spools_curve_keeps_its_flow_gain_where_its_rounded_edges
         a1 * y + spool.v_pl) / spool.bulk
     gain_read, gain_own = np.diff(read), np.diff(own)
     assert np.all(np.abs(gain_read / gain_own - 1.0) < 0.08), np.round(100 * (gain_read / gain_own - 1.0))
+
+
+def test_a_curve_that_opens_far_before_null_is_tried_opening_earlier_and_later():
+    """Tuning tries a compensator on the calibrated valve with each edge opening earlier and later
+    (:func:`hexsim.plant.hydraulics.as_curve`, :mod:`hexsim.studies.tuning`'s neighbours). On a curve read from an
+    underlapped valve's flows, which opens up to 0.5 V before null, that machine starts where the curve opens
+    (sampled from 0.2 V below null it started at an opening above zero, and the machine file was refused)."""
+    curve = [[-0.45, 0.0], [-0.2, 0.002], [0.0, 0.008], [1.0, 0.09], [10.0, 0.95]]
+    hyd = with_valve(load_machine(None), flow_area="curve", flow_curve_PA=curve, flow_curve_AT=curve).hydraulics
+    u = np.array([-0.3, -0.1, 0.0, 0.4, 2.0])
+    for shift in (-0.02, 0.0, 0.02):
+        tried = hydraulics.as_curve(hyd, shift)
+        for edge in (tried.flow_curve_pa, tried.flow_curve_at):
+            assert edge[0] == (pytest.approx(-0.45 - shift), 0.0)
+            opening = PchipInterpolator(*np.transpose(edge))(u)
+            assert opening == pytest.approx(PchipInterpolator(*np.transpose(curve))(u + shift), rel=0.01, abs=1e-5)
