@@ -138,7 +138,7 @@ def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams
 
     firsts = ([c[0][0] for c in (p.flow_curve_pa, p.flow_curve_at) if c] if p.flow_area == "curve" else
               [p.opening_table[0][0]] if p.flow_area == "table" and p.opening_table else [])
-    lo = min(-0.2, *firsts)  # an underlapped valve's curve read from its flows opens up to 0.5 V before null
+    lo = min([-0.2, *firsts])  # an underlapped valve's curve read from its flows opens up to 0.5 V before null
     u = np.unique(np.concatenate([np.linspace(lo, 0.5, int(round((0.5 - lo) / 1e-3)) + 1),
                                   np.linspace(0.5, p.u_v_max, 951)]))
     x = u / p.u_v_max * p.x_v_max

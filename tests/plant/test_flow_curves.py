@@ -199,3 +199,12 @@ def test_a_curve_that_opens_far_before_null_is_tried_opening_earlier_and_later()
             assert edge[0] == (pytest.approx(-0.45 - shift), 0.0)
             opening = PchipInterpolator(*np.transpose(edge))(u)
             assert opening == pytest.approx(PchipInterpolator(*np.transpose(curve))(u + shift), rel=0.01, abs=1e-5)
+    built_in = load_machine(None).hydraulics  # a form: from 0.2 V below null, where its edges are shut
+    u = np.array([0.05, 0.4, 2.0, 5.0])  # where its edges are open
+    for shift in (-0.02, 0.02):
+        tried = hydraulics.as_curve(built_in, shift)
+        x = u / built_in.u_v_max * built_in.x_v_max
+        for edge, form in ((tried.flow_curve_pa, hydraulics.flow_areas(x, built_in)[0]),
+                           (tried.flow_curve_at, hydraulics.flow_areas(-x, built_in)[1])):
+            full = math.pi * built_in.spool_diameter * built_in.x_v_max
+            assert PchipInterpolator(*np.transpose(edge))(u - shift) == pytest.approx(form / full, rel=0.01, abs=1e-5)
