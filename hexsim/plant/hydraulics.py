@@ -134,7 +134,7 @@ def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams
     [V] earlier (negative: later; the dead band narrower or wider by twice it, an underlap or more overlap
     than the file's). What a calibration may have got wrong near null, as a machine to try a compensator on
     (:mod:`hexsim.studies.tuning`'s neighbours). The edge gains stay the effects'."""
-    from hexsim.plant.params import thin_curve
+    from hexsim.plant.params import MAX_CURVE_POINTS, thin_curve
 
     firsts = ([c[0][0] for c in (p.flow_curve_pa, p.flow_curve_at) if c] if p.flow_area == "curve" else
               [p.opening_table[0][0]] if p.flow_area == "table" and p.opening_table else [])
@@ -149,7 +149,11 @@ def as_curve(p: HydraulicParams, open_earlier_V: float = 0.0) -> HydraulicParams
         points = [[round(v - open_earlier_V, 6), f] for v, f in thin_curve(u, value)]
         if points[-1][0] < p.u_v_max:  # opened earlier: the last point moved below the range's end
             (u0, f0), (u1, f1) = points[-2], points[-1]
-            points.append([p.u_v_max, f1 + (f1 - f0) / (u1 - u0) * (p.u_v_max - u1)])
+            end = [p.u_v_max, f1 + (f1 - f0) / (u1 - u0) * (p.u_v_max - u1)]  # the last segment carried on
+            if len(points) < MAX_CURVE_POINTS:
+                points.append(end)
+            else:  # a file holds at most MAX_CURVE_POINTS: the last point moves to the end on that line
+                points[-1] = end
         edges.append(tuple(tuple(q) for q in points))
     return p.replace(flow_area="curve", opening_table=(), flow_curve_pa=edges[0], flow_curve_at=edges[1], overlap=0.0)
 

@@ -208,3 +208,20 @@ def test_a_curve_that_opens_far_before_null_is_tried_opening_earlier_and_later()
                            (tried.flow_curve_at, hydraulics.flow_areas(-x, built_in)[1])):
             full = math.pi * built_in.spool_diameter * built_in.x_v_max
             assert PchipInterpolator(*np.transpose(edge))(u - shift) == pytest.approx(form / full, rel=0.01, abs=1e-5)
+
+
+def test_a_curve_of_as_many_points_as_a_file_holds_is_tried_opening_earlier():
+    """A curve of :data:`hexsim.plant.params.MAX_CURVE_POINTS` points (a smooth one read from the flows needs many)
+    opened earlier still fits a machine file: its last point moves to the end of the command range along the last
+    segment, where a point was added and the tried machine refused (49 points)."""
+    from hexsim.plant.params import MAX_CURVE_POINTS
+
+    u = np.linspace(0.0, 10.0, MAX_CURVE_POINTS - 1)
+    slope = np.where(np.arange(len(u) - 1) % 2 == 0, 0.05, 0.15)  # a slope that changes at every point
+    curve = [[-0.1, 0.0], *[[float(a), 0.005 + float(f)] for a, f in zip(u, np.r_[0.0, np.cumsum(slope * np.diff(u))])]]
+    assert len(curve) == MAX_CURVE_POINTS
+    hyd = with_valve(load_machine(None), flow_area="curve", flow_curve_PA=curve, flow_curve_AT=curve).hydraulics
+    for shift in (0.01, 0.05):
+        tried = hydraulics.as_curve(hyd, shift)
+        for edge in (tried.flow_curve_pa, tried.flow_curve_at):
+            assert len(edge) <= MAX_CURVE_POINTS and edge[-1][0] == 10.0 and edge[-2][0] < 10.0 - shift + 1e-9
