@@ -23,7 +23,9 @@ into the model by ``hexsim tune --from-logs``, the improved file run again).
 ``--floor`` adds, on R1, the floor any static inverse can reach there: the fixed feedforward with R1's own leg
 model (its flow curve, friction, oil spring and mass from ``../shared/reference-plants``' equations, not a
 calibration) in R1's loop, with its sensors' noise and without; and the tuned file's leg model with R1's own flow
-curve in place of the calibrated one (what the curve alone costs).
+curve in place of the calibrated one (what the curve alone costs). On the independent actuators it adds the fixed
+feedforward on the tuned file's leg model as it is, with the actuator's own flow curve, and with its own friction
+as well (``tests/independent_actuator.py``'s equations): what each part of the calibrated model costs.
 
 It made the tables of docs/compensation.md ("Proven on the machine").
 """
@@ -32,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import pathlib
 import sys
 import tempfile
@@ -237,6 +240,41 @@ def floor(duration: float, none: dict, tuned: pathlib.Path) -> list[dict]:
     return rows
 
 
+def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) -> list[dict]:
+    """The rows of ``--floor`` on an independent actuator: the fixed feedforward on the ``tuned`` file's leg model in
+    the actuator's loop as it is, with the actuator's own flow curve (its net piston velocity at mid-stroke and its
+    rest pressure, from ``tests/independent_actuator.py``'s ``leg_at``), and with its own friction curve as well
+    (``none``: the uncompensated row). Raises ValueError for an actuator with entrained air (its chamber's
+    stiffness, which the velocity is read through here, is not the oil's)."""
+    import dataclasses
+
+    from independent_actuator import _pack, leg_at
+
+    s = truth.actuator
+    if s.air > 0:
+        raise ValueError(f"{truth.name}: own_parts reads the flow through the oil's bulk modulus; this one has air")
+    c = _pack(s)
+    a1, a2, y = c[0], c[1], s.stroke / 2
+    p_rest = (s.supply * a2 + s.mass * 9.81 * math.cos(math.radians(s.inclination_deg))) / a1
+    model = read_tuned(tuned)[2]
+    velocity = np.array([leg_at(c, y, 0.0, p_rest, (u - s.null_offset) / s.u_max * s.x_max, s.supply)[0]
+                         for u in model.u]) * (a1 * y + s.v_pl) / s.bulk / a1
+    side = [(0 if v >= 0 else 1) for v in model.friction_v]
+    friction = np.array([s.viscous[i] * v + math.atan(s.arctan_k * v) * (s.coulomb[i] + s.static[i] * math.exp(
+        -abs(v) / s.c_s[i])) for v, i in zip(model.friction_v, side)])
+    curve = dataclasses.replace(model, velocity=velocity[None, :])
+    rows = []
+    for label, leg in (("feedforward on the tuned file's model", model),
+                       (f"the same with {truth.name}'s own curve", curve),
+                       (f"the same with {truth.name}'s own curve and friction", dataclasses.replace(
+                           curve, friction_f=friction))):
+        comp = make_compensator("feedforward", 1, 500.0, model=leg)
+        view, now = judged(*truth.run(comp, duration, 20), duration)
+        rows.append({"machine": truth.name, "run": label, "measured": view, "instantaneous": now, "predicted": None,
+                     "none": none["measured"], "none_instantaneous": none["instantaneous"]})
+    return rows
+
+
 def table(rows: list[dict]) -> str:
     """Measured (1 ms means, as hexsim records) beside predicted; the instantaneous samples' reduction where the
     machine gives them."""
@@ -261,7 +299,8 @@ def main(argv=None) -> int:
     ap.add_argument("--runs", type=int, default=3, help="commissioning runs after the tuned one (default 3)")
     ap.add_argument("--duration", type=float, default=60.0, help="each run on the machine [s] (default 60)")
     ap.add_argument("--keep", type=pathlib.Path, help="keep the logs and files in this folder")
-    ap.add_argument("--floor", action="store_true", help="on R1, add the floor: the feedforward on R1's own model")
+    ap.add_argument("--floor", action="store_true", help="on R1, add the floor: the feedforward on R1's own model; "
+                    "on the others, the feedforward on the tuned model with the machine's own curve and friction")
     args = ap.parse_args(argv)
     names = [m for m in args.machines.split(",") if m]
     unknown = [m for m in names if m not in MACHINES]
@@ -275,6 +314,9 @@ def main(argv=None) -> int:
             rows += prove(name, args.runs, args.duration, folder)
             if args.floor and name == "R1":
                 rows += floor(args.duration, rows[-args.runs - 2], folder / "R1_tuned_0.json")
+            elif args.floor:
+                rows += own_parts(Truth(name, folder), args.duration, rows[-args.runs - 2],
+                                  folder / f"{name}_tuned_0.json")
             print(table([r for r in rows if r["machine"] == name]), flush=True)
     print("\n" + table(rows))
     return 0

@@ -91,7 +91,7 @@ WEIGHTS = (1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
 #: 18 mV at 0.9 V). Below null as far as 0.5 V (5 % of a 10 V valve's command): a rounded edge that opens 6 µm
 #: before null still passes flow 0.2 V below it, and a curve held shut there from 0.2 V had a corner the valve
 #: lacks, its flow gain 15 % off either side of it; a compensator inverting it removed 60 % of the independent
-#: underlapped spool's bump, and 87 % read from 0.5 V (``examples/proof_on_the_machine.py``).
+#: underlapped spool's bump, and 85-86 % read from 0.5 V (``examples/proof_on_the_machine.py``).
 BELOW_NULL_V = (-0.5, -0.4, -0.3, -0.2, -0.12, -0.07, -0.04, -0.02, -0.01)
 GRID_MIN_V, GRID_REL = 0.005, 0.02
 #: An edge's curve is read up to this quantile of the commands that open it (a few outlying samples do not
