@@ -235,9 +235,14 @@ def floor(duration: float, none: dict, tuned: pathlib.Path) -> list[dict]:
             effects["noise"] = noise
         out, extra = plant.simulate(effects=effects, ref="sine", T=duration, seed=20, compensator=comp)
         view, now = judged(out[:, 0], out[:, 1], extra["acc_mean"], extra["v"], extra["acc"], duration)
-        rows.append({"machine": "R1", "run": label, "measured": view, "instantaneous": now, "predicted": None,
-                     "none": none["measured"], "none_instantaneous": none["instantaneous"]})
+        rows.append(_floor_row("R1", label, view, now, none))
     return rows
+
+
+def _floor_row(machine: str, label: str, view, now, none: dict) -> dict:
+    """A row of ``--floor``: a run with no prediction, judged against the uncompensated row ``none``."""
+    return {"machine": machine, "run": label, "measured": view, "instantaneous": now, "predicted": None,
+            "none": none["measured"], "none_instantaneous": none["instantaneous"]}
 
 
 def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) -> list[dict]:
@@ -269,9 +274,7 @@ def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) ->
                        (f"the same with {truth.name}'s own curve and friction", dataclasses.replace(
                            curve, friction_f=friction))):
         comp = make_compensator("feedforward", 1, 500.0, model=leg)
-        view, now = judged(*truth.run(comp, duration, 20), duration)
-        rows.append({"machine": truth.name, "run": label, "measured": view, "instantaneous": now, "predicted": None,
-                     "none": none["measured"], "none_instantaneous": none["instantaneous"]})
+        rows.append(_floor_row(truth.name, label, *judged(*truth.run(comp, duration, 20), duration), none))
     return rows
 
 
