@@ -248,8 +248,8 @@ def _floor_row(machine: str, label: str, view, now, none: dict) -> dict:
 def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) -> list[dict]:
     """The rows of ``--floor`` on an independent actuator: the fixed feedforward on the ``tuned`` file's leg model in
     the actuator's loop as it is, with the actuator's own flow curve (its net piston velocity at mid-stroke and its
-    rest pressure, from ``tests/independent_actuator.py``'s ``leg_at``), and with its own friction curve as well
-    (``none``: the uncompensated row). Raises ValueError for an actuator with entrained air (its chamber's
+    rest pressure, from ``tests/independent_actuator.py``'s ``leg_at``), and with its own friction curve as well (the
+    same ``leg_at``'s) (``none``: the uncompensated row). Raises ValueError for an actuator with entrained air (its chamber's
     stiffness, which the velocity is read through here, is not the oil's)."""
     import dataclasses
 
@@ -264,9 +264,9 @@ def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) ->
     model = read_tuned(tuned)[2]
     velocity = np.array([leg_at(c, y, 0.0, p_rest, (u - s.null_offset) / s.u_max * s.x_max, s.supply)[0]
                          for u in model.u]) * (a1 * y + s.v_pl) / s.bulk / a1
-    side = [(0 if v >= 0 else 1) for v in model.friction_v]
-    friction = np.array([s.viscous[i] * v + math.atan(s.arctan_k * v) * (s.coulomb[i] + s.static[i] * math.exp(
-        -abs(v) / s.c_s[i])) for v, i in zip(model.friction_v, side)])
+    # its friction as leg_at has it: the pressure force less the net force at mid-stroke (no end stop there)
+    friction = np.array([p_rest * a1 - s.supply * a2 - leg_at(c, y, v, p_rest, 0.0, s.supply)[1]
+                         for v in model.friction_v])
     curve = dataclasses.replace(model, velocity=velocity[None, :])
     rows = []
     for label, leg in (("feedforward on the tuned file's model", model),
