@@ -54,8 +54,8 @@ class MeasurementLog:
     columns: dict[str, np.ndarray]
     kp: float  # K_p [V/m] of the logged controller
     controller_rate_hz: float
-    mass_kg: float | None  # declared moving mass (single actuator); None: the model's
-    inclination_deg: float  # declared inclination from vertical (single actuator)
+    mass_kg: float | None  # the sidecar's moving mass (single actuator); None: the machine's
+    inclination_deg: float  # the sidecar's inclination from vertical, else the machine's (single actuator)
     oil_temperature_c: float
     sidecar: dict
     stroke_m: float = DEFAULT_STROKE  # travel of the axis [m] (sidecar stroke_m)
@@ -89,8 +89,8 @@ class MeasurementLog:
 
     @property
     def moving_mass_kg(self) -> float:
-        """The moving mass [kg] of the logged run: the sidecar's or the machine's declared mass
-        (:attr:`mass_kg`), else the model's (:attr:`hexsim.plant.machine.Machine.moving_mass_kg`)."""
+        """The moving mass [kg] of the logged run: the sidecar's (:attr:`mass_kg`), else the machine's
+        (:attr:`hexsim.plant.machine.Machine.moving_mass_kg`: its ``load.mass_kg``, else the model's)."""
         return self.mass_kg if self.mass_kg is not None else self.machine.moving_mass_kg
 
 
@@ -221,7 +221,9 @@ def _sidecar_settings(side: dict, side_name: pathlib.Path, machine: Machine) -> 
     temp = value(side, "oil_temperature_C", str(side_name), 35.0, "oil temperature 35 °C (seed app. A)", positive=False)
     stroke = value(side, "stroke_m", str(side_name), machine.hydraulics.stroke,
                    single and f"stroke {machine.hydraulics.stroke:g} m (machine {machine.label})")
-    mass = value(side, "mass_kg", str(side_name), load.mass_kg, single and (
+    # undeclared, the mass stays None: the machine a replay is built from gives it (a calibration's or a
+    # validation's machine under test, not the one the log was read with)
+    mass = value(side, "mass_kg", str(side_name), None, single and (
         f"moving mass {load.mass_kg:g} kg (machine {machine.label})" if load.mass_kg is not None
         else f"moving mass from the model ({machine.moving_mass_kg:g} kg; machine {machine.label})"))
     incl0 = load.inclination_deg or 0.0

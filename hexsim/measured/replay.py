@@ -226,13 +226,14 @@ def clear_of_jumps(log: MeasurementLog, windows: Windows) -> Windows:
 def nominal_plant(log: MeasurementLog) -> PlantModel:
     """The model a log is judged against before any effect: its machine's hydraulics and effects
     (:attr:`MeasurementLog.machine`), the supply level the log states (:func:`supply_from_log`) and, on a
-    single actuator, the moving mass and inclination the sidecar declares; on a hexapod, the legs' own values
-    of the machine file (its ``legs`` section, a calibration's per-leg valves)."""
+    single actuator, the moving mass and inclination the sidecar declares (what it leaves out is the
+    machine's, so a calibration's or validation's machine under test reaches the replay with its own); on a
+    hexapod, the legs' own values of the machine file (its ``legs`` section, a calibration's per-leg valves)."""
     hyd, eff = log.machine.hydraulics, log.machine.effects
     if log.system == "single-actuator":
         if log.mass_kg is not None and log.mass_kg != eff.mass_kg:
             eff = eff.replace(mass_kg=log.mass_kg)
-        if log.inclination_deg != (eff.inclination_deg or 0.0):
+        if "inclination_deg" in log.sidecar and log.inclination_deg != (eff.inclination_deg or 0.0):
             eff = eff.replace(inclination_deg=log.inclination_deg)
     return PlantModel(supply_from_log(log, hyd), eff, log.machine.leg_changes, log.machine.sensors)
 

@@ -99,8 +99,7 @@ def features(log: MeasurementLog) -> list[Feature]:
 def axis_load(log: MeasurementLog) -> tuple[float | None, float]:
     """(the moving mass the log's sidecar declares [kg] or None, g cos(inclination) along its axis
     [m/s^2]): what :func:`predict` needs of a log to compute the weight the piston lifts."""
-    declared = log.mass_kg if "mass_kg" in log.sidecar else None
-    return declared, gravity() * math.cos(math.radians(log.inclination_deg))
+    return log.mass_kg, gravity() * math.cos(math.radians(log.inclination_deg))
 
 
 def load_force(machine: Machine, load: tuple[float | None, float]) -> float:

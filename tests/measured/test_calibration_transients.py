@@ -132,6 +132,29 @@ def test_validate_on_the_calibrated_machine_names_each_library_effect_at_its_val
     assert abs(value / truth - 1.0) < tolerance, (key, value, truth)
 
 
+def test_the_machine_under_test_reaches_the_replay_with_its_own_mass(calibrated, tmp_path):
+    """A log read with a machine that states its moving mass (a calibrated file's ``load.mass_kg``) is replayed
+    with the mass of the machine under test, not the one it was read with: before, a calibration or validation
+    on such a file replayed every candidate at the file's mass (its residual did not move, so the mass was
+    'held at its prior'). A mass the log's sidecar declares is that run's, and stays."""
+    from hexsim.measured.dynamics import ReplayEvidence
+    from hexsim.plant.machine import with_keys
+
+    path, _, folder = calibrated
+    machine = load_machine(path)
+    mass = machine.effects.mass_kg
+    assert mass is not None  # the calibrated file states it
+    heavier = with_keys(machine, {"load.mass_kg": 1.2 * mass})
+    evidence = ReplayEvidence.of(read_log(folder / "calibration.csv", machine=machine), machine)
+    assert evidence.model(heavier).effects.mass_kg == pytest.approx(1.2 * mass)
+    assert np.linalg.norm(evidence.residual(heavier)) > 1.01 * np.linalg.norm(evidence.residual(machine))
+    side = json.loads((folder / "calibration.json").read_text()) | {"mass_kg": 50.0}
+    (tmp_path / "declared.csv").write_bytes((folder / "calibration.csv").read_bytes())
+    (tmp_path / "declared.json").write_text(json.dumps(side))
+    declared = ReplayEvidence.of(read_log(tmp_path / "declared.csv", machine=machine), machine)
+    assert declared.model(heavier).effects.mass_kg == 50.0
+
+
 def test_windows_at_the_end_stops_or_with_a_clipped_sensor_are_not_evidence(tmp_path):
     """A log whose piston reaches an end stop: the windows within STOP_MARGIN_M of the end it reaches are no
     windows of the replay problem, the others are; a closed-loop log in mid-stroke keeps every window. A noisy
