@@ -94,7 +94,9 @@ class WashoutParams:
     [m/s^2] and ``limit_angular_velocity_radps`` [rad/s] after scaling (a saturation). Translational high
     pass: ``hp_omega_radps`` w_n, ``hp_zeta``, ``hp_break_radps`` w_b. Tilt: ``tilt_omega_radps`` and
     ``tilt_zeta`` of the low pass, ``tilt_rate_limit_degps`` (below the canals' 2 deg/s threshold,
-    Benson et al. 1989), ``tilt_limit_deg``. Rotational high pass: ``rot_omega_radps``, ``rot_zeta``.
+    Benson et al. 1989) and ``tilt_acceleration_limit_degps2`` (the tilt rate changes no faster: a rate
+    that flips in one sample is a canal cue of its own), ``tilt_limit_deg``. Rotational high pass:
+    ``rot_omega_radps``, ``rot_zeta``.
     ``rotation_centre_m`` (3,) [m, platform frame]: the point the platform's rotations turn about (the
     translations are those of this point); the platform frame's origin by default, the driver's head in
     Reid & Nahon's setting, which on a small platform costs stroke: 6.5 deg of tilt about a head 1.47 m up
@@ -114,6 +116,7 @@ class WashoutParams:
     tilt_omega_radps: float = 3.0
     tilt_zeta: float = 1 / math.sqrt(2)
     tilt_rate_limit_degps: float = 1.5
+    tilt_acceleration_limit_degps2: float = 8.0
     tilt_limit_deg: float = 8.0
     rot_omega_radps: tuple[float, float, float] = (1.0, 1.0, 1.0)
     rot_zeta: float = 1.0
@@ -154,8 +157,9 @@ class WashoutOutput:
     """What the washout commands: t (N,) [s]; poses (N, 6) [m, rad] relative to neutral (x, y, z, roll,
     pitch, yaw); each channel's part: translation (N, 3) [m], tilt (N, 2) [rad] (roll, pitch), rotation
     (N, 3) [rad]; limited: (6,) samples whose input the scaling's limit saturated (x, y, z, p, q, r),
-    tilt_rate_limited: samples where the tilt ran at its rate limit; solver: an optimising cueing's solve
-    statistics (:func:`hexsim.control.mpc_cueing.mpc_washout`), None for the classical washout."""
+    tilt_rate_limited: samples where the tilt's rate or acceleration limit held it back from its target;
+    solver: an optimising cueing's solve statistics (:func:`hexsim.control.mpc_cueing.mpc_washout`), None for
+    the classical washout."""
 
     t: np.ndarray
     poses: np.ndarray
@@ -192,7 +196,8 @@ def washout(vehicle: VehicleMotion, params: WashoutParams = WashoutParams(), rat
     s_max = math.sin(math.radians(params.tilt_limit_deg))
     target = np.stack([np.arcsin(np.clip(f_low[:, 1] / G, -s_max, s_max)),  # roll from sway
                        -np.arcsin(np.clip(f_low[:, 0] / G, -s_max, s_max))], axis=1)  # pitch from surge
-    tilt, n_rate = _rate_limited(target, math.radians(params.tilt_rate_limit_degps) / rate_hz)
+    tilt, n_rate = rate_limited(target, math.radians(params.tilt_rate_limit_degps) / rate_hz,
+                                math.radians(params.tilt_acceleration_limit_degps2) / rate_hz**2)
     rotation = np.empty((t.size, 3))
     for k in range(3):
         wr = params.rot_omega_radps[k]
@@ -207,15 +212,26 @@ def washout(vehicle: VehicleMotion, params: WashoutParams = WashoutParams(), rat
     return WashoutOutput(t, poses, translation, tilt, rotation, limited, n_rate)
 
 
-def _rate_limited(target: np.ndarray, step: float) -> tuple[np.ndarray, int]:
-    """``target`` (N, k) followed at no more than ``step`` per sample from zero; and the samples (any column)
-    where the limit held it back."""
+def rate_limited(target: np.ndarray, step: float, change: float) -> tuple[np.ndarray, int]:
+    """``target`` (N, k) followed from rest at zero, each column at no more than ``step`` per sample (the rate
+    limit) and its per-sample step changing by no more than ``change`` per sample (the acceleration limit): a
+    discrete time-optimal follower that brakes in time (the largest step from which braking at ``change``
+    stops within the distance left, sqrt(change^2 / 4 + 2 change |d|) - change / 2), so it neither flips its
+    rate in one sample nor overshoots. Returns the followed (N, k) and the samples (any column) where it was
+    held back from the target. Raises ValueError for a non-positive ``step`` or ``change``."""
+    if not (step > 0 and change > 0):
+        raise ValueError(f"rate_limited: step and change must be positive, got {step!r}, {change!r}")
     out = np.empty_like(target)
     x = np.zeros(target.shape[1])
+    rate = np.zeros(target.shape[1])
     held = 0
     for i, goal in enumerate(target):
         d = goal - x
-        held += bool(np.any(np.abs(d) > step + 1e-15))
-        x = x + np.clip(d, -step, step)
+        brake = np.sqrt(0.25 * change * change + 2.0 * change * np.abs(d)) - 0.5 * change
+        wanted = np.sign(d) * np.minimum(np.minimum(step, brake), np.abs(d))
+        new = rate + np.clip(wanted - rate, -change, change)
+        held += bool(np.any(np.abs(new - d) > 1e-15))
+        rate = new
+        x = x + rate
         out[i] = x
     return out, held

@@ -15,6 +15,7 @@ from hexsim.control.washout import (
     VEHICLE_COLUMNS,
     VehicleMotion,
     WashoutParams,
+    rate_limited,
     read_vehicle,
     washout,
 )
@@ -45,6 +46,31 @@ def test_a_sustained_deceleration_is_tilt_coordinated_within_the_rate_limit_and_
     x = out.translation[:, 0]
     assert x.min() < -0.02 and abs(x[-1]) < 0.05 * abs(x.min())
     assert np.all(np.abs(out.poses[-1, [1, 2, 3, 5]]) < 1e-9)
+
+
+def test_the_tilt_rate_changes_within_its_acceleration_limit_and_the_tilt_does_not_overshoot():
+    """A stop that begins and ends (the tilt's target rises and falls back at once): the tilt rate never flips in
+    one sample (its change per sample within tilt_acceleration_limit_degps2, where a rate limiter alone
+    flipped it from +1.5 to -1.5 deg/s between two samples), stays within the rate limit, and the tilt settles on its
+    target without passing it."""
+    m = _stop(duration=12.0, decel=3.0)
+    f = m.specific_force.copy()
+    f[m.t > 3.0, 0] = 0.0
+    params = WashoutParams()
+    out = washout(VehicleMotion(m.t, f, m.angular_velocity), params, 500.0)
+    rate = np.diff(out.tilt[:, 1]) * 500.0
+    accel = np.diff(rate) * 500.0
+    assert np.max(np.abs(rate)) <= math.radians(params.tilt_rate_limit_degps) * (1 + 1e-9)
+    assert np.max(np.abs(accel)) <= math.radians(params.tilt_acceleration_limit_degps2) * (1 + 1e-9)
+    assert rate.max() > 0.9 * math.radians(params.tilt_rate_limit_degps) and rate.min() < 0  # it turned round
+    assert np.abs(out.tilt[-1, 1]) < 1e-6  # back to level: the target is zero once the stop has ended
+    # held to a constant target the follower arrives without passing it
+    target = np.full((2000, 1), 0.05)
+    followed, held = rate_limited(target, 1e-4, 1e-6)
+    assert followed.max() <= 0.05 + 1e-12 and followed[-1, 0] == pytest.approx(0.05, abs=1e-12)
+    assert 0 < held < 2000
+    with pytest.raises(ValueError, match="must be positive"):
+        rate_limited(target, 1e-4, 0.0)
 
 
 def test_a_rotation_is_high_passed_back_to_neutral():
