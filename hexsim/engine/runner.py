@@ -84,7 +84,9 @@ class Simulator:
     # ------------------------------------------------------------------ set-up
     def _setup_model(self) -> None:
         cfg = self.config
-        m = load_model(cfg.scenario.system, cfg.model, cfg.effects, cfg.geometry)
+        single = cfg.scenario.system == "actuator"  # its slide travels the machine's stroke (the hexapod's: its geometry)
+        m = load_model(cfg.scenario.system, cfg.model, cfg.effects, cfg.geometry,
+                       cfg.hydraulics.stroke if single else None)
         if cfg.timestep is not None:
             m.opt.timestep = cfg.timestep
         self.model, self.data = m, mujoco.MjData(m)

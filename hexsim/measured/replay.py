@@ -43,25 +43,27 @@ CHANNELS = {
 }
 
 
-def batch_model(n: int, effects: Effects) -> mujoco.MjModel:
+def batch_model(n: int, effects: Effects, stroke_m: float | None = None) -> mujoco.MjModel:
     """n independent copies of the single actuator (slides ``leg1``…``legN``, sensors ``legI_acc``,
-    ``legI_pos``), 0.3 m apart, with the load of ``effects`` (mass, inclination) applied to every copy:
+    ``legI_pos``), 0.3 m apart, with the load of ``effects`` (mass, inclination) applied to every copy and each
+    slide travelling ``stroke_m`` [m] (the machine's ``cylinder.stroke_m``; None: the MJCF's):
     the actuator's own spec, its load body attached n times (``MjsFrame.attach_body``). A fresh copy of
     a cached compile (building 30 copies takes ~45 ms, about a replay's own time)."""
-    return copy.deepcopy(_batch_model(n, effects.mass_kg, effects.inclination_deg))
+    return copy.deepcopy(_batch_model(n, effects.mass_kg, effects.inclination_deg, stroke_m))
 
 
 @functools.lru_cache(maxsize=8)
-def _batch_model(n: int, mass_kg: float | None, inclination_deg: float | None) -> mujoco.MjModel:
+def _batch_model(n: int, mass_kg: float | None, inclination_deg: float | None,
+                 stroke_m: float | None) -> mujoco.MjModel:
     effects = Effects(mass_kg=mass_kg, inclination_deg=inclination_deg)
 
     def bare() -> mujoco.MjSpec:  # the single actuator loaded, without its motor, sensors and keyframe
-        spec = model_spec("actuator", effects=effects)
+        spec = model_spec("actuator", effects=effects, stroke_m=stroke_m)
         for element in [*spec.actuators, *spec.sensors, *spec.keys]:
             spec.delete(element)
         return spec
 
-    single = model_spec("actuator")  # kept alive: an element's arrays are views of its spec's memory
+    single = model_spec("actuator", stroke_m=stroke_m)  # kept alive: an element's arrays are views of its spec's memory
     neutral = [float(q) for q in single.key("neutral").qpos]
     spec = bare()
     spec.delete(spec.body("load"))
@@ -325,7 +327,7 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     if abs(sub * dt * fs - 1.0) > 1e-9:
         raise InputError(f"{log.path}: sample rate {fs:g} Hz must divide the physics rate {1 / dt:g} Hz")
     k, n = len(windows.starts), windows.length
-    m = batch_model(k, eff)
+    m = batch_model(k, eff, hyd.stroke)
     m.opt.timestep = dt
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)

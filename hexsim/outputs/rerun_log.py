@@ -145,7 +145,9 @@ def _base_joints(m: mujoco.MjModel, qpos: np.ndarray, first: int, count: int, ax
 def _scene_model(result: SimulationResult) -> mujoco.MjModel:
     """The full model the run was made on (its machine's hexapod, or the single actuator)."""
     hexapod = result.config.scenario.system == "hexapod"
-    return load_model("hexapod" if hexapod else "actuator", geometry=result.config.geometry if hexapod else None)
+    if hexapod:
+        return load_model("hexapod", geometry=result.config.geometry)
+    return load_model("actuator", stroke_m=result.config.hydraulics.stroke)
 
 
 def _log_scene(rec: rr.RecordingStream, m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray,

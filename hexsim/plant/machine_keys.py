@@ -85,8 +85,9 @@ KEYS: tuple[Key, ...] = (
        "a matched spool (1)"),
     _k("cylinder.bore_m", "hydraulics.bore_diameter", "m", "piston (bore) diameter D: A1 = pi/4 D^2", _SEED),
     _k("cylinder.rod_m", "hydraulics.rod_diameter", "m", "rod diameter d_r: A2 = pi/4 (D^2 - d_r^2)", _SEED),
-    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (rod-side volume (L_s - y) A2 of a 4-way valve; "
-       "the hexapod's leg stroke: a user MJCF's slide range must be 0 to it)", _SEED),
+    _k("cylinder.stroke_m", "hydraulics.stroke", "m", "stroke L_s (the single actuator's slide travels 0 to it, "
+       "mid-stroke its neutral; rod-side volume (L_s - y) A2 of a 4-way valve; the hexapod's leg stroke: a user "
+       "MJCF's slide range must be 0 to it)", _SEED),
     _k("cylinder.dead_volume_cap_m3", "hydraulics.pipeline_volume", "m^3", "cap side dead volume (hoses, "
        "pipeline) V_pl", "seed app. A, eq. 3.1"),
     _k("cylinder.dead_volume_rod_m3", "hydraulics.pipeline_volume_rod", "m^3", "rod side dead volume V_pl,B "

@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import importlib.resources
 import importlib.util
+import math
 import pathlib
 import sys
 from dataclasses import dataclass
@@ -75,9 +76,11 @@ def check_formulation(model: str) -> None:
         raise InputError(f"model must be one of {', '.join(FORMULATIONS)}, got {model!r}")
 
 
-def model_spec(name: str, formulation: str = "full", effects=None, geometry=None) -> mujoco.MjSpec:
+def model_spec(name: str, formulation: str = "full", effects=None, geometry=None,
+               stroke_m: float | None = None) -> mujoco.MjSpec:
     """The ``MjSpec`` of a model (``"hexapod"`` or ``"actuator"``) with the load of ``effects``
-    (:func:`apply_load`; None: none). The hexapod is the one ``geometry`` describes
+    (:func:`apply_load`; None: none). The single actuator's slide travels ``stroke_m`` [m] (the machine file's
+    ``cylinder.stroke_m``, :func:`set_actuator_stroke`; None: the MJCF's 0.2 m). The hexapod is the one ``geometry`` describes
     (:class:`hexsim.plant.geometry.Geometry`, a machine file's ``hexapod`` section; None: the built-in
     Micro Motion System): built by :func:`hexsim.models.hexapod.build` in its scene, to the full precision
     of its numbers (``scene.xml`` is the Micro Motion System for viewers), or a user's MJCF adapted by
@@ -103,9 +106,23 @@ def model_spec(name: str, formulation: str = "full", effects=None, geometry=None
             platform_spec(spec)
     else:
         spec = mujoco.MjSpec.from_file(str(model_path(name)))
+        if stroke_m is not None:
+            set_actuator_stroke(spec, stroke_m)
     if effects is not None:
         apply_load(spec, effects)
     return spec
+
+
+def set_actuator_stroke(spec: mujoco.MjSpec, stroke_m: float) -> None:
+    """The single actuator's slide ``leg1`` made to travel 0 … ``stroke_m`` [m] (the machine file's
+    ``cylinder.stroke_m``; MJCF: ``range="0 0.2"``), its neutral keyframe at mid-stroke, in place. Raises
+    InputError for a stroke that is not a positive finite number."""
+    if not (isinstance(stroke_m, (int, float)) and math.isfinite(stroke_m) and stroke_m > 0):
+        raise InputError(f"cylinder stroke_m must be a positive number of metres, got {stroke_m!r}")
+    joint = spec.joint("leg1")
+    joint.range = [0.0, float(stroke_m)]
+    joint.ref = 0.5 * float(stroke_m)
+    spec.key("neutral").qpos = [0.5 * float(stroke_m)]
 
 
 #: the swing [deg] of a leg against the platform at which the notes state what a cardan's offset costs
@@ -127,10 +144,11 @@ def _say_full_model(geometry, spreads: np.ndarray) -> None:
          f"setpoint is off by up to {error * 1e3:.2f} mm at {CARDAN_SWING_DEG:g} deg of swing about the others")
 
 
-def load_model(name: str, formulation: str = "full", effects=None, geometry=None) -> mujoco.MjModel:
+def load_model(name: str, formulation: str = "full", effects=None, geometry=None,
+               stroke_m: float | None = None) -> mujoco.MjModel:
     """Compile :func:`model_spec` (the same arguments and errors), with island discovery off
     (:func:`no_islands`)."""
-    return no_islands(model_spec(name, formulation, effects, geometry).compile())
+    return no_islands(model_spec(name, formulation, effects, geometry, stroke_m).compile())
 
 
 @functools.cache

@@ -196,8 +196,8 @@ def test_island_discovery_off_changes_nothing(monkeypatch):
     from hexsim.engine import runner
     from hexsim.plant import model
 
-    def discovering(name, formulation="full", effects=None, geometry=None):
-        m = model.load_model(name, formulation, effects, geometry)
+    def discovering(name, formulation="full", effects=None, geometry=None, stroke_m=None):
+        m = model.load_model(name, formulation, effects, geometry, stroke_m)
         m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         return m
 

@@ -113,6 +113,38 @@ def test_builtin_servo_cylinder_is_a_4_way_single_actuator_without_controller():
     assert all(k in {key.path for key in KEYS} for k, _ in m.sources)
 
 
+def test_a_single_actuators_stroke_reaches_the_run_the_replay_and_the_scene(tmp_path):
+    """``cylinder.stroke_m`` is the slide's travel in every model built from a single actuator's file (a 300 mm
+    cylinder): the run's (a 80 mm sine about the new mid-stroke, above 0.2 m), a log replay's batch of slides
+    and the rerun scene's. The single actuator's MJCF alone says 0…0.2 m: before, such a run was refused, and
+    a log's replay stopped at 0.2 m, at an end stop the machine does not have."""
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import Simulator, simulate
+    from hexsim.measured.measurement import read_log
+    from hexsim.measured.replay import Windows, nominal_plant, replay
+    from hexsim.outputs.logio import write_log
+    from hexsim.outputs.rerun_log import _scene_model
+    from hexsim.plant.machine import with_keys
+    from hexsim.plant.model import PlantIndex
+
+    prior = load_machine(None)
+    single = dataclasses.replace(prior, system="single-actuator", geometry=type(prior.geometry)(), legs=())
+    machine = with_keys(single, {"cylinder.stroke_m": 0.3})
+    config = RunConfig.from_machine(machine, hexsim.Scenario.sine("actuator", amplitude=0.08, duration=6.0))
+    sim = Simulator(config)
+    assert sim.idx.stroke[0].tolist() == [0.0, 0.3] and sim.idx.neutral_y[0] == pytest.approx(0.15)
+    result = simulate(config)
+    assert result.y[:, 0].max() > 0.22
+    assert PlantIndex.from_model(_scene_model(result)).stroke[0].tolist() == [0.0, 0.3]
+    log = read_log(write_log(tmp_path / "run.csv", result)[0], machine=machine)
+    top = int(np.argmax(log.columns["pos_m"]))
+    windows = Windows(np.array([top - 150]), 300)  # a window through the top of the stroke, 0.22 m or more
+    out = replay(log, nominal_plant(log), windows)
+    measured = windows.take(log.columns["pos_m"])
+    assert out["position"].max() > 0.22
+    np.testing.assert_allclose(out["position"], measured, atol=2e-4)
+
+
 def test_unknown_machine_name_lists_the_builtins():
     with pytest.raises(InputError, match="built-in machines: large_motion_base, micro_motion_system, servo_cylinder"):
         load_machine("no_such_rig")

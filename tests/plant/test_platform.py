@@ -99,8 +99,8 @@ def test_the_platform_model_has_no_constraints_so_their_pipeline_is_off(monkeypa
     assert m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
     assert m.neq == 0 and m.ngeom == 0 and not m.jnt_limited.any() and m.njnt == 1
 
-    def constrained(name, formulation="full", effects=None, geometry=None):
-        m = model.load_model(name, formulation, effects, geometry)
+    def constrained(name, formulation="full", effects=None, geometry=None, stroke_m=None):
+        m = model.load_model(name, formulation, effects, geometry, stroke_m)
         m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
         return m
 
