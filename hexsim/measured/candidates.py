@@ -72,6 +72,8 @@ class Candidate:
     physics: str
     #: the systems whose logs the effect applies to ("single-actuator", "hexapod")
     systems: tuple[str, ...] = ("single-actuator", "hexapod")
+    #: the valves whose machines the effect applies to ("3-way", "4-way": the B side's edges are the 4-way's)
+    valves: tuple[str, ...] = ("3-way", "4-way")
     #: (lower, upper) narrowed to what a log resolves (:func:`plausible_bounds`); None: the plausible range
     narrow: Callable[[MeasurementLog, np.ndarray, np.ndarray], None] | None = None
     #: the smallest value of a parameter a log resolves, name -> value (:func:`resolution_floor`)
@@ -333,6 +335,13 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               lambda m, x: _eff(m, edge_gain_pa=x[0], edge_gain_at=x[1]),
               "valve edge asymmetry: the supply edge P→A and the return edge A→T pass k_PA and k_AT times the "
               "flow of eq. (3.4)"),
+    Candidate("edge_asymmetry_B", (_p("k_PB", "-", 0.5, 1.5, neutral=1.0), _p("k_BT", "-", 0.5, 1.5, neutral=1.0)),
+              lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
+              "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
+              "tolerance for a new valve, worn or damaged edges more",
+              lambda m, x: _eff(m, edge_gain_pb=x[0], edge_gain_bt=x[1]),
+              "a 4-way valve's rod-side edge asymmetry: the supply edge P→B and the return edge B→T pass k_PB and "
+              "k_BT times the flow of eq. (3.4) (the rod chamber's P2 shows it)", valves=("4-way",)),
     Candidate("entrained_air", (_p("a", "%", 0.0, 20.0, no_effect=0.0),), lambda log: ((0.2,), (1.0,), (5.0,)),
               "undissolved air in mineral oil: well bled systems well under 1 %, aerated oil up to ~10-20 % "
               "by volume at atmospheric pressure (Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), "
@@ -353,17 +362,20 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
 CANDIDATE_NAMES = tuple(CANDIDATES)
 
 
-def candidates_for(system: str) -> tuple[str, ...]:
-    """The names of the candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``),
-    read off each candidate's :attr:`Candidate.systems`: the load (mass, inclination) is a single axis's,
-    the payload the hexapod's. Raises InputError for another system."""
+def candidates_for(system: str, valve: str | None = None) -> tuple[str, ...]:
+    """The names of the candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``) on a
+    machine with ``valve`` (``3-way`` or ``4-way``; None: either), read off each candidate's
+    :attr:`Candidate.systems` and :attr:`Candidate.valves`: the load (mass, inclination) is a single axis's,
+    the payload the hexapod's, the B side's edges a 4-way valve's. Raises InputError for another system."""
     if system not in SYSTEMS:
         raise InputError(f"unknown system {system!r} ({' or '.join(SYSTEMS)})")
-    return tuple(name for name, cand in CANDIDATES.items() if system in cand.systems)
+    return tuple(name for name, cand in CANDIDATES.items()
+                 if system in cand.systems and (valve is None or valve in cand.valves))
 
 
-#: The effects of the single actuator's leg model (every candidate but the hexapod's payload).
-EFFECT_NAMES = candidates_for("single-actuator")
+#: The effects of the seed's single actuator's leg model (a 3-way valve: every candidate but the hexapod's
+#: payload and the 4-way valve's B side).
+EFFECT_NAMES = candidates_for("single-actuator", "3-way")
 
 
 def plausible_bounds(cand: Candidate, log: MeasurementLog) -> tuple[np.ndarray, np.ndarray]:

@@ -84,10 +84,11 @@ from hexsim.measured.scoring import (
 MAX_EFFECTS = 3
 
 
-def default_candidates(system: str) -> tuple[str, ...]:
-    """The candidates that apply to a log of ``system`` (``hexapod`` or ``single-actuator``), as each
-    candidate declares (:func:`hexsim.measured.candidates.candidates_for`)."""
-    return candidates_for(system)
+def default_candidates(log: MeasurementLog) -> tuple[str, ...]:
+    """The candidates that apply to ``log``: its system (``hexapod`` or ``single-actuator``) and its machine's
+    valve (``3-way`` or ``4-way``), as each candidate declares
+    (:func:`hexsim.measured.candidates.candidates_for`)."""
+    return candidates_for(log.system, log.machine.hydraulics.valve_type)
 
 
 def make_problem(log: MeasurementLog, model: str = "platform"):
@@ -469,7 +470,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     problem = make_problem(log, model)
     notify(f"replaying the nominal model ({log.system}, {log.duration:.1f} s)")
     if candidates is None:
-        candidates = default_candidates(log.system)
+        candidates = default_candidates(log)
     nominal_sim = problem.simulate(problem.nominal)
     if not problem.windowed:
         problem.position_offset_limit = static_offset_limit(problem, nominal_sim)

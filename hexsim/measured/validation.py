@@ -444,7 +444,7 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
         log = read_log(log)
     report = None if report is None else pathlib.Path(report)
     json_path = None if json_path is None or isinstance(json_path, StdoutTarget) else pathlib.Path(json_path)
-    candidates = tuple(n for n in default_candidates(log.system) if n not in without)
+    candidates = tuple(n for n in default_candidates(log) if n not in without)
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
     doc = summary(ident)
     doc.update(left_out=list(without), model=ident.problem.model)

@@ -81,6 +81,7 @@ EFFECTS = {
     "leakage": ({"leakage": 3e-12}, "leakage", "C_l", 3.0, 0.3),  # [1e-12 m^3/(s Pa)]
     "cold seals": ({"coulomb_pos": 130.0, "coulomb_neg": 100.0}, "friction", "k_c", 1.65, 0.08),  # 130/80, 100/60
     "worn return edge": ({"k_at": 0.84}, "edge_asymmetry", "k_AT", 0.84, 0.03),
+    "worn rod-side return edge": ({"k_bt": 0.84}, "edge_asymmetry_B", "k_BT", 0.84, 0.03),
     "null drift": ({"null_offset": 0.15}, "null_offset", "u_0", 0.15, 0.03),
 }
 

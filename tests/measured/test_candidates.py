@@ -37,7 +37,11 @@ def test_each_system_gets_the_candidates_that_declare_it():
     assert "load" in actuator and "load" not in hexapod  # mass and inclination of one axis
     assert "payload" in hexapod and "payload" not in actuator
     assert set(actuator) | set(hexapod) == set(CANDIDATE_NAMES) == set(CANDIDATES)
-    assert EFFECT_NAMES == actuator
+    # the rod side's edges are a 4-way valve's: the seed's 3-way actuator (EFFECT_NAMES) has none
+    assert "edge_asymmetry_B" in candidates_for("single-actuator", "4-way")
+    assert "edge_asymmetry_B" in candidates_for("hexapod", "4-way")
+    assert "edge_asymmetry_B" not in candidates_for("single-actuator", "3-way")
+    assert EFFECT_NAMES == tuple(n for n in actuator if n != "edge_asymmetry_B")
     assert list(hexapod) == [n for n in CANDIDATE_NAMES if n in hexapod]  # the declared order, kept
     with pytest.raises(InputError, match="unknown system 'crane'"):
         candidates_for("crane")
