@@ -84,7 +84,8 @@ class Simulator:
     # ------------------------------------------------------------------ set-up
     def _setup_model(self) -> None:
         cfg = self.config
-        single = cfg.scenario.system == "actuator"  # its slide travels the machine's stroke (the hexapod's: its geometry)
+        # the single actuator's slide travels the machine's stroke (a hexapod's legs: its geometry's)
+        single = cfg.scenario.system == "actuator"
         m = load_model(cfg.scenario.system, cfg.model, cfg.effects, cfg.geometry,
                        cfg.hydraulics.stroke if single else None)
         if cfg.timestep is not None:

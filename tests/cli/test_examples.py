@@ -18,6 +18,7 @@ EXAMPLES = pathlib.Path(__file__).resolve().parents[2] / "examples"
     ("buffered_compensation.py", ["--duration", "10"]),
     ("servo_cylinder.py", ["--only", "3V_s1"]),
     ("vehicle_cueing.py", ["--manoeuvre", "lane-change"]),
+    ("cueing_comparison.py", ["--manoeuvres", "road-bumps", "--iterations", "1"]),
     ("tuned_compensation.py", ["--dofs", "heave", "--duration", "12", "--machines", "", "--jobs", "1"]),
 ])
 def test_example_runs(script, args, tmp_path):
