@@ -17,8 +17,9 @@ def add_cue_tune(sub) -> None:
         "cue-tune", help="fit the classical washout to your manoeuvres and platform, write the --washout file "
         "(docs/motion-cueing.md)",
         description="Fit the classical washout's scales and corners to vehicle motions (docs/motion-cueing.md's "
-        "vehicle files) on the machine's platform: the sensed-cue error on the ideal platform, in each axis' "
-        "threshold, within the legs' stroke; write the washout file hexsim run vehicle:FILE --washout loads.")
+        "vehicle files) on the machine's platform: the sensed-cue error and correlation on the ideal platform, every "
+        "moving axis counting alike, within the legs' stroke; write the washout file hexsim run vehicle:FILE "
+        "--washout loads.")
     ct.add_argument("vehicles", nargs="+", metavar="VEHICLE.csv", help="the manoeuvres (vehicle-motion files)")
     machine_option(ct)
     ct.add_argument("--washout", type=pathlib.Path, metavar="START.json",
