@@ -135,6 +135,17 @@ def _supply_set(log: MeasurementLog) -> float:
     return float(np.quantile(log.columns["ps_Pa"], 0.99)) / 1e5 if "ps_Pa" in log.columns else 70.0
 
 
+def _edges(name: str, supply: str, ret: str, physics: str, valves: tuple[str, ...] = ("3-way", "4-way")) -> Candidate:
+    """The candidate of a chamber's two metering edges (``supply`` "PA" or "PB", ``ret`` "AT" or "BT"): their flow
+    gains k_<edge> relative to eq. (3.4), the :class:`~hexsim.plant.effects.Effects` fields edge_gain_<edge>."""
+    fields = (f"edge_gain_{supply.lower()}", f"edge_gain_{ret.lower()}")
+    return Candidate(name, (_p(f"k_{supply}", "-", 0.5, 1.5, neutral=1.0), _p(f"k_{ret}", "-", 0.5, 1.5, neutral=1.0)),
+                     lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
+                     "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
+                     "tolerance for a new valve, worn or damaged edges more",
+                     lambda m, x: _eff(m, **{fields[0]: x[0], fields[1]: x[1]}), physics, valves=valves)
+
+
 def supply_start(log: MeasurementLog) -> tuple[float, float, float] | None:
     """A start for the supply candidate (R_s [bar/(L/min)], tau_s [ms], P_s0 [bar]) from the supply
     equation on the measured signals (output error, cheap): the supply flow of the legs,
@@ -328,20 +339,11 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               "resolve a delay",
               lambda m, x: _eff(m, sensor_delay=x[0] * 1e-3),
               "the position measurement lags the piston by tau_y", narrow=_narrow_delay, floor=_delay_floor),
-    Candidate("edge_asymmetry", (_p("k_PA", "-", 0.5, 1.5, neutral=1.0), _p("k_AT", "-", 0.5, 1.5, neutral=1.0)),
-              lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
-              "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
-              "tolerance for a new valve, worn or damaged edges more",
-              lambda m, x: _eff(m, edge_gain_pa=x[0], edge_gain_at=x[1]),
-              "valve edge asymmetry: the supply edge P→A and the return edge A→T pass k_PA and k_AT times the "
-              "flow of eq. (3.4)"),
-    Candidate("edge_asymmetry_B", (_p("k_PB", "-", 0.5, 1.5, neutral=1.0), _p("k_BT", "-", 0.5, 1.5, neutral=1.0)),
-              lambda log: ((1.0, 0.8), (1.0, 1.2), (0.8, 1.0)),
-              "flow gains of the two metering edges within ±50 % of eq. (3.4): datasheets give ±10 % flow "
-              "tolerance for a new valve, worn or damaged edges more",
-              lambda m, x: _eff(m, edge_gain_pb=x[0], edge_gain_bt=x[1]),
-              "a 4-way valve's rod-side edge asymmetry: the supply edge P→B and the return edge B→T pass k_PB and "
-              "k_BT times the flow of eq. (3.4) (the rod chamber's P2 shows it)", valves=("4-way",)),
+    _edges("edge_asymmetry", "PA", "AT", "valve edge asymmetry: the supply edge P→A and the return edge A→T pass "
+           "k_PA and k_AT times the flow of eq. (3.4)"),
+    _edges("edge_asymmetry_B", "PB", "BT", "a 4-way valve's rod-side edge asymmetry: the supply edge P→B and the "
+           "return edge B→T pass k_PB and k_BT times the flow of eq. (3.4) (the rod chamber's P2 shows it)",
+           valves=("4-way",)),
     Candidate("entrained_air", (_p("a", "%", 0.0, 20.0, no_effect=0.0),), lambda log: ((0.2,), (1.0,), (5.0,)),
               "undissolved air in mineral oil: well bled systems well under 1 %, aerated oil up to ~10-20 % "
               "by volume at atmospheric pressure (Gholizadeh, Burton & Schoenau, Int. J. Fluid Power 12(3), "
