@@ -29,8 +29,12 @@ force (the legs' effective inertia times their accelerations) within what the su
 can add or take away, each a ``margin`` of the limit.
 
 The vehicle's future is known over the horizon (``preview=True``: a recorded or simulated drive, offline)
-or held at its present value (``preview=False``: what an online cueing knows). The programme is solved by
-OSQP (Stellato et al. 2020), set up once (its matrices do not change from step to step) and warm-started.
+or held at its present value (``preview=False``: what an online cueing knows). The programme (80 variables,
+a few hundred constraints, dense) is solved to optimality by DAQP (Arnström, Bemporad & Axehill, "A dual
+active-set solver for embedded quadratic programming using recursive LDLᵀ updates", IEEE TAC 67(8), 2022), a
+solver made for MPC's small dense programmes: on the docs' stop about 1 ms a programme, 1.4 ms at most. (OSQP,
+used first, took 8.5 ms on average and 130 ms at most at a tolerance of 1e-4, and its answers left the
+constraints violated by up to 0.125.)
 """
 
 from __future__ import annotations
@@ -41,7 +45,6 @@ import time
 from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
-from scipy import sparse
 from scipy.linalg import block_diag
 from scipy.signal import cont2discrete, tf2ss
 
@@ -254,6 +257,10 @@ def _prediction(ad: np.ndarray, bd: np.ndarray, steps: int) -> _Prediction:
     return _Prediction(phi, gamma)
 
 
+#: A bound DAQP takes as none (its DAQP_INF).
+DAQP_INFINITY = 1e30
+
+
 def move_blocks(steps: int) -> list[tuple[int, int]]:
     """(first step, length) of the blocks the horizon's ``steps`` are held in: single steps first, then blocks
     one step longer every second block, the last cut to fit."""
@@ -271,8 +278,6 @@ class MPCCueing:
     state and the sensed reference over the horizon and returns the accelerations to apply."""
 
     def __init__(self, limits: PlatformLimits, params: MPCParams, head_m) -> None:
-        import osqp
-
         self.limits, self.params = limits, params
         head = np.asarray(head_m if params.head_m is None else params.head_m, dtype=float)
         a, b, self.c = continuous_model(head)
@@ -289,15 +294,9 @@ class MPCCueing:
             for k in range(first, first + length):
                 hold[k * m:(k + 1) * m, b * m:(b + 1) * m] = np.eye(m)
         self.variables = len(self.blocks) * m
-        hess = self._cost(pred, hold)
-        constraint = self._constraints(pred, hold)
-        self.solver = osqp.OSQP()
-        self.solver.setup(sparse.csc_matrix(np.triu(hess)), np.zeros(self.variables), sparse.csc_matrix(constraint),
-                          np.concatenate([self.lo_state, self.lo_in]), np.concatenate([self.hi_state, self.hi_in]),
-                          verbose=False, warm_starting=True, polishing=False, eps_abs=1e-4, eps_rel=1e-4,
-                          max_iter=4000)
+        self.hessian = np.ascontiguousarray(self._cost(pred, hold))
+        self.constraint = np.ascontiguousarray(self._constraints(pred, hold))
         self.infeasible = 0
-        self.previous = np.zeros(self.variables)
 
     def _cost(self, pred: _Prediction, hold: np.ndarray) -> np.ndarray:
         """The programme's Hessian (variables, variables); keeps the maps its gradient needs per step: the
@@ -346,22 +345,23 @@ class MPCCueing:
 
     def step(self, x0: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """The accelerations (8,) to apply over the next MPC step from state ``x0`` (n,) for the vehicle's
-        sensed motion ``reference`` (N, 6) over the horizon's steps 1..N (m/s^2 less 1 g, rad/s). An
-        unsolved programme (the solver's limit) applies its best iterate and is counted."""
+        sensed motion ``reference`` (N, 6) over the horizon's steps 1..N (m/s^2 less 1 g, rad/s). A programme
+        the solver cannot solve to optimality (infeasible bounds, its iteration limit) applies no acceleration
+        and is counted."""
+        import daqp
+
         target = (reference * self.w_sensed).ravel()
         e_sensed = self.f_sensed @ x0 - target
         grad = self.h_sensed.T @ e_sensed + self.h_pull.T @ (self.f_pull @ x0)
         free = self.f_state @ x0
-        self.solver.update(q=grad, l=np.concatenate([self.lo_state - free, self.lo_in]),
-                           u=np.concatenate([self.hi_state - free, self.hi_in]))
-        self.solver.warm_start(x=self.previous)
-        res = self.solver.solve(raise_error=False)
-        finite = res.x is not None and bool(np.all(np.isfinite(res.x)))
-        if finite:
-            self.previous = res.x
-        if not finite or res.info.status not in ("solved", "solved inaccurate"):
+        lower = np.maximum(np.concatenate([self.lo_state - free, self.lo_in]), -DAQP_INFINITY)
+        upper = np.minimum(np.concatenate([self.hi_state - free, self.hi_in]), DAQP_INFINITY)
+        x, _, flag, _ = daqp.solve(self.hessian, grad, self.constraint, upper, lower)
+        x = np.asarray(x, dtype=float)
+        if flag < 1 or not np.all(np.isfinite(x)):  # 1: optimal, 2: optimal with soft constraints
             self.infeasible += 1
-        return res.x[:N_INPUT] if finite else np.zeros(N_INPUT)
+            return np.zeros(N_INPUT)
+        return x[:N_INPUT]
 
 
 def vehicle_reference(vehicle, params: MPCParams, t: np.ndarray, rate_hz: float) -> np.ndarray:
