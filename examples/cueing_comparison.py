@@ -128,9 +128,9 @@ def main(argv: list[str] | None = None) -> int:
              "(largest hardware cue, ISO 2631-1 weighted); leg reversals; least stroke margin", "",
              "| manoeuvre | cueing | correlation | false cues | felt at reversals | leg reversals | margin |",
              "|---|---|---|---|---|---|---|"]
+    axes = {name: moving_axes(results[name]["classical"]) for name in names}
     for name in names:
-        axes = moving_axes(results[name]["classical"])
-        lines += [row(name, c, results[name][c], axes) for c in CUEINGS]
+        lines += [row(name, c, results[name][c], axes[name]) for c in CUEINGS]
     solver = [(n, results[n]["mpc"]) for n in names]
     lines += ["", "MPC: " + "; ".join(
         f"{n} {d['cueing_solver']['real_time_factor']:.1f}x real time (mean solve "
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     table = args.out.with_suffix(".md")
     table.write_text(text + "\n")
-    figure(results, {n: moving_axes(results[n]["classical"]) for n in names}, args.out)
+    figure(results, axes, args.out)
     print(f"wrote {table}, {args.out}")
     return 0
 

@@ -168,9 +168,10 @@ def _body(t, a_x, a_y, yaw_rate, head_height: float = 0.6, a_z=None, pitch_extra
     ``a_z`` (N,) the body's vertical acceleration [m/s^2] and ``pitch_extra`` (N,) [rad, nose down] a pitch of
     its own (the road's, an aircraft's rotation) on top of the suspension's (``suspension``: False for none)."""
     dt = t[1] - t[0]
+    # nose down when braking
     pitch = _second_order(-np.radians(1.2) * a_x / G, 1.5, 0.5, dt) if suspension else np.zeros_like(t)
     if pitch_extra is not None:
-        pitch = pitch + pitch_extra  # nose down when braking
+        pitch = pitch + pitch_extra
     roll = _second_order(np.radians(4.0) * a_y / G, 1.5, 0.5, dt)  # outward in a turn
     p, q = np.gradient(roll, dt), np.gradient(pitch, dt)
     p_dot, q_dot = np.gradient(p, dt), np.gradient(q, dt)

@@ -80,9 +80,9 @@ def model_spec(name: str, formulation: str = "full", effects=None, geometry=None
                stroke_m: float | None = None) -> mujoco.MjSpec:
     """The ``MjSpec`` of a model (``"hexapod"`` or ``"actuator"``) with the load of ``effects``
     (:func:`apply_load`; None: none). The single actuator's slide travels ``stroke_m`` [m] (the machine file's
-    ``cylinder.stroke_m``, :func:`set_actuator_stroke`; None: the MJCF's 0.2 m). The hexapod is the one ``geometry`` describes
-    (:class:`hexsim.plant.geometry.Geometry`, a machine file's ``hexapod`` section; None: the built-in
-    Micro Motion System): built by :func:`hexsim.models.hexapod.build` in its scene, to the full precision
+    ``cylinder.stroke_m``, :func:`set_actuator_stroke`; None: the MJCF's 0.2 m). The hexapod is the one
+    ``geometry`` describes (:class:`hexsim.plant.geometry.Geometry`, a machine file's ``hexapod`` section; None:
+    the built-in Micro Motion System): built by :func:`hexsim.models.hexapod.build` in its scene, to the full precision
     of its numbers (``scene.xml`` is the Micro Motion System for viewers), or a user's MJCF adapted by
     :func:`hexsim.plant.user_model.user_spec`; ``formulation="platform"`` edits it into the platform-only
     model (:func:`hexsim.plant.platform.platform_spec`), except for a user MJCF whose cardans keep their hinges
@@ -119,10 +119,11 @@ def set_actuator_stroke(spec: mujoco.MjSpec, stroke_m: float) -> None:
     InputError for a stroke that is not a positive finite number."""
     if not (isinstance(stroke_m, (int, float)) and math.isfinite(stroke_m) and stroke_m > 0):
         raise InputError(f"cylinder stroke_m must be a positive number of metres, got {stroke_m!r}")
+    stroke = float(stroke_m)
     joint = spec.joint("leg1")
-    joint.range = [0.0, float(stroke_m)]
-    joint.ref = 0.5 * float(stroke_m)
-    spec.key("neutral").qpos = [0.5 * float(stroke_m)]
+    joint.range = [0.0, stroke]
+    joint.ref = 0.5 * stroke
+    spec.key("neutral").qpos = [0.5 * stroke]
 
 
 #: the swing [deg] of a leg against the platform at which the notes state what a cardan's offset costs
