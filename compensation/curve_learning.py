@@ -27,8 +27,12 @@ guard that falls back, is :class:`compensation.model_based.AdaptiveFeedforward`'
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
-from scipy.signal import savgol_filter
+from scipy import sparse
+from scipy.linalg import solveh_banded
+from scipy.signal import savgol_coeffs, savgol_filter
 
 #: Width [V] of the command bins the curve's corrections are kept in: a corner is placed to within it.
 BIN_V = 0.02
@@ -75,6 +79,118 @@ def seed_weights(n: int) -> np.ndarray:
     return 1.0 / (1.0 + np.exp(-10.0 * i / (2.0 * n)))
 
 
+class Taken(NamedTuple):
+    """A full buffer and the evidence before it (:meth:`CurveLearner.take`): the buffer's arrays (size, n) by
+    name, the per-leg normal equations (bins, bins) and their right-hand sides (n, bins)."""
+
+    buffer: dict[str, np.ndarray]
+    gram: list
+    rhs: np.ndarray
+
+
+class Taught(NamedTuple):
+    """What a buffer taught (:meth:`CurveLearner.teach`): the evidence with it (as :class:`Taken`'s) and the
+    corrections (n, bins) [m/s at rest]."""
+
+    gram: list
+    rhs: np.ndarray
+    correction: np.ndarray
+
+
+class CurveTeacher:
+    """What turns a full buffer into corrections (:meth:`teach`), apart from the learner that records it: its
+    command bins ``centres`` (bins,) [V], the kinks' threshold ``knee`` (n, bins) [m/s] (:data:`KINK`), the
+    controller period ``dt`` [s], the buffer's ``size`` [samples] and the P gain ``kp`` [V/m] (0: fitted). Small
+    to pickle (the time filter's matrix is rebuilt where it is used), so a buffer can be taught in another
+    process while the controller ticks on (:meth:`compensation.model_based.AdaptiveFeedforward.learn_in`)."""
+
+    def __init__(self, centres: np.ndarray, knee: np.ndarray, dt: float, size: int, kp: float) -> None:
+        self.centres, self.knee, self.dt, self.size, self.kp = centres, knee, dt, size, kp
+        self.n_legs = knee.shape[0]
+        self._filter: sparse.csr_array | None = None
+
+    @property
+    def filter(self) -> sparse.csr_array:
+        """The time filter δ is measured with as a (size, size) matrix (:func:`_savgol_matrix`)."""
+        if self._filter is None:
+            self._filter = _savgol_matrix(self.size, max(5, int(round(DERIVATIVE_S / self.dt)) | 1))
+        return self._filter
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "_filter": None}
+
+    def gain(self, buffer: dict[str, np.ndarray]) -> np.ndarray:
+        """K_p [V/m] per leg: the given one, else the least-squares ratio of the ``buffer``'s P output to its
+        tracking error (they are K_p apart, the sensor's noise in both)."""
+        if self.kp > 0:
+            return np.full(self.n_legs, self.kp)
+        e, up = buffer["tracking"], buffer["u_p"]
+        den = np.sum(e * e, axis=0)
+        return np.where(den > 0, np.sum(e * up, axis=0) / np.maximum(den, 1e-30), np.inf)
+
+    def errors(self, buffer: dict[str, np.ndarray]) -> np.ndarray:
+        """(size, n) [m/s]: δ at each tick of ``buffer`` (a buffer's arrays (size, n) by name, as
+        :class:`CurveLearner` records them) scaled to the rest pressure (module doc)."""
+        b, n = buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
+        e = b["u_p"] / self.gain(b)[None, :]  # the tracking error the controller saw [m]
+        e_dot = savgol_filter(e, n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
+        flow = b["ref_rate"] - e_dot
+        if not np.isnan(b["p1"]).any():
+            p1_dot = savgol_filter(b["p1"], n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
+            flow = flow + b["volume"] * p1_dot
+        else:
+            flow = flow + b["compression"]
+        # the command of tick k acts from tick k to k + 1: its flow is the one measured half way, the mean of the
+        # two ticks' (flow at tick k against the command of tick k put the curve's error a tick late: on the
+        # Micro Motion System's heave the learned curve then made the bump 6x the model's own)
+        flow = 0.5 * (flow + np.concatenate([flow[1:], flow[-1:]]))
+        delta = (flow - b["promised"]) / np.maximum(b["scale"], 1e-3)
+        return savgol_filter(delta, n, 3, axis=0, mode="interp")
+
+    def teach(self, taken: Taken) -> Taught:
+        """The evidence and corrections (n, bins) [m/s] of a :meth:`CurveLearner.take`'s buffer and, fading by
+        :data:`FORGET` each, the earlier ones (:meth:`CurveLearner.accept` makes them the learner's). Each sample's
+        measured correction (δ plus what the inverse's curve
+        held there) is the correction at its command, seen through the time filter δ was measured with: so the
+        bins' corrections are fitted to it as a least-squares regression on the same filter's response to each
+        bin (a hat in the command, in time as the command moved; the filter's blur along the command, 50 mV at a
+        port's corner, is taken out rather than learned), with the seed's weights, from null outwards on each
+        side with the second differences' penalty (:func:`_smoothed`), null itself uncorrected; beyond the
+        commands the motion reached, the last bin's correction held."""
+        b, n_sg = taken.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
+        target = self.errors(b) + savgol_filter(b["held"], n_sg, 3, axis=0, mode="interp")
+        w = seed_weights(self.size)[:, None] * (np.abs(b["promised"]) >= BAND_MPS)
+        bins = len(self.centres)
+        grams, rhs, correction = list(taken.gram), FORGET * taken.rhs, np.zeros((self.n_legs, bins))
+        ticks = np.arange(self.size)
+        for leg in range(self.n_legs):
+            # each sample's hat in the command (its two bins' linear interpolation weights), seen through the
+            # time filter: the filter matrix times the (size, bins) hats
+            pos = np.clip((b["u"][:, leg] - self.centres[0]) / BIN_V, 0.0, bins - 1.0)
+            left = np.minimum(np.floor(pos).astype(int), bins - 2)
+            frac = pos - left
+            hats = sparse.csr_array((np.concatenate([1.0 - frac, frac]),
+                                     (np.concatenate([ticks, ticks]), np.concatenate([left, left + 1]))),
+                                    shape=(self.size, bins))
+            seen = self.filter @ hats
+            weighted = seen.multiply(w[:, leg, None]).tocsr()
+            grams[leg] = (FORGET * grams[leg] + weighted.T @ seen).tocsr()
+            rhs[leg] += weighted.T @ target[:, leg]
+        null = int(np.argmin(np.abs(self.centres)))
+        for leg in range(self.n_legs):
+            gram = grams[leg].tocsc()
+            weight, row = gram.diagonal(), np.zeros(bins)
+            for side in (np.arange(null, bins), np.arange(null, -1, -1)):  # from null outwards
+                seen = np.flatnonzero(weight[side] > 1e-6 * max(float(weight.max()), 1e-30))
+                if not seen.size or weight[side].sum() < MIN_SAMPLES:
+                    continue
+                span = side[:seen[-1] + 1]
+                row[span] = _smoothed(gram[span][:, span], rhs[leg, span], self.knee[leg, span[1:-1]])
+                row[side[seen[-1] + 1:]] = row[span[-1]]  # beyond the commands the motion reached: held
+            correction[leg] = row
+        return Taught(grams, rhs, correction)
+
+
 class CurveLearner:
     """Buffers of one compensator's legs and the corrections they teach (module doc).
 
@@ -96,11 +212,16 @@ class CurveLearner:
         self.knee = KINK * BIN_V * np.abs(np.gradient(
             np.stack([np.interp(self.centres, self.u, row) for row in self.base]), BIN_V, axis=1))
         bins = len(self.centres)
-        self.gram = np.zeros((self.n_legs, bins, bins))  # the evidence: the regression's normal equations
+        # the evidence, the regression's normal equations per leg: sparse, banded (a sample touches the bins its
+        # command passed within the time filter's span), so a sweep across the whole curve costs what a small one
+        # does (dense, the 1001 bins of a ±10 V valve took half a second per buffer: 250 ticks at 500 Hz)
+        self.gram = [sparse.csr_array((bins, bins)) for _ in range(self.n_legs)]
         self.rhs = np.zeros((self.n_legs, bins))
+        self.teacher = CurveTeacher(self.centres, self.knee, self.dt, self.size, kp)
         names = ("u", "tracking", "u_p", "promised", "ref_rate", "compression", "scale", "p1", "volume", "held")
         self.buffer = {k: np.zeros((self.size, self.n_legs)) for k in names}
         self.filled = 0
+        self._restored: set[int] = set()  # legs restored since the last take (accept leaves them)
 
     def record(self, u: np.ndarray, r: np.ndarray, y: np.ndarray, u_p: np.ndarray, promised: np.ndarray,
                r_dot: np.ndarray, compression: np.ndarray, scale: np.ndarray, p1: np.ndarray | None,
@@ -122,69 +243,39 @@ class CurveLearner:
         self.filled += 1
         return self.filled >= self.size
 
-    def gain(self) -> np.ndarray:
-        """K_p [V/m] per leg: the given one, else the least-squares ratio of the buffer's P output to its tracking
-        error (they are K_p apart, the sensor's noise in both)."""
-        if self.kp > 0:
-            return np.full(self.n_legs, self.kp)
-        e, up = self.buffer["tracking"], self.buffer["u_p"]
-        den = np.sum(e * e, axis=0)
-        return np.where(den > 0, np.sum(e * up, axis=0) / np.maximum(den, 1e-30), np.inf)
-
-    def errors(self) -> np.ndarray:
-        """(size, n) [m/s]: δ at each buffered tick scaled to the rest pressure (module doc)."""
-        b, n = self.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
-        e = b["u_p"] / self.gain()[None, :]  # the tracking error the controller saw [m]
-        e_dot = savgol_filter(e, n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
-        flow = b["ref_rate"] - e_dot
-        if not np.isnan(b["p1"]).any():
-            p1_dot = savgol_filter(b["p1"], n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
-            flow = flow + b["volume"] * p1_dot
-        else:
-            flow = flow + b["compression"]
-        # the command of tick k acts from tick k to k + 1: its flow is the one measured half way, the mean of the
-        # two ticks' (flow at tick k against the command of tick k put the curve's error a tick late: on the
-        # Micro Motion System's heave the learned curve then made the bump 6x the model's own)
-        flow = 0.5 * (flow + np.concatenate([flow[1:], flow[-1:]]))
-        delta = (flow - b["promised"]) / np.maximum(b["scale"], 1e-3)
-        return savgol_filter(delta, n, 3, axis=0, mode="interp")
-
     def learn(self) -> np.ndarray:
         """The curve (n, G) [m/s] at rest, non-decreasing, from the evidence of this buffer and, fading by
-        :data:`FORGET` each, the earlier ones. Each sample's measured correction (δ plus what the inverse's curve
-        held there) is the correction at its command, seen through the time filter δ was measured with: so the
-        bins' corrections are fitted to it as a least-squares regression on the same filter's response to each
-        bin (a hat in the command, in time as the command moved; the filter's blur along the command, 50 mV at a
-        port's corner, is taken out rather than learned), with the seed's weights, from null outwards on each
-        side with the second differences' penalty (:func:`_smoothed`), null itself uncorrected; beyond the
-        commands the motion reached, the last bin's correction held. The buffer is emptied."""
-        b, n_sg = self.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
-        target = self.errors() + savgol_filter(b["held"], n_sg, 3, axis=0, mode="interp")
-        w = seed_weights(self.size)[:, None] * (np.abs(b["promised"]) >= BAND_MPS)
-        bins = len(self.centres)
-        self.gram *= FORGET
-        self.rhs *= FORGET
-        for leg in range(self.n_legs):
-            pos = (b["u"][:, leg] - self.centres[0]) / BIN_V
-            lo, hi = max(int(np.floor(pos.min())) - 1, 0), min(int(np.ceil(pos.max())) + 2, bins)
-            hats = np.clip(1.0 - np.abs(pos[:, None] - np.arange(lo, hi)[None, :]), 0.0, None)
-            seen = savgol_filter(hats, n_sg, 3, axis=0, mode="interp") * w[:, leg, None]
-            self.gram[leg, lo:hi, lo:hi] += seen.T @ savgol_filter(hats, n_sg, 3, axis=0, mode="interp")
-            self.rhs[leg, lo:hi] += seen.T @ target[:, leg]
+        :data:`FORGET` each, the earlier ones (:meth:`teach`, at once). The buffer is emptied."""
+        return self.accept(self.teach(self.take()))
+
+    def take(self) -> Taken:
+        """The full buffer and the evidence so far, copied, for :meth:`teach` (which may then run in another
+        process while the next buffer fills); the buffer is emptied."""
         self.filled = 0
-        null = int(np.argmin(np.abs(self.centres)))
+        self._restored = set()
+        return Taken({k: v.copy() for k, v in self.buffer.items()}, list(self.gram), self.rhs.copy())
+
+    def accept(self, taught: Taught) -> np.ndarray:
+        """A :meth:`teach`'s evidence and corrections made the learner's, except on the legs :meth:`restore`\ d
+        since its :meth:`take` (their evidence forgotten, their corrections restored, as the guard asked); the
+        curve they give (n, G) [m/s]."""
         for leg in range(self.n_legs):
-            weight, row = np.diag(self.gram[leg]), np.zeros(bins)
-            for side in (np.arange(null, bins), np.arange(null, -1, -1)):  # from null outwards
-                seen = np.flatnonzero(weight[side] > 1e-6 * max(float(weight.max()), 1e-30))
-                if not seen.size or weight[side].sum() < MIN_SAMPLES:
-                    continue
-                span = side[:seen[-1] + 1]
-                row[span] = _smoothed(self.gram[leg][np.ix_(span, span)], self.rhs[leg, span],
-                                      self.knee[leg, span[1:-1]])
-                row[side[seen[-1] + 1:]] = row[span[-1]]  # beyond the commands the motion reached: held
-            self.correction[leg] = row
+            if leg not in self._restored:
+                self.gram[leg], self.rhs[leg], self.correction[leg] = taught.gram[leg], taught.rhs[leg], \
+                    taught.correction[leg]
         return self.curve()
+
+    def teach(self, taken: Taken) -> Taught:
+        """What a :meth:`take`'s buffer teaches (:meth:`CurveTeacher.teach`); the learner is not changed."""
+        return self.teacher.teach(taken)
+
+    def gain(self) -> np.ndarray:
+        """K_p [V/m] per leg from the buffer filling (:meth:`CurveTeacher.gain`)."""
+        return self.teacher.gain(self.buffer)
+
+    def errors(self) -> np.ndarray:
+        """(size, n) [m/s]: δ at each tick of the buffer filling (:meth:`CurveTeacher.errors`)."""
+        return self.teacher.errors(self.buffer)
 
     def curve(self) -> np.ndarray:
         """The leg model's curve with the corrections learned so far (n, G) [m/s], non-decreasing."""
@@ -199,8 +290,9 @@ class CurveLearner:
         """Leg ``leg``'s corrections back to its row of ``state`` (a :meth:`state`), its evidence forgotten (the
         next buffers measure the correction afresh from there); the curve they give."""
         self.correction[leg] = state[leg]
-        self.gram[leg] = 0.0
+        self.gram[leg] = sparse.csr_array(self.gram[leg].shape)
         self.rhs[leg] = 0.0
+        self._restored.add(leg)
         return self.curve()
 
     def held(self, u: np.ndarray) -> np.ndarray:
@@ -226,24 +318,68 @@ def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
     alone rounds a corner of the valve's curve (where a rounded metering edge meets the full port) into a
     hump some 80 mV wide, short of its tip, and every crossing of the corner is then a bump."""
     k = len(rhs)
-    diag = np.diag(gram)
+    g = sparse.csc_array(gram, dtype=float)
+    diag = g.diagonal()
     scale = float(np.mean(diag[diag > 0]))
-    g = gram / scale
-    g[0, :] = 0.0
-    g[0, 0] = 1e6  # null: no correction
     r = rhs / scale
-    r[0] = 0.0
+    c = np.zeros(k)  # c[0], null's, held at zero: the bins beyond it solved for
     if k < 3:
-        return np.linalg.lstsq(g + 1e-9 * np.eye(k), r, rcond=None)[0]
-    d = np.diff(np.eye(k), 2, axis=0)
-    base = g + SHRINK * np.eye(k)
-    c = np.linalg.solve(base + SMOOTHING * d.T @ d, r)
+        if k > 1:
+            c[1:] = np.linalg.lstsq(g[1:, 1:].toarray() / scale + 1e-9 * np.eye(k - 1), r[1:], rcond=None)[0]
+        return c
+    # the free bins' normal equations, symmetric positive definite and banded (a sample couples the bins its
+    # command passed within the time filter's span), in the upper form of the banded Cholesky factorisation
+    upper = sparse.triu(g[1:, 1:], format="coo")
+    upper.sum_duplicates()
+    width = max(2, int(np.max(upper.col - upper.row, initial=0)))
+    band = np.zeros((width + 1, k - 1))
+    band[width + upper.row - upper.col, upper.col] = upper.data / scale
+    band[width] += SHRINK
+    c[1:] = solveh_banded(band + _penalty_band(np.full(k - 2, SMOOTHING), width), r[1:])
+    d = sparse.diags_array([1.0, -2.0, 1.0], offsets=[0, 1, 2], shape=(k - 2, k), format="csr")
     for _ in range(iterations - 1):
         curvature = np.abs(d @ c)
         bend = np.maximum(knee, KINK_MEDIAN * float(np.median(curvature)))
         weight = SMOOTHING * np.minimum(1.0, bend / np.maximum(curvature, 1e-15))
-        c = np.linalg.solve(base + d.T @ (weight[:, None] * d), r)
+        c[1:] = solveh_banded(band + _penalty_band(weight, width), r[1:])
     return c
+
+
+def _penalty_band(weight: np.ndarray, width: int) -> np.ndarray:
+    """D' diag(weight) D, D the (k - 2, k) second differences and ``weight`` (k - 2,), on bins 1…k-1 (null's
+    dropped, :func:`_smoothed`), in the upper banded form of :func:`scipy.linalg.solveh_banded` with ``width``
+    (at least 2) superdiagonals: (width + 1, k - 1)."""
+    k = len(weight) + 2
+    main, first, second = np.zeros(k), np.zeros(k), np.zeros(k)  # the diagonal and the two above it, by row
+    main[:-2] += weight
+    main[1:-1] += 4.0 * weight
+    main[2:] += weight
+    first[:-2] -= 2.0 * weight
+    first[1:-1] -= 2.0 * weight
+    second[:-2] += weight
+    band = np.zeros((width + 1, k - 1))
+    band[width] = main[1:]
+    band[width - 1, 1:] = first[1:-1]
+    band[width - 2, 2:] = second[1:-2]
+    return band
+
+
+def _savgol_matrix(n: int, window: int) -> sparse.csr_array:
+    """The (n, n) sparse matrix of :func:`scipy.signal.savgol_filter`'s cubic smoothing over ``window`` samples
+    with ``mode="interp"`` (a signal x (n,) filtered is this matrix @ x): the interior rows the window's
+    coefficients, the first and last window // 2 rows the cubic fitted to the first and last ``window`` samples."""
+    half = window // 2
+    inner = savgol_coeffs(window, 3, use="dot")
+    rows = [np.repeat(np.arange(half, n - half), window)]
+    cols = [(np.arange(half, n - half)[:, None] + np.arange(-half, half + 1)[None, :]).ravel()]
+    vals = [np.tile(inner, n - 2 * half)]
+    edges = savgol_filter(np.eye(window), window, 3, axis=0, mode="interp")  # rows: outputs, columns: inputs
+    for out_rows, offset in ((np.arange(half), 0), (np.arange(n - half, n), n - window)):
+        for i in out_rows:
+            rows.append(np.full(window, i))
+            cols.append(offset + np.arange(window))
+            vals.append(edges[i - offset])
+    return sparse.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
 
 
 def rest_scale(model, velocity: np.ndarray, p1: np.ndarray) -> np.ndarray:
@@ -258,4 +394,4 @@ def rest_scale(model, velocity: np.ndarray, p1: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(np.where(velocity >= 0, up, down), 0.25, 4.0))
 
 
-__all__ = ["BIN_V", "CurveLearner", "rest_scale", "seed_weights"]
+__all__ = ["BIN_V", "CurveLearner", "CurveTeacher", "Taken", "Taught", "rest_scale", "seed_weights"]

@@ -37,6 +37,7 @@ simulator's truth.
 from __future__ import annotations
 
 import math
+from concurrent.futures import Executor, Future
 from dataclasses import MISSING, dataclass, fields
 from typing import NamedTuple
 
@@ -339,6 +340,10 @@ class AdaptiveFeedforward(FeedforwardCompensator):
 
     name = "adaptive"
     WINDOW_S = 0.1
+    #: Delay [s] between a buffer filling and its curve taking effect: time to teach it beside the loop
+    #: (:meth:`learn_in`; some 20 ms a buffer, 0.1 s across a ±10 V curve) while the controller ticks on. The same
+    #: in a batch run, which teaches at once and holds the result, so the two give the same commands.
+    LEARN_DELAY_S = 0.2
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -362,8 +367,25 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         self._applied = 0.0
         # the footprint an uncompensated reversal leaves [V]: the dead band, at least the floor
         self.turn_off = np.maximum([_dead_band(m.u, row) for row in m.velocity], TURN_OFF_FLOOR_V)
+        self._tick = 0
+        self._teaching: tuple[int, Future] | None = None  # (the tick it takes effect, what the buffer taught)
+        self._executor: Executor | None = None
+
+    def learn_in(self, executor: Executor | None) -> None:
+        """Teach each full buffer in ``executor`` (:meth:`compensation.curve_learning.CurveTeacher.teach`; e.g. a
+        worker process for a real-time loop, which must not stall for it; None: at once, in the tick). Either way
+        its curve takes effect :data:`LEARN_DELAY_S` after the buffer filled (waiting for it then if need be). An empty buffer is taught in it at once, so the first real one does not pay for the libraries'
+        first calls (some 10 ms)."""
+        self._executor = executor
+        if executor is not None:
+            empty = self.learner.take()
+            empty.buffer["scale"][:] = 1.0
+            executor.submit(self.learner.teacher.teach, empty).result()
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
+        self._tick += 1
+        if self._teaching is not None and self._tick >= self._teaching[0]:
+            self._take_lesson()
         self._follow_curve()
         velocity, p1 = self.demand()
         loop = self.loop_filter(u_p)
@@ -391,8 +413,22 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         if not self.learner.record(u_v, ref.r, np.asarray(y, dtype=float), u_p, promised, ref.r_dot,
                                    velocity - ref.r_dot, rest_scale(m, promised, at), measured, volume, held):
             return
+        if self._teaching is not None:  # a buffer shorter than the delay: the last one's lesson first
+            self._take_lesson()
+        taken = self.learner.take()
+        if self._executor is None:
+            lesson: Future = Future()
+            lesson.set_result(self.learner.teach(taken))
+        else:
+            lesson = self._executor.submit(self.learner.teacher.teach, taken)
+        self._teaching = (self._tick + max(1, round(self.LEARN_DELAY_S * self.rate_hz)), lesson)
+
+    def _take_lesson(self) -> None:
+        """The last buffer's corrections into the learner (waiting for them if still being taught), but for the
+        legs the guard pauses or turned off; the curve they give to fade in."""
+        lesson, self._teaching = self._teaching[1], None
         before = self.learner.state()
-        self.learner.learn()
+        self.learner.accept(lesson.result())
         for i in np.flatnonzero((self._pause > 0) | self.off):
             self.learner.restore(i, before)
         self._set_curve(self.learner.curve())

@@ -77,3 +77,105 @@ def test_the_null_is_learned_near_the_reversals_and_the_curve_at_speed(speed, le
         comp.observe(Reference(r * one, speed * one, 0 * one, 0 * one, None))
         comp.update(0.02 * one, r * one)
     assert (abs(comp.null[0]) > 2e-3) == learns
+
+
+def _dense_smoothed(gram, rhs, weight):
+    """The smoother's one solve written out densely from its docstring: the normal equations on the evidence's
+    scale, SHRINK on the diagonal, the second differences' squares weighted by ``weight`` (k - 2,), null held at
+    zero (its row and column dropped)."""
+    k = len(rhs)
+    diag = np.diag(gram)
+    scale = np.mean(diag[diag > 0])
+    d = np.diff(np.eye(k), 2, axis=0)
+    a = gram / scale + cl.SHRINK * np.eye(k) + d.T @ (weight[:, None] * d)
+    c = np.zeros(k)
+    c[1:] = np.linalg.solve(a[1:, 1:], rhs[1:] / scale)
+    return c
+
+
+def test_the_banded_solve_is_the_dense_one():
+    """The smoother solves its normal equations in banded form (compensation.curve_learning._penalty_band,
+    scipy.linalg.solveh_banded); on a banded gram made by hand (each sample's hat seen by its neighbours) it gives
+    the dense solve's corrections."""
+    rng = np.random.default_rng(7)
+    k = 80
+    hats = np.zeros((2000, k))
+    left = rng.integers(0, k - 3, 2000)
+    for j in range(3):
+        hats[np.arange(2000), left + j] = rng.uniform(0.2, 1.0, 2000)
+    gram, rhs = hats.T @ hats, hats.T @ rng.normal(0.0, 1e-3, 2000)
+    expected = _dense_smoothed(gram, rhs, np.full(k - 2, cl.SMOOTHING))
+    got = cl._smoothed(gram, rhs, 0.0, iterations=1)
+    assert np.allclose(got, expected, rtol=1e-9, atol=1e-12 * np.max(np.abs(expected)))
+    assert got[0] == 0.0
+
+
+def _learn_on_a_sweep(executor):
+    """A learner of 3 legs fed 4 buffers of a command sweeping ±9 V (the whole curve: the dense regression took
+    half a second a buffer there), taught in ``executor`` (None: at once) and accepted; leg 1 restored between a
+    take and its accept, as the guard does. Returns the corrections after each buffer."""
+    u = np.linspace(-10.0, 10.0, 401)
+    base = np.stack([0.15 * np.tanh(u / 2) * (1 + 0.1 * i) for i in range(3)])
+    learner = cl.CurveLearner(u, base, 500.0, 0.5)
+    rng = np.random.default_rng(3)
+    out, t = [], 0.0
+    for n in range(4):
+        while True:
+            t += 0.002
+            cmd = 9.0 * np.sin(2 * np.pi * 0.8 * t + np.arange(3))
+            v = np.interp(cmd, u, base[0]) * np.ones(3)
+            full = learner.record(cmd, 0.01 * np.ones(3), 0.01 + 1e-5 * rng.normal(size=3), 0.02 * np.sin(9 * t) +
+                                  1e-3 * rng.normal(size=3), v, 0.9 * v, np.zeros(3), np.ones(3), None,
+                                  np.full(3, 1e-12), np.zeros(3))
+            if full:
+                break
+        taken = learner.take()
+        lesson = learner.teach(taken) if executor is None else executor.submit(learner.teacher.teach, taken).result()
+        if n == 2:
+            learner.restore(1, learner.state())
+        learner.accept(lesson)
+        out.append(learner.state())
+    return np.array(out)
+
+
+def test_a_buffer_taught_in_another_process_teaches_what_it_does_at_once():
+    """hexsim serve teaches the adaptive feedforward's buffers in a worker process (the loop must not stall for
+    them): the teacher pickles without the live buffers, and what comes back is what teaching at once gives; a
+    leg the guard restored meanwhile keeps its restored corrections."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    at_once = _learn_on_a_sweep(None)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        beside = _learn_on_a_sweep(pool)
+    assert np.abs(at_once).max() > 1e-3  # something was learned
+    assert np.array_equal(at_once, beside)
+    assert np.array_equal(at_once[2, 1], at_once[1, 1])  # restored across the third buffer's accept
+
+
+def _feedforward_outputs(executor):
+    """The adaptive feedforward of one leg over 8 s of a 0.5 Hz sine with the P loop adding a corner's error
+    (two 3 s buffers taught), teaching in ``executor`` (None: in the tick); its outputs U_c (ticks,) [V] and the
+    corrections it learned."""
+    comp = _adaptive()
+    comp.learn_in(executor)
+    one, out = np.ones(1), []
+    for k in range(4000):
+        t = k / 500.0
+        r, v = 0.1 + 0.05 * np.sin(np.pi * t), 0.05 * np.pi * np.cos(np.pi * t)
+        comp.observe(Reference(r * one, v * one, 0 * one, 0 * one, None))
+        out.append(comp.update((0.05 * np.tanh(20 * v) + 0.002 * np.sin(50 * t)) * one, r * one)[0])
+    return np.array(out), comp.learner.state()
+
+
+def test_the_adaptive_feedforward_gives_the_same_commands_when_its_buffers_are_taught_beside_the_loop():
+    """A buffer's lesson takes effect LEARN_DELAY_S after the buffer filled whether it is taught in the tick (a
+    batch run) or in a worker (hexsim serve): the same commands, to the bit."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    inline, learned = _feedforward_outputs(None)
+    with ThreadPoolExecutor(1) as pool:
+        beside, learned_beside = _feedforward_outputs(pool)
+    assert np.abs(learned).max() > 1e-4  # the buffers taught something
+    assert np.array_equal(inline, beside)
+    assert np.array_equal(learned, learned_beside)
