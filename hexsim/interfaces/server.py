@@ -5,7 +5,10 @@ The host sends setpoint packets (:mod:`hexsim.interfaces.packets`) at its own ra
 piston setpoints of the operating modes (:mod:`hexsim.interfaces.operating_modes`: engage, neutral, park,
 host lost, rejected packets), advances the whole simulation one period — the same
 :class:`~hexsim.engine.runner.Simulator` as ``hexsim run`` (hydraulics, the bump, the compensator,
-MuJoCo) — and sends the platform's state back at ``state_rate_hz``. The periods are paced to the wall clock:
+MuJoCo) — and sends the platform's state back at ``state_rate_hz``. What must not stall a tick runs beside the
+loop: an adaptive compensator's buffers are taught in a worker process (they take effect the fixed delay later,
+:data:`compensation.model_based.AdaptiveFeedforward.LEARN_DELAY_S`, as in a batch run), and the cyclic garbage
+collector runs between ticks only (:data:`GC_IDLE_S`). The periods are paced to the wall clock:
 between ticks the loop waits in ``select`` on the socket (reading packets as they arrive, their arrival
 timed), the last fraction of a millisecond in a spin. A tick that starts late is not skipped: the loop
 runs the next ones back to back until it is on time again.
@@ -23,10 +26,14 @@ from __future__ import annotations
 import dataclasses
 import gc
 import math
+import multiprocessing
+import os
 import select
 import socket
+import sys
 import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import mujoco
 import numpy as np
@@ -52,8 +59,25 @@ from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import PlantIndex, load_model
 from hexsim.studies.perception import rigid_point_specific_force
 
+_LEG_NAMES = [f"leg{i}" for i in range(1, 7)]
+_LEG_REF_NAMES = [f"leg{i}_ref" for i in range(1, 7)]
+_P1_NAMES = [f"p1_leg{i}" for i in range(1, 7)]
+_RATE_NAMES = [f"{n}_rate" for n in DOF]
+_HEAD_NAMES = [f"head_f{a}" for a in "xyz"] + [f"head_w{a}" for a in "xyz"]
+
 #: the last stretch before a deadline spent spinning instead of in ``select`` [s]
 SPIN_S = 3e-4
+#: The interpreter's thread switch interval while serving [s] (``sys.setswitchinterval``; Python's default 5 ms
+#: is two and a half ticks at 500 Hz that another thread, e.g. the worker pool's feeding a lesson, could hold the
+#: loop off for).
+SWITCH_INTERVAL_S = 2e-5
+#: While serving, the cyclic garbage collector runs only between ticks with at least this long to the deadline
+#: [s], on the young generations, once :data:`GC_YOUNG` objects were allocated (Python's own threshold, 700):
+#: a full collection in a tick was measured at 70 ms, 35 ticks late.
+GC_IDLE_S = 1e-3
+#: Niceness of the process an adaptive compensator's buffers are taught in (``os.nice``): the loop first.
+WORKER_NICE = 10
+GC_YOUNG = 700
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,9 +212,17 @@ class VirtualMotionSystem:
         self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform")
         self._vel = np.zeros(6)
         site_pos, site_quat = sim.sensor_site()  # the accelerometer's site in the platform body
-        self._body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]])
+        self._body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]]).as_matrix()  # (3, 3)
+        self._world_from_body = np.zeros(9)
         head = (config.geometry or MICRO_MOTION_SYSTEM).head_point
-        self._head_in_site = self._body_from_site.inv().apply(np.asarray(head) - site_pos)
+        self._head_in_site = self._body_from_site.T @ (np.asarray(head) - site_pos)
+        self._worker = None
+        if hasattr(sim.compensator, "learn_in"):  # an adaptive compensator's buffers: taught beside the loop
+            # in a process of its own (a thread would hold the interpreter's lock from the loop for tens of ms),
+            # forked (it has the modules already), at a lower priority than the loop
+            self._worker = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"),
+                                               initializer=os.nice, initargs=(WORKER_NICE,))
+            sim.compensator.learn_in(self._worker)
 
     # ------------------------------------------------------------------ packets
     def _drain(self) -> None:
@@ -222,33 +254,31 @@ class VirtualMotionSystem:
         y, _ = sim.idx.positions(d)
         out = {"status": int(modes.status), "frame": modes.last_frame or 0, "faults": modes.take_faults(),
                "time": sim.time, "received": self.packets["received"], "rejected": sum(modes.rejected.values()),
-               "late": self.timing.late,
-               "p_s": float(sim.state.p_s[0])}
-        out.update({f"leg{i + 1}": float(v) for i, v in enumerate(y)})
-        out.update({f"leg{i + 1}_ref": float(v) for i, v in enumerate(modes.cmd)})
-        out.update({f"p1_leg{i + 1}": float(v) for i, v in enumerate(sim.state.p1)})
+               "late": self.timing.late, "p_s": float(sim.state.p_s[0])}
+        out.update(zip(_LEG_NAMES, y.tolist()))
+        out.update(zip(_LEG_REF_NAMES, np.asarray(modes.cmd, dtype=float).tolist()))
+        out.update(zip(_P1_NAMES, np.asarray(sim.state.p1, dtype=float).tolist()))
         s = sim.idx.sensor
         quat = d.sensordata[s["platform_quat"]]
-        world_from_body = Rotation.from_quat(quat[[1, 2, 3, 0]])
         pose = self.geometry.pose_of(d.sensordata[s["platform_pos"]][None], quat[None])[0]
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
-        velocity = np.concatenate([self._vel[3:], self._vel[:3]])
-        out.update(dict(zip(DOF, pose)))
-        out.update({f"{n}_rate": float(v) for n, v in zip(DOF, velocity)})
-        head, omega = self._head(world_from_body)
-        out.update({f"head_f{a}": float(v) for a, v in zip("xyz", head)})
-        out.update({f"head_w{a}": float(v) for a, v in zip("xyz", omega)})
+        out.update(zip(DOF, pose.tolist()))
+        out.update(zip(_RATE_NAMES, self._vel[[3, 4, 5, 0, 1, 2]].tolist()))
+        mujoco.mju_quat2Mat(self._world_from_body, quat)
+        head, omega = self._head(self._world_from_body.reshape(3, 3))
+        out.update(zip(_HEAD_NAMES, head.tolist() + omega.tolist()))
         return out
 
-    def _head(self, world_from_body: Rotation) -> tuple[np.ndarray, np.ndarray]:
+    def _head(self, world_from_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Specific force (3,) [m/s^2] and angular velocity (3,) [rad/s] at the occupant's head, platform axes
         (:func:`~hexsim.studies.perception.rigid_point_specific_force` from the accelerometer's site, as
-        :func:`~hexsim.studies.perception.point_motion` for a recorded run)."""
+        :func:`~hexsim.studies.perception.point_motion` for a recorded run), from the platform's orientation
+        (3, 3), world from body."""
         d, s, body_from_site = self.sim.data, self.sim.idx.sensor, self._body_from_site
         omega = d.sensordata[s["platform_gyro"]]
-        alpha = (world_from_body * body_from_site).inv().apply(d.sensordata[s["platform_angacc"]])
+        alpha = (world_from_body @ body_from_site).T @ d.sensordata[s["platform_angacc"]]
         f = rigid_point_specific_force(d.sensordata[s["platform_acc"]], omega, alpha, self._head_in_site)
-        return body_from_site.apply(f), body_from_site.apply(omega)
+        return body_from_site @ f, body_from_site @ omega
 
     def _send(self) -> None:
         if self._reply is None:
@@ -279,6 +309,9 @@ class VirtualMotionSystem:
             remain = deadline - time.perf_counter()
             if remain <= 0:
                 return
+            if remain > GC_IDLE_S and gc.get_count()[0] > GC_YOUNG:
+                gc.collect(1)
+                continue
             if remain > SPIN_S:
                 ready, _, _ = select.select([self.sock], [], [], remain - SPIN_S)
                 if ready:
@@ -293,7 +326,11 @@ class VirtualMotionSystem:
         self.state()  # the first call of each path is slow (lazy set-up): before the clock starts
         tqdm(disable=True).close()  # the step's progress bar: its first instance creates tqdm's lock (ms)
         gc.freeze()  # the objects of the set-up out of the collector's way (its pauses would be ticks late)
+        collecting = gc.isenabled()
+        gc.disable()  # the collector runs between ticks instead (_wait), the young objects only
         self._t0 = time.perf_counter() - timing.ticks * self.period
+        switch = sys.getswitchinterval()
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
         try:
             for n in range(timing.ticks, last):
                 if self._stop.is_set() or sim.done:
@@ -311,6 +348,10 @@ class VirtualMotionSystem:
                 timing.ticks = n + 1
         except KeyboardInterrupt:
             pass
+        finally:
+            sys.setswitchinterval(switch)
+            if collecting:
+                gc.enable()
         return self.report()
 
     def stop(self) -> None:
@@ -319,6 +360,8 @@ class VirtualMotionSystem:
 
     def close(self) -> None:
         self.sock.close()
+        if self._worker is not None:
+            self._worker.shutdown(wait=True)
 
     def result(self):
         """The recording (:class:`~hexsim.engine.config.SimulationResult`, the last ``keep_s``)."""
