@@ -374,7 +374,8 @@ class AdaptiveFeedforward(FeedforwardCompensator):
     def learn_in(self, executor: Executor | None) -> None:
         """Teach each full buffer in ``executor`` (:meth:`compensation.curve_learning.CurveTeacher.teach`; e.g. a
         worker process for a real-time loop, which must not stall for it; None: at once, in the tick). Either way
-        its curve takes effect :data:`LEARN_DELAY_S` after the buffer filled (waiting for it then if need be). An empty buffer is taught in it at once, so the first real one does not pay for the libraries'
+        its curve takes effect :data:`LEARN_DELAY_S` after the buffer filled, or, taught in ``executor``, at the
+        first tick after that it is ready (the loop does not wait for it unless the next buffer is full). An empty buffer is taught in it at once, so the first real one does not pay for the libraries'
         first calls (some 10 ms)."""
         self._executor = executor
         if executor is not None:
@@ -384,7 +385,8 @@ class AdaptiveFeedforward(FeedforwardCompensator):
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         self._tick += 1
-        if self._teaching is not None and self._tick >= self._teaching[0]:
+        if self._teaching is not None and self._tick >= self._teaching[0] and (
+                self._executor is None or self._teaching[1].done()):
             self._take_lesson()
         self._follow_curve()
         velocity, p1 = self.demand()
