@@ -42,6 +42,8 @@ def add_serve(sub) -> None:
     se.add_argument("--engage-time", type=parse_number, default=2.0, help="fade-in of the host's motion [s] (default 2)")
     se.add_argument("--timeout", type=parse_number, default=0.5,
                     help="silence after which the host is lost and the platform returns to neutral [s] (default 0.5)")
+    se.add_argument("--priority", type=int, metavar="1-99",
+                    help="run the loop at this real-time priority (Linux SCHED_FIFO; needs root or CAP_SYS_NICE)")
     se.add_argument("--log", type=pathlib.Path, help="write the session as a measurement log (CSV + JSON sidecar)")
     se.add_argument("--rrd", type=pathlib.Path, help="write the session as a rerun recording (.rrd)")
     se.add_argument("--json", type=pathlib.Path, help="write the session's report (timing, packets, modes) as JSON")
@@ -70,7 +72,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     settings = ServeSettings(bind=args.bind, port=args.port, reply_to=args.reply, state_rate_hz=args.state_rate,
                              duration_s=3600.0 if args.duration is None else args.duration, keep_s=args.keep,
                              modes=ModeSettings(engage_s=args.engage_time, host_timeout_s=args.timeout),
-                             host_layout=host, state_layout=state)
+                             host_layout=host, state_layout=state, priority=args.priority)
     from hexsim.engine.config import RunConfig
     from hexsim.plant.machine import load_machine
     from hexsim.studies.tuning import compensator_options

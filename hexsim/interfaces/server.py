@@ -75,9 +75,9 @@ SWITCH_INTERVAL_S = 2e-5
 #: [s], on the young generations, once :data:`GC_YOUNG` objects were allocated (Python's own threshold, 700):
 #: a full collection in a tick was measured at 70 ms, 35 ticks late.
 GC_IDLE_S = 1e-3
+GC_YOUNG = 700
 #: Niceness of the process an adaptive compensator's buffers are taught in (``os.nice``): the loop first.
 WORKER_NICE = 10
-GC_YOUNG = 700
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,7 +85,9 @@ class ServeSettings:
     """Where to listen (``bind``, ``port``; port 0: any free one), where to answer (``reply_to`` (host,
     port); None: the sender of the last accepted packet), the state packets' rate [Hz], the longest session
     [s] (``duration_s``: the recording is set up for it), the recording kept for the outputs [s], the
-    operating modes' settings and the two packet layouts. Raises InputError for a bad value."""
+    operating modes' settings and the two packet layouts; ``priority``: the loop's real-time priority (1…99,
+    Linux's SCHED_FIFO, as a motion controller's loop runs; None: the normal scheduler). Raises InputError for a
+    bad value."""
 
     bind: str = "127.0.0.1"
     port: int = 5005
@@ -96,10 +98,13 @@ class ServeSettings:
     modes: ModeSettings = ModeSettings()
     host_layout: PacketLayout = HOST_PACKET
     state_layout: PacketLayout = STATE_PACKET
+    priority: int | None = None
 
     def __post_init__(self) -> None:
         if not 0 <= self.port < 65536:
             raise InputError(f"port must be 0…65535, got {self.port}")
+        if self.priority is not None and not 1 <= self.priority <= 99:
+            raise InputError(f"priority must be 1…99 (SCHED_FIFO), got {self.priority}")
         for name in ("state_rate_hz", "duration_s", "keep_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -138,7 +143,8 @@ class Timing:
 class ServeReport:
     """What a session did: the machine and compensator, the simulated time [s], the timing
     (:meth:`Timing.summary`), the packets (received, accepted, rejected by reason, state packets sent and
-    failed), the operating modes' transitions ((time [s], status name)) and the status at the end."""
+    failed), the operating modes' transitions ((time [s], status name)), the status at the end and the loop's
+    scheduling ("normal" or "SCHED_FIFO N")."""
 
     machine: str
     compensator: str
@@ -147,6 +153,7 @@ class ServeReport:
     packets: dict
     transitions: list
     status: str
+    scheduling: str = "normal"
 
     def lines(self) -> list[str]:
         """The report as a user reads it."""
@@ -157,7 +164,8 @@ class ServeReport:
             out.append(f"timing: {t['ticks']} ticks of {t['period_ms']:g} ms; start after deadline p50 "
                        f"{t['jitter_p50_ms']:.3f}, p99 {t['jitter_p99_ms']:.3f}, max {t['jitter_max_ms']:.3f} ms; "
                        f"{t['late_ticks']} late, {t['overruns']} overruns; work mean {t['work_mean_ms']:.3f} ms "
-                       f"({t['load']:.0%} of the period), max {t['work_max_ms']:.3f} ms")
+                       f"({t['load']:.0%} of the period), max {t['work_max_ms']:.3f} ms; scheduling "
+                       f"{self.scheduling}")
         rejected = ", ".join(f"{n} {k}" for k, n in sorted(p["rejected"].items())) or "none"
         out.append(f"packets: {p['received']} received, {p['accepted']} accepted, rejected: {rejected}; "
                    f"{p['sent']} state packets sent ({p['send_failed']} failed)")
@@ -201,6 +209,10 @@ class VirtualMotionSystem:
         self._send_div = max(1, int(round(1.0 / (settings.state_rate_hz * self.period))))
         self._stop = threading.Event()
         self._t0 = 0.0
+        self._scheduling = "normal"
+        if settings.priority is not None:  # refused now, before listening, rather than when the clock starts
+            os.sched_setscheduler(0, *self._real_time())
+            self._scheduling = "normal"
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self.sock.bind((settings.bind, settings.port))
@@ -324,7 +336,11 @@ class VirtualMotionSystem:
         last = len(timing.lateness) if duration_s is None else min(len(timing.lateness),
                                                                      int(round(duration_s / self.period)))
         self.state()  # the first call of each path is slow (lazy set-up): before the clock starts
+        if timing.ticks == 0:  # and the first tick's (the compensator's first update: some 7 ms)
+            self.tick(0)
+            timing.ticks = 1
         tqdm(disable=True).close()  # the step's progress bar: its first instance creates tqdm's lock (ms)
+        policy = self._real_time()
         gc.freeze()  # the objects of the set-up out of the collector's way (its pauses would be ticks late)
         collecting = gc.isenabled()
         gc.disable()  # the collector runs between ticks instead (_wait), the young objects only
@@ -350,9 +366,25 @@ class VirtualMotionSystem:
             pass
         finally:
             sys.setswitchinterval(switch)
+            if policy is not None:
+                os.sched_setscheduler(0, *policy)
             if collecting:
                 gc.enable()
         return self.report()
+
+    def _real_time(self) -> tuple[int, os.sched_param] | None:
+        """The loop's thread to SCHED_FIFO at the settings' priority (None: nothing to do); the policy it had, to
+        restore. Raises InputError where the process may not (not root, no CAP_SYS_NICE, no rtprio limit)."""
+        if self.settings.priority is None:
+            return None
+        before = (os.sched_getscheduler(0), os.sched_getparam(0))
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.settings.priority))
+        except (PermissionError, OSError) as exc:
+            raise InputError(f"--priority {self.settings.priority}: real-time scheduling refused ({exc.strerror}); "
+                             "it needs root, CAP_SYS_NICE or an rtprio limit (/etc/security/limits.conf)") from None
+        self._scheduling = f"SCHED_FIFO {self.settings.priority}"
+        return before
 
     def stop(self) -> None:
         """End :meth:`run` at its next tick (from another thread)."""
@@ -370,7 +402,8 @@ class VirtualMotionSystem:
     def report(self) -> ServeReport:
         packets = {**self.packets, "rejected": dict(self.modes.rejected)}
         return ServeReport(self.config.machine_label, self.config.compensator_name, self.sim.time,
-                           self.timing.summary(), packets, list(self.transitions), self.modes.status.name.lower())
+                           self.timing.summary(), packets, list(self.transitions), self.modes.status.name.lower(),
+                           self._scheduling)
 
 
 def serve_session(base: RunConfig, settings: ServeSettings, *, log=None, rrd=None, json_path=None,

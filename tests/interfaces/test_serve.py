@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
 import struct
 import subprocess
 import sys
@@ -282,3 +283,43 @@ def test_a_legs_layout_drives_the_pistons_directly_and_a_single_actuator_is_refu
         vms.close()
     with pytest.raises(InputError, match="hexapod"):
         VirtualMotionSystem(RunConfig(make_scenario("actuator")), ServeSettings(port=0, duration_s=1.0))
+
+
+def _may_run_real_time() -> bool:
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+    except OSError:
+        return False
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    return True
+
+
+def test_an_adaptive_compensator_is_taught_beside_the_loop_which_may_run_at_real_time_priority():
+    """An adaptive compensator's buffers are taught in a worker process, not in the tick (a lesson took 20-100 ms,
+    ten to fifty ticks); the loop's thread runs at SCHED_FIFO when asked, and says so, and gets its policy back."""
+    if not _may_run_real_time():
+        pytest.skip("this process may not use real-time scheduling")
+    base = RunConfig.from_machine(load_machine(None), "heave", compensator="adaptive")
+    vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=4.0, priority=10))
+    policies = []
+
+    def serve():
+        vms.run()
+        policies.append(os.sched_getscheduler(0))
+
+    served = threading.Thread(target=serve)
+    try:
+        served.start()
+        served.join()
+    finally:
+        vms.close()
+    comp = vms.sim.compensator
+    assert comp._tick >= 1999 and comp._teaching is None  # the 3 s buffer taught beside the loop and taken
+    assert vms.report().scheduling == "SCHED_FIFO 10" and policies == [os.SCHED_OTHER]
+    assert vms.report().timing["ticks"] == 2000
+
+
+@pytest.mark.parametrize("priority", [0, 100])
+def test_a_priority_outside_sched_fifos_range_is_refused(priority):
+    with pytest.raises(InputError, match="priority must be 1…99"):
+        ServeSettings(priority=priority)
