@@ -45,7 +45,7 @@ import numpy as np
 from scipy.signal import butter, sosfilt_zi
 
 from compensation.base import Compensator, sos_tick
-from compensation.curve_learning import BAND_MPS, CurveLearner, rest_scale
+from compensation.curve_learning import BAND_MPS, CurveLearner, Taken, rest_scale
 from compensation.settings import CompensatorSettings, SettingsError
 
 #: Low-pass [Hz] on a measured pressure before the feedforward scales its flow curve to it: the leg's
@@ -375,13 +375,15 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         """Teach each full buffer in ``executor`` (:meth:`compensation.curve_learning.CurveTeacher.teach`; e.g. a
         worker process for a real-time loop, which must not stall for it; None: at once, in the tick). Either way
         its curve takes effect :data:`LEARN_DELAY_S` after the buffer filled, or, taught in ``executor``, at the
-        first tick after that it is ready (the loop does not wait for it unless the next buffer is full). An empty buffer is taught in it at once, so the first real one does not pay for the libraries'
-        first calls (some 10 ms)."""
+        first tick after that it is ready (the loop does not wait for it unless the next buffer is full). An empty
+        buffer is taught in it at once, so the first real one does not pay for the libraries' first calls (some
+        10 ms); the learner's own buffer is not touched."""
         self._executor = executor
         if executor is not None:
-            empty = self.learner.take()
-            empty.buffer["scale"][:] = 1.0
-            executor.submit(self.learner.teacher.teach, empty).result()
+            learner = self.learner
+            empty = Taken({k: np.ones_like(v) if k == "scale" else np.zeros_like(v) for k, v in learner.buffer.items()},
+                          list(learner.gram), learner.rhs.copy())
+            executor.submit(learner.teacher.teach, empty).result()
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
         self._tick += 1
