@@ -150,13 +150,13 @@ class CurveTeacher:
     def teach(self, taken: Taken) -> Taught:
         """The evidence and corrections (n, bins) [m/s] of a :meth:`CurveLearner.take`'s buffer and, fading by
         :data:`FORGET` each, the earlier ones (:meth:`CurveLearner.accept` makes them the learner's). Each sample's
-        measured correction (δ plus what the inverse's curve
-        held there) is the correction at its command, seen through the time filter δ was measured with: so the
-        bins' corrections are fitted to it as a least-squares regression on the same filter's response to each
-        bin (a hat in the command, in time as the command moved; the filter's blur along the command, 50 mV at a
-        port's corner, is taken out rather than learned), with the seed's weights, from null outwards on each
-        side with the second differences' penalty (:func:`_smoothed`), null itself uncorrected; beyond the
-        commands the motion reached, the last bin's correction held."""
+        measured correction (δ plus what the inverse's curve held there) is the correction at its command, seen
+        through the time filter δ was measured with: so the bins' corrections are fitted to it as a least-squares
+        regression on the same filter's response to each bin (a hat in the command, in time as the command moved;
+        the filter's blur along the command, 50 mV at a port's corner, is taken out rather than learned), with the
+        seed's weights, from null outwards on each side with the second differences' penalty
+        (:func:`_smoothed`), null itself uncorrected; beyond the commands the motion reached, the last bin's
+        correction held."""
         b, n_sg = taken.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
         target = self.errors(b) + savgol_filter(b["held"], n_sg, 3, axis=0, mode="interp")
         w = seed_weights(self.size)[:, None] * (np.abs(b["promised"]) >= BAND_MPS)
@@ -256,9 +256,9 @@ class CurveLearner:
         return Taken({k: v.copy() for k, v in self.buffer.items()}, list(self.gram), self.rhs.copy())
 
     def accept(self, taught: Taught) -> np.ndarray:
-        """A :meth:`teach`'s evidence and corrections made the learner's, except on the legs :meth:`restore`\ d
-        since its :meth:`take` (their evidence forgotten, their corrections restored, as the guard asked); the
-        curve they give (n, G) [m/s]."""
+        """A :meth:`teach`'s evidence and corrections made the learner's, except on the legs put back by
+        :meth:`restore` since its :meth:`take` (their evidence forgotten, their corrections restored, as the guard
+        asked); the curve they give (n, G) [m/s]."""
         for leg in range(self.n_legs):
             if leg not in self._restored:
                 self.gram[leg], self.rhs[leg], self.correction[leg] = taught.gram[leg], taught.rhs[leg], \
