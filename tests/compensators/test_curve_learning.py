@@ -164,13 +164,16 @@ def _feedforward_outputs(executor):
         t = k / 500.0
         r, v = 0.1 + 0.05 * np.sin(np.pi * t), 0.05 * np.pi * np.cos(np.pi * t)
         comp.observe(Reference(r * one, v * one, 0 * one, 0 * one, None))
+        if comp._teaching is not None and comp._tick + 1 >= comp._teaching[0]:
+            comp._teaching[1].result()  # ready by its tick, as in a real-time loop that gave the worker 0.2 s
         out.append(comp.update((0.05 * np.tanh(20 * v) + 0.002 * np.sin(50 * t)) * one, r * one)[0])
     return np.array(out), comp.learner.state()
 
 
 def test_the_adaptive_feedforward_gives_the_same_commands_when_its_buffers_are_taught_beside_the_loop():
     """A buffer's lesson takes effect LEARN_DELAY_S after the buffer filled whether it is taught in the tick (a
-    batch run) or in a worker (hexsim serve): the same commands, to the bit."""
+    batch run) or in a worker (hexsim serve) that has it ready by then: the same commands, to the bit. (A worker
+    late with it has it taken at the first tick after; this loop runs far faster than real time, so it waits.)"""
     from concurrent.futures import ThreadPoolExecutor
 
     inline, learned = _feedforward_outputs(None)
