@@ -107,13 +107,14 @@ class CurveTeacher:
     def __init__(self, centres: np.ndarray, knee: np.ndarray, dt: float, size: int, kp: float) -> None:
         self.centres, self.knee, self.dt, self.size, self.kp = centres, knee, dt, size, kp
         self.n_legs = knee.shape[0]
+        self.window = max(5, int(round(DERIVATIVE_S / dt)) | 1)  # the Savitzky-Golay span [samples], odd
         self._filter: sparse.csr_array | None = None
 
     @property
     def filter(self) -> sparse.csr_array:
         """The time filter δ is measured with as a (size, size) matrix (:func:`_savgol_matrix`)."""
         if self._filter is None:
-            self._filter = _savgol_matrix(self.size, max(5, int(round(DERIVATIVE_S / self.dt)) | 1))
+            self._filter = _savgol_matrix(self.size, self.window)
         return self._filter
 
     def __getstate__(self) -> dict:
@@ -131,7 +132,7 @@ class CurveTeacher:
     def errors(self, buffer: dict[str, np.ndarray]) -> np.ndarray:
         """(size, n) [m/s]: δ at each tick of ``buffer`` (a buffer's arrays (size, n) by name, as
         :class:`CurveLearner` records them) scaled to the rest pressure (module doc)."""
-        b, n = buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
+        b, n = buffer, self.window
         e = b["u_p"] / self.gain(b)[None, :]  # the tracking error the controller saw [m]
         e_dot = savgol_filter(e, n, 3, deriv=1, delta=self.dt, axis=0, mode="interp")
         flow = b["ref_rate"] - e_dot
@@ -157,7 +158,7 @@ class CurveTeacher:
         seed's weights, from null outwards on each side with the second differences' penalty
         (:func:`_smoothed`), null itself uncorrected; beyond the commands the motion reached, the last bin's
         correction held."""
-        b, n_sg = taken.buffer, max(5, int(round(DERIVATIVE_S / self.dt)) | 1)
+        b, n_sg = taken.buffer, self.window
         target = self.errors(b) + savgol_filter(b["held"], n_sg, 3, axis=0, mode="interp")
         w = seed_weights(self.size)[:, None] * (np.abs(b["promised"]) >= BAND_MPS)
         bins = len(self.centres)
@@ -203,9 +204,7 @@ class CurveLearner:
         self.u = np.asarray(u, dtype=float)
         self.base = np.atleast_2d(np.asarray(velocity, dtype=float))
         self.n_legs = self.base.shape[0]
-        self.dt = 1.0 / rate_hz
         self.size = max(int(round(buffer_time * rate_hz)), 4 * int(round(DERIVATIVE_S * rate_hz)))
-        self.kp = kp
         self.centres = np.arange(self.u[0], self.u[-1] + BIN_V, BIN_V)
         self.correction = np.zeros((self.n_legs, len(self.centres)))  # [m/s] at the rest pressure
         # a kink (:data:`KINK`): the flow gain changing by KINK of the model curve's own within a bin [m/s]
@@ -217,7 +216,7 @@ class CurveLearner:
         # does (dense, the 1001 bins of a ±10 V valve took half a second per buffer: 250 ticks at 500 Hz)
         self.gram = [sparse.csr_array((bins, bins)) for _ in range(self.n_legs)]
         self.rhs = np.zeros((self.n_legs, bins))
-        self.teacher = CurveTeacher(self.centres, self.knee, self.dt, self.size, kp)
+        self.teacher = CurveTeacher(self.centres, self.knee, 1.0 / rate_hz, self.size, kp)
         names = ("u", "tracking", "u_p", "promised", "ref_rate", "compression", "scale", "p1", "volume", "held")
         self.buffer = {k: np.zeros((self.size, self.n_legs)) for k in names}
         self.filled = 0
@@ -336,9 +335,8 @@ def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
     band[width + upper.row - upper.col, upper.col] = upper.data / scale
     band[width] += SHRINK
     c[1:] = solveh_banded(band + _penalty_band(np.full(k - 2, SMOOTHING), width), r[1:])
-    d = sparse.diags_array([1.0, -2.0, 1.0], offsets=[0, 1, 2], shape=(k - 2, k), format="csr")
     for _ in range(iterations - 1):
-        curvature = np.abs(d @ c)
+        curvature = np.abs(np.diff(c, 2))
         bend = np.maximum(knee, KINK_MEDIAN * float(np.median(curvature)))
         weight = SMOOTHING * np.minimum(1.0, bend / np.maximum(curvature, 1e-15))
         c[1:] = solveh_banded(band + _penalty_band(weight, width), r[1:])
