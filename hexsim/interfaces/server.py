@@ -212,7 +212,6 @@ class VirtualMotionSystem:
         self._scheduling = "normal"
         if settings.priority is not None:  # refused now, before listening, rather than when the clock starts
             os.sched_setscheduler(0, *self._real_time())
-            self._scheduling = "normal"
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self.sock.bind((settings.bind, settings.port))
@@ -341,6 +340,8 @@ class VirtualMotionSystem:
             timing.ticks = 1
         tqdm(disable=True).close()  # the step's progress bar: its first instance creates tqdm's lock (ms)
         policy = self._real_time()
+        if policy is not None:
+            self._scheduling = f"SCHED_FIFO {self.settings.priority}"
         gc.freeze()  # the objects of the set-up out of the collector's way (its pauses would be ticks late)
         collecting = gc.isenabled()
         gc.disable()  # the collector runs between ticks instead (_wait), the young objects only
@@ -383,7 +384,6 @@ class VirtualMotionSystem:
         except (PermissionError, OSError) as exc:
             raise InputError(f"--priority {self.settings.priority}: real-time scheduling refused ({exc.strerror}); "
                              "it needs root, CAP_SYS_NICE or an rtprio limit (/etc/security/limits.conf)") from None
-        self._scheduling = f"SCHED_FIFO {self.settings.priority}"
         return before
 
     def stop(self) -> None:

@@ -296,11 +296,11 @@ def _may_run_real_time() -> bool:
 
 def test_an_adaptive_compensator_is_taught_beside_the_loop_which_may_run_at_real_time_priority():
     """An adaptive compensator's buffers are taught in a worker process, not in the tick (a lesson took 20-100 ms,
-    ten to fifty ticks); the loop's thread runs at SCHED_FIFO when asked, and says so, and gets its policy back."""
-    if not _may_run_real_time():
-        pytest.skip("this process may not use real-time scheduling")
+    ten to fifty ticks); where the process may, the loop's thread runs at SCHED_FIFO when asked, says so, and gets
+    its policy back (elsewhere the session runs on the normal scheduler and the rest is checked)."""
+    real_time = _may_run_real_time()
     base = RunConfig.from_machine(load_machine(None), "heave", compensator="adaptive")
-    vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=5.5, priority=10))
+    vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=5.5, priority=10 if real_time else None))
     policies = []
 
     def serve():
@@ -316,8 +316,9 @@ def test_an_adaptive_compensator_is_taught_beside_the_loop_which_may_run_at_real
     comp = vms.sim.compensator
     assert comp._executor is vms._worker
     assert comp._tick == 2750 and comp._teaching is None  # the 3 s buffer taught beside the loop and taken
-    assert vms.report().scheduling == "SCHED_FIFO 10" and policies == [os.SCHED_OTHER]
     assert vms.report().timing["ticks"] == 2750
+    assert vms.report().scheduling == ("SCHED_FIFO 10" if real_time else "normal")
+    assert policies == [os.SCHED_OTHER]
 
 
 @pytest.mark.parametrize("priority", [0, 100])
