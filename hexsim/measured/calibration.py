@@ -415,7 +415,7 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
         report["transients"] = [{"before": r.errors(machine), "after": a} for r, a in zip(ev.replays, after)]
     elif ev.steady:
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
-    _add_priors(report, best["start"], best["params"])
+    _add_priors(report, best.get("prior", best["start"]), best["params"])
     if ev.replays or ev.steady:
         report["own_budget"] = own_budget(report)
     if ev.feats:

@@ -13,12 +13,14 @@ calibrated form beyond the commands the logs reach), fits the form's other param
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
 import numpy as np
 
-from hexsim.measured.fitting import FitOptions, fit_parameters
+from hexsim.measured.estimates import AT_A_BOUND
+from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.scoring import WITHIN
@@ -58,20 +60,23 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
     """The chosen form's calibration ``best`` (``flow_area``, ``start``, ``params``, ``fit``, ``machine``) with
     the valve's curves read from the ``replays``' logs (:class:`hexsim.measured.dynamics.ReplayEvidence`), the
     form's other parameters fitted again from there to the calibration's own ``residual`` (``options``,
-    ``independent_share``: as the form's fit); kept in place of the form if it predicts the held-out windows :data:`CURVE_GAIN` better (its
-    cost added to ``tried``). Returns the chosen, as ``best`` with ``curve`` (the
-    :class:`~hexsim.measured.flow_curve.FlowCurves`) and ``form`` (the form it started from) when the curves
-    are."""
+    ``independent_share``: as the form's fit; those the form's fit left at a bound from their prior again,
+    :func:`_bounded_by_the_form`); kept in place of the form if it predicts the held-out windows
+    :data:`CURVE_GAIN` better (its cost added to ``tried``). Returns the chosen, as ``best`` with ``curve``
+    (the :class:`~hexsim.measured.flow_curve.FlowCurves`), ``form`` (the form it started from) and ``prior``
+    (the form's start: the user's file, whose values the report calls the priors) when the curves are."""
     params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
     curves = fit_flow_curves([r.log for r in replays], best["machine"])
     bounds = {p.key: (p.lower, p.upper) for p in params}
-    read = {"oil.bulk_modulus_Pa": curves.bulk_modulus, "cylinder.dead_volume_cap_m3": curves.pipeline_volume}
-    start = with_keys(curve_machine(best["machine"], curves),  # the replay fit's start, inside its brackets
-                      {k: float(np.clip(v, *bounds[k])) for k, v in read.items() if k in bounds})
+    read = {k: float(np.clip(v, *bounds[k])) for k, v in {"oil.bulk_modulus_Pa": curves.bulk_modulus,
+            "cylinder.dead_volume_cap_m3": curves.pipeline_volume}.items() if k in bounds}
+    restart = _bounded_by_the_form(best, params)
+    start = with_keys(curve_machine(best["machine"], curves), read | restart)  # the replay fit's start
     notify(f"read the valve's curves from the logs' flows (to {curves.pa.reach:.3g} V on P→A, {curves.at.reach:.3g} V "
            f"on A→T); calibrating {len(params)} parameters with them")
     fit = fit_parameters(residual, start, params, independent_share=independent_share, options=options,
                          notify=notify)
+    fit = _held_where_started(fit, best, start, read)
     result = params.apply(start, fit.values)
     cost = sum(r.errors(result)["held_out_cost"] for r in replays)
     form_cost = sum(r.errors(best["machine"])["held_out_cost"] for r in replays)
@@ -80,8 +85,34 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
         notify(f"kept the {best['flow_area']} flow area: the curves read from the logs predict the held-out windows "
                f"at {cost / form_cost:.2f} of its cost (they replace the form below {CURVE_GAIN:g})")
         return best
-    return {"flow_area": "curve", "start": start, "params": params, "fit": fit, "machine": result, "curve": curves,
-            "form": best["flow_area"]}
+    return {"flow_area": "curve", "start": start, "prior": best["start"], "params": params, "fit": fit,
+            "machine": result, "curve": curves, "form": best["flow_area"]}
+
+
+def _bounded_by_the_form(best: dict, params: ParameterSet) -> dict[str, float]:
+    """The keys of ``params`` the chosen form's fit left at a bound of their range, each at its prior (the
+    form's start) again: the form pushed them there to make up for a curve it could not follow, so the fit
+    with the curves starts them where the user's file has them, and the held-at-prior rule then compares
+    the bound with the prior, not with itself."""
+    formed = dict(zip(best["params"].keys, best["fit"].values))
+    prior = dict(zip(params.keys, params.priors(best["start"])))
+    return {p.key: float(prior[p.key]) for p in params
+            if p.key in formed and p.estimate(formed[p.key], 0.0).status == AT_A_BOUND}
+
+
+def _held_where_started(fit: Fit, best: dict, start: Machine, read: dict[str, float]) -> Fit:
+    """``fit`` with each parameter it held at a value other than the user's prior saying where that value came
+    from (read from the logs' flows, or the chosen form's calibration): "held at its prior" is the fit's start."""
+    prior = dict(zip(fit.params.keys, fit.params.priors(best["start"])))
+    began = dict(zip(fit.params.keys, fit.params.priors(start)))
+    held = {}
+    for key, why in fit.held.items():
+        if math.isclose(began[key], prior[key], rel_tol=1e-9, abs_tol=0.0):
+            held[key] = why
+        else:
+            source = "read from the logs' flows" if key in read else f"the {best['flow_area']} form's calibration"
+            held[key] = f"{why}; held at {began[key]:.6g}, {source} (the file's prior: {prior[key]:.6g})"
+    return dataclasses.replace(fit, held=held)
 
 
 def curve_report(curves: FlowCurves, form: str, machine: Machine) -> dict:

@@ -24,7 +24,7 @@ from hexsim.errors import InputError
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.plant import hydraulics
-from hexsim.plant.machine import dump, load_machine
+from hexsim.plant.machine import dump, get_key, load_machine
 
 TRUTH = Actuator(area="spool", flow_gain=1.0, k_at=0.95, bulk=1.2e9, v_pl=1.0e-6, mass=44.0, coulomb=(75.0, 52.0),
                  viscous=(2600.0, 1500.0), underlap=4e-6, rounding=8e-6)
@@ -99,6 +99,30 @@ def test_with_the_curve_the_physics_is_not_traded(curve):
     pa, at = _openings(machine, np.array([1.0]))
     assert at[0] / pa[0] == pytest.approx(TRUTH.k_at, abs=0.06)
     assert machine.hydraulics.bulk_modulus == pytest.approx(TRUTH.bulk, rel=0.2)
+
+
+def test_the_report_calls_the_file_s_values_the_priors_and_says_where_a_held_value_came_from(curve):
+    """The curves' fit starts from the sharp form's calibration, yet every row's prior is the built-in file's
+    value (the null mass: the model's), and a parameter held at a value other than that says where the value
+    came from (read from the flows, or the form's fit); none is held at a bound its prior is not at (the form's
+    fit had pushed some there to make up for a curve it could not follow)."""
+    machine, report, _, _ = curve
+    prior = load_machine(None).document()
+    for row in report["parameters"]:
+        try:
+            value = get_key(prior, row["key"])
+        except KeyError:
+            continue
+        if value is not None and row["status"] != "from the logs":
+            assert row["prior"] == pytest.approx(value, rel=1e-12), row
+        if row["status"] == "held at its prior":
+            assert row["value"] == pytest.approx(row["prior"], rel=1e-9) or "held at" in row["why"], row
+            assert not _at_bound(row, row["value"]) or _at_bound(row, row["prior"]), row
+
+
+def _at_bound(row: dict, value: float) -> bool:
+    """Whether ``value`` lies within 0.1 % of the row's range of one of its bounds."""
+    return min(value - row["lower"], row["upper"] - value) < 1e-3 * (row["upper"] - row["lower"])
 
 
 @pytest.mark.parametrize("frequency, amplitude, duration, seed", [(0.3, 0.08, 8.0, 41), (1.0, 0.03, 6.0, 47)])
