@@ -21,7 +21,11 @@ import numpy as np
 
 from hexsim.measured.estimates import AT_A_BOUND
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
-from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves
+from hexsim.measured.flow_curve import (
+    FlowCurves,
+    fit_flow_curves,
+    tank_pressure_from_flows,
+)
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.scoring import WITHIN
 from hexsim.plant.machine import Machine, with_keys, with_valve
@@ -34,6 +38,8 @@ CURVE_REPLACES = ("valve.smooth_area_gain", "valve.overlap_m", "valve.spool_diam
 #: The curves replace the chosen form only if they predict the held-out windows this much better (a form's few
 #: parameters are the simpler answer where the curves gain little).
 CURVE_GAIN = 0.9
+
+TANK = "supply.tank_pressure_Pa"
 
 
 def reaches_budget(replays: list, machine: Machine) -> bool:
@@ -58,7 +64,8 @@ def curve_machine(machine: Machine, curves: FlowCurves) -> Machine:
 def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: dict, tried: list[dict],
                options: FitOptions, independent_share, notify: Callable[[str], None]) -> dict:
     """The chosen form's calibration ``best`` (``flow_area``, ``start``, ``params``, ``fit``, ``machine``) with
-    the valve's curves read from the ``replays``' logs (:class:`hexsim.measured.dynamics.ReplayEvidence`), the
+    the valve's curves read from the ``replays``' logs (:class:`hexsim.measured.dynamics.ReplayEvidence`; at the
+    return line's pressure the flows choose, :func:`~hexsim.measured.flow_curve.tank_pressure_from_flows`), the
     form's other parameters fitted again from there to the calibration's own ``residual`` (``options``,
     ``independent_share``: as the form's fit; those the form's fit left at a bound from their prior again,
     :func:`_bounded_by_the_form`); kept in place of the form if it predicts the held-out windows
@@ -66,10 +73,14 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
     (the :class:`~hexsim.measured.flow_curve.FlowCurves`), ``form`` (the form it started from) and ``prior``
     (the form's start: the user's file, whose values the report calls the priors) when the curves are."""
     params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
-    curves = fit_flow_curves([r.log for r in replays], best["machine"])
     bounds = {p.key: (p.lower, p.upper) for p in params}
-    read = {k: float(np.clip(v, *bounds[k])) for k, v in {"oil.bulk_modulus_Pa": curves.bulk_modulus,
-            "cylinder.dead_volume_cap_m3": curves.pipeline_volume}.items() if k in bounds}
+    logs = [r.log for r in replays]
+    read = {}
+    if TANK in bounds:  # the return line's pressure is the flows' to choose, not the form's (it traded it)
+        read[TANK], _ = tank_pressure_from_flows(logs, best["machine"], *bounds[TANK])
+    curves = fit_flow_curves(logs, with_keys(best["machine"], read))
+    read |= {k: float(np.clip(v, *bounds[k])) for k, v in {"oil.bulk_modulus_Pa": curves.bulk_modulus,
+             "cylinder.dead_volume_cap_m3": curves.pipeline_volume}.items() if k in bounds}
     restart = _bounded_by_the_form(best, params)
     start = with_keys(curve_machine(best["machine"], curves), read | restart)  # the replay fit's start
     notify(f"read the valve's curves from the logs' flows (to {curves.pa.reach:.3g} V on P→A, {curves.at.reach:.3g} V "

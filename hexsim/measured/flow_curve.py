@@ -69,7 +69,7 @@ from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import near_jumps
 from hexsim.plant import hydraulics
 from hexsim.plant.legs import bulk_modulus, leg_params
-from hexsim.plant.machine import Machine
+from hexsim.plant.machine import Machine, with_keys
 from hexsim.plant.params import thin_curve
 
 #: Span [s] of the Savitzky-Golay cubic that smooths the position at the intervals' ends (zero phase; 11 ms,
@@ -432,6 +432,49 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
                      toward_machine, first.prior_strength)
     return dataclasses.replace(second, held_out=first.held_out, held_out_se=first.held_out_se,
                                reached=(float(u_all.min()), float(u_all.max())))
+
+
+#: Return-line pressures tried, as shares of the bracket, where the flows choose it (:func:`tank_pressure_from_flows`).
+TANK_GRID = np.linspace(0.0, 1.0, 7)
+
+
+def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower: float, upper: float
+                             ) -> tuple[float, dict[float, float]]:
+    """The return line's pressure P_t [Pa] within [``lower``, ``upper``] whose flow balance the curves of
+    ``logs`` fit best on ``machine`` (:func:`fit_flow_curves`' system). P_t enters the balance only in the
+    return edges' q(P1 - P_t) (seed eq. 3.4), and not linearly: the curves are fitted at each of
+    :data:`TANK_GRID` across the bracket, with the slope-change penalty the held-out windows chose at the
+    machine's own P_t, the edges allowed to open before null; the smallest rms flow error wins, refined by a
+    parabola through it and its neighbours. A form's calibration trades P_t against the curve it cannot follow
+    (the underlapped independent actuator: 2.7 bar for a true 0, and its A→T curve read under it 17 % wide at
+    10 V); the flows alone do not (their rms 6.0e-9 m^3 at 0 bar, 1.5e-8 at 2 bar). Returns (P_t, {P_t tried:
+    rms [m^3]}). Raises InputError as :func:`fit_flow_curves`."""
+    eff = machine.effects
+    unit = dataclasses.replace(machine, effects=eff.replace(
+        edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
+        edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
+
+    def read(tank: float, weight: float | None) -> FlowCurves:
+        m = with_keys(unit, {"supply.tank_pressure_Pa": tank})
+        samples = [s for log in logs for s in flow_samples(log, m, machine.sensors.sample_skew)]
+        if sum(len(s.displaced) for s in samples) < 100:
+            raise InputError("a flow curve needs at least 100 intervals away from the stroke's ends; the logs have fewer")
+        u_all = np.concatenate([s.u for s in samples])
+        reach = [max(float(np.quantile(w[w > 0], REACH_QUANTILE)) if np.count_nonzero(w > 0) > 50 else 0.0,
+                     MIN_REACH_V) for w in (u_all, -u_all)]
+        return _fit_on(samples, reach, edge_grid(reach[0]), edge_grid(reach[1]), m, weight)
+
+    weight = read(float(np.clip(machine.hydraulics.tank_pressure, lower, upper)), None).weight
+    tried = {float(t): read(float(t), weight).rms for t in lower + TANK_GRID * (upper - lower)}
+    tanks, rms = np.array(list(tried)), np.array(list(tried.values()))
+    best = int(np.argmin(rms))
+    if 0 < best < len(tanks) - 1:  # the parabola's vertex through the best and its neighbours
+        (t0, t1, t2), (r0, r1, r2) = tanks[best - 1:best + 2], rms[best - 1:best + 2]
+        den = (t0 - t1) * (r0 - r2) - (t0 - t2) * (r0 - r1)
+        if den != 0.0:
+            vertex = t0 - 0.5 * ((t0 - t1) ** 2 * (r0 - r2) - (t0 - t2) ** 2 * (r0 - r1)) / den
+            return float(np.clip(vertex, t0, t2)), tried
+    return float(tanks[best]), tried
 
 
 def _opens_before_null(machine: Machine) -> bool:
