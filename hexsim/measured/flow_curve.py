@@ -436,6 +436,10 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
 
 #: Return-line pressures tried, as shares of the bracket, where the flows choose it (:func:`tank_pressure_from_flows`).
 TANK_GRID = np.linspace(0.0, 1.0, 7)
+#: ... and the share by which the best must lower the flows' rms error below the machine's own pressure's to be
+#: taken: where only one edge is open at a time (a valve with a dead band) the return edge's curve absorbs the
+#: pressure, and the rms varies by 0.5 % over the bracket (an underlapped spool's both open edges: by 3x).
+TANK_MARGIN = 0.05
 
 
 def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower: float, upper: float
@@ -445,10 +449,11 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
     return edges' q(P1 - P_t) (seed eq. 3.4), and not linearly: the curves are fitted at each of
     :data:`TANK_GRID` across the bracket, with the slope-change penalty the held-out windows chose at the
     machine's own P_t, the edges allowed to open before null; the smallest rms flow error wins, refined by a
-    parabola through it and its neighbours. A form's calibration trades P_t against the curve it cannot follow
+    parabola through it and its neighbours, if it is :data:`TANK_MARGIN` below the machine's own P_t's (else
+    the flows cannot tell, and the machine's stays). A form's calibration trades P_t against the curve it cannot follow
     (the underlapped independent actuator: 2.7 bar for a true 0, and its A→T curve read under it 17 % wide at
-    10 V); the flows alone do not (their rms 6.0e-9 m^3 at 0 bar, 1.5e-8 at 2 bar). Returns (P_t, {P_t tried:
-    rms [m^3]}). Raises InputError as :func:`fit_flow_curves`."""
+    10 V); the flows alone do not (their rms 6.0e-9 m^3 at 0 bar, 1.5e-8 at 2 bar). Returns (P_t, {P_t tried,
+    the machine's among them: rms [m^3]}). Raises InputError as :func:`fit_flow_curves`."""
     eff = machine.effects
     unit = dataclasses.replace(machine, effects=eff.replace(
         edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
@@ -464,10 +469,14 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
                      MIN_REACH_V) for w in (u_all, -u_all)]
         return _fit_on(samples, reach, edge_grid(reach[0]), edge_grid(reach[1]), m, weight)
 
-    weight = read(float(np.clip(machine.hydraulics.tank_pressure, lower, upper)), None).weight
-    tried = {float(t): read(float(t), weight).rms for t in lower + TANK_GRID * (upper - lower)}
+    own = float(np.clip(machine.hydraulics.tank_pressure, lower, upper))
+    first = read(own, None)
+    tried = {float(t): read(float(t), first.weight).rms for t in lower + TANK_GRID * (upper - lower)}
     tanks, rms = np.array(list(tried)), np.array(list(tried.values()))
     best = int(np.argmin(rms))
+    tried[own] = first.rms
+    if rms[best] > (1.0 - TANK_MARGIN) * first.rms:  # the flows cannot tell: the machine's own
+        return own, tried
     if 0 < best < len(tanks) - 1:  # the parabola's vertex through the best and its neighbours
         (t0, t1, t2), (r0, r1, r2) = tanks[best - 1:best + 2], rms[best - 1:best + 2]
         den = (t0 - t1) * (r0 - r2) - (t0 - t2) * (r0 - r1)
