@@ -104,7 +104,8 @@ def calibrated(name: str, truth: Actuator, out: pathlib.Path, prior) -> pathlib.
     cal_path = out / f"{name}_calibrated.json"
     if not cal_path.exists():
         start = time.perf_counter()
-        machine, report = calibrate(cal_logs, prior)
+        result = calibrate(cal_logs, prior)
+        machine, report = result.machine, result.report
         cal_path.write_text(dump(machine.document()))
         print(f"<!-- {name}: calibrated in {time.perf_counter() - start:.0f} s, flow area "
               f"{report['flow_area']['chosen']} -->", flush=True)

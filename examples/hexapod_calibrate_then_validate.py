@@ -83,7 +83,8 @@ def main() -> None:
     cal_path = out / "calibrated.json"
     if not cal_path.exists():
         start = time.perf_counter()
-        calibrated, report = calibrate([read_log(cal_log, machine=prior)], prior, flow_areas=("smooth", "port"))
+        result = calibrate([read_log(cal_log, machine=prior)], prior, flow_areas=("smooth", "port"))
+        calibrated, report = result.machine, result.report
         cal_path.write_text(dump(calibrated.document()))
         print(f"<!-- calibrated in {time.perf_counter() - start:.0f} s, flow area {report['flow_area']['chosen']} -->",
               flush=True)

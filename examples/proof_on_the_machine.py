@@ -150,7 +150,8 @@ def prove(name: str, runs: int, duration: float, folder: pathlib.Path) -> list[d
     start = time.time()
     prior = load_machine(None)
     logs = [read_log(p, machine=prior) for p in truth.calibration_logs()]
-    cal, report = calibrate(logs, prior)
+    result = calibrate(logs, prior)
+    cal, report = result.machine, result.report
     cal_path = folder / f"{name}_cal.json"
     cal_path.write_text(dump(cal.document()))
     cal = load_machine(cal_path)

@@ -96,7 +96,7 @@ def test_every_package_is_installed():
 MEASURED_FLOORS = (
     {"estimates", "statistics", "measurement", "residuals", "box_lsq"},
     {"parameters", "records", "replay", "acceptance_logs"},
-    {"fitting", "hexapod_replay", "proof"},
+    {"fitting", "hexapod_replay", "proof", "flow_balance"},
     {"scoring", "flow_curve", "friction_id", "steady"},
     {"calibration", "acquisition", "curves", "dynamics", "candidates", "discovery", "identify", "effect_fit"},
     {"reports.calibration", "reports.friction", "reports.validation", "advice"},

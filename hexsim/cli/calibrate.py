@@ -76,9 +76,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     logs = [read_log(path, machine=machine) for path in args.logs]
     held = [read_log(path, machine=machine) for path in args.hold_out]
     print(f"machine: {machine.label}; calibrating on {len(logs)} log(s), {len(held)} held out", flush=True)
-    calibrated, report = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation,
-                                   dynamics=args.dynamics, flow_areas=args.flow_area, jobs=args.jobs,
-                                   notify=lambda text: print(text, file=sys.stderr, flush=True))
+    result = calibrate(logs, machine, held_out=held, cross_validate=not args.no_cross_validation,
+                       dynamics=args.dynamics, flow_areas=args.flow_area, jobs=args.jobs,
+                       notify=lambda text: print(text, file=sys.stderr, flush=True))
+    calibrated, report = result.machine, result.report
     print(table(report))
     worse = report.get("own_budget", {}).get("worse_than_prior", {})
     if worse and not args.keep_worse:

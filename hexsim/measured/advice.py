@@ -51,7 +51,7 @@ def nominal_check(log: MeasurementLog) -> CalibrationAdvice | None:
     off = (err["speed_error_max"] or 0.0) > OFF_SPEED or (err["pressure_error_max_Pa"] or 0.0) > OFF_PRESSURE
     if not off:
         return CalibrationAdvice(False, figures=err)
-    _, report = calibrate([log], log.machine, cross_validate=False, dynamics="never")
+    report = calibrate([log], log.machine, cross_validate=False, dynamics="never").report
     moved = _moved(report)
     what = []
     if err["speed_error_max"]:
@@ -88,8 +88,8 @@ def transient_check(log: MeasurementLog, evidence=None) -> CalibrationAdvice | N
     if log.machine.calibration is not None or log.system != "single-actuator":
         return None
     try:
-        _, report = calibrate([log], log.machine, flow_areas=(log.machine.hydraulics.flow_area,),
-                              cross_validate=False, dynamics="always", evidence=(evidence,) if evidence else ())
+        report = calibrate([log], log.machine, flow_areas=(log.machine.hydraulics.flow_area,),
+                           cross_validate=False, dynamics="always", evidence=(evidence,) if evidence else ()).report
     except (InputError, PhysicsError):  # a log the replay cannot use: validate's own answer stands alone
         return None
     before = report["transients"][0]["before"]["held_out_rms_in_budgets"]

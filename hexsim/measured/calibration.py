@@ -44,6 +44,7 @@ from hexsim.measured.parameters import (
     default_parameters,
     leg_null_parameter,
 )
+from hexsim.measured.records import CalibrationRecord, CalibrationReport, OwnBudget
 from hexsim.measured.replay import command_jumps
 from hexsim.measured.steady import (
     PRESSURE_SIGMA,
@@ -243,10 +244,30 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
     return best, tried
 
 
+@dataclass(frozen=True)
+class Calibration:
+    """What :func:`calibrate` returns: the calibrated ``machine`` (its ``calibration`` block the report without
+    the feature rows, its sources each fitted key's value ± standard error and prior) and the ``report``."""
+
+    machine: Machine
+    report: CalibrationReport
+
+    @property
+    def record(self) -> CalibrationRecord:
+        """The report as a validation reads a calibrated file's block (:class:`CalibrationRecord`)."""
+        return CalibrationRecord.of(self.report)
+
+    @property
+    def own_budget(self) -> OwnBudget | None:
+        """How the calibrated model fits its own logs (:func:`own_budget`); None after a calibration on steady
+        features alone whose logs no window replays."""
+        return self.report.get("own_budget")
+
+
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
               params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
               flow_areas: tuple[str, ...] | None = None, evidence: tuple = (), notify=None,
-              jobs: int = 1) -> tuple[Machine, dict]:
+              jobs: int = 1) -> Calibration:
     """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
     doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
     the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
@@ -258,8 +279,8 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     instead of replaying those logs' nominal again. ``jobs``: processes that evaluate the replays' Jacobians
     (:class:`hexsim.measured.fitting.FitOptions`; the same calibration as one).
 
-    Returns the calibrated machine (its ``calibration`` the report without the feature rows) and the
-    report: per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
+    Returns the :class:`Calibration`: the calibrated machine (its ``calibration`` the report without the feature
+    rows) and the report (:class:`~hexsim.measured.records.CalibrationReport`): per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
     held at its prior: why, and the experiment that would identify it), the correlations of the fitted ones,
     the errors before/after on the fitted features and held-out windows, on each held-out log and
     (``cross_validate``, three or more steady logs) on each log left out of a refit, and the feature rows.
@@ -287,7 +308,7 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
         before, after = predict(ev.feats, machine, ev.loads), predict(ev.feats, best["machine"], ev.loads)
         report["rows"] = [{**f.__dict__, "before": float(b), "after": float(a)}
                           for f, b, a in zip(ev.feats, before, after) if f.log in steady_names]
-    return _with_provenance(best["machine"], machine, report, best["flow_area"], len(logs)), report
+    return Calibration(_with_provenance(best["machine"], machine, report, best["flow_area"], len(logs)), report)
 
 
 def supply_from_logs(logs: list[MeasurementLog], machine: Machine) -> tuple[Machine, dict | None]:
@@ -386,7 +407,8 @@ def leg_null_offsets(replays: list, machine: Machine) -> tuple[Machine, list[dic
     return with_keys(machine, values), rows
 
 
-def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs: list[MeasurementLog]) -> dict:
+def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs: list[MeasurementLog]
+            ) -> CalibrationReport:
     """The calibration's report without the held-out logs, the leave-one-out refits and the feature rows
     (:func:`calibrate` adds them)."""
     fit, calibrated = best["fit"], best["machine"]
@@ -429,7 +451,7 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
 WORSE_THAN_PRIOR = 1.1
 
 
-def own_budget(report: dict) -> dict:
+def own_budget(report: CalibrationReport) -> OwnBudget:
     """Whether the calibrated model reaches its own calibration logs' budget: the worst held-out RMS in
     budgets per channel over the logs' windows after the calibration (``transients`` or ``replayed``),
     ``reached`` when every channel's is within sqrt(:data:`hexsim.measured.scoring.WITHIN`), else

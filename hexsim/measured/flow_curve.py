@@ -48,7 +48,7 @@ inverts the curve, and a wiggle is a bump at every crossing).
 "curve" follows it (:func:`hexsim.plant.params.thin_curve`); beyond the largest command the logs reach, the calibrated
 flow-area form's shape (the prior, scaled to meet the curve there) up to the command range.
 
-Continuity is integrated over short intervals (:func:`flow_samples`), so no measured signal is differentiated
+Continuity is integrated over short intervals (:func:`hexsim.measured.flow_balance.flow_samples`), so no measured signal is differentiated
 and a step's fast pressure jump is as much evidence as a slow motion; 1/E and V_pl/E are two more linear
 unknowns (the compressed volume), held weakly at the machine's.
 """
@@ -60,29 +60,16 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lsim, lti, savgol_filter
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
 from hexsim.measured.box_lsq import box_lsq
+from hexsim.measured.flow_balance import FOLDS, FlowSamples, flow_samples
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.replay import near_jumps
 from hexsim.plant import hydraulics
-from hexsim.plant.legs import bulk_modulus, leg_params
 from hexsim.plant.machine import Machine, with_keys
 from hexsim.plant.params import thin_curve
 
-#: Span [s] of the Savitzky-Golay cubic that smooths the position at the intervals' ends (zero phase; 11 ms,
-#: short against a motion, long against the transducer's sample-to-sample noise).
-WINDOW_S = 0.011
-#: Length [s] of the intervals over which continuity is integrated (:func:`flow_samples`): long against the
-#: position transducer's noise at its ends, short against the motion (each sample's command keeps its own
-#: place on the curve inside it).
-INTERVAL_S = 0.01
-#: Samples this close to either end of the stroke [m] are left out (the stops' forces are not the valve's).
-STOP_MARGIN = 0.002
-#: Contiguous windows per log for the blocked cross-validation of the smoothness weight.
-FOLDS = 5
 #: Weights of the penalty on the curves' slope changes tried, as a share of the flows' robust sum of squares
 #: per unit of the penalty (:func:`_solve`).
 WEIGHTS = (1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
@@ -117,137 +104,6 @@ FLOOR_V = 0.02
 WIGGLE_MARGIN = 0.05
 #: Iterations of the reweighted least squares (robust loss and l1 penalty).
 IRLS_STEPS = 6
-
-
-@dataclass(frozen=True)
-class FlowSamples:
-    """One chamber's flow balance in a log, interval by interval: per sample i of the intervals kept (all (n,)),
-    ``u`` the signed command at the spool [V] (u_v - u_0, through the spool's loop where the machine has one),
-    ``supply`` and ``ret`` the volume [m^3] a full opening pi d x_v,max of the supply and the return edge would
-    pass over the sample's period at the logged pressures (into the chamber positive), ``interval`` the interval
-    it belongs to (0 … k - 1); per interval j (all (k,)) ``displaced`` the volume [m^3] the piston displaced
-    into the chamber over it less the leakage, ``swept_dp`` and ``dead_dp`` the compressed volume's factors:
-    the chamber's swept volume times its pressure's change [m^3 Pa] and that change [Pa] (the dead volume's,
-    cap side; the rod side's dead volume is the machine's, in ``swept_dp``), so that the volume that entered is
-    displaced + swept_dp / E + dead_dp V_pl / E, ``block`` its cross-validation window (0 … :data:`FOLDS` - 1);
-    ``mirror`` True for the rod side (its supply edge opens at -u)."""
-
-    u: np.ndarray
-    supply: np.ndarray
-    ret: np.ndarray
-    interval: np.ndarray
-    displaced: np.ndarray
-    swept_dp: np.ndarray
-    dead_dp: np.ndarray
-    block: np.ndarray
-    mirror: bool
-
-
-def _smooth(x: np.ndarray, rate: float) -> np.ndarray:
-    """The Savitzky-Golay cubic over :data:`WINDOW_S` of ``x`` sampled at ``rate`` [Hz] (zero phase)."""
-    n = max(5, int(round(WINDOW_S * rate)) | 1)
-    return savgol_filter(x, n, 3, mode="interp")
-
-
-def _spool_command(u_v: np.ndarray, time: np.ndarray, machine: Machine) -> np.ndarray:
-    """The signed command at the spool [V]: u_v - u_0 (seed eq. 3.2), through the machine's second-order spool
-    loop where it has one (:class:`hexsim.plant.effects.Effects` ``spool_frequency``)."""
-    u = u_v - machine.hydraulics.null_offset
-    eff = machine.effects
-    if eff.spool_frequency <= 0:
-        return u
-    w = 2.0 * math.pi * eff.spool_frequency
-    return lsim(lti([w * w], [1.0, 2.0 * eff.spool_damping * w, w * w]), u, time - time[0], X0=None)[1]
-
-
-def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> list[FlowSamples]:
-    """The flow balance of a single-actuator ``log`` on ``machine`` in the integral form of continuity (seed eq.
-    3.6, 3.7 integrated over each interval of :data:`INTERVAL_S`: the volume that entered the chamber, from the
-    piston's positions and the chamber's pressures at the interval's ends, equals the valve's flow summed over
-    its samples, each command held over its period as the controller holds it): no derivative of a measured
-    signal, so a step's fast pressure jump is measured as well as a slow motion (the equation error in integral
-    form, Young, Automatica 17(1), 1981). The cap side's (and with a 4-way valve and a logged ``p2_Pa`` the rod
-    side's) :class:`FlowSamples`, the edges' gains those of ``machine``; intervals that come within
-    :data:`STOP_MARGIN` of either end of the stroke are left out. ``skew`` [s], within a sample either way: the
-    state was read that long after its row's command took effect (:mod:`hexsim.measured.acquisition`), so an
-    interval gains that share of the next row's flow and loses it of its first row's (negative: the rows
-    before each end). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
-    hyd, eff = machine.hydraulics, machine.effects
-    rate, cols = log.sample_rate_hz, log.columns
-    dt = 1.0 / rate
-    step = max(1, int(round(INTERVAL_S * rate)))
-    n = (len(log.time) - 1) // step
-    edges = np.arange(n + 1) * step  # sample index of each interval's ends
-    y = _end_positions(log)
-    u = _spool_command(cols["valve_cmd_V"], log.time, machine)
-    p_s = cols["ps_Pa"] if "ps_Pa" in cols else np.full_like(y, hyd.supply_pressure)
-    inside = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN)
-    keep = np.array([inside[a:b + 1].all() for a, b in zip(edges[:-1], edges[1:])], dtype=bool)
-    block = np.minimum((np.arange(n) * FOLDS) // max(n, 1), FOLDS - 1)
-    across = cols["p2_Pa"] if hyd.four_way and "p2_Pa" in cols else p_s  # the leak's far side
-    P = leg_params(hyd, eff)
-    full = P.port_width * hyd.x_v_max
-    samples = np.arange(edges[-1]).reshape(n, step)[keep].ravel()  # the samples of the kept intervals
-    interval = np.repeat(np.arange(int(keep.sum())), step)
-    a, b = edges[:-1][keep], edges[1:][keep]  # each kept interval's ends
-    samples, interval, weight = _skewed(samples, interval, a, b, float(np.clip(skew * rate, -0.999, 0.999)),
-                                        len(log.time))
-
-    def side(p_col: str, area: float, volume_at, k_in: float, k_out: float, mirror: bool) -> FlowSamples:
-        p = cols[p_col]
-        mid = 0.5 * (p[samples] + p[samples + 1])  # the period's mean pressure at each held command
-        p_supply = 0.5 * (p_s[samples] + p_s[samples + 1])
-        supply = k_in * full * hydraulics.edge_flow(1.0, p_supply - mid, hyd) * dt * weight
-        ret = -k_out * full * hydraulics.edge_flow(1.0, mid - hyd.tank_pressure, hyd) * dt * weight
-        p_mid = 0.5 * (p[a] + p[b])
-        air = np.array([hyd.bulk_modulus / bulk_modulus(float(v), P) for v in p_mid]) if eff.air_fraction > 0 else 1.0
-        dp = (p[b] - p[a]) * air  # entrained air: the effective bulk modulus's share
-        displaced = area * (y[b] - y[a])
-        if not mirror and eff.leakage:
-            starts = np.flatnonzero(np.r_[True, np.diff(interval) != 0])
-            displaced -= eff.leakage * np.add.reduceat((across - p)[samples] * dt * weight, starts)
-        return FlowSamples(u[samples], supply, ret, interval, displaced, volume_at(0.5 * (y[a] + y[b])) * dp,
-                           np.zeros_like(dp) if mirror else dp, block[keep], mirror)
-
-    out = [side("p1_Pa", hyd.area_bottom, lambda ym: np.maximum(ym, 0.0) * hyd.area_bottom,
-                eff.edge_gain_pa, eff.edge_gain_at, False)]
-    if hyd.four_way and "p2_Pa" in cols:
-        out.append(side("p2_Pa", -hyd.area_rod,
-                        lambda ym: np.maximum(log.stroke_m - ym, 0.0) * hyd.area_rod + hyd.pipeline_volume_rod,
-                        eff.edge_gain_pb, eff.edge_gain_bt, True))
-    return out
-
-
-def _end_positions(log: MeasurementLog) -> np.ndarray:
-    """(n,) [m]: the piston's positions as the intervals' ends read them, the transducer's noise smoothed (zero
-    phase, :func:`_smooth`) except where the smoothing would reach over the kink of a command's jump (the raw
-    position there). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
-    if log.system != "single-actuator":
-        raise InputError(f"{log.path.name}: a flow curve is read from single-actuator logs (this one is {log.system})")
-    if "p1_Pa" not in log.columns:
-        raise InputError(f"{log.path.name}: a flow curve needs the chamber pressure (column p1_Pa)")
-    y = _smooth(log.columns["pos_m"], log.sample_rate_hz)
-    kinked = near_jumps(log, WINDOW_S)
-    y[kinked] = log.columns["pos_m"][kinked]
-    return y
-
-
-def _skewed(samples: np.ndarray, interval: np.ndarray, a: np.ndarray, b: np.ndarray, share: float, n: int
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The samples of the intervals from rows ``a`` to ``b`` (each (k,)) with each sample's weight in its
-    interval's flow, when the state was read ``share`` of a row after its command took effect (:func:`flow_samples`):
-    an interval gains that share of the row at its end and loses it of its first row (negative: of the rows before
-    each). ``samples`` and ``interval`` (m,) as they were, the extra rows (clipped to the ``n`` samples' range)
-    sorted in; returns (samples, interval, weight)."""
-    weight = np.ones(len(samples))
-    if share == 0.0:
-        return samples, interval, weight
-    gained, lost = (b, a) if share > 0 else (a - 1, b - 1)
-    ends = np.clip(np.concatenate([gained, lost]), 0, n - 2)
-    ids = np.concatenate([interval, np.tile(np.arange(len(a)), 2)])
-    order = np.argsort(ids, kind="stable")
-    weight = np.concatenate([weight, np.full(len(a), abs(share)), np.full(len(a), -abs(share))])
-    return np.concatenate([samples, ends])[order], ids[order], weight[order]
 
 
 def edge_grid(reach: float) -> np.ndarray:
@@ -409,16 +265,7 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
 
     Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 100 intervals
     away from the stops remain."""
-    eff = machine.effects
-    unit = dataclasses.replace(machine, effects=eff.replace(
-        edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
-        edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
-    samples = [s for log in logs for s in flow_samples(log, unit, machine.sensors.sample_skew)]
-    if sum(len(s.displaced) for s in samples) < 100:
-        raise InputError("a flow curve needs at least 100 intervals away from the stroke's ends; the logs have fewer")
-    u_all = np.concatenate([s.u for s in samples])
-    reach = [max(float(np.quantile(w[w > 0], REACH_QUANTILE)) if np.count_nonzero(w > 0) > 50 else 0.0,
-                 MIN_REACH_V) for w in (u_all, -u_all)]
+    samples, reach, u_all = _balance(logs, _unit_gains(machine), machine.sensors.sample_skew)
     grids = (edge_grid(reach[0]), edge_grid(reach[1]))
     opened = _fit_on(samples, reach, *grids, machine, toward_machine=toward_machine)
     shut = _fit_on(samples, reach, *(g[g >= 0.0] for g in grids), machine, toward_machine=toward_machine)
@@ -454,19 +301,11 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
     (the underlapped independent actuator: 2.7 bar for a true 0, and its A→T curve read under it 17 % wide at
     10 V); the flows alone do not (their rms 6.0e-9 m^3 at 0 bar, 1.5e-8 at 2 bar). Returns (P_t, {P_t tried,
     the machine's among them: rms [m^3]}). Raises InputError as :func:`fit_flow_curves`."""
-    eff = machine.effects
-    unit = dataclasses.replace(machine, effects=eff.replace(
-        edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
-        edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
+    unit = _unit_gains(machine)
 
     def read(tank: float, weight: float | None) -> FlowCurves:
         m = with_keys(unit, {"supply.tank_pressure_Pa": tank})
-        samples = [s for log in logs for s in flow_samples(log, m, machine.sensors.sample_skew)]
-        if sum(len(s.displaced) for s in samples) < 100:
-            raise InputError("a flow curve needs at least 100 intervals away from the stroke's ends; the logs have fewer")
-        u_all = np.concatenate([s.u for s in samples])
-        reach = [max(float(np.quantile(w[w > 0], REACH_QUANTILE)) if np.count_nonzero(w > 0) > 50 else 0.0,
-                     MIN_REACH_V) for w in (u_all, -u_all)]
+        samples, reach, _ = _balance(logs, m, machine.sensors.sample_skew)
         return _fit_on(samples, reach, edge_grid(reach[0]), edge_grid(reach[1]), m, weight)
 
     own = float(np.clip(machine.hydraulics.tank_pressure, lower, upper))
@@ -484,6 +323,28 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
             vertex = t0 - 0.5 * ((t0 - t1) ** 2 * (r0 - r2) - (t0 - t2) ** 2 * (r0 - r1)) / den
             return float(np.clip(vertex, t0, t2)), tried
     return float(tanks[best]), tried
+
+
+def _unit_gains(machine: Machine) -> Machine:
+    """``machine`` with unit P→A and A→T gains (the curves carry them), a 4-way valve's rod-side gains relative."""
+    eff = machine.effects
+    return dataclasses.replace(machine, effects=eff.replace(
+        edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
+        edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
+
+
+def _balance(logs: list[MeasurementLog], machine: Machine, skew: float
+             ) -> tuple[list[FlowSamples], list[float], np.ndarray]:
+    """The logs' flow balance on ``machine`` (:func:`hexsim.measured.flow_balance.flow_samples`), each edge's
+    reach [V] (P→A, A→T: :data:`REACH_QUANTILE` of the commands that open it, at least :data:`MIN_REACH_V`) and
+    every sample's command. Raises InputError if fewer than 100 intervals away from the stops remain."""
+    samples = [s for log in logs for s in flow_samples(log, machine, skew)]
+    if sum(len(s.displaced) for s in samples) < 100:
+        raise InputError("a flow curve needs at least 100 intervals away from the stroke's ends; the logs have fewer")
+    u_all = np.concatenate([s.u for s in samples])
+    reach = [max(float(np.quantile(w[w > 0], REACH_QUANTILE)) if np.count_nonzero(w > 0) > 50 else 0.0,
+                 MIN_REACH_V) for w in (u_all, -u_all)]
+    return samples, reach, u_all
 
 
 def _opens_before_null(machine: Machine) -> bool:

@@ -43,6 +43,53 @@ class EstimateRow(TypedDict, total=False):
     why: str
 
 
+class ParameterRow(EstimateRow, total=False):
+    """One parameter of a calibration report (:func:`hexsim.measured.calibration.calibrate`): its estimate with
+    ``prior`` (the machine file's value before calibration), ``bounds_source`` (where its bracket comes from)
+    and ``experiment`` (what would identify it)."""
+
+    prior: float
+    bounds_source: str
+    experiment: str
+
+
+class OwnBudget(TypedDict, total=False):
+    """How the calibrated model fits its own logs (:func:`hexsim.measured.calibration.own_budget`): ``reached``
+    (every channel's held-out RMS within 1.4 budgets), the worst log's held-out RMS per channel in budgets,
+    the channels ``short`` of the budget, those ``worse_than_prior`` (channel -> [prior's, calibrated's]) and,
+    where it is short, the ``sentence`` the report prints."""
+
+    reached: bool
+    held_out_rms_in_budgets: dict[str, float]
+    short: dict[str, float]
+    worse_than_prior: dict[str, list[float]]
+    sentence: str
+
+
+class CalibrationReport(TypedDict, total=False):
+    """A calibration's report (:func:`hexsim.measured.calibration.calibrate`; a calibrated machine file's
+    ``calibration`` block is it without ``rows``); docs/calibration.md describes the fields. Errors per channel
+    are RMS in budgets (transients) or in the features' units (steady motions)."""
+
+    machine: str  # the prior's label
+    system: str  # "single-actuator" | "hexapod": the logs'
+    system_note: str  # where the calibrated file's kind differs from the prior's
+    logs: list[str]
+    method: str
+    weights: dict
+    parameters: list[ParameterRow]
+    correlation: dict  # "keys" of the fitted parameters, their "matrix"
+    flow_area: dict  # the form chosen, each tried with its held-out cost, the curves read from the flows
+    transients: list[dict]  # per replayed log: "before" and "after" (held-out RMS in budgets, budget)
+    replayed: list[dict]  # a steady calibration's logs replayed in windows
+    own_budget: OwnBudget
+    acquisition: dict  # how the accelerometer sampled, from the logs' timing
+    held_out: dict  # the held-out logs' errors, prior and calibrated
+    leave_one_log_out: list[dict]
+    fit: dict  # the steady features' errors "before" and "after"
+    rows: list[dict]  # the steady features, each with its error before and after
+
+
 class AddedEffect(TypedDict):
     """An effect the identification accepted: the candidate's name, the hexapod leg it acts on alone (None:
     every leg, or the single actuator) and its parameters' estimates by name."""

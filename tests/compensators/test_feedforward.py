@@ -36,7 +36,7 @@ def machine(tmp_path_factory):
     logs = [write(motion(TRUTH, 8.0, 0.5, 0.06, np.random.default_rng(11)), folder / "a.csv", "calibration"),
             write(motion(TRUTH, 8.0, 1.0, 0.02, np.random.default_rng(12)), folder / "b.csv", "calibration")]
     prior = load_machine(None)
-    calibrated, _ = calibrate([read_log(log, machine=prior) for log in logs], prior, flow_areas=("smooth", "port"))
+    calibrated = calibrate([read_log(log, machine=prior) for log in logs], prior, flow_areas=("smooth", "port")).machine
     path = folder / "calibrated.json"
     path.write_text(dump(calibrated.document()))
     return path

@@ -18,7 +18,7 @@ import pytest
 
 from hexsim.measured.acquisition import fit_timing
 from hexsim.measured.dynamics import ReplayEvidence
-from hexsim.measured.flow_curve import flow_samples
+from hexsim.measured.flow_balance import flow_samples
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import sampled
 from hexsim.plant.machine import load_machine, with_keys, with_valve

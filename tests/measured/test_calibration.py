@@ -59,7 +59,8 @@ def test_calibration_recovers_a_machine_off_its_file_and_predicts_held_out_comma
     truth = TRUTHS[case]
     fit = _logs(truth, tmp_path, (2.0, 4.0, 7.0))
     held = _logs(truth, tmp_path, (3.0, 5.5), seed=4)
-    calibrated, report = calibrate(fit, NOMINAL, held_out=held, cross_validate=False)
+    result = calibrate(fit, NOMINAL, held_out=held, cross_validate=False)
+    calibrated, report = result.machine, result.report
     rows = {r["key"]: r for r in report["parameters"]}
     for key, value in _truth_values(truth).items():
         assert rows[key]["status"] == ("at its physical limit" if key == "supply.tank_pressure_Pa" and value == 0
@@ -91,7 +92,8 @@ def calibrated_rig(tmp_path_factory):
     """The first machine of TRUTHS calibrated on its experiments at 2, 4 and 7 V (steady features)."""
     truth = TRUTHS["valve, edges, supply, tank, friction"]
     folder = tmp_path_factory.mktemp("rig")
-    calibrated, report = calibrate(_logs(truth, folder, (2.0, 4.0, 7.0)), NOMINAL, cross_validate=False)
+    result = calibrate(_logs(truth, folder, (2.0, 4.0, 7.0)), NOMINAL, cross_validate=False)
+    calibrated, report = result.machine, result.report
     return truth, calibrated, report, folder
 
 
@@ -156,7 +158,7 @@ def test_the_discovery_reads_a_4_way_cylinders_leak_and_edge_in_the_chambers_the
 def test_what_one_command_cannot_separate_is_held_at_its_prior_with_the_experiment_that_would(tmp_path):
     """At one command the speed fixes the opening w (x_v - O_l), not the flow gain and the overlap apart."""
     truth = TRUTHS["valve, edges, supply, tank, friction"]
-    _, report = calibrate(_logs(truth, tmp_path, (4.0,)), NOMINAL, cross_validate=False)
+    report = calibrate(_logs(truth, tmp_path, (4.0,)), NOMINAL, cross_validate=False).report
     held = {r["key"]: r for r in report["parameters"] if r["status"] == "held at its prior"}
     assert held, report["parameters"]
     assert {"valve.overlap_m", "valve.rated_flow_m3ps", "valve.null_offset_V"} & set(held)
@@ -166,7 +168,7 @@ def test_what_one_command_cannot_separate_is_held_at_its_prior_with_the_experime
 
 def test_a_fit_at_a_bound_is_reported_as_a_hint(tmp_path):
     truth = Rig(supply=36e5)  # 20 % under the file's 44.5 bar: outside the ±10 % bracket
-    _, report = calibrate(_logs(truth, tmp_path, (2.0, 5.0)), NOMINAL, cross_validate=False)
+    report = calibrate(_logs(truth, tmp_path, (2.0, 5.0)), NOMINAL, cross_validate=False).report
     row = next(r for r in report["parameters"] if r["key"] == "supply.pressure_Pa")
     assert row["status"] == "at a bound" and row["value"] == pytest.approx(0.9 * 44.5e5) and "lacks" in row["why"]
 
@@ -243,8 +245,8 @@ def test_validate_says_calibrate_first_when_the_nominal_is_visibly_off_a_constan
     assert "calibrate first" in check.sentence and "valve.edge_gain_PB" in check.sentence
     assert "supply.tank_pressure_Pa 0 → " in check.sentence
     assert check.as_dict()["sentence"] == check.sentence and check.as_dict()["moved"] == list(check.moved)
-    calibrated, _ = calibrate([read_log(p, machine=NOMINAL) for p in sorted(DATA.glob("cyl_*V_s1_p*.csv"))], NOMINAL,
-                              cross_validate=False)
+    calibrated = calibrate([read_log(p, machine=NOMINAL) for p in sorted(DATA.glob("cyl_*V_s1_p*.csv"))], NOMINAL,
+                           cross_validate=False).machine
     assert nominal_check(read_log(DATA / "cyl_1V_s2_pB.csv", machine=calibrated)) is None  # calibrated: judged as is
 
 
@@ -263,7 +265,8 @@ def test_a_valve_curve_as_a_table_is_calibrated_point_by_point_and_predicts_betw
            for v in (2.0, 4.0, 7.0)]
     held = [read_log(experiment(truth, v, tmp_path, f"held_{v:g}V", np.random.default_rng(6)), machine=table_machine)
             for v in (3.0, 5.5)]
-    calibrated, report = calibrate(fit, table_machine, held_out=held, cross_validate=False)
+    result = calibrate(fit, table_machine, held_out=held, cross_validate=False)
+    calibrated, report = result.machine, result.report
     rows = {r["key"]: r for r in report["parameters"]}
     for i, (_, f) in enumerate(curve[:3]):
         assert rows[f"valve.opening_table[{i}]"]["value"] == pytest.approx(f, abs=0.004)
@@ -293,7 +296,7 @@ def test_a_3_way_vertical_leg_calibrates_and_names_the_weight_friction_trade(tmp
         run = hexsim.simulate(hexsim.RunConfig(make_scenario(f"valve:{valve}"), hexsim.Machine(hydraulics=truth)))
         write_log(tmp_path / f"log{volts:g}.csv", run, noise=np.random.default_rng(1))
         logs.append(read_log(tmp_path / f"log{volts:g}.csv"))
-    _, report = calibrate(logs, load_machine(None), cross_validate=False)
+    report = calibrate(logs, load_machine(None), cross_validate=False).report
     rows = {r["key"]: r for r in report["parameters"]}
     assert rows["load.mass_kg"]["prior"] == pytest.approx(40.0)
     assert rows["supply.pressure_Pa"]["value"] == pytest.approx(66e5, abs=0.1e5)
@@ -314,7 +317,8 @@ def test_a_calibration_worse_than_its_prior_on_its_own_logs_writes_nothing(tmp_p
         {"before": {"held_out_rms_in_budgets": {"position": 2.05, "p1": 3.0}},
          "after": {"held_out_rms_in_budgets": {"position": 4.12, "p1": 3.1}}}]})
     assert own["worse_than_prior"] == {"position": [2.05, 4.12]} and not own["reached"]
-    monkeypatch.setattr(calibration, "calibrate", lambda logs, machine, **_: (machine, {"own_budget": own}))
+    monkeypatch.setattr(calibration, "calibrate",
+                        lambda logs, machine, **_: calibration.Calibration(machine, {"own_budget": own}))
     monkeypatch.setattr(reports, "table", lambda report: "")
     log = str(pathlib.Path(__file__).parents[2] / "examples" / "data" / "servo_cylinder" / "cyl_1V_s1_pA.csv")
     out = tmp_path / "cal.json"

@@ -21,8 +21,15 @@ from independent_actuator import Actuator, _pack, motion, spool_edge, write
 
 from hexsim.cli import main
 from hexsim.errors import InputError
-from hexsim.measured.calibration import calibrate
+from hexsim.measured.calibration import Calibration, calibrate
+from hexsim.measured.estimates import STATUSES
 from hexsim.measured.measurement import read_log
+from hexsim.measured.records import (
+    CalibrationRecord,
+    CalibrationReport,
+    OwnBudget,
+    ParameterRow,
+)
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import dump, get_key, load_machine
 
@@ -42,7 +49,8 @@ def curve(tmp_path_factory):
     logs = [write(motion(TRUTH, 8.0, 0.5, 0.06, np.random.default_rng(11)), folder / "slow.csv", "0.5 Hz, 60 mm"),
             write(motion(TRUTH, 6.0, 2.0, 0.015, np.random.default_rng(12)), folder / "fast.csv", "2 Hz, 15 mm")]
     prior = load_machine(None)
-    machine, report = calibrate([read_log(log, machine=prior) for log in logs], prior, flow_areas=("sharp", "curve"))
+    result = calibrate([read_log(log, machine=prior) for log in logs], prior, flow_areas=("sharp", "curve"))
+    machine, report = result.machine, result.report
     path = folder / "calibrated.json"
     path.write_text(dump(machine.document()))
     return machine, report, path, folder
@@ -59,6 +67,26 @@ def test_the_curve_read_from_the_flows_predicts_the_held_out_windows_far_better_
     assert area["held_out_cost"] < 0.2 * costs["sharp"], costs
     own = report["own_budget"]["held_out_rms_in_budgets"]
     assert own["position"] < 2.0 and own["p1"] < 2.0, own
+
+
+def test_the_report_holds_only_declared_fields_and_the_file_carries_it(curve):
+    """The report's fields, its parameter rows' and its own-budget's are those the typed records declare
+    (:class:`~hexsim.measured.records.CalibrationReport`, ``ParameterRow``, ``OwnBudget``); the written file's
+    calibration block is the report without the feature rows, and reads back as the same record."""
+    machine, report, path, _ = curve
+
+    def keys(typed) -> set[str]:
+        return set(typed.__required_keys__ | typed.__optional_keys__)
+
+    assert set(report) <= keys(CalibrationReport), set(report) - keys(CalibrationReport)
+    for row in report["parameters"]:
+        assert set(row) <= keys(ParameterRow) and row["status"] in STATUSES, row
+    assert set(report["own_budget"]) <= keys(OwnBudget) and report["own_budget"]["reached"] in (True, False)
+    assert set(load_machine(path).calibration) == set(report) - {"rows"}
+    record = Calibration(machine, report).record
+    again = CalibrationRecord.of(load_machine(path).calibration)
+    assert {k: e.value for k, e in record.estimates.items()} == {k: e.value for k, e in again.estimates.items()}
+    assert record.curve_commands_V == again.curve_commands_V is not None
 
 
 def _openings(machine, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -76,8 +76,8 @@ def calibrated(tmp_path_factory):
              "null_offset": write(motion(_machine(null_leg=NULL_LEG), 5.0, _other_motion, np.random.default_rng(4)),
                                   folder / "null_offset.csv", "surge, heave and yaw; one leg's valve null drifted")}
     prior = load_machine(None)
-    machine, report = calibrate([read_log(paths["calibration"], machine=prior)], prior,
-                                flow_areas=("smooth", "port"))
+    result = calibrate([read_log(paths["calibration"], machine=prior)], prior, flow_areas=("smooth", "port"))
+    machine, report = result.machine, result.report
     return paths, machine, report
 
 

@@ -38,7 +38,8 @@ def calibrated(tmp_path_factory):
     folder = tmp_path_factory.mktemp("transients")
     log = write(motion(TRUTH, 8.0, 0.5, 0.06, np.random.default_rng(11)), folder / "calibration.csv", "calibration")
     prior = load_machine(None)
-    machine, report = calibrate([read_log(log, machine=prior)], prior, flow_areas=("smooth", "port"))
+    result = calibrate([read_log(log, machine=prior)], prior, flow_areas=("smooth", "port"))
+    machine, report = result.machine, result.report
     path = folder / "calibrated.json"
     path.write_text(dump(machine.document()))
     return path, report, folder
