@@ -460,6 +460,7 @@ def own_budget(report: CalibrationReport) -> OwnBudget:
     as the model's floor (:func:`hexsim.measured.scoring.model_floor`) and judges effects against;
     ``worse_than_prior`` (channel -> [prior's, calibrated's] budgets): the channels it misses by more than
     :data:`WORSE_THAN_PRIOR` times what the prior missed them by on the same windows."""
+    from hexsim.measured.dynamics import worst_windows_text
     from hexsim.measured.scoring import WITHIN
 
     def worst_of(which: str) -> dict[str, float]:
@@ -480,7 +481,8 @@ def own_budget(report: CalibrationReport) -> OwnBudget:
                 f"{ch} {v:.3g}" for ch, v in short.items()) + f" budgets (reached: within {math.sqrt(WITHIN):.2g}). "
             "What it leaves is model form the calibration cannot fit (a valve curve between the forms, a dynamic "
             "the model lacks): hexsim validate counts it as this machine's floor and judges effects against it; "
-            "small effects on this machine are not resolved below it.")
+            "small effects on this machine are not resolved below it. " + worst_windows_text(
+                [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t])).strip()
     return out
 
 

@@ -43,6 +43,8 @@ from hexsim.plant.machine import Machine
 #: Fit windows replayed per log at most (spread over the log): a fit's cost stays bounded for long logs;
 #: the held-out windows are all scored.
 MAX_FIT_WINDOWS = 16
+#: Held-out windows of largest cost an own-fit row names (:meth:`ReplayEvidence.errors`).
+WORST_WINDOWS = 3
 
 
 @dataclass
@@ -132,11 +134,36 @@ class ReplayEvidence:
         return n_eff / n if n else 1.0
 
     def errors(self, machine: Machine) -> dict:
-        """Held-out RMS per channel in budgets (the windows not fitted) and each channel's budget."""
+        """Held-out RMS per channel in budgets (the windows not fitted), each channel's budget and, for a
+        single actuator's windows, the :data:`WORST_WINDOWS` held-out windows of largest cost (``worst_windows``:
+        start [s], share of the held-out cost, the valve command's range [V] in it)."""
         p = self.problem
         scored = score(p, p.simulate(self.model(machine)), self.budget)
-        return {"log": str(self.log.path), "windows_fitted": int(len(p.fit_rows)),
-                "windows_held_out": int(len(p.test_rows)),
-                "held_out_rms_in_budgets": {ch: float(np.sqrt(v)) for ch, v in within_budget(scored, self.budget).items()},
-                "held_out_cost": float(np.sum(scored.window_cost[p.test_rows])),
-                "budget": {ch: float(b) for ch, b in self.budget.total.items()}}
+        cost = scored.window_cost
+        out = {"log": str(self.log.path), "windows_fitted": int(len(p.fit_rows)),
+               "windows_held_out": int(len(p.test_rows)),
+               "held_out_rms_in_budgets": {ch: float(np.sqrt(v)) for ch, v in within_budget(scored, self.budget).items()},
+               "held_out_cost": float(np.sum(cost[p.test_rows])),
+               "budget": {ch: float(b) for ch, b in self.budget.total.items()}}
+        if p.windowed and out["held_out_cost"] > 0:
+            u = p.windows.take(self.log.columns["valve_cmd_V"])
+            out["worst_windows"] = [{"start_s": float(self.log.time[p.windows.starts[i]]),
+                                     "share": float(cost[i]) / out["held_out_cost"],
+                                     "command_V": [float(u[i].min()), float(u[i].max())]}
+                                    for i in p.test_rows[np.argsort(cost[p.test_rows])[::-1][:WORST_WINDOWS]]]
+        return out
+
+
+def worst_windows_text(errors: list[dict]) -> str:
+    """Where the calibrated model misses its own logs most, one sentence ("" where no log has windows): the
+    log of largest held-out cost among ``errors`` (:meth:`ReplayEvidence.errors` rows) and its worst windows,
+    their start, the valve command's range and their share of that log's held-out cost."""
+    rows = [e for e in errors if e.get("worst_windows")]
+    if not rows:
+        return ""
+    worst = max(rows, key=lambda e: e["held_out_cost"])
+    windows = worst["worst_windows"]
+    where = ", ".join(f"{w['start_s']:.2f} s ({w['command_V'][0]:.3g}…{w['command_V'][1]:.3g} V)" for w in windows)
+    share = sum(w["share"] for w in windows)
+    return (f"Most of it is in {worst['log'].rsplit('/', 1)[-1]}'s held-out windows from {where}: {share:.0%} of "
+            f"that log's held-out cost in {len(windows)} of its {worst['windows_held_out']} windows.")

@@ -252,8 +252,9 @@ def test_an_inclined_heavier_load_is_named_not_calibrated_out_by_the_sensors(cal
 
 def test_a_calibration_that_cannot_reach_its_own_logs_budget_says_so(calibrated, capsys):
     """Told to use only the quadratic area (3.11 at every opening) on a port-limited spool, the calibration
-    cannot follow its own log: the report says which channels are short of the budget and by how much, and
-    what that means for a validation (the model's floor), on the terminal too. The built-in file it started from
+    cannot follow its own log: the report says which channels are short of the budget and by how much, what
+    that means for a validation (the model's floor) and where it misses most (the worst three held-out windows
+    hold more than their share of the cost), on the terminal too. The built-in file it started from
     predicted those windows better, so the calibrated file is not written: the channel named with both figures,
     exit 2."""
     _, _, folder = calibrated
@@ -262,6 +263,9 @@ def test_a_calibration_that_cannot_reach_its_own_logs_budget_says_so(calibrated,
                  str(out_file)]) == 2
     out, err = capsys.readouterr()
     assert "does not reach its own logs' budget: held-out position" in out, out
+    where = re.search(r"Most of it is in calibration\.csv's held-out windows from .*: (\d+)% of that log's held-out "
+                      r"cost in 3 of its (\d+) windows", out)
+    assert where and int(where[2]) > 3 and int(where[1]) > 3 / int(where[2]) * 100, out  # where it misses, named
     prior, after = map(float, re.search(r"position ([\d.e+]+) → ([\d.e+]+)", err).groups())
     assert after > 10.0 and after > 1.1 * prior and "nothing written" in err and not out_file.exists(), err
 
