@@ -280,8 +280,9 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     (:class:`hexsim.measured.fitting.FitOptions`; the same calibration as one).
 
     Returns the :class:`Calibration`: the calibrated machine (its ``calibration`` the report without the feature
-    rows) and the report (:class:`~hexsim.measured.records.CalibrationReport`): per parameter prior, value, standard error, bounds and their source, status (fitted, at a bound,
-    held at its prior: why, and the experiment that would identify it), the correlations of the fitted ones,
+    rows) and the report (:class:`~hexsim.measured.records.CalibrationReport`): per parameter prior, value,
+    standard error, bounds and their source, status (fitted, at a bound, held at its prior: why, and the
+    experiment that would identify it), the correlations of the fitted ones,
     the errors before/after on the fitted features and held-out windows, on each held-out log and
     (``cross_validate``, three or more steady logs) on each log left out of a refit, and the feature rows.
     Raises InputError for a log that is not evidence of either kind, or an unknown ``dynamics``."""

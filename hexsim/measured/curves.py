@@ -5,7 +5,7 @@ of them (a rounded metering edge meeting a port narrower than the perimeter, edg
 what a form cannot follow becomes structure in every later residual, and a compensator that inverts it jumps
 where the true curve bends (docs/compensation.md). When the chosen form misses its own logs' budget (or the
 user asks for it, ``--flow-area …,curve``), :func:`with_curve` reads each edge's curve from the logs' flows
-(:func:`hexsim.measured.flow_curve.fit_flow_curves`), puts it in the machine file (flow area ``curve``, the
+(:func:`hexsim.measured.flow_curve.fit_flow_curves`, at the return line's pressure the flows choose), puts it in the machine file (flow area ``curve``, the
 calibrated form beyond the commands the logs reach), fits the form's other parameters (less
 :data:`CURVE_REPLACES`) again to the replays from there, and keeps it where it predicts the held-out windows
 :data:`CURVE_GAIN` better than the form.
@@ -39,6 +39,7 @@ CURVE_REPLACES = ("valve.smooth_area_gain", "valve.overlap_m", "valve.spool_diam
 #: parameters are the simpler answer where the curves gain little).
 CURVE_GAIN = 0.9
 
+#: The return line's pressure, read from the flows before the curves (:func:`with_curve`).
 TANK = "supply.tank_pressure_Pa"
 
 

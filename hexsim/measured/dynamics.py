@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import pathlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,5 +166,5 @@ def worst_windows_text(errors: list[dict]) -> str:
     windows = worst["worst_windows"]
     where = ", ".join(f"{w['start_s']:.2f} s ({w['command_V'][0]:.3g}…{w['command_V'][1]:.3g} V)" for w in windows)
     share = sum(w["share"] for w in windows)
-    return (f"Most of it is in {worst['log'].rsplit('/', 1)[-1]}'s held-out windows from {where}: {share:.0%} of "
+    return (f"Most of it is in {pathlib.Path(worst['log']).name}'s held-out windows from {where}: {share:.0%} of "
             f"that log's held-out cost in {len(windows)} of its {worst['windows_held_out']} windows.")
