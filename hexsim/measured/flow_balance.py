@@ -1,6 +1,6 @@
 """The flow balance of a valve-controlled cylinder's log, interval by interval (seed eq. 3.6, 3.7 integrated):
-what :mod:`hexsim.measured.flow_curve` reads each valve edge's curve from, and the log's timing
-(:mod:`hexsim.measured.acquisition`) is judged on.
+what :mod:`hexsim.measured.flow_curve` reads each valve edge's curve from, with the sensors' skew the
+acquisition read (:mod:`hexsim.measured.acquisition`) applied at the intervals' ends.
 
 Over each interval of :data:`INTERVAL_S` the volume that entered the chamber (from the piston's positions and the
 chamber's pressures at the interval's ends) equals the valve's flow summed over its samples, each command held
@@ -34,6 +34,7 @@ INTERVAL_S = 0.01
 STOP_MARGIN = 0.002
 #: Contiguous windows per log for the blocked cross-validation of the smoothness weight.
 FOLDS = 5
+
 
 @dataclass(frozen=True)
 class FlowSamples:
