@@ -282,7 +282,7 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
 
 
 #: Return-line pressures tried, as shares of the bracket, where the flows choose it (:func:`tank_pressure_from_flows`).
-TANK_GRID = np.linspace(0.0, 1.0, 7)
+TANK_GRID = np.linspace(0.0, 1.0, 5)
 #: ... and the share by which the best must lower the flows' rms error below the machine's own pressure's to be
 #: taken: where only one edge is open at a time (a valve with a dead band) the return edge's curve absorbs the
 #: pressure, and the rms varies by 0.5 % over the bracket (an underlapped spool's both open edges: by 3x).
