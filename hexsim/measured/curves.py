@@ -83,7 +83,7 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
     read |= {k: float(np.clip(v, *bounds[k])) for k, v in {"oil.bulk_modulus_Pa": curves.bulk_modulus,
              "cylinder.dead_volume_cap_m3": curves.pipeline_volume}.items() if k in bounds}
     restart = _bounded_by_the_form(best, params)
-    start = with_keys(curve_machine(best["machine"], curves), read | restart)  # the replay fit's start
+    start = with_keys(curve_machine(best["machine"], curves), restart | read)  # the replay fit's start
     notify(f"read the valve's curves from the logs' flows (to {curves.pa.reach:.3g} V on P→A, {curves.at.reach:.3g} V "
            f"on A→T); calibrating {len(params)} parameters with them")
     fit = fit_parameters(residual, start, params, independent_share=independent_share, options=options,
@@ -104,8 +104,9 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
 def _bounded_by_the_form(best: dict, params: ParameterSet) -> dict[str, float]:
     """The keys of ``params`` the chosen form's fit left at a bound of their range, each at its prior (the
     form's start) again: the form pushed them there to make up for a curve it could not follow, so the fit
-    with the curves starts them where the user's file has them, and the held-at-prior rule then compares
-    the bound with the prior, not with itself."""
+    with the curves starts them where the user's file has them (or, for those the flows read, the bulk modulus
+    and dead volume, where the flows put them: :func:`with_curve`), and the held-at-prior rule then compares
+    the bound with that start, not with itself."""
     formed = dict(zip(best["params"].keys, best["fit"].values))
     prior = dict(zip(params.keys, params.priors(best["start"])))
     return {p.key: float(prior[p.key]) for p in params
