@@ -257,12 +257,6 @@ class Calibration:
         """The report as a validation reads a calibrated file's block (:class:`CalibrationRecord`)."""
         return CalibrationRecord.of(self.report)
 
-    @property
-    def own_budget(self) -> OwnBudget | None:
-        """How the calibrated model fits its own logs (:func:`own_budget`); None after a calibration on steady
-        features alone whose logs no window replays."""
-        return self.report.get("own_budget")
-
 
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
               params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",

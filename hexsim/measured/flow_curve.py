@@ -48,9 +48,9 @@ inverts the curve, and a wiggle is a bump at every crossing).
 "curve" follows it (:func:`hexsim.plant.params.thin_curve`); beyond the largest command the logs reach, the calibrated
 flow-area form's shape (the prior, scaled to meet the curve there) up to the command range.
 
-Continuity is integrated over short intervals (:func:`hexsim.measured.flow_balance.flow_samples`), so no measured signal is differentiated
-and a step's fast pressure jump is as much evidence as a slow motion; 1/E and V_pl/E are two more linear
-unknowns (the compressed volume), held weakly at the machine's.
+Continuity is integrated over short intervals (:func:`hexsim.measured.flow_balance.flow_samples`), so no
+measured signal is differentiated and a step's fast pressure jump is as much evidence as a slow motion; 1/E and
+V_pl/E are two more linear unknowns (the compressed volume), held weakly at the machine's.
 """
 
 from __future__ import annotations
@@ -316,12 +316,10 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
     tried[own] = first.rms
     if rms[best] > (1.0 - TANK_MARGIN) * first.rms:  # the flows cannot tell: the machine's own
         return own, tried
-    if 0 < best < len(tanks) - 1:  # the parabola's vertex through the best and its neighbours
-        (t0, t1, t2), (r0, r1, r2) = tanks[best - 1:best + 2], rms[best - 1:best + 2]
-        den = (t0 - t1) * (r0 - r2) - (t0 - t2) * (r0 - r1)
-        if den != 0.0:
-            vertex = t0 - 0.5 * ((t0 - t1) ** 2 * (r0 - r2) - (t0 - t2) ** 2 * (r0 - r1)) / den
-            return float(np.clip(vertex, t0, t2)), tried
+    if 0 < best < len(tanks) - 1:  # the vertex of the parabola through the best and its neighbours
+        a, b, _ = np.polyfit(tanks[best - 1:best + 2], rms[best - 1:best + 2], 2)
+        if a > 0.0:
+            return float(np.clip(-b / (2.0 * a), tanks[best - 1], tanks[best + 1])), tried
     return float(tanks[best]), tried
 
 

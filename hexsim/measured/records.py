@@ -55,7 +55,7 @@ class ParameterRow(EstimateRow, total=False):
 
 class OwnBudget(TypedDict, total=False):
     """How the calibrated model fits its own logs (:func:`hexsim.measured.calibration.own_budget`): ``reached``
-    (every channel's held-out RMS within 1.4 budgets), the worst log's held-out RMS per channel in budgets,
+    (every channel's held-out RMS within 1.4 budgets), each channel's largest held-out RMS over the logs in budgets,
     the channels ``short`` of the budget, those ``worse_than_prior`` (channel -> [prior's, calibrated's]) and,
     where it is short, the ``sentence`` the report prints."""
 
