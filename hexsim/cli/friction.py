@@ -35,7 +35,7 @@ def cmd_friction(args: argparse.Namespace) -> int:
     result = identify_friction(logs)
     print(summary(result))
     if args.json:
-        write_json(args.json, result)
+        write_json(args.json, result.record())
         print(f"wrote {args.json}")
     if args.plot:
         plot_map(result, args.plot)

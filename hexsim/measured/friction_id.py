@@ -30,13 +30,13 @@ motion, or a scatter larger than its level answers "cannot fit" with the reason 
 from __future__ import annotations
 
 import dataclasses
-from typing import NamedTuple
+from typing import NamedTuple, TypedDict
 
 import numpy as np
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
-from hexsim.measured.estimates import HELD, UNIDENTIFIABLE, Estimate, at_bound
+from hexsim.measured.estimates import FITTED, HELD, UNIDENTIFIABLE, Estimate, at_bound
 from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.parameters import Parameter
@@ -255,10 +255,23 @@ def _check_length(log: MeasurementLog, n: int) -> None:
                          f"({n / log.sample_rate_hz * 1e3:.0f} ms at {log.sample_rate_hz:g} Hz)")
 
 
-def _steady_friction(log: MeasurementLog, hyd: HydraulicParams) -> list[dict]:
+class SteadyFriction(TypedDict):
+    """The friction measured at one steady speed of an open-loop experiment (:func:`_steady_friction`): the
+    log's file name, the command [V], the speed [m/s], the friction [N], and the fitted curve's there (None
+    where its direction has none)."""
+
+    log: str
+    u_V: float
+    velocity_mps: float
+    friction_N: float
+    fitted_N: float | None
+
+
+def _steady_friction(log: MeasurementLog, hyd: HydraulicParams) -> list[SteadyFriction]:
     """At each steady motion of an open-loop experiment (constant valve command, mid-stroke,
     :func:`hexsim.studies.metrics.steady_segments`): its speed and the median friction force F_L - M g
-    cos θ there (the acceleration is nil). Empty without a valve command column."""
+    cos θ there (the acceleration is nil; ``fitted_N`` None until a curve is fitted). Empty without a valve
+    command column."""
     from hexsim.studies.metrics import steady_segments
 
     if "valve_cmd_V" not in log.columns:
@@ -267,8 +280,8 @@ def _steady_friction(log: MeasurementLog, hyd: HydraulicParams) -> list[dict]:
     g_axis = gravity() * np.cos(np.deg2rad(log.inclination_deg))
     weight = log.moving_mass_kg * g_axis
     rows = steady_segments(log.time, log.columns["valve_cmd_V"], log.columns["pos_m"], {"f_l": f_l})
-    return [{"log": log.path.name, "u_V": r["u_V"], "velocity_mps": r["velocity_mps"], "friction_N": r["f_l"] - weight}
-            for r in rows]
+    return [SteadyFriction(log=log.path.name, u_V=r["u_V"], velocity_mps=r["velocity_mps"],
+                           friction_N=r["f_l"] - weight, fitted_N=None) for r in rows]
 
 
 class _Fit(NamedTuple):
@@ -278,9 +291,9 @@ class _Fit(NamedTuple):
 
 
 def _judge(sol, held: dict[str, str] | None = None, n_independent: float | None = None,
-           weighted: bool = False) -> tuple[dict, dict, np.ndarray]:
-    """(each parameter's :class:`~hexsim.measured.estimates.Estimate` row, status unidentifiable or held with
-    why where the data cannot give it, and its ``unidentifiable`` reason; those reasons by name; standard
+           weighted: bool = False) -> tuple[dict[str, Estimate], dict[str, str], np.ndarray]:
+    """(each parameter's :class:`~hexsim.measured.estimates.Estimate`, status unidentifiable or held with
+    why where the data cannot give it; those reasons by name; standard
     errors) of a fit ``sol`` (x, fun, jac) within the :data:`PARAMETERS`' bounds; ``held`` (name: why): the
     parameters not fitted, held at their start's value. ``n_independent``: the independent
     samples behind the residual (default: the residual's effective count, filtered samples being correlated;
@@ -303,9 +316,9 @@ def _judge(sol, held: dict[str, str] | None = None, n_independent: float | None 
         se[is_free] = np.sqrt(np.clip(np.diag(np.linalg.pinv(jf.T @ jf)), 0.0, None) * max(1.0, stats.s2))
     for i, (param, x, e) in enumerate(zip(PARAMETERS, sol.x, se)):
         est = Estimate(param.key, float(x), float(e), param.unit, lower=param.lower, upper=param.upper)
-        params[param.key] = est.as_row()
+        params[param.key] = est
         if i not in free:  # held at the start's value (0 for a slope or a hump the speeds cannot show)
-            params[param.key] = _unidentifiable(est, held[param.key], HELD)
+            params[param.key] = dataclasses.replace(est, status=HELD, why=held[param.key])
             unidentifiable[param.key] = held[param.key]
             continue
         reason = None
@@ -320,15 +333,9 @@ def _judge(sol, held: dict[str, str] | None = None, n_independent: float | None 
             reason = (f"the data cannot separate it (standard error {e:.3g} {param.unit} larger than the value "
                       f"{x:.3g}): {where}")
         if reason:
-            params[param.key] = _unidentifiable(est, reason, UNIDENTIFIABLE)
+            params[param.key] = dataclasses.replace(est, status=UNIDENTIFIABLE, why=reason)
             unidentifiable[param.key] = reason
     return params, unidentifiable, se
-
-
-def _unidentifiable(est: Estimate, why: str, status: str) -> dict:
-    """The row of an estimate the data cannot give (``status`` unidentifiable or held, ``why``;
-    ``unidentifiable`` the same reason, as the report and the terminal read it)."""
-    return dataclasses.replace(est, status=status, why=why).as_row() | {"unidentifiable": why}
 
 
 #: the parameters each model frees: the level alone, Coulomb + viscous, the whole Stribeck curve
@@ -386,24 +393,116 @@ def _model_for(speed: np.ndarray, n_points: int | None, along: float) -> tuple[s
     return "stribeck", {}, np.array([1000.0, along, 20.0, 0.005])
 
 
-def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: HydraulicParams, side: str) -> dict:
-    """One direction's fit: parameters (value, standard error, unit, why not identifiable), the RMS and
-    robust scatter of the samples about it [N], the samples; or ``cannot_fit`` with the reason where the
-    data cannot support a curve (too few samples, a force that aids the motion, a scatter larger than the
+@dataclasses.dataclass(frozen=True)
+class FrictionSide:
+    """One direction's friction fit (:func:`identify_friction`): its ``side`` (positive: extending), the
+    ``samples`` used; the ``parameters`` (:data:`PARAMS` order, each an
+    :class:`~hexsim.measured.estimates.Estimate`: value, standard error, unit, status and why where the data
+    cannot give it), the ``rms_N`` and robust ``scatter_N`` [N] of the samples about the curve, the steady
+    ``windows`` fitted (None: samples of a moving log) and ``x``, the curve's (sigma, F_c0, F_s0, c_s) as
+    :func:`stribeck` takes them; or ``cannot_fit``, the reason the data cannot support a curve (the fit's
+    figures kept when it is the scatter)."""
+
+    side: str
+    samples: int
+    parameters: dict[str, Estimate] = dataclasses.field(default_factory=dict)
+    rms_N: float | None = None
+    scatter_N: float | None = None
+    windows: int | None = None
+    cannot_fit: str | None = None
+    x: np.ndarray | None = None
+
+    @property
+    def fitted(self) -> bool:
+        """Whether the direction has a curve (no ``cannot_fit``)."""
+        return self.cannot_fit is None
+
+    @property
+    def unidentifiable(self) -> dict[str, str]:
+        """The parameters the data cannot give (held or unidentifiable), each with why."""
+        return {k: e.why for k, e in self.parameters.items() if e.status != FITTED}
+
+    def friction(self, v: np.ndarray, hyd: HydraulicParams | None = None) -> np.ndarray:
+        """The fitted curve's friction force [N] at the velocities ``v`` [m/s] (any shape; :func:`stribeck`).
+        Raises ValueError for a direction that could not be fitted."""
+        if not self.fitted:
+            raise ValueError(f"the {self.side} direction has no friction curve: {self.cannot_fit}")
+        return stribeck(v, self.x, hyd)
+
+    def record(self) -> dict:
+        """The direction as ``hexsim friction --json`` writes it: each parameter's row (key, unit, value,
+        std_error, bounds, status; why and ``unidentifiable`` where the data cannot give it), rms_N,
+        scatter_N, samples, the reasons by name, windows (steady logs); or ``cannot_fit`` and samples."""
+        if not self.parameters:
+            return {"cannot_fit": self.cannot_fit, "samples": self.samples}
+        rows = {k: e.as_row() | ({"unidentifiable": e.why} if e.status != FITTED else {})
+                for k, e in self.parameters.items()}
+        out = {"parameters": rows, "rms_N": self.rms_N, "scatter_N": self.scatter_N, "samples": self.samples,
+               "unidentifiable": self.unidentifiable}
+        out |= {"windows": self.windows} if self.windows is not None else {}
+        return out | ({"cannot_fit": self.cannot_fit} if self.cannot_fit else {})
+
+
+@dataclasses.dataclass(frozen=True)
+class FrictionMap:
+    """What :func:`identify_friction` returns: the ``log`` (its files, comma-separated), the ``machine``'s
+    label, the number of ``experiments``; where the force and the acceleration came from
+    (``force_source``, ``acceleration_source``), the moving mass [kg] and inclination [deg] used and what was
+    ``assumed``; the ``positive`` and ``negative`` directions' fits (:class:`FrictionSide`); the ``steady``
+    points; the samples fitted (``velocity`` [m/s] and ``force`` [N], (n,) each) and the ``hydraulics``
+    whose friction curve (its arctan gain) the fit used."""
+
+    log: str
+    machine: str
+    experiments: int
+    force_source: str
+    acceleration_source: str
+    mass_kg: float
+    inclination_deg: float
+    assumed: list
+    positive: FrictionSide
+    negative: FrictionSide
+    steady: list[SteadyFriction]
+    velocity: np.ndarray
+    force: np.ndarray
+    hydraulics: HydraulicParams
+
+    EQUATION = "seed eq. (3.9), the simulator's friction curve (hexsim.plant.hydraulics.friction_force)"
+
+    def side(self, name: str) -> FrictionSide:
+        """The direction ``name``: "positive" (extending) or "negative". Raises KeyError for another name."""
+        if name not in ("positive", "negative"):
+            raise KeyError(f"no friction direction {name!r} (positive or negative)")
+        return self.positive if name == "positive" else self.negative
+
+    def record(self) -> dict:
+        """The identification as ``hexsim friction --json`` writes it (the samples left out)."""
+        return {"log": self.log, "machine": self.machine, "experiments": self.experiments,
+                "force_source": self.force_source, "acceleration_source": self.acceleration_source,
+                "mass_kg": self.mass_kg, "inclination_deg": self.inclination_deg, "assumed": self.assumed,
+                "equation": self.EQUATION, "positive": self.positive.record(), "negative": self.negative.record(),
+                "steady": [dict(row) for row in self.steady]}
+
+
+def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: HydraulicParams,
+                   side: str) -> FrictionSide:
+    """One direction's fit (:class:`FrictionSide`): parameters (value, standard error, unit, why not
+    identifiable), the RMS and robust scatter of the samples about it [N], the samples; or ``cannot_fit``
+    with the reason where the data cannot support a curve (too few samples, a force that aids the motion, a scatter larger than the
     level). Steady windows (``window`` >= 0) are fitted as one measurement each (:func:`_windows`,
     standard errors scaled by the reduced chi-square where it exceeds 1); other samples one by one with a
     robust loss. The model is as rich as the data: one speed (one window, or speeds within
     :data:`MIN_SPEED_RATIO`) gives the level alone, two to four windows Coulomb + viscous, more and
     samples near c_s the Stribeck hump."""
     if len(v) < MIN_SAMPLES:
-        return {"cannot_fit": f"only {len(v)} usable samples move in the {side} direction (steady where the "
-                              f"command holds, away from the stops, faster than {V_MIN * 1e3:g} mm/s); {MIN_SAMPLES} "
-                              "are needed", "samples": int(len(v))}
+        return FrictionSide(side, len(v), cannot_fit=(
+            f"only {len(v)} usable samples move in the {side} direction (steady where the command holds, away from "
+            f"the stops, faster than {V_MIN * 1e3:g} mm/s); {MIN_SAMPLES} are needed"))
     along = float(np.median(f * np.sign(v)))
     if along <= 0.0:
-        return {"cannot_fit": f"the force read along the {side} motion aids it (median {along:.3g} N); friction "
-                              "opposes motion: check the areas, the moving mass and inclination (M g cos θ) and "
-                              "which runs were paired", "samples": int(len(v))}
+        return FrictionSide(side, len(v), cannot_fit=(
+            f"the force read along the {side} motion aids it (median {along:.3g} N); friction opposes motion: "
+            "check the areas, the moving mass and inclination (M g cos θ) and which runs were paired"))
     steady = bool(np.all(window >= 0))
     if steady:
         pv, pf, pe = _windows(v, f, window)
@@ -421,29 +520,28 @@ def _fit_direction(v: np.ndarray, f: np.ndarray, window: np.ndarray, hyd: Hydrau
             x0[2] = 0.0
             sol = _fit_curve(pv, pf, weight, MODELS["coulomb+viscous"], x0, hyd, robust=not steady)
             held = dict.fromkeys(("F_s0", "c_s"), HUMP_REASON)
-    params, unidentifiable, _ = _judge(sol, held, n_independent=n_points, weighted=steady)
+    params, _, _ = _judge(sol, held, n_independent=n_points, weighted=steady)
     residual = stribeck(v, sol.x, hyd) - f
     scatter = float(median_abs_deviation(residual, scale="normal"))
     level = float(abs(np.median(stribeck(v, sol.x, hyd))))
-    out = {"parameters": params, "rms_N": float(np.sqrt(np.mean(residual**2))), "scatter_N": scatter,
-           "samples": int(len(v)), "unidentifiable": unidentifiable, "_x": sol.x}
-    if steady:
-        out["windows"] = n_points
+    cannot = None
     if scatter > level:
-        out["cannot_fit"] = (f"the friction force scatters by {scatter:.3g} N (robust) about a level of {level:.3g} N: "
-                             "the data cannot support a curve (are the pressures of one experiment, the position "
-                             "inside the stroke, the moving mass right?)")
-    return out
+        cannot = (f"the friction force scatters by {scatter:.3g} N (robust) about a level of {level:.3g} N: the data "
+                  "cannot support a curve (are the pressures of one experiment, the position inside the stroke, the "
+                  "moving mass right?)")
+    return FrictionSide(side, len(v), params, float(np.sqrt(np.mean(residual**2))), scatter,
+                        n_points if steady else None, cannot, sol.x)
 
 
-def identify_friction(logs: MeasurementLog | list) -> dict:
+def identify_friction(logs: MeasurementLog | list) -> FrictionMap:
     """Fitted Stribeck parameters per direction with standard errors, the RMS fit error, the samples
-    used and, for open-loop experiments, the friction measured at each steady speed against the fit.
-    ``logs``: one log, or a list of experiments, each a log or a list of runs of one experiment that
-    logged different channels (:func:`friction_samples`); the samples of all are fitted together with the
-    first log's machine (its friction curve's arctan gain and the areas). A direction the data cannot
-    support has ``cannot_fit`` (the reason) instead of a curve. Raises InputError if a log lacks what the
-    force needs, or is not a single axis (:func:`friction_samples`), or neither direction can be fitted."""
+    used and, for open-loop experiments, the friction measured at each steady speed against the fit
+    (:class:`FrictionMap`). ``logs``: one log, or a list of experiments, each a log or a list of runs of one
+    experiment that logged different channels (:func:`friction_samples`); the samples of all are fitted
+    together with the first log's machine (its friction curve's arctan gain and the areas). A direction the
+    data cannot support has ``cannot_fit`` (the reason) instead of a curve. Raises InputError if a log lacks
+    what the force needs, or is not a single axis (:func:`friction_samples`), or neither direction can be
+    fitted."""
     groups = [logs] if isinstance(logs, MeasurementLog) else list(logs)
     runs = [g if isinstance(g, list) else [g] for g in groups]
     experiments = [merge_runs(r) for r in runs]
@@ -455,25 +553,15 @@ def identify_friction(logs: MeasurementLog | list) -> dict:
     # steady windows numbered across the experiments (-1 stays: a sample of a moving log)
     offsets = np.cumsum([0] + [int(p.window.max()) + 1 for p in parts[:-1]])
     windows = np.concatenate([np.where(p.window >= 0, p.window + o, -1) for p, o in zip(parts, offsets)])
-    out = {"log": ", ".join(str(log.path) for log in experiments), "machine": first.machine.label,
-           "experiments": len(experiments), "force_source": parts[0].force_source,
-           "acceleration_source": parts[0].acceleration_source, "mass_kg": first.moving_mass_kg,
-           "inclination_deg": first.inclination_deg, "assumed": first.assumed,
-           "equation": "seed eq. (3.9), the simulator's friction curve (hexsim.plant.hydraulics.friction_force)"}
-    fitted = {}
-    for side, mask in (("positive", vel > V_MIN), ("negative", vel < -V_MIN)):
-        out[side] = _fit_direction(vel[mask], ff[mask], windows[mask], hyd, side)
-        if "cannot_fit" not in out[side]:
-            fitted[side] = out[side]["_x"]
-        out[side].pop("_x", None)
-    if not fitted:
-        raise InputError(f"{first.path}: friction cannot be fitted: positive: {out['positive']['cannot_fit']}; "
-                         f"negative: {out['negative']['cannot_fit']}")
+    positive, negative = (_fit_direction(vel[mask], ff[mask], windows[mask], hyd, side)
+                          for side, mask in (("positive", vel > V_MIN), ("negative", vel < -V_MIN)))
+    if not (positive.fitted or negative.fitted):
+        raise InputError(f"{first.path}: friction cannot be fitted: positive: {positive.cannot_fit}; "
+                         f"negative: {negative.cannot_fit}")
     steady = [row for log in experiments for row in _steady_friction(log, hyd)]
     for row in steady:
-        x = fitted.get("positive" if row["velocity_mps"] > 0 else "negative")
-        row["fitted_N"] = None if x is None else float(stribeck(np.array([row["velocity_mps"]]), x, hyd)[0])
-    out["steady"] = steady
-    out["_samples"] = (vel, ff)
-    out["_hydraulics"] = hyd  # the friction curve's arctan gain and scale, for the plot
-    return out
+        side = positive if row["velocity_mps"] > 0 else negative
+        row["fitted_N"] = float(side.friction(np.array([row["velocity_mps"]]), hyd)[0]) if side.fitted else None
+    return FrictionMap(", ".join(str(log.path) for log in experiments), first.machine.label, len(experiments),
+                       parts[0].force_source, parts[0].acceleration_source, first.moving_mass_kg,
+                       first.inclination_deg, first.assumed, positive, negative, steady, vel, ff, hyd)

@@ -80,9 +80,9 @@ def test_friction_rows_are_estimates():
         jac = np.column_stack([np.linspace(0.01, 0.1, 200), np.ones(200), np.linspace(1, 0, 200), np.zeros(200)])
 
     params, unidentifiable, _ = _judge(Sol)
-    assert params["sigma"]["status"] == FITTED and Estimate.from_row(params["sigma"]).unit == "N s/m"
-    assert params["F_c0"]["status"] == UNIDENTIFIABLE and "at the bound 0 N" in params["F_c0"]["why"]
-    assert params["c_s"]["status"] == UNIDENTIFIABLE and "does not depend on it" in unidentifiable["c_s"]
+    assert params["sigma"].status == FITTED and Estimate.from_row(params["sigma"].as_row()).unit == "N s/m"
+    assert params["F_c0"].status == UNIDENTIFIABLE and "at the bound 0 N" in params["F_c0"].why
+    assert params["c_s"].status == UNIDENTIFIABLE and "does not depend on it" in unidentifiable["c_s"]
     assert set(unidentifiable) == {"F_c0", "c_s"}
 
 

@@ -12,6 +12,7 @@ import pytest
 from independent_cylinder import Rig, simulate
 
 from hexsim.cli import main
+from hexsim.measured.estimates import FITTED
 from hexsim.measured.friction_id import identify_friction
 from hexsim.measured.measurement import read_log
 
@@ -52,17 +53,18 @@ def test_short_paired_run_with_stops_fits_the_force_at_each_steady_speed(short_p
     areas is ~8 N), not the transients' hundreds of newtons."""
     logs = [[read_log(p, machine="servo_cylinder", needs=("pos_m",)) for p in short_pair]]
     result = identify_friction(logs)
-    assert len(result["steady"]) == 2
-    for row in result["steady"]:
+    assert len(result.steady) == 2
+    for row in result.steady:
         assert row["fitted_N"] == pytest.approx(row["friction_N"], rel=0.12), row
         truth = Rig().coulomb_pos if row["velocity_mps"] > 0 else Rig().coulomb_neg
         assert abs(row["friction_N"]) == pytest.approx(truth, rel=0.12), row
     for side in ("positive", "negative"):
-        fit = result[side]
-        assert "cannot_fit" not in fit and "unidentifiable" not in fit["parameters"]["F_c0"], fit
-        assert fit["rms_N"] < 20.0, fit["rms_N"]
+        fit = result.side(side)
+        assert fit.fitted and fit.parameters["F_c0"].status == FITTED, fit
+        assert fit.rms_N < 20.0, fit.rms_N
         # one speed per direction: the viscous slope is not told from the level, and says so
-        assert "one speed" in fit["parameters"]["sigma"]["unidentifiable"]
+        assert "one speed" in fit.parameters["sigma"].why
+        assert fit.unidentifiable["sigma"] == fit.parameters["sigma"].why
 
 
 def test_friction_refuses_a_hexapod_file_for_an_actuator_log(short_pair, tmp_path, capsys):

@@ -132,7 +132,7 @@ def test_friction_from_pressures_and_from_force(logs, tmp_path):
     rough = identify_friction(read_log(logs["friction"]))
     k = truth("friction", np.random.default_rng(100 + 1 + EFFECT_NAMES.index("friction")))[1].coulomb_pos / 65.0
     for side in ("positive", "negative"):
-        ratio = rough[side]["parameters"]["F_c0"]["value"] / nominal[side]["parameters"]["F_c0"]["value"]
+        ratio = rough.side(side).parameters["F_c0"].value / nominal.side(side).parameters["F_c0"].value
         assert 0.75 * k < ratio < 1.25 * k, (side, ratio, k)
     # an electric drive: the same log with the actuator force instead of the pressures
     src = read_log(logs["friction"])
@@ -144,9 +144,9 @@ def test_friction_from_pressures_and_from_force(logs, tmp_path):
     side = json.loads(src.path.with_suffix(".json").read_text()) | {"mass_kg": 40.0, "inclination_deg": 0.0}
     path.with_suffix(".json").write_text(json.dumps(side))
     drive = identify_friction(read_log(path))
-    assert drive["force_source"] == "force_N"
-    assert drive["positive"]["parameters"]["F_c0"]["value"] == pytest.approx(
-        rough["positive"]["parameters"]["F_c0"]["value"], rel=1e-3)
+    assert drive.force_source == "force_N"
+    assert drive.positive.parameters["F_c0"].value == pytest.approx(rough.positive.parameters["F_c0"].value,
+                                                                    rel=1e-3)
     assert main(["friction", str(path), "--plot", str(tmp_path / "map.png")]) == 0
     assert (tmp_path / "map.png").exists()
 

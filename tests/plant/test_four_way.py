@@ -115,11 +115,11 @@ def test_friction_from_both_chambers_recovers_the_coulomb_level(tmp_path):
     write_log(tmp_path / "open.csv", run)
     machine = hexsim.Machine(system="single-actuator", hydraulics=HYD, effects=LOAD, control="none")
     result = identify_friction(read_log(tmp_path / "open.csv", machine=machine, needs=("pos_m",)))
-    assert result["force_source"].startswith("A1 p1 - A2 p2")
+    assert result.force_source.startswith("A1 p1 - A2 p2")
     for side in ("positive", "negative"):
-        assert result[side]["parameters"]["F_c0"]["value"] == pytest.approx(F_C, rel=0.03)
-    assert len(result["steady"]) == 4
-    for row in result["steady"]:
+        assert result.side(side).parameters["F_c0"].value == pytest.approx(F_C, rel=0.03)
+    assert len(result.steady) == 4
+    for row in result.steady:
         assert abs(row["friction_N"]) == pytest.approx(F_C, rel=0.03)
 
 
@@ -162,8 +162,8 @@ def test_real_cylinder_friction_from_paired_runs_matches_the_measured_force():
     logs = [[read_log(DATA / f"cyl_{u}V_s1_{s}.csv", machine="servo_cylinder", needs=("pos_m",)) for s in ("pA", "pB")]
             for u in (1, 3, 5)]
     result = identify_friction(logs)
-    assert len(result["steady"]) == 6
-    for row in result["steady"]:
+    assert len(result.steady) == 6
+    for row in result.steady:
         measured = abs(row["friction_N"])
         assert (55.0 < measured < 70.0) if row["velocity_mps"] > 0 else (70.0 < measured < 82.0), row
         assert row["fitted_N"] == pytest.approx(row["friction_N"], rel=0.10), row
@@ -171,12 +171,9 @@ def test_real_cylinder_friction_from_paired_runs_matches_the_measured_force():
     held = [[read_log(DATA / f"cyl_{u}V_s2_{s}.csv", machine="servo_cylinder", needs=("pos_m",)) for s in ("pA", "pB")]
             for u in (1, 3, 5)]
     other = identify_friction(held)
-    for row in other["steady"]:
-        x = [result["positive" if row["velocity_mps"] > 0 else "negative"]["parameters"][p]["value"]
-             for p in ("sigma", "F_c0", "F_s0", "c_s")]
-        from hexsim.measured.friction_id import stribeck
-
-        predicted = float(stribeck(np.array([row["velocity_mps"]]), np.array(x), hexsim.load_machine("servo_cylinder").hydraulics)[0])
+    for row in other.steady:
+        fit = result.positive if row["velocity_mps"] > 0 else result.negative
+        predicted = float(fit.friction(np.array([row["velocity_mps"]]), hexsim.load_machine("servo_cylinder").hydraulics)[0])
         assert predicted == pytest.approx(row["friction_N"], rel=0.10), row
 
 
