@@ -33,12 +33,14 @@ The others are reported only.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
 
+from hexsim.measured.records import DiscoveredTerm, Discovery
 from hexsim.measured.replay import PlantModel, ReplayProblem
 from hexsim.measured.residuals import effective_n, noise_of
 from hexsim.measured.scoring import score
@@ -213,7 +215,8 @@ def equation_errors(log, model: PlantModel) -> dict[str, tuple[np.ndarray, np.nd
     return out
 
 
-def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[list[dict], dict[str, float], bool]:
+def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[list[DiscoveredTerm], dict[str, float],
+                                                                              bool]:
     """:func:`sparse_fit` on the ``fit`` samples, then the materiality cut on the ``test`` samples; the
     kept terms as JSON-ready dicts, as {"equation:term": coefficient}, and whether the equation is far
     off: a relative term beyond its :attr:`Term.limit` (an edge passing half its flow more or less, an
@@ -239,14 +242,13 @@ def _sparse_terms(target, x, fit, test, dictionary, leg: int | None) -> tuple[li
         words = term.words.format(c=c, pct=100 * abs(c), more="more" if c > 0 else "less", ms=1e3 * abs(c),
                                   late="later" if c < 0 else "earlier")
         found[f"{term.equation}:{term.name}"] = c
-        terms.append({"equation": term.equation, "term": term.name, "leg": leg, "coefficient": c,
-                      "std_error": float(se[j]), "unit": term.unit,
-                      "meaning": (f"leg{leg}: " if leg else "") + words,
-                      "equation_error_held_out": {"before": before, "after": after}})
+        terms.append(DiscoveredTerm(equation=term.equation, term=term.name, leg=leg, coefficient=c,
+                                    std_error=float(se[j]), unit=term.unit, meaning=(f"leg{leg}: " if leg else "") + words,
+                                    equation_error_held_out={"before": before, "after": after}))
     return terms, found, False
 
 
-def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> dict:
+def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> Discovery:
     """The flow equation of each hexapod leg on its own logged signals (with that leg's own parameters):
     a leg-level flow effect (leakage, a null offset, an edge) shows in that leg's equation error only. Legs
     with 4-way valves: the cap side's equation with the leak from the rod side (:data:`FLOW_TERMS_4WAY`, P2
@@ -256,27 +258,25 @@ def _discover_legs(problem: ReplayProblem, base: PlantModel, base_scored, budget
     fall."""
     log, c = problem.log, problem.log.columns
     if any(f"leg{leg}_p1_Pa" not in c for leg in range(1, 7)):
-        return {"done": False, "why": "discovery needs the legs' P1 (leg*_p1_Pa)"}
+        return Discovery(False, "discovery needs the legs' P1 (leg*_p1_Pa)")
     segments = problem.rows.reshape(problem.shape)
     fit, test = segments[problem.fit_rows].ravel(), segments[problem.test_rows].ravel()
     p_s = c["ps_Pa"] if "ps_Pa" in c else np.full(len(log.time), base.hydraulics.supply_pressure)
     terms, per_leg, far = _leg_terms(log, base, p_s, fit, test)
-    out = {"done": True, "method": f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
-           f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of "
-           "the held-out equation error", "terms": terms, "added_to_model": []}
-    if far:
-        out["far_off_legs"] = far
     if not terms and not far:  # the second question: a valve that lags, reported only
-        out["terms"] = _lag_terms(log, p_s, base, fit, test)
+        terms = _lag_terms(log, p_s, base, fit, test)
+    out = Discovery(True, method=f"LassoLarsIC (BIC) on each leg's flow-equation error over the fit segments, "
+                    f"least squares on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} "
+                    "of the held-out equation error", terms=terms, far_off_legs=far)
     if not per_leg:
         why = "no term of any leg's flow equation stands out of the noise"
         if far:
             why = _far_off(far)
-        elif out["terms"]:
+        elif terms:
             why = "the valves' flow lags their setpoints: reported, not added to the model (no parameter of its flow " \
                   "equation maps onto a lag; the library's spool_dynamics does)"
-        return out | {"why": why}
-    return out | _replay_leg_terms(problem, base, base_scored, budget, per_leg)
+        return dataclasses.replace(out, why=why)
+    return _replay_leg_terms(problem, base, base_scored, budget, per_leg, out)
 
 
 def _leg_terms(log, base: PlantModel, p_s: np.ndarray, fit: np.ndarray, test: np.ndarray) -> tuple[list, dict, list]:
@@ -302,9 +302,11 @@ def _leg_terms(log, base: PlantModel, p_s: np.ndarray, fit: np.ndarray, test: np
     return terms, per_leg, far
 
 
-def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, budget, per_leg: dict) -> dict:
+def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, budget, per_leg: dict,
+                      out: Discovery) -> Discovery:
     """The terms of ``per_leg`` (:func:`_leg_terms`) that map onto a parameter, added to their legs and
-    replayed: the account's additions if the held-out error falls (:func:`_kept`), else why not."""
+    replayed: the account ``out`` with them kept if the held-out error falls (:meth:`Discovery.kept`), else
+    with why not."""
     from hexsim.measured.candidates import with_leg
 
     model, applied = base, []
@@ -314,26 +316,19 @@ def _replay_leg_terms(problem: ReplayProblem, base: PlantModel, base_scored, bud
             model = with_leg(model, leg, changed)
             applied += [f"leg{leg}:{k}" for k in keys]
     if not applied or budget is None:
-        return {"why": "no term maps onto a parameter of its leg: reported, not replayed"}
+        return dataclasses.replace(out, why="no term maps onto a parameter of its leg: reported, not replayed")
     scored = score(problem, problem.simulate(model), budget)
     before, after = held_out_cost(problem, base_scored), held_out_cost(problem, scored)
     if after >= before:
-        return {"why": "adding the legs' terms did not lower the held-out error of the replay: reported, not kept"}
-    return _kept(applied, base_scored, scored, before, after) | {
-        "leg_changes": [{"leg": ch.leg, "values": dict(ch.values)} for ch in model.leg_changes]}
+        return dataclasses.replace(out, why="adding the legs' terms did not lower the held-out error of the replay: "
+                                   "reported, not kept")
+    return dataclasses.replace(out.kept(applied, base_scored, scored, before, after),
+                               leg_changes=[{"leg": ch.leg, "values": dict(ch.values)} for ch in model.leg_changes])
 
 
 def held_out_cost(problem: ReplayProblem, scored) -> float:
     """The summed cost of ``scored``'s (:class:`hexsim.measured.scoring.Scored`) held-out rows."""
     return float(scored.window_cost[problem.test_rows].sum())
-
-
-def _kept(applied: list[str], base_scored, scored, before: float, after: float) -> dict:
-    """The account of terms kept: what was added, the held-out RMS before and after, the share of the
-    held-out cost ``before`` that ``after`` recovers, and the replay's score (``_scored``, not in the JSON)."""
-    return {"added_to_model": applied, "held_out_rms_before": base_scored.held_out_rms,
-            "held_out_rms_after": scored.held_out_rms,
-            "held_out_cost_recovered": 1.0 - after / before if before > 0 else 0.0, "_scored": scored}
 
 
 def _leg_signals(log, leg: int, four_way: bool) -> tuple:
@@ -462,12 +457,12 @@ def equation_terms(problem: ReplayProblem, errors: dict) -> tuple[list[dict], di
     return terms, found, far, not_asked
 
 
-def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> dict:
+def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> Discovery:
     """Fit the sparse correction on the fit windows' samples, add what maps onto the model, replay and
     compare on the held-out windows (see the module doc). ``base``/``base_scored``: the model the verdict
     stands on and its :class:`hexsim.measured.scoring.Scored`; a replay is scored as the identifier scores one
     (:func:`hexsim.measured.scoring.score`) against ``budget`` (None: the terms only, none replayed).
-    Returns the JSON-ready account; ``terms`` empty
+    Returns the account (:class:`~hexsim.measured.records.Discovery`); ``terms`` empty
     if nothing stands out of the equation noise. Hexapod logs: each leg's flow equation(s), its terms added to
     that leg (:func:`_discover_legs`; 3-way and 4-way valves)."""
     log = problem.log
@@ -475,20 +470,18 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> d
         return _discover_legs(problem, base, base_scored, budget)
     errors = equation_errors(log, base)
     if not errors:
-        return {"done": False, "why": "discovery needs a chamber pressure: p1_Pa" +
-                (" or p2_Pa (a 4-way valve)" if base.hydraulics.four_way else "")}
+        return Discovery(False, "discovery needs a chamber pressure: p1_Pa" +
+                         (" or p2_Pa (a 4-way valve)" if base.hydraulics.four_way else ""))
     terms, found, far, not_asked = equation_terms(problem, errors)
-    out = {"done": True, "method": "LassoLarsIC (BIC) on the equation errors of the fit windows, least squares "
-           f"on the chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of the held-out "
-           "equation error", "terms": terms}
-    if not_asked:
-        out["not_asked"] = {k: f"the position's derivative noise on A ydot is {AREA_NOISE_SHARE:.0%} or more of "
-                            "the equation error's RMS: the area's term would fit that noise" for k in not_asked}
+    out = Discovery(True, method="LassoLarsIC (BIC) on the equation errors of the fit windows, least squares on the "
+                    f"chosen terms, kept at >= {MIN_T:g} standard errors and >= {MIN_SHARE:.0%} of the held-out "
+                    "equation error", terms=terms,
+                    not_asked={k: f"the position's derivative noise on A ydot is {AREA_NOISE_SHARE:.0%} or more of "
+                               "the equation error's RMS: the area's term would fit that noise" for k in not_asked})
     if not found:
-        why = (_far_off([]) if far else "no term stands out of the equation noise")
-        return out | {"added_to_model": [], "why": why}
+        return dataclasses.replace(out, why=_far_off([]) if far else "no term stands out of the equation noise")
     if budget is None:
-        return out | {"added_to_model": [], "why": "the terms only: not replayed"}
+        return dataclasses.replace(out, why="the terms only: not replayed")
     cost_before = held_out_cost(problem, base_scored)
     # the representable terms together, then each alone: the replay on held-out windows decides
     c = log.columns
@@ -506,12 +499,11 @@ def discover(problem: ReplayProblem, base: PlantModel, base_scored, budget) -> d
         cost = held_out_cost(problem, scored)
         if best is None or cost < best[0]:
             best = (cost, model, applied, scored)
-    out["not_representable"] = [k for k in found if k not in representable]
+    out = dataclasses.replace(out, not_representable=[k for k in found if k not in representable])
     if best is None or best[0] >= cost_before:
-        return out | {"added_to_model": [], "why": "adding the terms that map onto model parameters did not lower "
-                      "the held-out error of the replay: reported, not kept"}
+        return dataclasses.replace(out, why="adding the terms that map onto model parameters did not lower the "
+                                   "held-out error of the replay: reported, not kept")
     cost_after, model, applied, scored = best
-    return out | _kept(applied, base_scored, scored, cost_before, cost_after) | {
-        "effects_after": {k: getattr(model.effects, k) for k in (
-            "edge_gain_pa", "edge_gain_at", "leakage",
-            *(("edge_gain_pb", "edge_gain_bt") if base.hydraulics.four_way else ()))}}
+    return dataclasses.replace(out.kept(applied, base_scored, scored, cost_before, cost_after), effects_after={
+        k: getattr(model.effects, k) for k in ("edge_gain_pa", "edge_gain_at", "leakage",
+                                              *(("edge_gain_pb", "edge_gain_bt") if base.hydraulics.four_way else ()))})

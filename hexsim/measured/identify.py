@@ -40,6 +40,7 @@ window (segment) and second the sample.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from concurrent.futures import as_completed
 from dataclasses import dataclass, field
@@ -66,7 +67,7 @@ from hexsim.measured.effect_fit import (
     refit_jointly,
 )
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.records import UNSETTLED, Verdict
+from hexsim.measured.records import UNSETTLED, Discovery, Verdict
 from hexsim.measured.replay import PlantModel, ReplayProblem
 from hexsim.measured.scoring import (
     WITHIN,
@@ -239,7 +240,7 @@ class Identification:
     accepted: list[FitResult]
     final: Scored  # the nominal plus the accepted effects
     verdict: Verdict
-    discovery: dict | None = None  # hexsim.measured.discovery.discover, for partial and unexplained verdicts
+    discovery: Discovery | None = None  # hexsim.measured.discovery.discover, for partial and unexplained verdicts
     # hexapod: per round, every candidate screened: key, the cost of its best start on the search
     # segments relative to the model it extends, and whether it was fitted
     screening: list[list[dict]] = field(default_factory=list)
@@ -436,7 +437,7 @@ def static_offset_limit(problem: ReplayProblem, sim: dict[str, np.ndarray]) -> f
 
 
 def _discover_partial(problem: ReplayProblem, nominal: "Scored", model: PlantModel, current: "Scored",
-                      budget: Budget, accepted: list[FitResult]) -> dict:
+                      budget: Budget, accepted: list[FitResult]) -> Discovery:
     """Discovery after a ``partial`` verdict: on the model with the accepted effects, and on the nominal with
     them left out, since an accepted effect may stand in for the missing one (a leg's null offset holds
     the mean of a leak's flow that the library lacks, and the leak's own term is then no longer seen). The
@@ -446,13 +447,13 @@ def _discover_partial(problem: ReplayProblem, nominal: "Scored", model: PlantMod
     alone = discover(problem, problem.nominal, nominal, budget)
     label = " + ".join(a.key for a in accepted)
 
-    def after(found: dict) -> float:
-        return held_out_cost(problem, found["_scored"]) if "_scored" in found else math.inf
+    def after(found: Discovery) -> float:
+        return math.inf if found.scored is None else held_out_cost(problem, found.scored)
 
     if after(alone) < min(after(on_top), held_out_cost(problem, current)):
-        return alone | {"on": f"the nominal model, {label} left out: its discovered terms explain the held-out "
-                              f"data better than {label} does"}
-    return on_top | {"on": f"the model with {label}"}
+        return dataclasses.replace(alone, on=f"the nominal model, {label} left out: its discovered terms explain "
+                                   f"the held-out data better than {label} does")
+    return dataclasses.replace(on_top, on=f"the model with {label}")
 
 
 def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,

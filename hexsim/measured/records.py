@@ -1,7 +1,8 @@
 """What one step of the measured-data chain hands the next, typed: the calibration record a validation reads
 (:class:`CalibrationRecord`, from a machine file's ``calibration`` block as :func:`hexsim.measured.calibration.
 calibrate` writes it), the verdict (:data:`Verdict`) and the validation report (:class:`ValidationReport`, the
-JSON document ``hexsim validate`` writes and :func:`hexsim.measured.validation.validate` returns). The advice a
+JSON document ``hexsim validate`` writes and :func:`hexsim.measured.validation.validate` returns) and the
+discovery's account (:class:`Discovery`, :func:`hexsim.measured.discovery.discover`). The advice a
 validation gives on an uncalibrated machine is :class:`hexsim.measured.advice.CalibrationAdvice`; the
 identification's outcome :class:`hexsim.measured.identify.Identification`.
 
@@ -11,8 +12,8 @@ The block is read here and only here: the budget's calibration uncertainty and m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal, TypedDict, get_args
+from dataclasses import dataclass, field, replace
+from typing import Any, Literal, TypedDict, get_args
 
 import numpy as np
 
@@ -97,6 +98,69 @@ class AddedEffect(TypedDict):
     name: str
     leg: int | None
     parameters: dict[str, EstimateRow]
+
+
+class DiscoveredTerm(TypedDict):
+    """One term the discovery's sparse fit kept (:func:`hexsim.measured.discovery.discover`): its equation
+    (``flow``, ``rod_flow``, ``force``), its name, the hexapod leg (None: the single actuator), coefficient and
+    standard error in ``unit``, what it means in words, and the equation's held-out error before and after it."""
+
+    equation: str
+    term: str
+    leg: int | None
+    coefficient: float
+    std_error: float
+    unit: str
+    meaning: str
+    equation_error_held_out: dict[str, float]
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """The discovery's account (:func:`hexsim.measured.discovery.discover`): whether it ran (``done``; else
+    ``why`` not), the ``method``, the ``terms`` found, those ``added_to_model`` (``equation:term``, on a
+    hexapod ``legN:equation:term``) and, where they were kept, the held-out RMS per channel before and after
+    [SI], the share of the held-out cost they recover and the model's effects (single actuator) or leg changes
+    (hexapod) with them; ``why`` nothing was kept; the area terms ``not_asked`` (why), the terms found that map
+    onto no parameter (``not_representable``), the hexapod legs whose equation is far off, the model it ran
+    ``on`` (a partial verdict's choice) and the kept replay's score (``scored``, a
+    :class:`hexsim.measured.scoring.Scored`; not in the JSON)."""
+
+    done: bool
+    why: str = ""
+    method: str = ""
+    terms: list[DiscoveredTerm] = field(default_factory=list)
+    added_to_model: list[str] = field(default_factory=list)
+    held_out_rms_before: dict[str, float] | None = None
+    held_out_rms_after: dict[str, float] | None = None
+    held_out_cost_recovered: float | None = None
+    effects_after: dict[str, float] | None = None
+    leg_changes: list[dict] | None = None
+    not_asked: dict[str, str] = field(default_factory=dict)
+    not_representable: list[str] | None = None
+    far_off_legs: list[int] = field(default_factory=list)
+    on: str = ""
+    scored: Any = None
+
+    def kept(self, applied: list[str], before, after, cost_before: float, cost_after: float) -> Discovery:
+        """This account with the terms ``applied`` kept: the held-out RMS of the replays ``before`` and
+        ``after`` them (:class:`hexsim.measured.scoring.Scored`), the share of the held-out cost
+        ``cost_before`` that ``cost_after`` recovers, and ``after`` as the kept replay's score."""
+        return replace(self, added_to_model=applied, held_out_rms_before=before.held_out_rms,
+                       held_out_rms_after=after.held_out_rms, scored=after,
+                       held_out_cost_recovered=1.0 - cost_after / cost_before if cost_before > 0 else 0.0)
+
+    def record(self) -> dict:
+        """The account as the validation's JSON holds it (``discovery``): the fields that apply, no score."""
+        if not self.done:
+            return {"done": False, "why": self.why}
+        out = {"done": True, "method": self.method, "terms": list(self.terms), "added_to_model": list(self.added_to_model)}
+        optional = {"not_asked": self.not_asked or None, "not_representable": self.not_representable,
+                    "far_off_legs": self.far_off_legs or None, "why": self.why or None,
+                    "held_out_rms_before": self.held_out_rms_before, "held_out_rms_after": self.held_out_rms_after,
+                    "held_out_cost_recovered": self.held_out_cost_recovered, "effects_after": self.effects_after,
+                    "leg_changes": self.leg_changes, "on": self.on or None}
+        return out | {k: v for k, v in optional.items() if v is not None}
 
 
 class ValidationReport(TypedDict, total=False):

@@ -29,7 +29,12 @@ from hexsim.measured.identify import (
     identify,
 )
 from hexsim.measured.measurement import MeasurementLog, read_log
-from hexsim.measured.records import UNSETTLED, CalibrationRecord, ValidationReport
+from hexsim.measured.records import (
+    UNSETTLED,
+    CalibrationRecord,
+    Discovery,
+    ValidationReport,
+)
 from hexsim.measured.reports.validation import fit_label, write_report
 from hexsim.measured.residuals import analyse
 from hexsim.measured.scoring import SCALED, WITHIN, within_budget
@@ -312,17 +317,17 @@ def _verdict_sentences(ident: Identification) -> list[str]:
     elif ident.verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
     out += _close_call_sentences(ident)
-    found = ident.discovery or {}
-    if found.get("on", "").startswith("the nominal model"):
-        out.append(f"Discovery on {found['on']}.")
-    for term in found.get("terms", []):
+    found = ident.discovery or Discovery(False)
+    if found.on.startswith("the nominal model"):
+        out.append(f"Discovery on {found.on}.")
+    for term in found.terms:
         out.append(f"Discovered in the {term['equation']} equation: {term['meaning']} "
                    f"(coefficient {term['coefficient']:.4g} ± {term['std_error']:.2g} {term['unit']}).")
-    if found.get("added_to_model"):
+    if found.added_to_model:
         out.append(f"With the discovered term(s) added to the model the held-out error drops by "
-                   f"{found['held_out_cost_recovered']:.1%} (cost in budgets).")
-    elif found.get("why"):
-        out.append(f"Discovery: {found['why']}.")
+                   f"{found.held_out_cost_recovered:.1%} (cost in budgets).")
+    elif found.why:
+        out.append(f"Discovery: {found.why}.")
     return out
 
 
@@ -374,8 +379,7 @@ def summary(ident: Identification) -> ValidationReport:
                       f"Bonferroni count is the candidates fitted)"),
         "conclusions": conclusions(ident, before),
         "payload_from_statics": hexapod_payload(ident),
-        "discovery": None if ident.discovery is None else {k: v for k, v in ident.discovery.items()
-                                                            if not k.startswith("_")},
+        "discovery": None if ident.discovery is None else ident.discovery.record(),
         "residuals_leg": p.focus_leg,  # hexapod: the leg the residual analysis looks at
         "residuals_before": before,
         "residuals_after": after,

@@ -149,7 +149,7 @@ def test_discovery_points_at_the_one_leg_with_a_flow_effect(tmp_path):
     for name, u0 in (("nominal", 0.0), ("leg3_offset", 0.15)):
         problem = HexapodProblem(read_log(_hexapod_log(tmp_path, name, u0)))
         assert isinstance(problem, ReplayProblem)  # every member the identifier and discovery read
-        found[name] = discover(problem, problem.nominal, None, None)["terms"]
+        found[name] = discover(problem, problem.nominal, None, None).terms
     assert found["nominal"] == []
     legs = {t["leg"] for t in found["leg3_offset"]}
     assert legs == {3}, found["leg3_offset"]

@@ -159,13 +159,13 @@ def test_effect_outside_the_list_is_never_named_and_discovery_finds_its_term(log
     base = ident.nominal.held_out_rms
     for f in ident.accepted:  # what was accepted made no channel worse than its budget allows
         assert all(f.scored.held_out_rms[ch] <= max(1.1 * base[ch], base[ch] + ident.budget.total[ch]) for ch in base)
-    found = {t["term"]: t for t in ident.discovery["terms"] if t["equation"] == "flow"}
-    assert term in found, ident.discovery["terms"]
+    found = {t["term"]: t for t in ident.discovery.terms if t["equation"] == "flow"}
+    assert term in found, ident.discovery.terms
     truth = _cases()[name][1]
     expected = truth.leakage if effect == "leakage" else truth.edge_gain_at - 1.0
     assert found[term]["coefficient"] == pytest.approx(expected, rel=0.15)
-    assert f"flow:{term}" in ident.discovery["added_to_model"]
-    assert ident.discovery["held_out_cost_recovered"] >= 0.5
+    assert f"flow:{term}" in ident.discovery.added_to_model
+    assert ident.discovery.held_out_cost_recovered >= 0.5
 
 
 def test_nothing_finer_than_the_log_resolves_is_a_finding(logs):

@@ -254,7 +254,7 @@ def test_discovery_finds_a_leak_across_one_4_way_legs_piston_on_that_leg(tmp_pat
         write_log(tmp_path / f"{name}.csv", result, noise=np.random.default_rng(5))
         problem = HexapodProblem(read_log(tmp_path / f"{name}.csv", machine=machine))
         assert "leg2_p2_Pa" in problem.log.columns
-        found[name] = discover(problem, problem.nominal, None, None)["terms"]
+        found[name] = discover(problem, problem.nominal, None, None).terms
     assert found["nominal"] == []
     assert {t["leg"] for t in found["leak"]} == {2}, found["leak"]
     leaks = {t["equation"]: t["coefficient"] for t in found["leak"] if t["term"] in ("p2 - p1", "p1 - p2")}
