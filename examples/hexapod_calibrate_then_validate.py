@@ -31,8 +31,9 @@ from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
 from hexsim.plant.machine import dump, load_machine
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
-from independent_hexapod import Hexapod, motion, write  # noqa: E402  (the truth plant lives with the tests)
+TESTS = pathlib.Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(TESTS), str(TESTS / "measured")]  # the truth plant and its test's motions live with the tests
+from independent_hexapod import Hexapod, motion, write  # noqa: E402
 from test_calibration_hexapod import _calibration_motion, _machine, _other_motion  # noqa: E402
 
 

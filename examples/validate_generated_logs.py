@@ -25,21 +25,22 @@ from hexsim.outputs.logio import write_log
 BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] per bar/(L/min)
 
 
-def hexapod_plant(seed: int, **changes) -> hexsim.RunConfig:
+def hexapod_plant(seed: int, effects: hexsim.Effects | None = None, **changes) -> hexsim.RunConfig:
     """The independent plant of the hexapod's logs: the full multi-body model at 5e-5 s, 6 s of 1 Hz heave,
-    with ``changes`` (effects=…, leg_changes=…, compensator=…) hidden in it."""
+    with ``effects`` (the machine's) and ``changes`` (leg_changes=…, compensator=…: the run's) hidden in it."""
     from hexsim.control.scenario import make_scenario
 
-    return hexsim.RunConfig(make_scenario("heave", duration=6.0, frequency=1.0), model="full", timestep=5e-5,
-                            seed=seed, **changes)
+    run = hexsim.RunConfig(make_scenario("heave", duration=6.0, frequency=1.0), model="full", timestep=5e-5,
+                           seed=seed, **changes)
+    return run if effects is None else run.with_machine(effects=effects)
 
 
-def actuator_plant(seed: int, **changes) -> hexsim.RunConfig:
-    """The single actuator's logs: 6 s of 1 Hz motion at 5e-5 s, with ``changes`` hidden in it."""
+def actuator_plant(seed: int, effects: hexsim.Effects | None = None) -> hexsim.RunConfig:
+    """The single actuator's logs: 6 s of 1 Hz motion at 5e-5 s, with ``effects`` hidden in it."""
     from hexsim.control.scenario import make_scenario
 
-    return hexsim.RunConfig(make_scenario("actuator", duration=6.0, frequency=1.0), timestep=5e-5, seed=seed,
-                            **changes)
+    run = hexsim.RunConfig(make_scenario("actuator", duration=6.0, frequency=1.0), timestep=5e-5, seed=seed)
+    return run if effects is None else run.with_machine(effects=effects)
 
 
 Effects, leg = hexsim.Effects, hexsim.LegChange.of

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import pathlib
+import runpy
 import subprocess
 import sys
 
@@ -29,3 +30,13 @@ def test_example_runs(script, args, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert out.read_bytes()[:4] == b"\x89PNG"
     assert "wrote" in proc.stdout
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in EXAMPLES.glob("*.py")))
+def test_every_example_loads(script):
+    """Every example's module-level code runs (its imports, its cases' RunConfigs): those too long for the
+    suite (the calibrations, the proof) are not run above, and a change of an API they build at import time
+    (validate_generated_logs.py's RunConfig, the hexapod example's test imports) failed only when a user ran
+    them."""
+    namespace = runpy.run_path(str(EXAMPLES / script), run_name="example")
+    assert callable(namespace.get("main")), f"{script} has no main()"
