@@ -60,6 +60,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
+import scipy.sparse
 from scipy.stats import median_abs_deviation
 
 from hexsim.errors import InputError
@@ -225,16 +227,14 @@ def _edge_rows(samples: list[FlowSamples], pa: np.ndarray, at: np.ndarray
     return np.vstack(rows), np.concatenate(rhs), np.concatenate(blocks), np.vstack(reach)
 
 
-def _penalty(pa: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """(p, m): the slope changes of both edges' curves as rows on the unknowns (none on 1/E and V_pl/E)."""
+def _penalty(pa: np.ndarray, at: np.ndarray) -> scipy.sparse.csr_matrix:
+    """(p, m), sparse (two entries a row): the slope changes of both edges' curves as rows on the unknowns
+    (none on 1/E and V_pl/E)."""
     dp, da = _slope_changes(pa), _slope_changes(at)
-    out = np.zeros((dp.shape[0] + da.shape[0], dp.shape[1] + da.shape[1] + 2))
-    out[:dp.shape[0], :dp.shape[1]] = dp
-    out[dp.shape[0]:, dp.shape[1]:dp.shape[1] + da.shape[1]] = da
-    return out
+    return scipy.sparse.csr_matrix(scipy.sparse.block_diag([dp, da, np.zeros((0, 2))]))
 
 
-def _solve(gram: np.ndarray, rhs: np.ndarray, D: np.ndarray, weight: float, x0: np.ndarray,
+def _solve(gram: np.ndarray, rhs: np.ndarray, D: scipy.sparse.csr_matrix, weight: float, x0: np.ndarray,
            bounds: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """The unknowns inside ``bounds`` minimising x^T gram x - 2 rhs^T x + weight sum |D x|: the absolute values
     reweighted (:data:`IRLS_STEPS` times), each step a bounded linear least squares on the equilibrated normal
@@ -245,11 +245,12 @@ def _solve(gram: np.ndarray, rhs: np.ndarray, D: np.ndarray, weight: float, x0: 
     for _ in range(IRLS_STEPS):
         d = D @ x
         eps = 1e-3 * max(float(np.median(np.abs(d))), 1e-6)
-        g = gram + weight * (D.T * (1.0 / (np.abs(d) + eps))) @ D
+        g = gram + weight * (D.T @ scipy.sparse.diags(1.0 / (np.abs(d) + eps)) @ D).toarray()
         scale = np.sqrt(np.maximum(np.diag(g), 1e-30 * np.max(np.diag(g))))
-        gs = g / scale[:, None] / scale[None, :]  # equilibrated
-        r = np.linalg.cholesky(gs + 1e-10 * np.eye(len(gs))).T
-        z = np.linalg.solve(r.T, rhs / scale)
+        gs = g / np.outer(scale, scale)  # equilibrated
+        gs[np.diag_indices_from(gs)] += 1e-10
+        r = np.linalg.cholesky(gs).T
+        z = scipy.linalg.solve_triangular(r, rhs / scale, trans="T")
         xs, held = box_lsq(r, z, lo * scale, hi * scale, held)
         x = xs / scale
     return x
@@ -426,7 +427,7 @@ class _Folds:
     w: np.ndarray
     block: np.ndarray
     grams: list
-    D: np.ndarray
+    D: scipy.sparse.csr_matrix
     x: np.ndarray
     bounds: tuple
 
