@@ -34,6 +34,10 @@ def add_serve(sub) -> None:
                     help="the host packet's layout (default hexsim's, docs/serve.md)")
     se.add_argument("--state-layout", type=pathlib.Path, metavar="LAYOUT.json",
                     help="the state packet's layout (default hexsim's)")
+    se.add_argument("--perception", action="store_true",
+                    help="the occupant's perception in the loop: the state packet (version 2, or --state-layout's "
+                    "sensed_* / seat_* fields) carries what the vestibular organs sense and the ISO 2631-1 weighted "
+                    "seat acceleration")
     se.add_argument("--state-rate", type=parse_number, default=100.0, help="state packets per second (default %(default)s)")
     se.add_argument("--duration", type=parse_number, default=None,
                     help="seconds to serve (default 3600); with --client: the motion's length (default the scenario's)")
@@ -55,10 +59,16 @@ def add_serve(sub) -> None:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    from hexsim.interfaces.packets import HOST_PACKET, STATE_PACKET, PacketLayout
+    from hexsim.interfaces.packets import (
+        HOST_PACKET,
+        STATE_PACKET,
+        STATE_PACKET_PERCEPTION,
+        PacketLayout,
+    )
 
     host = PacketLayout.from_file(args.layout).check_host() if args.layout else HOST_PACKET
-    state = PacketLayout.from_file(args.state_layout).check_state() if args.state_layout else STATE_PACKET
+    state = (PacketLayout.from_file(args.state_layout).check_state() if args.state_layout else
+             STATE_PACKET_PERCEPTION if args.perception else STATE_PACKET)
     if args.client:
         from hexsim.interfaces.host import client_lines, run_client
 

@@ -171,4 +171,11 @@ def client_lines(record: HostRecord) -> list[str]:
         _, heave = record.series("heave")
         lines.append(f"heave sent {sent_heave.min():+.4f}…{sent_heave.max():+.4f} m, reported "
                      f"{heave.min():+.4f}…{heave.max():+.4f} m over {sent_t[-1] - sent_t[0]:.1f} s")
+    if "seat_peak" in record.states[0][1]:
+        from hexsim.studies.perception import ISO_PERCEPTION_THRESHOLD
+
+        _, peak = record.series("seat_peak")
+        lines.append(f"seat, ISO 2631-1 weighted (the motion and its bumps): largest {peak.max():.4f} m/s² "
+                     f"({peak.max() / ISO_PERCEPTION_THRESHOLD:.1f}× the {ISO_PERCEPTION_THRESHOLD:g} m/s² threshold of "
+                     "perception)")
     return lines

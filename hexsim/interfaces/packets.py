@@ -65,7 +65,18 @@ STATE_FIELDS: dict[str, tuple[str, str]] = {
     "received": ("-", "host packets received"),
     "rejected": ("-", "host packets rejected (malformed, out of order or beyond the envelope)"),
     "late": ("-", "controller ticks that started more than one period late"),
+    **{f"sensed_f{a}": ("m/s^2", f"specific force the occupant's otoliths sense, platform {a} axis (the head's "
+                                 "through the otolith model; +9.81 on z at rest)") for a in "xyz"},
+    **{f"sensed_w{a}": ("rad/s", f"angular velocity the occupant's semicircular canals sense, platform {a} axis")
+       for a in "xyz"},
+    **{f"seat_a{a}": ("m/s^2", f"specific force at the seat, ISO 2631-1 {w}-weighted, platform {a} axis")
+       for a, w in zip("xyz", ("W_d", "W_d", "W_k"))},
+    "seat_peak": ("m/s^2", "the largest weighted seat acceleration on any axis since the last state packet "
+                           "(perceived above 0.015, ISO 2631-1 Annex C)"),
 }
+#: the state fields the occupant's perception gives (:class:`hexsim.studies.perception.LivePerception`): a state
+#: layout that names one turns the perception on in the loop
+PERCEPTION_FIELDS = tuple(n for n in STATE_FIELDS if n.startswith(("sensed_", "seat_")))
 
 
 class PacketError(ValueError):
@@ -240,3 +251,7 @@ STATE_PACKET = PacketLayout((
     *_f32(*DOF), *_f32(*(f"{n}_rate" for n in DOF)), *_f32("head_fx", "head_fy", "head_fz"),
     *_f32("head_wx", "head_wy", "head_wz"), *_f32(*LEGS), *_f32(*(f"p1_leg{i}" for i in range(1, 7))),
     *_f32("p_s")))
+#: hexsim's state packet with the occupant's perception, version 2, little-endian: version 1's fields, then
+#: :data:`PERCEPTION_FIELDS` (``hexsim serve --perception``)
+STATE_PACKET_PERCEPTION = dataclasses.replace(STATE_PACKET, fields=(
+    Field("version", "u16", value=2), *STATE_PACKET.fields[1:], *_f32(*PERCEPTION_FIELDS)))

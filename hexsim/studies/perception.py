@@ -332,3 +332,64 @@ def sense_bumps(t: np.ndarray, head_cue: np.ndarray, seat_cue: np.ndarray, rever
     return BumpPerception(rev, v_ratio, s_peak / thresholds.seat_mps2, v_peak, s_peak, sensed_at,
                           np.asarray(head_m, dtype=float), np.asarray(seat_m, dtype=float), t, thresholds.seat_mps2,
                           sensed, weighted)
+
+
+# --------------------------------------------------------------------------------------------- live
+def _section_ss(sos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The state space (A (n, n), B (n,), C (n,), D) of a cascade of second-order sections ``sos`` (k, 6), each
+    in the transposed direct form II that :func:`scipy.signal.sosfilt` runs (y = b0 u + s1, s1' = (b1 - a1 b0) u
+    - a1 s1 + s2, s2' = (b2 - a2 b0) u - a2 s1), chained section by section: the same outputs to rounding."""
+    A, B, C, D = np.zeros((0, 0)), np.zeros(0), np.zeros(0), 1.0
+    for b0, b1, b2, _, a1, a2 in sos:
+        a = np.array([[-a1, 1.0], [-a2, 0.0]])
+        b = np.array([b1 - a1 * b0, b2 - a2 * b0])
+        n = len(B)
+        A_new = np.zeros((n + 2, n + 2))
+        A_new[:n, :n], A_new[n:, :n], A_new[n:, n:] = A, np.outer(b, C), a
+        A, B = A_new, np.concatenate([B, b * D])
+        C, D = np.concatenate([b0 * C, [1.0, 0.0]]), b0 * D
+    return A, B, C, D
+
+
+class LivePerception:
+    """The occupant's perception sample by sample, for a loop that cannot wait for the whole run (``hexsim
+    serve``): the vestibular models (module doc: the otoliths on the head's specific force x, y, z, the canals
+    on its angular velocity) and the ISO 2631-1 weightings on the seat's specific force (W_d x, y; W_k z),
+    discretised at ``fs`` [Hz] as :meth:`~hexsim.signals.LinearModel.apply` is (bilinear, second-order sections),
+    run as one state space. It starts settled on its first input (the otoliths sensing gravity, not a step
+    into it).
+
+    :meth:`update` takes the head's specific force (3,) [m/s^2] and angular velocity (3,) [rad/s] and the
+    seat's specific force (3,) [m/s^2], platform axes, and returns the sensed specific force and angular
+    velocity (6,) and the weighted seat acceleration (3,); :meth:`take_seat_peak` the largest weighted seat
+    acceleration on any axis [m/s^2] since it was last taken (the threshold of perception:
+    :data:`ISO_PERCEPTION_THRESHOLD`)."""
+
+    def __init__(self, fs: float) -> None:
+        models = [vestibular_model(axis) for axis in AXES] + [iso2631(ISO_WEIGHTINGS[a]) for a in "xyz"]
+        parts = [_section_ss(m.sos(fs)) for m in models]
+        sizes = [len(p[1]) for p in parts]
+        n, k = sum(sizes), len(parts)
+        self.A, self.B, self.C, self.D = np.zeros((n, n)), np.zeros((n, k)), np.zeros((k, n)), np.zeros(k)
+        start = 0
+        for j, ((a, b, c, d), size) in enumerate(zip(parts, sizes)):
+            s = slice(start, start + size)
+            self.A[s, s], self.B[s, j], self.C[j, s], self.D[j] = a, b, c, d
+            start += size
+        self.x: np.ndarray | None = None
+        self.seat_peak = 0.0
+
+    def update(self, head_f: np.ndarray, head_w: np.ndarray, seat_f: np.ndarray) -> np.ndarray:
+        """One sample: the sensed (6,) then the weighted seat acceleration (3,) (class doc)."""
+        u = np.concatenate([head_f, head_w, seat_f])
+        if self.x is None:  # settled on the first input: x = A x + B u at rest
+            self.x = np.linalg.solve(np.eye(len(self.A)) - self.A, self.B @ u)
+        y = self.C @ self.x + self.D * u
+        self.x = self.A @ self.x + self.B @ u
+        self.seat_peak = max(self.seat_peak, float(np.max(np.abs(y[6:]))))
+        return y
+
+    def take_seat_peak(self) -> float:
+        """The largest |weighted seat acceleration| [m/s^2] on any axis since the last call; resets it."""
+        peak, self.seat_peak = self.seat_peak, 0.0
+        return peak

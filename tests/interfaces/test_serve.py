@@ -32,6 +32,7 @@ from hexsim.interfaces.packets import (
     HOST_PACKET,
     HOST_PACKET_LEGS,
     STATE_PACKET,
+    STATE_PACKET_PERCEPTION,
     Field,
     PacketError,
     PacketLayout,
@@ -193,17 +194,19 @@ def test_the_quintic_fade_is_flat_at_both_ends():
 # ----------------------------------------------------------------------------------------------- a session
 @pytest.fixture(scope="module")
 def session():
-    """The built-in hexapod with the buffered compensator served 11 s on localhost (a thread), a host
-    client (this thread) at 100 Hz: neutral 1 s, engage and 0.5 Hz, 40 mm heave for 6 s, neutral; then two
-    malformed packets, one out of order, one beyond the envelope, and silence."""
+    """The built-in hexapod with the buffered compensator served 11 s on localhost (a thread), the occupant's
+    perception in the loop (the version 2 state packet), a host client (this thread) at 100 Hz: neutral 1 s,
+    engage and 0.5 Hz, 40 mm heave for 6 s, neutral; then two malformed packets, one out of order, one beyond
+    the envelope, and silence."""
     base = RunConfig.from_machine(load_machine(None), "heave", compensator="buffered")
-    vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=12.0, keep_s=12.0))
+    vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=12.0, keep_s=12.0,
+                                                  state_layout=STATE_PACKET_PERCEPTION))
     served = threading.Thread(target=vms.run, kwargs={"duration_s": 11.0})
     served.start()
     heave = lambda t: np.r_[0.0, 0.0, 0.04 * np.sin(np.pi * t), 0.0, 0.0, 0.0]
     script, total = motion_script(heave, 6.0, lead_s=1.0, tail_s=2.5)
     try:
-        with HostClient(vms.address) as host:
+        with HostClient(vms.address, state_layout=STATE_PACKET_PERCEPTION) as host:
             record = host.session(script, total)
             host.send_raw(b"\x01\x00")  # too short
             host.send_raw(host.packet("neutral", np.zeros(6))[:-8] + struct.pack("<d", float("inf")))
@@ -231,6 +234,43 @@ def test_the_host_sees_the_platform_engage_follow_and_return(session):
     assert np.corrcoef(fz[engaged], -heave[engaged])[0, 1] > 0.6  # measured 0.80
     _, p1 = record.series("p1_leg1")
     assert np.all((p1 > 0) & (p1 < 100e5))
+
+
+def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
+    """The version 2 state packet: the otoliths sense gravity at rest from the start (the filters start settled,
+    no 13 s transient) and the heave's specific force while engaged, lagging and attenuated as the otolith model
+    is at 0.5 Hz (gain 0.31, phase lag 57° at 0.5 Hz: Young & Meiry's tau_a 13.2, tau_L 5.33, tau_s 0.66 s);
+    the seat's weighted acceleration carries the sine and its bumps while engaged, nothing at neutral."""
+    _, record = session
+    t, status = record.series("status")
+    _, fz = record.series("head_fz")
+    _, sensed = record.series("sensed_fz")
+    _, peak = record.series("seat_peak")
+    assert abs(sensed[0] - 9.81) < 0.01  # settled on gravity at once
+    neutral = np.arange(len(status)) < np.argmax(status != Status.NEUTRAL)  # before the host engages
+    engaged = status == Status.ENGAGED
+    assert neutral.sum() > 50 and np.abs(sensed[neutral] - 9.81).max() < 0.01 and peak[neutral].max() < 1e-3
+    h = 13.2 * 1j * np.pi + 1, (5.33 * 1j * np.pi + 1) * (0.66 * 1j * np.pi + 1)
+    gain = abs(h[0] / h[1])
+    swing = lambda x: np.percentile(x, 98) - np.percentile(x, 2)  # noqa: E731
+    assert swing(sensed[engaged]) == pytest.approx(gain * swing(fz[engaged]), rel=0.2)
+    assert peak[engaged].max() > 0.015  # the 0.5 Hz, 40 mm heave's W_k-weighted 0.4 m/s^2 and its bumps
+
+
+def test_live_perception_is_the_recorded_runs_perception_sample_by_sample():
+    """The filters in the loop (one state space of second-order sections) give what the whole-run perception
+    (scipy's sosfilt of each model) gives, from rest, to rounding."""
+    from hexsim.studies.perception import AXES, ISO_WEIGHTINGS, LivePerception, iso2631, vestibular_model
+
+    fs, rng = 500.0, np.random.default_rng(0)
+    u = rng.normal(size=(2000, 9)) * np.r_[1, 1, 1, 0.1, 0.1, 0.1, 1, 1, 1]
+    live = LivePerception(fs)
+    live.x = np.zeros(len(live.A))  # from rest, as sosfilt starts
+    y = np.array([live.update(row[:3], row[3:6], row[6:]) for row in u])
+    ref = np.stack([vestibular_model(a).apply(u[:, k], fs) for k, a in enumerate(AXES)]
+                   + [iso2631(ISO_WEIGHTINGS[a]).apply(u[:, 6 + k], fs) for k, a in enumerate("xyz")], axis=1)
+    assert np.abs(y - ref).max() < 1e-9 * np.abs(ref).max()
+    assert live.take_seat_peak() == pytest.approx(np.abs(ref[:, 6:]).max()) and live.take_seat_peak() == 0.0
 
 
 def test_bad_packets_are_counted_by_reason_and_the_platform_is_undisturbed(session):
