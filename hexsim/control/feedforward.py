@@ -101,3 +101,38 @@ def setpoint_derivatives(setpoints: np.ndarray, dt: float) -> tuple[np.ndarray, 
     d1 = np.gradient(setpoints, dt, axis=0, edge_order=2)
     d2 = np.gradient(d1, dt, axis=0, edge_order=2)
     return d1, d2, np.gradient(d2, dt, axis=0, edge_order=2)
+
+
+#: [s] Time constant of the live reference's acceleration and jerk (:class:`LiveDerivatives`): a host's 100 Hz
+#: packets, played on a straight line between them, change the setpoint's slope every 10 ms.
+LIVE_SMOOTHING_S = 0.01
+
+
+class LiveDerivatives:
+    """(ṙ, r̈, r⃛) of setpoint rows written while the run goes (``hexsim serve``, the FMUs), one controller
+    sample every ``dt`` [s] for ``n`` legs, causal: what a motion computer without a preview has. ṙ is the
+    backward difference (exact on a host's straight line between its packets); r̈ is the derivative of ṙ
+    through a critically damped second-order low pass of time constant ``smoothing_s`` (its state-variable form,
+    discretised exactly: the slope's steps at the host's packets do not turn into spikes of a sample), r⃛ the
+    backward difference of r̈. The first row gives zeros. :func:`setpoint_derivatives` is the batch run's (central differences of the whole
+    table)."""
+
+    def __init__(self, n: int, dt: float, smoothing_s: float = LIVE_SMOOTHING_S) -> None:
+        from scipy.linalg import expm
+
+        w = 1.0 / smoothing_s
+        a = np.array([[0.0, 1.0], [-w * w, -2.0 * w]])
+        self.Ad = expm(a * dt)
+        self.Bd = np.linalg.solve(a, (self.Ad - np.eye(2)) @ np.array([0.0, w * w]))
+        self.dt = dt
+        self.last: np.ndarray | None = None
+        self.z = np.zeros((2, n))  # the filtered velocity and its derivative
+
+    def __call__(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """This sample's setpoints ``r`` (n,) [m] -> (ṙ, r̈, r⃛), each (n,)."""
+        r = np.asarray(r, dtype=float)
+        d1 = np.zeros_like(r) if self.last is None else (r - self.last) / self.dt
+        self.last = r.copy()
+        before = self.z[1].copy()
+        self.z = self.Ad @ self.z + np.outer(self.Bd, d1)
+        return d1, self.z[1].copy(), (self.z[1] - before) / self.dt

@@ -73,6 +73,9 @@ class Scenario:
     #: a ``vehicle:`` scenario's cueing: (VehicleMotion, WashoutParams, WashoutOutput) of
     #: :mod:`hexsim.control.washout`; None for other scenarios
     cueing: tuple | None = field(default=None, repr=False, compare=False)
+    #: setpoint rows written while the run goes (:func:`live_scenario`): the reference's derivatives are then
+    #: taken sample by sample as they come (:class:`hexsim.control.feedforward.LiveDerivatives`)
+    live: bool = False
 
     @property
     def open_loop(self) -> bool:
@@ -285,4 +288,5 @@ def live_scenario(system: str, neutral: np.ndarray, duration: float, *, open_loo
     neutral = np.asarray(neutral, dtype=float)
     valve = (np.zeros(1), np.zeros((1, neutral.size))) if open_loop else None
     return Scenario(name, system, float(duration), 2 if system == "hexapod" else -1, 0.0, 0.0,
-                    legs=(np.zeros(1), neutral[None, :]), valve=valve, start=neutral.copy() if open_loop else None)
+                    legs=(np.zeros(1), neutral[None, :]), valve=valve, start=neutral.copy() if open_loop else None,
+                    live=True)

@@ -20,7 +20,7 @@ from compensation import CompensatorSettings, PlantTruth
 from compensation.base import Compensator
 from compensation.model_based import LegModel, Reference
 from hexsim.control.controller import PController
-from hexsim.control.feedforward import setpoint_derivatives
+from hexsim.control.feedforward import LiveDerivatives, setpoint_derivatives
 from hexsim.control.kinematics import HexapodGeometry
 from hexsim.control.scenario import Scenario, make_scenario
 from hexsim.errors import InputError, WorkspaceError
@@ -280,9 +280,13 @@ class HydraulicCoupling:
         self.controller = controller
         self.setpoints, self.noise, self.ctrl_div, self.valve = schedule
         # the reference's derivatives, only for a compensator that observes them (compensation.model_based):
-        # three more arrays the size of the setpoint table on a long run
+        # three more arrays the size of the setpoint table on a long run; sample by sample where the rows are
+        # written while the run goes (hexsim serve, the FMUs)
         observes = type(controller.compensator).observe is not Compensator.observe
-        self.derivatives = setpoint_derivatives(self.setpoints, self.ctrl_div * idx.dt) if observes else None
+        live = observes and config.scenario.live
+        self.derivatives = setpoint_derivatives(self.setpoints, self.ctrl_div * idx.dt) if observes and not live \
+            else None
+        self.live = LiveDerivatives(idx.n_legs, self.ctrl_div * idx.dt) if live else None
         self.dt = idx.dt
         self.effects = config.effects
         self.faults = faults
@@ -354,9 +358,9 @@ class HydraulicCoupling:
             seen = inj.measured(t_k, seen)
         if self.valve is None:
             reference = None
-            if self.derivatives is not None:
-                d1, d2, d3 = self.derivatives
-                reference = Reference(self.r, d1[j], d2[j], d3[j], None if p1 is None else p1.copy())
+            if self.derivatives is not None or self.live is not None:
+                d1, d2, d3 = (d[j] for d in self.derivatives) if self.live is None else self.live(self.r)
+                reference = Reference(self.r, d1, d2, d3, None if p1 is None else p1.copy())
             self.u_v, self.u_c = self.controller.sample(self.r, seen, reference)
         else:  # open loop: the given command, saturated like the controller's
             u_max = hyd.u_v_max
