@@ -136,17 +136,20 @@ def test_engage_fades_the_hosts_motion_in_without_a_step_and_then_follows_it():
 
 
 def test_a_host_gone_silent_is_lost_and_the_platform_returns_to_neutral_smoothly_and_stays():
-    """Engaged on a moving host that stops sending at 4 s: its last setpoint is held (as a motion controller
+    """Engaged on a moving host that stops sending at 4 s: the setpoints go on along its last two packets' line
+    for two frames (a late packet's bridge), then its last setpoint so reached is held (as a motion controller
     does), after the timeout the platform returns to neutral on a cubic from rest (no step in position or
-    velocity), the fault is latched, and engage is refused until the host has
-    sent another mode."""
+    velocity), the fault is latched, and engage is refused until the host has sent another mode."""
     modes = _modes(engage_s=0.5, host_timeout_s=0.3, return_s=1.0)
     sine = lambda t: np.r_[0.0, 0.03 * np.sin(2 * np.pi * 0.5 * t), np.zeros(4)]
     y = _drive(modes, 8.0, lambda t: ("engage", sine(t)) if t < 4.0 else None)
     assert modes.status == Status.NEUTRAL and modes.latched and modes.faults & HOST_LOST
     assert np.all(y[-100:] == NEUTRAL)
     t = np.arange(len(y)) * TICK
-    held = (t > 4.005) & (t <= 4.29)  # the last packet (3.99 s, played 15 ms late)'s setpoint held until the host is lost
+    bridge = (t > 4.006) & (t <= 4.024)  # the last packet (3.99 s) played 15 ms late, then two frames on its line
+    v_bridge = np.diff(y[bridge, 1]) / TICK
+    assert np.ptp(v_bridge) < 1e-9 and abs(v_bridge[0]) > 0.01  # one straight line, moving
+    held = (t > 4.026) & (t <= 4.29)  # then held until the host is lost
     assert np.all(y[held] == y[np.argmax(held)])
     back = t >= 4.29
     v = np.diff(y[back, 1]) / TICK
@@ -260,7 +263,13 @@ def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
 def test_live_perception_is_the_recorded_runs_perception_sample_by_sample():
     """The filters in the loop (one state space of second-order sections) give what the whole-run perception
     (scipy's sosfilt of each model) gives, from rest, to rounding."""
-    from hexsim.studies.perception import AXES, ISO_WEIGHTINGS, LivePerception, iso2631, vestibular_model
+    from hexsim.studies.perception import (
+        AXES,
+        ISO_WEIGHTINGS,
+        LivePerception,
+        iso2631,
+        vestibular_model,
+    )
 
     fs, rng = 500.0, np.random.default_rng(0)
     u = rng.normal(size=(2000, 9)) * np.r_[1, 1, 1, 0.1, 0.1, 0.1, 1, 1, 1]
