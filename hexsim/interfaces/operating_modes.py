@@ -20,7 +20,8 @@ leg beyond its stroke less ``margin_m`` ("envelope").
 
 Between packets the host's setpoints are interpolated linearly on the host's own timeline, not on the
 arrival times: each accepted packet sits at its frame counter (unwrapped) times the host period, the period
-and the timeline's offset are learned from the arrivals by slow averages (:data:`LEARN`), and the setpoint
+and the timeline's offset are learned from the arrivals by slow averages (:data:`LEARN`; the offset from late
+arrivals more slowly still, :data:`LEARN_LATE`: it follows the earliest), and the setpoint
 is played ``delay_frames`` frames behind the newest (1.5: a packet may arrive up to half a period late without
 the setpoints noticing). Arrival jitter then moves the offset a little, not the setpoints' velocity, which
 would be acceleration spikes of the size jitter x velocity / period^2. A packet later than that is
@@ -56,10 +57,15 @@ class Status(enum.IntEnum):
 
 #: the weight of each arrival in the averages of the host period and its timeline's offset
 LEARN = 0.02
+#: ... of an arrival later than the timeline has it, in the offset's: a network delays packets, it never sends one
+#: early, so the timeline follows the earliest arrivals and a burst of late ones barely moves it (at LEARN each,
+#: a served session's three packets 30 ms late stepped the setpoint back 0.24 mm in one tick: 2 g)
+LEARN_LATE = 0.001
 #: the host packets kept for the interpolation
 KEEP = 8
-#: how far past the newest packet [frames] the setpoints go on along the last two packets' line (module doc)
-EXTRAPOLATE_FRAMES = 2.0
+#: how far past the newest packet [frames] the setpoints go on along the last two packets' line (module doc): a
+#: burst of three packets 30 ms late is bridged (two frames held the setpoint for a tick, then doubled its step)
+EXTRAPOLATE_FRAMES = 5.0
 
 #: fault bits of the state packet's ``faults``
 HOST_LOST, REJECTED, OVERRUN, ENVELOPE = 1, 2, 4, 8
@@ -200,7 +206,8 @@ class OperatingModes:
             self._offset = t0 - n0 * self.host_period
         else:
             self.host_period += LEARN * ((t - t0) / (n - n0) - self.host_period)
-            self._offset += LEARN * ((t - n * self.host_period) - self._offset)
+            late = (t - n * self.host_period) - self._offset
+            self._offset += (LEARN_LATE if late > 0 else LEARN) * late
 
     def host_setpoint(self, t: float) -> np.ndarray:
         """The host's piston setpoints at ``t`` [s]: linear on the host's timeline, ``delay_frames`` behind

@@ -116,6 +116,35 @@ def _drive(modes: OperatingModes, duration: float, packet, rate_hz: float = 100.
     return np.array(out)
 
 
+def test_late_packets_neither_stop_nor_step_back_the_setpoint():
+    """Engaged on a host's 0.5 Hz, 40 mm sine at 100 Hz whose packets arrive 0-3 ms late, and three of them
+    30 ms late at once (a burst, as a host's or the network's hiccup gives): the setpoint goes on along the
+    host's line (bridged past the newest packet) and its step per tick stays near the host's own
+    velocity's at every tick: within half of it (measured 0.28; held, a tick stood still and the next doubled, 1.0;
+    with the timeline following late arrivals as early ones, 0.53)."""
+    modes = _modes(engage_s=0.5)
+    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
+    rng = np.random.default_rng(5)
+    sends = np.arange(0.0, 6.0, 0.01)
+    arrivals = sends + rng.uniform(0.0, 0.003, sends.size)
+    burst = (sends >= 4.0) & (sends < 4.03)
+    arrivals[burst] = 4.03 + rng.uniform(0.0, 0.001, burst.sum())
+    order = np.argsort(arrivals, kind="stable")
+    out, k = [], 0
+    for n in range(int(round(6.0 / TICK))):
+        t = n * TICK
+        while k < len(order) and arrivals[order[k]] <= t:
+            i = order[k]
+            modes.receive(t, {"frame": i + 1, "mode": "engage", "setpoint": sine(sends[i])})
+            k += 1
+        out.append(modes.setpoint(t)[0])
+    y, t = np.array(out), np.arange(len(out)) * TICK
+    step = np.diff(y)
+    host = 0.04 * np.pi * np.cos(np.pi * (t[1:] - 0.015)) * TICK  # the host's line, played 1.5 frames behind
+    engaged = (t[1:] > 1.0) & (np.abs(host) > 0.3 * 0.04 * np.pi * TICK)  # away from the sine's turns
+    assert np.max(np.abs(step[engaged] - host[engaged]) / np.abs(host[engaged])) < 0.5
+
+
 def test_engage_fades_the_hosts_motion_in_without_a_step_and_then_follows_it():
     """The host sends a 0.5 Hz, 40 mm sine on leg 1 from t = 0 and asks to engage at 1 s: the setpoint stays
     neutral until then; the fade adds no step in velocity (its largest change per tick no larger than the one
@@ -137,7 +166,7 @@ def test_engage_fades_the_hosts_motion_in_without_a_step_and_then_follows_it():
 
 def test_a_host_gone_silent_is_lost_and_the_platform_returns_to_neutral_smoothly_and_stays():
     """Engaged on a moving host that stops sending at 4 s: the setpoints go on along its last two packets' line
-    for two frames (a late packet's bridge), then its last setpoint so reached is held (as a motion controller
+    for five frames (a late packet's bridge), then its last setpoint so reached is held (as a motion controller
     does), after the timeout the platform returns to neutral on a cubic from rest (no step in position or
     velocity), the fault is latched, and engage is refused until the host has sent another mode."""
     modes = _modes(engage_s=0.5, host_timeout_s=0.3, return_s=1.0)
@@ -146,10 +175,10 @@ def test_a_host_gone_silent_is_lost_and_the_platform_returns_to_neutral_smoothly
     assert modes.status == Status.NEUTRAL and modes.latched and modes.faults & HOST_LOST
     assert np.all(y[-100:] == NEUTRAL)
     t = np.arange(len(y)) * TICK
-    bridge = (t > 4.006) & (t <= 4.024)  # the last packet (3.99 s) played 15 ms late, then two frames on its line
+    bridge = (t > 4.006) & (t <= 4.054)  # the last packet (3.99 s) played 15 ms late, then five frames on its line
     v_bridge = np.diff(y[bridge, 1]) / TICK
     assert np.ptp(v_bridge) < 1e-9 and abs(v_bridge[0]) > 0.01  # one straight line, moving
-    held = (t > 4.026) & (t <= 4.29)  # then held until the host is lost
+    held = (t > 4.056) & (t <= 4.29)  # then held until the host is lost
     assert np.all(y[held] == y[np.argmax(held)])
     back = t >= 4.29
     v = np.diff(y[back, 1]) / TICK
@@ -241,11 +270,12 @@ def test_the_host_sees_the_platform_engage_follow_and_return(session):
 
 def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
     """The version 2 state packet: the otoliths sense gravity at rest from the start (the filters start settled,
-    no 13 s transient) and the heave's specific force while engaged, lagging and attenuated as the otolith model
-    is at 0.5 Hz (gain 0.31, phase lag 57° at 0.5 Hz: Young & Meiry's tau_a 13.2, tau_L 5.33, tau_s 0.66 s);
-    the seat's weighted acceleration carries the sine and its bumps while engaged, nothing at neutral."""
+    no 13 s transient) and the heave's specific force while engaged with the otolith model's gain at 0.5 Hz (1.07:
+    Young & Meiry's tau_a 13.2, tau_L 5.33, tau_s 0.66 s), the fundamentals compared (the bumps are on both); the
+    seat's weighted acceleration carries the sine and its bumps while engaged, nothing at neutral."""
     _, record = session
-    t, status = record.series("status")
+    _, status = record.series("status")
+    _, time = record.series("time")
     _, fz = record.series("head_fz")
     _, sensed = record.series("sensed_fz")
     _, peak = record.series("seat_peak")
@@ -253,10 +283,11 @@ def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
     neutral = np.arange(len(status)) < np.argmax(status != Status.NEUTRAL)  # before the host engages
     engaged = status == Status.ENGAGED
     assert neutral.sum() > 50 and np.abs(sensed[neutral] - 9.81).max() < 0.01 and peak[neutral].max() < 1e-3
-    h = 13.2 * 1j * np.pi + 1, (5.33 * 1j * np.pi + 1) * (0.66 * 1j * np.pi + 1)
-    gain = abs(h[0] / h[1])
-    swing = lambda x: np.percentile(x, 98) - np.percentile(x, 2)  # noqa: E731
-    assert swing(sensed[engaged]) == pytest.approx(gain * swing(fz[engaged]), rel=0.2)
+    basis = np.column_stack([np.sin(np.pi * time), np.cos(np.pi * time), np.ones_like(time)])[engaged]
+    amplitude = lambda x: np.hypot(*np.linalg.lstsq(basis, x[engaged], rcond=None)[0][:2])  # noqa: E731
+    s = 1j * np.pi
+    gain = abs((13.2 * s + 1) / ((5.33 * s + 1) * (0.66 * s + 1)))
+    assert amplitude(sensed) == pytest.approx(gain * amplitude(fz), rel=0.1)
     assert peak[engaged].max() > 0.015  # the 0.5 Hz, 40 mm heave's W_k-weighted 0.4 m/s^2 and its bumps
 
 
