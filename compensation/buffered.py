@@ -57,6 +57,10 @@ from compensation.base import (
 )
 from compensation.functions import function2
 
+#: [V] A full buffer whose valve range q = max|W UV_f| stays below this held no motion and teaches nothing
+#: (:func:`update_parameters`): a platform standing still, its P output the position sensor's noise (mV).
+STANDSTILL_Q_V = 0.05
+
 
 class BufferedParams(NamedTuple):
     """Constants of :func:`buffered_tick`: the observer's filter and the controller period; the velocity
@@ -110,13 +114,21 @@ def lowpass(x, out, pole):
 def update_parameters(B, d, i, pole, scratch):
     """Appendix C's update of set d, leg i, from its full buffers (steps 1–3 of the module doc), then
     the buffers of that leg cleared: a = max(W UC_f), b = 1/max|W UV_f|, both only ever increased, a
-    limited to 1/(4 b); c = b mean(UY_f) over the samples at zero velocity (kept if there were none)."""
+    limited to 1/(4 b); c = b mean(UY_f) over the samples at zero velocity (kept if there were none).
+    A buffer whose range q = max|W UV_f| stays below :data:`STANDSTILL_Q_V` held no motion and changes nothing
+    (not in the seed, whose motions all move: with b = 1/q of the sensor's noise, b grew without bound while a
+    platform stood still after moving, and the directional compensator's U_c reached 2000 V)."""
     L = B.uv.shape[1]
     w = B.weights
     lowpass(B.uv[d, :, i], scratch, pole)
     q = 0.0
     for t in range(L):
         q = max(q, abs(scratch[t] * w[t]))
+    if q < STANDSTILL_Q_V:
+        for t in range(L):
+            B.uy[d, t, i] = np.nan
+        B.fill[d, i] = 0
+        return
     lowpass(B.uc[d, :, i], scratch, pole)
     a_new = -np.inf
     for t in range(L):

@@ -141,6 +141,20 @@ def test_buffers_give_appendix_c_parameters_and_only_increase():
     assert B.abc[0, 0, 0] == a and B.abc[0, 1, 0] == b and B.abc[0, 2, 0] == c  # no UY samples: c kept
 
 
+def test_a_buffer_of_a_platform_standing_still_teaches_nothing():
+    """After a motion's update, a buffer of a platform standing still (the P output the sensor's noise, mV) leaves
+    a, b, c as they were: b = 1/q of the noise grew without bound before, and the directional compensator's U_c
+    reached 2000 V three seconds after a heave stopped (the buffered one dithered at 28x the seat threshold)."""
+    n = 1000
+    B = Buffers.empty(1, n, 1)
+    phase = np.linspace(0, 2 * np.pi, n)
+    _fill_and_update(B, 0.8 * np.sin(phase), 0.2 * np.abs(np.sin(phase)), np.where(np.arange(n) % 50 == 0, 0.03, np.nan))
+    moved = B.abc[0, :, 0].copy()
+    noise = np.random.default_rng(4).normal(0.0, 0.002, n)
+    _fill_and_update(B, noise, noise, noise)
+    assert np.array_equal(B.abc[0, :, 0], moved) and B.fill[0, 0] == 0 and np.all(np.isnan(B.uy))
+
+
 def test_buffered_amplitude_is_limited_to_a_quarter_of_the_valve_range():
     """A buffer that saw a small valve range but large u_v - ydot/s (e.g. shorter than the motion's period)
     must not set a above q/4 = 1/(4 b) (safety bound, as the iterative compensators)."""
