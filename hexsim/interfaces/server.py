@@ -224,6 +224,20 @@ class VirtualMotionSystem:
         self.address = self.sock.getsockname()
         self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform")
         self._vel = np.zeros(6)
+        self._occupant(config, settings)
+        self._worker = None
+        if hasattr(sim.compensator, "learn_in"):  # an adaptive compensator's buffers: taught beside the loop
+            # in a process of its own (a thread would hold the interpreter's lock from the loop for tens of ms),
+            # forked (it has the modules already), at a lower priority than the loop
+            self._worker = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"),
+                                               initializer=os.nice, initargs=(WORKER_NICE,))
+            sim.compensator.learn_in(self._worker)
+
+
+    def _occupant(self, config: RunConfig, settings: ServeSettings) -> None:
+        """The occupant's points in the accelerometer's site frame (the head; with the seat, stacked, for the
+        perception) and the perception itself where the state packet sends it."""
+        sim = self.sim
         site_pos, site_quat = sim.sensor_site()  # the accelerometer's site in the platform body
         self._body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]]).as_matrix()  # (3, 3)
         self._world_from_body = np.zeros(9)
@@ -237,13 +251,6 @@ class VirtualMotionSystem:
         perceived = any(f.name in PERCEPTION_FIELDS for f in settings.state_layout.fields)
         self.perception = LivePerception(1.0 / self.period) if perceived else None
         self._sensed = np.zeros(len(_SENSED_NAMES))
-        self._worker = None
-        if hasattr(sim.compensator, "learn_in"):  # an adaptive compensator's buffers: taught beside the loop
-            # in a process of its own (a thread would hold the interpreter's lock from the loop for tens of ms),
-            # forked (it has the modules already), at a lower priority than the loop
-            self._worker = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"),
-                                               initializer=os.nice, initargs=(WORKER_NICE,))
-            sim.compensator.learn_in(self._worker)
 
     # ------------------------------------------------------------------ packets
     def _drain(self) -> None:
