@@ -131,6 +131,10 @@ def _active_dask_client():
         return None
 
 
+#: [s] How long a Dask client tries to reach a running scheduler before it gives up (:func:`dask_client`).
+SCHEDULER_TIMEOUT_S = 10.0
+
+
 @contextlib.contextmanager
 def dask_client(scheduler: str, jobs: int):
     """A Dask client, the default one while open (so every :func:`worker_pool` inside runs on it): on a
@@ -150,7 +154,7 @@ def dask_client(scheduler: str, jobs: int):
                                                dashboard_address=None, silence_logs=logging.ERROR)
             client = distributed.Client(cluster, set_as_default=True)
         else:
-            client = distributed.Client(scheduler, timeout="10s", set_as_default=True)
+            client = distributed.Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s", set_as_default=True)
     except (OSError, TimeoutError) as exc:
         if cluster is not None:
             cluster.close()

@@ -233,7 +233,6 @@ class VirtualMotionSystem:
                                                initializer=os.nice, initargs=(WORKER_NICE,))
             sim.compensator.learn_in(self._worker)
 
-
     def _occupant(self, config: RunConfig, settings: ServeSettings) -> None:
         """The occupant's points in the accelerometer's site frame (the head; with the seat, stacked, for the
         perception) and the perception itself where the state packet sends it."""

@@ -36,7 +36,8 @@ def test_sweep_in_two_workers_equals_serial_runs(tmp_path, capsys):
         assert json_path.read_bytes() == first, options  # serial, forked, spawned and Dask workers agree
 
 
-def test_an_unreachable_dask_scheduler_is_one_clear_error(capsys):
+def test_an_unreachable_dask_scheduler_is_one_clear_error(capsys, monkeypatch):
+    monkeypatch.setattr("hexsim.engine.workers.SCHEDULER_TIMEOUT_S", 1.0)  # the test waits 1 s, not the 10 s default
     code = main(["sweep", "actuator", "--duration", "2.5", "--frequency", "2", "--grid", "seed=1,2",
                  "--scheduler", "tcp://127.0.0.1:9", "--quiet"])
     err = capsys.readouterr().err.strip()
