@@ -114,8 +114,8 @@ class LiveDerivatives:
     backward difference (exact on a host's straight line between its packets); r̈ is the derivative of ṙ
     through a critically damped second-order low pass of time constant ``smoothing_s`` (its state-variable form,
     discretised exactly: the slope's steps at the host's packets do not turn into spikes of a sample), r⃛ the
-    backward difference of r̈. The first row gives zeros. :func:`setpoint_derivatives` is the batch run's (central differences of the whole
-    table)."""
+    backward difference of r̈. The first row gives zeros. :func:`setpoint_derivatives` is the batch run's
+    (central differences of the whole table)."""
 
     def __init__(self, n: int, dt: float, smoothing_s: float = LIVE_SMOOTHING_S) -> None:
         from scipy.linalg import expm
