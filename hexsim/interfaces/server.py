@@ -58,7 +58,7 @@ from hexsim.interfaces.packets import (
 )
 from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import PlantIndex, load_model
-from hexsim.studies.perception import LivePerception, rigid_point_specific_force
+from hexsim.studies.perception import LivePerception
 
 _LEG_NAMES = [f"leg{i}" for i in range(1, 7)]
 _LEG_REF_NAMES = [f"leg{i}_ref" for i in range(1, 7)]
@@ -241,9 +241,8 @@ class VirtualMotionSystem:
         self._body_from_site = Rotation.from_quat(site_quat[[1, 2, 3, 0]]).as_matrix()  # (3, 3)
         self._world_from_body = np.zeros(9)
         geometry = config.geometry or MICRO_MOTION_SYSTEM
-        self._head_in_site = self._body_from_site.T @ (np.asarray(geometry.head_point) - site_pos)
-        seat_in_site = self._body_from_site.T @ (np.asarray(geometry.seat_point) - site_pos)
-        self._points_in_site = np.stack([self._head_in_site, seat_in_site])  # (2, 3): head, seat
+        self._points_in_site = np.stack([self._body_from_site.T @ (np.asarray(p) - site_pos)  # (2, 3): head, seat
+                                         for p in (geometry.head_point, geometry.seat_point)])
         # for each point the matrix K of a -> a x r (its columns e_i x r): alpha x r = K alpha
         self._points_cross = np.stack([np.cross(np.eye(3), p).T for p in self._points_in_site])
         # the occupant's perception, every tick, where the state packet sends it
@@ -291,39 +290,34 @@ class VirtualMotionSystem:
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
         out.update(zip(DOF, pose.tolist()))
         out.update(zip(_RATE_NAMES, self._vel[[3, 4, 5, 0, 1, 2]].tolist()))
-        mujoco.mju_quat2Mat(self._world_from_body, quat)
-        head, omega = self._head(self._world_from_body.reshape(3, 3))
-        out.update(zip(_HEAD_NAMES, head.tolist() + omega.tolist()))
+        points, omega = self._occupant_motion()
+        out.update(zip(_HEAD_NAMES, points[0].tolist() + omega.tolist()))
         if self.perception is not None:
             out.update(zip(_SENSED_NAMES, self._sensed.tolist()))
             out["seat_peak"] = self.perception.take_seat_peak()
         return out
 
-    def _head(self, world_from_body: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Specific force (3,) [m/s^2] and angular velocity (3,) [rad/s] at the occupant's head, platform axes
-        (:func:`~hexsim.studies.perception.rigid_point_specific_force` from the accelerometer's site, as
-        :func:`~hexsim.studies.perception.point_motion` for a recorded run), from the platform's orientation
-        (3, 3), world from body."""
-        d, s, body_from_site = self.sim.data, self.sim.idx.sensor, self._body_from_site
-        omega = d.sensordata[s["platform_gyro"]]
-        alpha = (world_from_body @ body_from_site).T @ d.sensordata[s["platform_angacc"]]
-        f = rigid_point_specific_force(d.sensordata[s["platform_acc"]], omega, alpha, self._head_in_site)
-        return body_from_site @ f, body_from_site @ omega
-
-    def _perceive(self) -> None:
-        """One sample of the occupant's perception (:class:`~hexsim.studies.perception.LivePerception`) at the
-        platform's state now: the specific force at the head and the seat as :meth:`_head` has it, f = f_site +
-        alpha x r + omega x (omega x r), written out for the two fixed points r (stacked (2, 3), site frame:
-        alpha x r = K alpha with K the matrix of a -> a x r, omega x (omega x r) = omega (omega . r) - r |omega|^2;
-        np.cross costs some 20 us a call, four of them a tenth of the tick's work)."""
+    def _occupant_motion(self) -> tuple[np.ndarray, np.ndarray]:
+        """The specific force (2, 3) [m/s^2] at the occupant's head and seat (rows) and the angular velocity (3,)
+        [rad/s], platform axes, at the platform's state now: the rigid body's f = f_site + alpha x r + omega x
+        (omega x r) from the accelerometer's site, as :func:`~hexsim.studies.perception.rigid_point_specific_force`
+        gives it for a recorded run (:func:`~hexsim.studies.perception.point_motion`), written out for the two
+        fixed points r (stacked (2, 3), site frame: alpha x r = K alpha with K the matrix of a -> a x r,
+        omega x (omega x r) = omega (omega . r) - r |omega|^2): every tick with the perception on, where np.cross
+        costs some 20 us a call."""
         d, s = self.sim.data, self.sim.idx.sensor
         mujoco.mju_quat2Mat(self._world_from_body, d.sensordata[s["platform_quat"]])
         omega = d.sensordata[s["platform_gyro"]]
         alpha = (self._world_from_body.reshape(3, 3) @ self._body_from_site).T @ d.sensordata[s["platform_angacc"]]
         r = self._points_in_site
         f = d.sensordata[s["platform_acc"]] + self._points_cross @ alpha + np.outer(r @ omega, omega) - r * (omega @ omega)
-        head, seat = f @ self._body_from_site.T  # each point's, platform axes
-        self._sensed = self.perception.update(head, self._body_from_site @ omega, seat)
+        return f @ self._body_from_site.T, self._body_from_site @ omega
+
+    def _perceive(self) -> None:
+        """One sample of the occupant's perception (:class:`~hexsim.studies.perception.LivePerception`) at the
+        platform's state now (:meth:`_occupant_motion`)."""
+        (head, seat), omega = self._occupant_motion()
+        self._sensed = self.perception.update(head, omega, seat)
 
     def _send(self) -> None:
         if self._reply is None:
