@@ -191,6 +191,23 @@ def test_a_host_gone_silent_is_lost_and_the_platform_returns_to_neutral_smoothly
     assert modes.status == Status.ENGAGING and not modes.latched
 
 
+def test_a_moving_host_asking_for_neutral_is_met_at_its_velocity_without_a_stall():
+    """Engaged on a 0.5 Hz, 40 mm sine, the host asks for neutral at 3.0 s, as the sine passes neutral at its
+    fastest (0.126 m/s): the return starts on the host's line, so the setpoint's velocity changes by no more
+    per tick at the switch than the cubic's own start asks (4 v0 / T x 2 ms, 0.4 % of v0), here under 2 % of
+    v0. (Started from the last tick's setpoint at this tick, it stood still for a tick: a change of 100 %.)"""
+    modes = _modes(engage_s=0.5, return_s=2.0)
+    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
+    y = _drive(modes, 6.0, lambda t: ("engage" if t < 3.0 else "neutral", sine(t)))
+    t = np.arange(len(y)) * TICK
+    v = np.diff(y[:, 0]) / TICK
+    v0 = 0.04 * np.pi
+    switch = (t[1:-1] > 2.95) & (t[1:-1] < 3.05)
+    assert np.abs(v[1:][switch]).min() > 0.9 * v0  # never still
+    assert np.abs(np.diff(v))[switch].max() < 0.02 * v0
+    assert modes.status == Status.NEUTRAL and y[-1] == pytest.approx(NEUTRAL)
+
+
 def test_park_lowers_the_legs_to_above_the_retracted_end_and_raises_them_again():
     modes = _modes(move_speed=0.05)
     y = _drive(modes, 6.0, lambda t: ("park", np.zeros(6)))
