@@ -42,14 +42,16 @@ def add_serve(sub) -> None:
     se.add_argument("--duration", type=parse_number, default=None,
                     help="seconds to serve (default 3600); with --client: the motion's length (default the scenario's)")
     se.add_argument("--keep", type=parse_number, default=600.0,
-                    help="seconds of recording kept for --log / --rrd (the last; default %(default)s)")
+                    help="seconds of recording kept in memory (the last; default %(default)s); --log and "
+                         "--rrd are written while the session runs and hold all of it")
     se.add_argument("--engage-time", type=parse_number, default=2.0, help="fade-in of the host's motion [s] (default 2)")
     se.add_argument("--timeout", type=parse_number, default=0.5,
                     help="silence after which the host is lost and the platform returns to neutral [s] (default 0.5)")
     se.add_argument("--priority", type=int, metavar="1-99",
                     help="run the loop at this real-time priority (Linux SCHED_FIFO; needs root or CAP_SYS_NICE)")
-    se.add_argument("--log", type=pathlib.Path, help="write the session as a measurement log (CSV + JSON sidecar)")
-    se.add_argument("--rrd", type=pathlib.Path, help="write the session as a rerun recording (.rrd)")
+    se.add_argument("--log", type=pathlib.Path,
+                    help="write the session as a measurement log (CSV + JSON sidecar) while it runs")
+    se.add_argument("--rrd", type=pathlib.Path, help="write the session as a rerun recording (.rrd) while it runs")
     se.add_argument("--json", type=pathlib.Path, help="write the session's report (timing, packets, modes) as JSON")
     se.add_argument("--client", metavar="SCENARIO",
                     help="be the host: send SCENARIO's platform motion (heave, file:PATH, vehicle:PATH, …) to --to")

@@ -367,15 +367,22 @@ class Simulator:
                 bar.update(round(self.time - bar.n, 3))
 
     # ------------------------------------------------------------------ results
-    def result(self, last: int | None = None) -> SimulationResult:
+    def result(self, last: int | None = None, since: int | None = None) -> SimulationResult:
         """What was recorded so far, in time order (copies; the run can go on). With ``keep_last_s`` the
-        last that many seconds; with ``last`` the last that many samples at most."""
+        last that many seconds; with ``last`` the last that many samples at most; with ``since`` the samples
+        from that one on (a count of samples since the start, as :attr:`rows`; those the ring still holds).
+        Only the samples returned are unpacked from the kernel's rows, so a live reader asking for the latest
+        ones pays for those alone."""
         cfg, idx = self.config, self.idx
-        if cfg.engine == "native":
-            self._unpack_kernel_rows()
         n_rec = len(self.rec["t"])
-        keep = min(self.rows, n_rec) if last is None else min(self.rows, n_rec, last)
+        keep = min(self.rows, n_rec)
+        if last is not None:
+            keep = min(keep, last)
+        if since is not None:
+            keep = min(keep, max(0, self.rows - since))
         rows = np.arange(self.rows - keep, self.rows) % n_rec  # the ring's positions of the samples kept
+        if cfg.engine == "native":
+            self._unpack_kernel_rows(rows)
 
         def ordered(a):
             return a[rows]
@@ -407,18 +414,18 @@ class Simulator:
         site = int(m.sensor_objid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, "platform_acc")])
         return m.site_pos[site].copy(), m.site_quat[site].copy()
 
-    def _unpack_kernel_rows(self) -> None:
-        """Fill the channels the kernel keeps in its own rows: time, sensors, and (with the
-        controller inside) the oil temperature and the compensator's (a, b, c, s)."""
+    def _unpack_kernel_rows(self, rows: np.ndarray) -> None:
+        """Fill, at the ring's positions ``rows`` (int array), the channels the kernel keeps in its own rows:
+        time, sensors, and (with the controller inside) the oil temperature and the compensator's (a, b, c, s)."""
         rec, recorder, s = self.rec, self.recorder, self.idx.sensor
-        rec["t"][:] = recorder.k * self.dt
+        rec["t"][rows] = recorder.k[rows] * self.dt
         for name, out in self.sensors.items():
-            out[:] = recorder.sens[:, s[name]]
+            out[rows] = recorder.sens[rows, s[name]]
         if self.inner:
-            rec["temperature"][:] = self.coupling.temperature
+            rec["temperature"][rows] = self.coupling.temperature
             if self.ctl.mode == 1:
                 for c, key in enumerate(("a", "b", "c", "s")):  # as BufferedCompensator.state()
-                    self.comp_state[key][:] = recorder.comp[:, c]
+                    self.comp_state[key][rows] = recorder.comp[rows, c]
 
 
 def simulate(config: RunConfig) -> SimulationResult:

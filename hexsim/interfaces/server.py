@@ -17,12 +17,15 @@ Timing (:class:`Timing`): each tick's start against its deadline (the jitter; a 
 late is *late*: the simulation has fallen behind the wall clock), and its work (packets, setpoints, the step,
 the state packet; more than one period is an *overrun*).
 
-At the end (the duration reached, or Ctrl-C) the run's recording (the last ``keep_s``) is written as a
-measurement log and a rerun recording when asked, and the report (:class:`ServeReport`) as JSON.
+A measurement log and a rerun recording, when asked, are written while the session runs
+(:mod:`hexsim.interfaces.session_log`: the whole session, up to a second before now); at the end (the
+duration reached, or Ctrl-C) the report (:class:`ServeReport`) is printed and written as JSON. The last
+``keep_s`` stay in memory (:meth:`VirtualMotionSystem.result`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import gc
 import math
@@ -226,6 +229,7 @@ class VirtualMotionSystem:
         self._vel = np.zeros(6)
         self._occupant(config, settings)
         self._worker = None
+        self._log = None  # the files written as the session runs (log_to)
         if hasattr(sim.compensator, "learn_in"):  # an adaptive compensator's buffers: taught beside the loop
             # in a process of its own (a thread would hold the interpreter's lock from the loop for tens of ms),
             # forked (it has the modules already), at a lower priority than the loop
@@ -353,6 +357,9 @@ class VirtualMotionSystem:
             if remain > GC_IDLE_S and gc.get_count()[0] > GC_YOUNG:
                 gc.collect(1)
                 continue
+            if remain > GC_IDLE_S and self._log is not None and self._log.due():
+                self._log.send()
+                continue
             if remain > SPIN_S:
                 ready, _, _ = select.select([self.sock], [], [], remain - SPIN_S)
                 if ready:
@@ -416,14 +423,30 @@ class VirtualMotionSystem:
                              "it needs root, CAP_SYS_NICE or an rtprio limit (/etc/security/limits.conf)") from None
         return before
 
+    def log_to(self, log=None, rrd=None) -> None:
+        """Write the session as it runs (:mod:`hexsim.interfaces.session_log`): ``log`` a measurement log .csv
+        (its sidecar beside it), ``rrd`` a rerun recording; their paths come back from :meth:`close`. Call
+        before :meth:`run`. Raises InputError when the writer cannot start."""
+        if log is None and rrd is None:
+            return
+        from hexsim.interfaces.session_log import SessionLog
+
+        named = dataclasses.replace(self.config, scenario=live_scenario("hexapod", self.sim.idx.neutral_y,
+                                                                        self.period, name="serve"))
+        self._log = SessionLog(self.sim, named, log, rrd)
+
     def stop(self) -> None:
         """End :meth:`run` at its next tick (from another thread)."""
         self._stop.set()
 
-    def close(self) -> None:
+    def close(self) -> list:
+        """End the session: the socket, the learning worker, the files written as it ran (their paths,
+        returned; InputError where the writer failed)."""
         self.sock.close()
         if self._worker is not None:
             self._worker.shutdown(wait=True)
+        log, self._log = self._log, None
+        return [] if log is None else log.close()
 
     def result(self):
         """The recording (:class:`~hexsim.engine.config.SimulationResult`, the last ``keep_s``)."""
@@ -439,33 +462,28 @@ class VirtualMotionSystem:
 def serve_session(base: RunConfig, settings: ServeSettings, *, log=None, rrd=None, json_path=None,
                   out=print) -> list:
     """``hexsim serve``: set up, say where it listens, serve until the duration or Ctrl-C, then print the
-    report and write the outputs asked for (``log``: a measurement log .csv with its sidecar; ``rrd``: a rerun
-    recording; ``json_path``: the report). Returns the paths written. Raises InputError for a port in use or
-    a machine the layout cannot drive."""
-    from hexsim.outputs.logio import write_log
-    from hexsim.outputs.rerun_log import write_rrd
+    report and end the outputs asked for: ``log`` (a measurement log .csv with its sidecar) and ``rrd`` (a
+    rerun recording), both written while the session runs (:mod:`hexsim.interfaces.session_log`);
+    ``json_path``: the report. Returns the paths written. Raises InputError for a port in use, a machine
+    the layout cannot drive, or a log the writer could not write."""
     from hexsim.tables import write_json
 
     vms = VirtualMotionSystem(base, settings)
     host, state = settings.host_layout, settings.state_layout
     try:
+        vms.log_to(log, rrd)
         out(f"hexsim serve: {vms.config.machine_label}, compensator {vms.config.compensator_name}, controller "
             f"{1 / vms.period:g} Hz; listening on {vms.address[0]}:{vms.address[1]} for {host.source} host packets "
             f"({host.size} bytes, setpoints {host.setpoints}); {state.source} state packets ({state.size} bytes) at "
             f"{settings.state_rate_hz:g} Hz; {settings.duration_s:g} s at most, Ctrl-C ends", flush=True)
         report = vms.run()
-    finally:
-        vms.close()
+    except BaseException:
+        with contextlib.suppress(InputError):
+            vms.close()
+        raise
     for line in report.lines():
         out(line)
-    written = []
-    if (log is not None or rrd is not None) and vms.sim.rows > 1:
-        result = vms.result()
-        if log is not None:
-            written.extend(write_log(log, result))
-        if rrd is not None:
-            write_rrd(rrd, result, None)
-            written.append(rrd)
+    written = vms.close()  # the files the session wrote as it ran (InputError where they failed)
     if json_path is not None:
         write_json(json_path, dataclasses.asdict(report))
         written.append(json_path)

@@ -106,16 +106,65 @@ def write_log(path: str | os.PathLike, result: SimulationResult,
     ``noise``: a generator to add :data:`SENSOR_NOISE` (:func:`add_sensor_noise`); default exact values.
     """
     path = pathlib.Path(path)
-    cols = log_columns(result)
-    if noise is not None:
-        cols = add_sensor_noise(cols, noise)
-    table = np.column_stack(list(cols.values()))
-    header = ",".join(cols)
+    header, table = _table(result, noise)
 
     def write_csv(tmp: pathlib.Path) -> None:
-        np.savetxt(tmp, table, delimiter=",", header=header, comments="", fmt="%.9g")
+        np.savetxt(tmp, table, delimiter=",", header=header, comments="", fmt=CSV_FORMAT)
 
     side = path.with_suffix(".json")
     write_atomic(path, write_csv)
     write_atomic(side, lambda tmp: tmp.write_text(json.dumps(sidecar(result, path.parent), indent=2) + "\n"))
     return path, side
+
+
+#: the CSV's number format: nine significant digits (a nanometre in a metre, a pascal in 100 bar)
+CSV_FORMAT = "%.9g"
+
+
+def _table(result: SimulationResult, noise: np.random.Generator | None = None) -> tuple[str, np.ndarray]:
+    """The CSV's header line and its rows (N, columns) for ``result``."""
+    cols = log_columns(result)
+    if noise is not None:
+        cols = add_sensor_noise(cols, noise)
+    return ",".join(cols), np.column_stack(list(cols.values()))
+
+
+class LogStream:
+    """A measurement log written while its run goes on: :meth:`append` adds each new stretch of samples (a
+    :class:`~hexsim.engine.config.SimulationResult` of the samples since the last) to the CSV at ``path``,
+    flushed to the file, the first one after the sidecar (same stem, .json, written atomically from it);
+    :meth:`close` ends it. The CSV holds whole rows up to the last stretch appended, so a session that ends
+    abruptly leaves a log that reads up to there; it is not written atomically. Raises OSError where the
+    files cannot be written."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = pathlib.Path(path)
+        self.sidecar = self.path.with_suffix(".json")
+        self._file = None
+        self._described = False
+        self.rows = 0
+
+    def append(self, result: SimulationResult) -> None:
+        if len(result.t) == 0:
+            return
+        header, table = _table(result)
+        if not self._described and len(result.t) > 1:  # the sidecar's sample rate needs two samples
+            side = sidecar(result, self.path.parent)
+            write_atomic(self.sidecar, lambda tmp: tmp.write_text(json.dumps(side, indent=2) + "\n"))
+            self._described = True
+        if self._file is None:
+            self._file = open(self.path, "w", encoding="utf-8")  # noqa: SIM115 (open across appends)
+            self._file.write(header + "\n")
+        np.savetxt(self._file, table, delimiter=",", fmt=CSV_FORMAT)
+        self._file.flush()
+        self.rows += len(table)
+
+    @property
+    def written(self) -> list[pathlib.Path]:
+        """The files written so far (the CSV and its sidecar; none before the first samples)."""
+        return [p for p, done in ((self.path, self.rows > 0), (self.sidecar, self._described)) if done]
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None

@@ -152,8 +152,8 @@ def _scene_model(result: SimulationResult) -> mujoco.MjModel:
 
 def _log_scene(rec: rr.RecordingStream, m: mujoco.MjModel, result: SimulationResult, rows: np.ndarray,
                times: rr.TimeColumn) -> None:
-    """The model's visual geoms (MJCF groups 0–2: boxes, cylinders, spheres, capsules, ellipsoids) under
-    ``/world/<body>``, each body's world pose over time from :func:`scene_qpos` and ``mj_kinematics``."""
+    """Each moving body's world pose under ``/world/<body>`` at ``result``'s ``rows``, from :func:`scene_qpos`
+    and ``mj_kinematics`` (its geoms: :func:`_log_geoms`)."""
     d = mujoco.MjData(m)
     qpos = scene_qpos(m, result, rows)
     xpos, xquat = np.empty((len(rows), m.nbody, 3)), np.empty((len(rows), m.nbody, 4))
@@ -161,8 +161,28 @@ def _log_scene(rec: rr.RecordingStream, m: mujoco.MjModel, result: SimulationRes
         d.qpos[:] = q
         mujoco.mj_kinematics(m, d)
         xpos[k], xquat[k] = d.xpos, d.xquat
+    for body in _moving_bodies(m):
+        rec.send_columns(f"/world/{m.body(body).name or 'world'}", indexes=[times], columns=rr.Transform3D.columns(
+            translation=xpos[:, body], quaternion=np.roll(xquat[:, body], -1, axis=1)))
+
+
+def _shown_geoms(m: mujoco.MjModel, body: int) -> list[int]:
+    """The body's visual geoms (MJCF groups 0–2)."""
+    return [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_group[g] <= 2]
+
+
+def _moving_bodies(m: mujoco.MjModel) -> list[int]:
+    """The bodies with visual geoms that are not welded to the world."""
+    return [b for b in range(1, m.nbody) if m.body_weldid[b] != 0 and _shown_geoms(m, b)]
+
+
+def _log_geoms(rec: rr.RecordingStream, m: mujoco.MjModel) -> None:
+    """The model's visual geoms (static, in their bodies' frames), and the pose of each body welded to the
+    world (static: it does not move)."""
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
     for body in range(m.nbody):
-        geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] == body and m.geom_group[g] <= 2]
+        geoms = _shown_geoms(m, body)
         if not geoms:
             continue
         path = f"/world/{m.body(body).name or 'world'}"
@@ -171,10 +191,7 @@ def _log_scene(rec: rr.RecordingStream, m: mujoco.MjModel, result: SimulationRes
             if shape is not None:
                 rec.log(f"{path}/{m.geom(g).name or f'geom{g}'}", shape, static=True)
         if body == 0 or m.body_weldid[body] == 0:  # welded to the world: one pose
-            rec.log(path, rr.Transform3D(translation=xpos[0, body], quaternion=np.roll(xquat[0, body], -1)), static=True)
-        else:
-            rec.send_columns(path, indexes=[times], columns=rr.Transform3D.columns(
-                translation=xpos[:, body], quaternion=np.roll(xquat[:, body], -1, axis=1)))
+            rec.log(path, rr.Transform3D(translation=d.xpos[body], quaternion=np.roll(d.xquat[body], -1)), static=True)
 
 
 def _geom_shape(m: mujoco.MjModel, g: int):
@@ -217,9 +234,7 @@ def _head(rec, result: SimulationResult, times) -> None:
     head = point_motion(result, (result.config.geometry or MICRO_MOTION_SYSTEM).head_point)
     for k, axis in enumerate("xyz"):
         _scalars(rec, f"/head/specific_force/{axis}", times, head.specific_force[:, k])
-        rec.log(f"/head/specific_force/{axis}", rr.SeriesLines(names=f"head f_{axis} [m/s^2]"), static=True)
         _scalars(rec, f"/head/angular_velocity/{axis}", times, head.angular_velocity[:, k])
-        rec.log(f"/head/angular_velocity/{axis}", rr.SeriesLines(names=f"head omega_{axis} [rad/s]"), static=True)
 
 
 def _cueing(rec, report) -> None:
@@ -261,17 +276,63 @@ def _perception(rec, p) -> None:
 
 def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None, perception=None,
            cueing=None) -> None:
+    rec, m = _open(tmp, result, sm.signal if sm else "acceleration", perception is not None, cueing is not None)
+    times = rr.TimeColumn("time", duration=result.t)
+    _log_samples(rec, result, times)
+    if sm is not None:
+        fit_times = rr.TimeColumn("time", duration=sm.t)
+        _scalars(rec, "/acceleration/signal", fit_times, sm.fit + sm.noise)
+        _scalars(rec, "/acceleration/fundamental", fit_times, sm.fit)
+        _scalars(rec, "/bump/noise", fit_times, sm.noise)
+        rec.log("/acceleration/signal", rr.SeriesLines(names=f"{sm.signal} [{sm.unit}]", colors=[[40, 90, 170]]),
+                static=True)
+        rec.log("/acceleration/fundamental", rr.SeriesLines(names="fundamental fit", colors=[[230, 150, 30]]),
+                static=True)
+        rec.log("/bump/noise", rr.SeriesLines(names=f"signal - fit [{sm.unit}]", colors=[[200, 40, 40]]), static=True)
+    else:
+        _scalars(rec, "/acceleration/signal", times, result.acc[:, 2])
+    if perception is not None:
+        _perception(rec, perception)
+    if cueing is not None:
+        _cueing(rec, cueing)
+    step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
+    rows = np.arange(0, len(result.t), step)
+    _log_scene(rec, m, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
+    rec.flush()
+    rec.disconnect()
+
+
+def _open(path: pathlib.Path, result: SimulationResult, analysis: str = "acceleration", perception: bool = False,
+          cueing: bool = False) -> tuple[rr.RecordingStream, mujoco.MjModel]:
+    """A recording of ``result``'s run saving to ``path`` with its blueprint and what does not change over
+    time: the run's description, the series' names and the model's geoms. Returns it and the scene's model."""
     rec = rr.RecordingStream("hexsim", recording_id=recording_id(result))
     m = _scene_model(result)
-    rec.save(tmp, default_blueprint=_blueprint(bool(result.compensator_state), sm.signal if sm else "acceleration",
-                                               result.config.scenario.system, float(m.stat.extent) / 1.6,
-                                               perception is not None, cueing is not None))
+    rec.save(path, default_blueprint=_blueprint(bool(result.compensator_state), analysis,
+                                                result.config.scenario.system, float(m.stat.extent) / 1.6,
+                                                perception, cueing))
     rec.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     cfg = result.config
     rec.log("/run", rr.TextDocument(f"scenario {cfg.scenario.name}, machine {cfg.machine_label} "
                                     f"({cfg.hydraulics.valve_type} valve), compensator {cfg.compensator_name}"),
             static=True)
-    times = rr.TimeColumn("time", duration=result.t)
+    for i in range(result.n_legs):
+        for path_, label in ((f"/legs/leg{i + 1}/position", "y"), (f"/legs/leg{i + 1}/setpoint", "r"),
+                             (f"/valve/leg{i + 1}/u_v", "u_v"), (f"/valve/leg{i + 1}/U_c", "U_c"),
+                             (f"/pressure/leg{i + 1}/p1", "P1"), (f"/pressure/leg{i + 1}/p2", "P2")):
+            rec.log(path_, rr.SeriesLines(names=f"leg{i + 1} {label}"), static=True)
+    rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
+    if result.sensor_site is not None:
+        for axis in "xyz":
+            rec.log(f"/head/specific_force/{axis}", rr.SeriesLines(names=f"head f_{axis} [m/s^2]"), static=True)
+            rec.log(f"/head/angular_velocity/{axis}", rr.SeriesLines(names=f"head omega_{axis} [rad/s]"), static=True)
+    _log_geoms(rec, m)
+    return rec, m
+
+
+def _log_samples(rec: rr.RecordingStream, result: SimulationResult, times: rr.TimeColumn) -> None:
+    """The legs' time series (position, setpoint, u_v, U_c, pressures), P_s, the compensator's parameters and
+    the head's motion of ``result``'s samples at ``times``."""
     n = result.n_legs
     for i in range(n):
         leg = f"leg{i + 1}"
@@ -286,33 +347,48 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None, p
     for key, values in result.compensator_state.items():
         for i in range(n):
             _scalars(rec, f"/compensator/leg{i + 1}/{key}", times, values[:, i])
-    if sm is not None:
-        fit_times = rr.TimeColumn("time", duration=sm.t)
-        _scalars(rec, "/acceleration/signal", fit_times, sm.fit + sm.noise)
-        _scalars(rec, "/acceleration/fundamental", fit_times, sm.fit)
-        _scalars(rec, "/bump/noise", fit_times, sm.noise)
-        rec.log("/acceleration/signal", rr.SeriesLines(names=f"{sm.signal} [{sm.unit}]", colors=[[40, 90, 170]]),
-                static=True)
-        rec.log("/acceleration/fundamental", rr.SeriesLines(names="fundamental fit", colors=[[230, 150, 30]]),
-                static=True)
-        rec.log("/bump/noise", rr.SeriesLines(names=f"signal - fit [{sm.unit}]", colors=[[200, 40, 40]]), static=True)
-    else:
-        _scalars(rec, "/acceleration/signal", times, result.acc[:, 2])
-    for i in range(n):
-        for path, label in ((f"/legs/leg{i + 1}/position", "y"), (f"/legs/leg{i + 1}/setpoint", "r"),
-                            (f"/valve/leg{i + 1}/u_v", "u_v"), (f"/valve/leg{i + 1}/U_c", "U_c"),
-                            (f"/pressure/leg{i + 1}/p1", "P1"), (f"/pressure/leg{i + 1}/p2", "P2")):
-            rec.log(path, rr.SeriesLines(names=f"leg{i + 1} {label}"), static=True)
-    rec.log("/pressure/p_s", rr.SeriesLines(names="P_s", colors=[[20, 20, 20]]), static=True)
     if result.sensor_site is not None:
         _head(rec, result, times)
-    if perception is not None:
-        _perception(rec, perception)
-    if cueing is not None:
-        _cueing(rec, cueing)
 
-    step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
-    rows = np.arange(0, len(result.t), step)
-    _log_scene(rec, m, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
-    rec.flush()
-    rec.disconnect()
+
+class RerunStream:
+    """A rerun recording written while its run goes on: :meth:`append` logs each new stretch of samples (a
+    :class:`~hexsim.engine.config.SimulationResult` of the samples since the last), :meth:`close` ends it.
+    The file at ``path`` holds what was appended so far (rerun's file sink writes as it goes), so a session
+    that ends abruptly leaves its recording up to the last stretch; it is not written atomically. The same
+    entities as :func:`write_rrd` without the analyses of a finished run (the bump's fit, the perception):
+    the legs, valve, pressures, the compensator's parameters, the head, the platform's acceleration and
+    the 3D scene at :data:`VIEW_RATE_HZ`."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = pathlib.Path(path)
+        self._rec: rr.RecordingStream | None = None
+        self._m: mujoco.MjModel | None = None
+        self._step = 1  # samples per scene sample
+        self._row = 0  # samples appended so far
+
+    @property
+    def written(self) -> list[pathlib.Path]:
+        """The file written (none before the first samples)."""
+        return [self.path] if self._row else []
+
+    def append(self, result: SimulationResult) -> None:
+        if len(result.t) == 0:
+            return
+        if self._rec is None:
+            self._rec, self._m = _open(self.path, result)
+            if len(result.t) > 1:
+                self._step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
+        times = rr.TimeColumn("time", duration=result.t)
+        _log_samples(self._rec, result, times)
+        _scalars(self._rec, "/acceleration/signal", times, result.acc[:, 2])
+        rows = np.arange((-self._row) % self._step, len(result.t), self._step)  # as write_rrd's, across stretches
+        self._row += len(result.t)
+        if rows.size:
+            _log_scene(self._rec, self._m, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
+
+    def close(self) -> None:
+        if self._rec is not None:
+            self._rec.flush()
+            self._rec.disconnect()
+            self._rec = None

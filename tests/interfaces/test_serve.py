@@ -8,6 +8,8 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import pathlib
+import shutil
 import struct
 import subprocess
 import sys
@@ -242,14 +244,17 @@ def test_the_quintic_fade_is_flat_at_both_ends():
 
 # ----------------------------------------------------------------------------------------------- a session
 @pytest.fixture(scope="module")
-def session():
+def session(tmp_path_factory):
     """The built-in hexapod with the buffered compensator served 11 s on localhost (a thread), the occupant's
-    perception in the loop (the version 2 state packet), a host client (this thread) at 100 Hz: neutral 1 s,
-    engage and 0.5 Hz, 40 mm heave for 6 s, neutral; then two malformed packets, one out of order, one beyond
-    the envelope, and silence."""
+    perception in the loop (the version 2 state packet), the session written as it runs (a measurement log and
+    a rerun recording), a host client (this thread) at 100 Hz: neutral 1 s, engage and 0.5 Hz, 40 mm heave for
+    6 s, neutral; then two malformed packets, one out of order, one beyond the envelope, and silence. The
+    session's log is read once mid-way (its last time and the session's time then)."""
     base = RunConfig.from_machine(load_machine(None), "heave", compensator="buffered")
     vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=12.0, keep_s=12.0,
                                                   state_layout=STATE_PACKET_PERCEPTION))
+    out = tmp_path_factory.mktemp("served")
+    vms.log_to(out / "session.csv", out / "session.rrd")
     served = threading.Thread(target=vms.run, kwargs={"duration_s": 11.0})
     served.start()
     heave = lambda t: np.r_[0.0, 0.0, 0.04 * np.sin(np.pi * t), 0.0, 0.0, 0.0]
@@ -257,6 +262,9 @@ def session():
     try:
         with HostClient(vms.address, state_layout=STATE_PACKET_PERCEPTION) as host:
             record = host.session(script, total)
+            now = vms.sim.time
+            rows = (out / "session.csv").read_text().splitlines()
+            record.midway = (now, float(rows[-1].split(",")[0]), len(rows) - 1)
             host.send_raw(b"\x01\x00")  # too short
             host.send_raw(host.packet("neutral", np.zeros(6))[:-8] + struct.pack("<d", float("inf")))
             host.send_raw(host.packet("neutral", np.zeros(6), frame=3))  # long past
@@ -264,7 +272,7 @@ def session():
             host.session(lambda t: None, 1.0, record)  # silence, still reading
     finally:
         served.join()
-        vms.close()
+        record.written = vms.close()
     return vms, record
 
 
@@ -351,6 +359,44 @@ def test_the_session_reports_its_timing_and_records_what_the_legs_did(session):
     assert result.t[-1] == pytest.approx(11.0, abs=0.005)
     engaged = (result.t > 4.0) & (result.t < 7.0)
     assert np.abs(result.y[engaged] - result.y_ref[engaged]).max() < 0.005  # the P loops followed
+
+
+def test_the_session_is_written_while_it_runs_and_whole_when_it_ends(session):
+    """Mid-way the log holds the session up to about a second before now (the writer takes a stretch every
+    0.5 s); at the end the log holds every sample of the whole session, as the recording in memory has them
+    (to the CSV's nine digits), reads as a measurement log, and the rerun recording verifies with rerun's own tool."""
+    from hexsim.measured.measurement import read_log
+
+    vms, record = session
+    now, last, rows = record.midway
+    assert 8.0 < now and now - 1.5 < last <= now and rows == pytest.approx(last * 500, abs=1)
+    paths = {p.name for p in record.written}
+    assert paths == {"session.csv", "session.json", "session.rrd"}
+    csv = next(p for p in record.written if p.name == "session.csv")
+    log = read_log(csv)
+    result = vms.result()
+    assert log.time.size == result.t.size == 5500  # 11 s at 500 Hz: all of it, none twice
+    assert np.abs(log.time - result.t).max() < 1e-9
+    for i in range(6):  # the CSV's nine significant digits
+        np.testing.assert_allclose(log.columns[f"leg{i + 1}_pos_m"], result.y[:, i], rtol=1e-8, atol=0)
+        np.testing.assert_allclose(log.columns[f"leg{i + 1}_p1_Pa"], result.p1[:, i], rtol=1e-8, atol=0)
+    assert log.sidecar["controller"]["rate_hz"] == 500 and "serve" in log.sidecar["description"]
+    rerun = pathlib.Path(sys.executable).with_name("rerun")
+    proc = subprocess.run([str(rerun if rerun.exists() else shutil.which("rerun")), "rrd", "verify",
+                           str(csv.with_suffix(".rrd"))], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "RERUN_ANALYTICS": "off"})
+    assert proc.returncode == 0 and "verified without error" in proc.stdout + proc.stderr, proc.stderr
+
+
+def test_a_log_the_writer_cannot_write_is_one_clear_error_at_the_end(tmp_path):
+    """The writer runs beside the loop, so a file it cannot write stops neither the session nor the loop: the
+    session ends, and closing it says what went wrong, naming the file (one line, no traceback)."""
+    vms = VirtualMotionSystem(RunConfig.from_machine(load_machine(None), "heave"), ServeSettings(port=0, duration_s=1.0))
+    vms.log_to(tmp_path / "gone" / "session.csv")
+    vms.run(duration_s=0.8)  # served without a host: neutral held, two stretches handed over
+    with pytest.raises(InputError, match=r"the session's log: .*gone.* does not exist") as exc:
+        vms.close()
+    assert "\n" not in str(exc.value)
 
 
 def test_serve_refuses_a_bad_layout_with_one_line_and_exit_2(tmp_path):
