@@ -8,10 +8,11 @@ The conventions of a hydraulic motion system's controller (docs/serve.md):
   ends: no step in position, velocity or acceleration), then followed (**engaged**);
 * asked for **neutral** (or **park**) while engaged, or when the host goes silent for ``host_timeout_s``
   while engaged (**host lost**, a latched fault: engage is refused until the host has sent another mode), it
-  returns to neutral on a cubic from the setpoint and its velocity at that instant to rest at neutral, over
-  ``return_s`` or longer where the legs' ``move_speed`` asks for it (no step in position or velocity);
+  returns to neutral on a quintic from the setpoint, its velocity and its acceleration at that instant to rest
+  at neutral, over ``return_s`` or longer where the legs' ``move_speed`` asks for it (no step in position,
+  velocity or acceleration);
 * **park** lowers each leg to ``park_m`` above its retracted end, and leaving park raises it again, on the
-  same cubic (from rest), at most ``move_speed``; a move is finished before the next request is taken.
+  same quintic (from rest), at most ``move_speed``; a move is finished before the next request is taken.
 
 A host packet is rejected, counted by reason and leaves the platform undisturbed when its frame counter
 is not newer than the last accepted one (modulo the counter's range: "order"; after a silence longer than
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -66,6 +68,11 @@ KEEP = 8
 #: how far past the newest packet [frames] the setpoints go on along the last two packets' line (module doc): a
 #: burst of three packets 30 ms late is bridged (two frames held the setpoint for a tick, then doubled its step)
 EXTRAPOLATE_FRAMES = 5.0
+
+#: The time constant [s] of the low pass the setpoints' acceleration is read through for a move's start: the
+#: host's setpoints, linear between its packets, change their velocity in steps at each packet (their second
+#: difference is a train of spikes); two of its 100 Hz periods smooth that to the motion's own acceleration.
+ACCELERATION_TAU_S = 0.02
 
 #: fault bits of the state packet's ``faults``
 HOST_LOST, REJECTED, OVERRUN, ENVELOPE = 1, 2, 4, 8
@@ -103,21 +110,32 @@ def quintic(s: float) -> float:
     return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
 
 
+#: A move from rest on :class:`_Move`'s quintic peaks at this many times its mean speed (15/8).
+QUINTIC_PEAK_SPEED = 1.875
+
+
 @dataclasses.dataclass
 class _Move:
-    """A cubic from (y0, v0) at t0 to rest at y1 at t0 + T (arrays (n,) [m], [m/s])."""
+    """A quintic from (y0, v0, a0) at t0 to rest at y1 at t0 + T (arrays (n,) [m], [m/s], [m/s^2]): the
+    quintic Hermite polynomial, so position, velocity and acceleration are continuous where it starts and
+    it ends with no velocity and no acceleration."""
 
     t0: float
     T: float
     y0: np.ndarray
     v0: np.ndarray
+    a0: np.ndarray
     y1: np.ndarray
     then: Status
 
     def at(self, t: float) -> np.ndarray:
         s = min(max((t - self.t0) / self.T, 0.0), 1.0)
-        h00, h10, h01 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2
-        return h00 * self.y0 + h10 * self.T * self.v0 + h01 * self.y1
+        s3, s4, s5 = s**3, s**4, s**5
+        rise = 10 * s3 - 15 * s4 + 6 * s5  # 0 -> 1, flat at both ends
+        h_v = s - 6 * s3 + 8 * s4 - 3 * s5  # slope 1 at the start, nothing else at either end
+        h_a = 0.5 * s * s - 1.5 * s3 + 1.5 * s4 - 0.5 * s5  # curvature 1 at the start
+        T = self.T
+        return (1 - rise) * self.y0 + rise * self.y1 + h_v * T * self.v0 + h_a * T * T * self.a0
 
     def done(self, t: float) -> bool:
         return t >= self.t0 + self.T
@@ -142,7 +160,7 @@ class OperatingModes:
         self.requested = "neutral"
         self.latched = False  # host lost: engage refused until another mode is asked
         self.faults = 0  # HOST_LOST while latched, the others until read (:meth:`take_faults`)
-        self.cmd, self.vel = self.neutral.copy(), np.zeros_like(self.neutral)
+        self.cmd, self.vel, self.acc = self.neutral.copy(), np.zeros_like(self.neutral), np.zeros_like(self.neutral)
         self._t = 0.0
         self._move: _Move | None = None
         self._fade_t0 = 0.0
@@ -230,14 +248,16 @@ class OperatingModes:
 
     # ------------------------------------------------------------------ ticks
     def _start_move(self, target: np.ndarray, then: Status, status: Status, floor: float) -> None:
-        """A cubic to rest at ``target`` over at least ``floor`` [s] and long enough that no leg passes
-        ``move_speed`` (a cubic from rest peaks at 1.5 x the mean speed), from the last tick's setpoint with
-        its velocity: the tick that starts the move is already on it. (Started at this tick from the last
-        one's setpoint, the setpoint stood still for a tick at the switch: a served host moving at 0.13 m/s
-        that asked for neutral shook the platform at 2.2 g, 5 m/s^2 at the seat.)"""
+        """A quintic (:class:`_Move`) to rest at ``target`` over at least ``floor`` [s] and long enough that no
+        leg passes ``move_speed`` from rest (:data:`QUINTIC_PEAK_SPEED`), from the last tick's setpoint with its
+        velocity and acceleration: the tick that starts the move is already on it, without a step in the
+        acceleration. (Started at this tick from the last one's setpoint, the setpoint stood still for a tick at
+        the switch: a served host moving at 0.13 m/s that asked for neutral shook the platform at 2.2 g, 5 m/s^2
+        at the seat; a cubic from the setpoint and its velocity stepped the acceleration by 4 v0 / T, 0.5 m/s^2
+        at the seat.)"""
         distance = float(np.max(np.abs(target - self.cmd)))
-        T = max(floor, 1.5 * distance / self.settings.move_speed, 1e-3)
-        self._move = _Move(self._t, T, self.cmd.copy(), self.vel.copy(), target.copy(), then)
+        T = max(floor, QUINTIC_PEAK_SPEED * distance / self.settings.move_speed, 1e-3)
+        self._move = _Move(self._t, T, self.cmd.copy(), self.vel.copy(), self.acc.copy(), target.copy(), then)
         self.status = status
 
     def setpoint(self, t: float) -> np.ndarray:
@@ -272,6 +292,8 @@ class OperatingModes:
         else:
             y = self.park if self.status == Status.PARKED else self.neutral
         dt = t - self._t
-        self.vel = (y - self.cmd) / dt if dt > 0 else np.zeros_like(y)
-        self.cmd, self._t = np.array(y, dtype=float), t
+        vel = (y - self.cmd) / dt if dt > 0 else np.zeros_like(y)
+        if dt > 0:  # the setpoint's acceleration, smoothed over the host's packets' kinks (ACCELERATION_TAU_S)
+            self.acc += (1.0 - math.exp(-dt / ACCELERATION_TAU_S)) * ((vel - self.vel) / dt - self.acc)
+        self.vel, self.cmd, self._t = vel, np.array(y, dtype=float), t
         return self.cmd.copy()
