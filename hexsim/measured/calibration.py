@@ -228,7 +228,7 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
         fit = fit_parameters(ev.residual(judged), start, form_params, independent_share=share, notify=notify,
                              options=screening if screen else options)
         result = form_params.apply(start, fit.values)
-        tried.append({"flow_area": form, "held_out_cost": sum(r.errors(result)["held_out_cost"] for r in judged),
+        tried.append({"flow_area": form, "held_out_cost": sum(r.errors(result).held_out_cost for r in judged),
                       "start": start, "params": form_params, "fit": fit, "machine": result})
     usable = [t for t in tried if "fit" in t]
     if not usable:
@@ -422,14 +422,15 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
               "correlation": {"keys": [fit.params[i].key for i in fit.free],
                               "matrix": _free_block(fit).round(4).tolist()}}
     if ev.replays:
-        after = [r.errors(calibrated) for r in ev.replays]  # each log replayed once for the report
+        after = [r.errors(calibrated).record() for r in ev.replays]  # each log replayed once for the report
         report["flow_area"] = {"chosen": best["flow_area"], "prior": machine.hydraulics.flow_area,
                                "held_out_cost": sum(e["held_out_cost"] for e in after),
                                "tried": [{"flow_area": t["flow_area"], **({"held_out_cost": t["held_out_cost"]}
                                          if "held_out_cost" in t else {"refused": t["refused"]})} for t in tried]}
         if "curve" in best:
             report["flow_area"]["curve"] = curve_report(best["curve"], best["form"], calibrated)
-        report["transients"] = [{"before": r.errors(machine), "after": a} for r, a in zip(ev.replays, after)]
+        report["transients"] = [{"before": r.errors(machine).record(), "after": a}
+                                for r, a in zip(ev.replays, after)]
     elif ev.steady:
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
     _add_priors(report, best.get("prior", best["start"]), best["params"])
@@ -496,7 +497,8 @@ def _replayed(logs: list[MeasurementLog], prior: Machine, calibrated: Machine) -
         except InputError as exc:
             rows.append({"log": str(log.path), "refused": str(exc)})
             continue
-        rows.append({"log": str(log.path), "before": ev.errors(prior), "after": ev.errors(calibrated)})
+        rows.append({"log": str(log.path), "before": ev.errors(prior).record(),
+                     "after": ev.errors(calibrated).record()})
     return rows
 
 
@@ -569,7 +571,8 @@ def _held_out(logs: list[MeasurementLog], prior: Machine, calibrated: Machine, l
         out["after"] = feature_errors(out_feats, predict(out_feats, calibrated, loads))
     moving = [ReplayEvidence.of(log, prior, every_window=True) for log in logs if log not in steady]
     if moving:
-        out["transients"] = [{"before": ev.errors(prior), "after": ev.errors(calibrated)} for ev in moving]
+        out["transients"] = [{"before": ev.errors(prior).record(), "after": ev.errors(calibrated).record()}
+                             for ev in moving]
     return out
 
 

@@ -48,7 +48,7 @@ def reaches_budget(replays: list, machine: Machine) -> bool:
     sqrt(:data:`hexsim.measured.scoring.WITHIN`) budgets in every channel): a calibrated form that does needs no
     curve."""
     limit = math.sqrt(WITHIN)
-    return all(v <= limit for r in replays for v in r.errors(machine)["held_out_rms_in_budgets"].values())
+    return all(v <= limit for r in replays for v in r.errors(machine).held_out_rms_in_budgets.values())
 
 
 def curve_machine(machine: Machine, curves: FlowCurves) -> Machine:
@@ -90,8 +90,8 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
                          notify=notify)
     fit = _held_where_started(fit, best, start, read)
     result = params.apply(start, fit.values)
-    cost = sum(r.errors(result)["held_out_cost"] for r in replays)
-    form_cost = sum(r.errors(best["machine"])["held_out_cost"] for r in replays)
+    cost = sum(r.errors(result).held_out_cost for r in replays)
+    form_cost = sum(r.errors(best["machine"]).held_out_cost for r in replays)
     tried.append({"flow_area": "curve (read from the logs' flows)", "held_out_cost": cost})
     if cost >= CURVE_GAIN * form_cost:
         notify(f"kept the {best['flow_area']} flow area: the curves read from the logs predict the held-out windows "

@@ -28,6 +28,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.records import ReplayErrors, WorstWindow
 from hexsim.measured.replay import PlantModel, nominal_plant
 from hexsim.measured.residuals import effective_n
 from hexsim.measured.scoring import (
@@ -134,31 +135,33 @@ class ReplayEvidence:
         n_eff = sum(effective_n(res[ch][:, p.settle:]) for ch in p.channels)
         return n_eff / n if n else 1.0
 
-    def errors(self, machine: Machine) -> dict:
-        """Held-out RMS per channel in budgets (the windows not fitted), each channel's budget and, for a
-        single actuator's windows, the :data:`WORST_WINDOWS` held-out windows of largest cost (``worst_windows``:
-        start [s], share of the held-out cost, the valve command's range [V] in it)."""
+    def errors(self, machine: Machine) -> ReplayErrors:
+        """How ``machine`` replays this log's held-out windows (the windows not fitted): each channel's RMS in
+        budgets, its budget, the held-out cost and, for a single actuator's windows, the :data:`WORST_WINDOWS`
+        held-out windows of largest cost. Raises PhysicsError where the machine cannot run this log."""
         p = self.problem
         scored = score(p, p.simulate(self.model(machine)), self.budget)
         cost = scored.window_cost
-        out = {"log": str(self.log.path), "windows_fitted": int(len(p.fit_rows)),
-               "windows_held_out": int(len(p.test_rows)),
-               "held_out_rms_in_budgets": {ch: float(np.sqrt(v)) for ch, v in within_budget(scored, self.budget).items()},
-               "held_out_cost": float(np.sum(cost[p.test_rows])),
-               "budget": {ch: float(b) for ch, b in self.budget.total.items()}}
-        if p.windowed and out["held_out_cost"] > 0:
+        held_out_cost = float(np.sum(cost[p.test_rows]))
+        worst = None
+        if p.windowed and held_out_cost > 0:
             u = p.windows.take(self.log.columns["valve_cmd_V"])
-            out["worst_windows"] = [{"start_s": float(self.log.time[p.windows.starts[i]]),
-                                     "share": float(cost[i]) / out["held_out_cost"],
-                                     "command_V": [float(u[i].min()), float(u[i].max())]}
-                                    for i in p.test_rows[np.argsort(cost[p.test_rows])[::-1][:WORST_WINDOWS]]]
-        return out
+            worst = [WorstWindow(start_s=float(self.log.time[p.windows.starts[i]]),
+                                 share=float(cost[i]) / held_out_cost,
+                                 command_V=[float(u[i].min()), float(u[i].max())])
+                     for i in p.test_rows[np.argsort(cost[p.test_rows])[::-1][:WORST_WINDOWS]]]
+        return ReplayErrors(
+            log=str(self.log.path), windows_fitted=int(len(p.fit_rows)), windows_held_out=int(len(p.test_rows)),
+            held_out_rms_in_budgets={ch: float(np.sqrt(v)) for ch, v in within_budget(scored, self.budget).items()},
+            held_out_cost=held_out_cost, budget={ch: float(b) for ch, b in self.budget.total.items()},
+            worst_windows=worst)
 
 
 def worst_windows_text(errors: list[dict]) -> str:
     """Where the calibrated model misses its own logs most, one sentence ("" where no log has windows): the
-    log of largest held-out cost among ``errors`` (:meth:`ReplayEvidence.errors` rows) and its worst windows,
-    their start, the valve command's range and their share of that log's held-out cost."""
+    log of largest held-out cost among ``errors`` (:meth:`~hexsim.measured.records.ReplayErrors.record` rows, as a
+    report holds them) and its worst windows, their start, the valve command's range and their share of that
+    log's held-out cost."""
     rows = [e for e in errors if e.get("worst_windows")]
     if not rows:
         return ""

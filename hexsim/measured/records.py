@@ -44,6 +44,40 @@ class EstimateRow(TypedDict, total=False):
     why: str
 
 
+class WorstWindow(TypedDict):
+    """A held-out replay window of large cost (:class:`ReplayErrors`): its start [s], its share of the log's
+    held-out cost, the valve command's range in it [V] (low, high)."""
+
+    start_s: float
+    share: float
+    command_V: list[float]
+
+
+@dataclass(frozen=True)
+class ReplayErrors:
+    """How a machine replays one log's windows (:meth:`hexsim.measured.dynamics.ReplayEvidence.errors`): the log,
+    how many windows were fitted and held out, each channel's held-out RMS in budgets and its budget, the
+    held-out cost (the sum of the held-out windows' squared residuals in budgets) and, for a single actuator's
+    windows, the worst held-out windows. :meth:`record` is the form a calibration report (JSON) holds."""
+
+    log: str
+    windows_fitted: int
+    windows_held_out: int
+    held_out_rms_in_budgets: dict[str, float]
+    held_out_cost: float
+    budget: dict[str, float]
+    worst_windows: list[WorstWindow] | None = None
+
+    def record(self) -> dict:
+        """The report's row: the fields by name, ``worst_windows`` only where there are any."""
+        row = {"log": self.log, "windows_fitted": self.windows_fitted, "windows_held_out": self.windows_held_out,
+               "held_out_rms_in_budgets": dict(self.held_out_rms_in_budgets), "held_out_cost": self.held_out_cost,
+               "budget": dict(self.budget)}
+        if self.worst_windows is not None:
+            row["worst_windows"] = [dict(w) for w in self.worst_windows]
+        return row
+
+
 class ParameterRow(EstimateRow, total=False):
     """One parameter of a calibration report (:func:`hexsim.measured.calibration.calibrate`): its estimate with
     ``prior`` (the machine file's value before calibration), ``bounds_source`` (where its bracket comes from)

@@ -96,8 +96,8 @@ def test_r1s_step_log_is_within_its_noise_only_with_its_timing(r1_timing):
     step)."""
     machine, replays, timing, _, _ = r1_timing
     steps = replays[1]
-    own = steps.errors(machine)["held_out_rms_in_budgets"]
-    timed = steps.errors(with_keys(machine, timing.keys()))["held_out_rms_in_budgets"]
+    own = steps.errors(machine).held_out_rms_in_budgets
+    timed = steps.errors(with_keys(machine, timing.keys())).held_out_rms_in_budgets
     assert own["p1"] > 10.0 and own["acceleration"] > 3.0, own
     assert timed["p1"] < 0.3 * own["p1"] and timed["acceleration"] < 0.5 * own["acceleration"], (own, timed)
     assert timed["position"] < 2.0, timed
