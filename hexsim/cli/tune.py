@@ -82,7 +82,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
         DEAD_BAND_TOLERANCE_V,
         neighbours,
         tune,
-        tune_table,
+        tune_lines,
         write_tuned,
     )
 
@@ -93,14 +93,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
           f"{len(around) - 1} neighbours): {len(CANDIDATES)} candidates with {worker_count(args.jobs)} worker(s)…",
           flush=True)
     result = tune(base, motions, jobs=args.jobs, progress=sys.stderr.isatty(), neighbours=around)
-    for label, why in result.refused.items():
-        print(f"refused {label}: {why}")
-    for label, why in result.worse.items():
-        print(f"not chosen {label}: {why}")
-    print(tune_table(result))
-    motion, neighbour = result.worst_at
-    print(f"tuned: {result.chosen.label} (worst case {100 * (1 - result.worst_ratio):.0f} % below none, on {motion}, "
-          f"{neighbour}; neighbours: {', '.join(n.name for n in around)})")
+    print("\n".join(tune_lines(result, around)))
     write_tuned(args.out, result, base, motions)
     print(f"wrote {args.out}")
     if args.json:
@@ -127,19 +120,16 @@ def _tune_from_logs(args: argparse.Namespace) -> int:
             raise InputError(f"{out}: would overwrite the tuned file the logs ran with; write the improved one elsewhere")
     from hexsim.engine.config import RunConfig
     from hexsim.measured.commissioning import commission
+    from hexsim.measured.reports.commissioning import learned_lines, predicted_lines
     from hexsim.plant.machine import dump, load_machine
     from hexsim.studies.tuning import retuned
 
     machine = load_machine(args.machine)
     learned = commission(list(args.from_logs), machine)
-    curves = learned.curves
-    print(f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
-          f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs))
+    print("\n".join(learned_lines(learned)))
     base = RunConfig.from_machine(learned.machine, "actuator")
     doc = retuned(args.compensator, base, learned.model, learned.report(), jobs=args.jobs)
-    for label, rows in doc["predicted"].items():
-        for row in rows:
-            print(f"predicted {label:<30} {row['motion']:<9} mean rev. peak {row['final_mean_reversal_peak']:.4f}")
+    print("\n".join(predicted_lines(doc["predicted"])))
     write_json(args.out, doc)
     print(f"wrote {args.out}")
     if args.machine_out:
@@ -157,6 +147,7 @@ def _tune_check(args: argparse.Namespace) -> int:
             raise InputError(f"--check {path}: no such file")
     from hexsim.engine.config import RunConfig
     from hexsim.measured.proof import proof
+    from hexsim.measured.reports.commissioning import check_lines
     from hexsim.plant.machine import load_machine
     from hexsim.studies.tuning import compensator_options
 
@@ -164,18 +155,7 @@ def _tune_check(args: argparse.Namespace) -> int:
     scenario = "heave" if machine.system == "hexapod" else "actuator"
     base = RunConfig.from_machine(machine, scenario, **compensator_options(args.compensator))
     rows = [proof(path, base) for path in args.check]
-    print(f"{'log':<28} {'':<10} {'mean rev. peak':>14} {'max rev. peak':>13} {'noise ratio':>11}")
-    for r in rows:
-        for what in ("measured", "predicted"):
-            f = r[what]
-            peak = f"{f['max_reversal_peak']:.4f}" if f["max_reversal_peak"] is not None else "—"
-            print(f"{pathlib.Path(r['log']).name:<28} {what:<10} {f['mean_reversal_peak']:>14.4f} {peak:>13} "
-                  f"{f['noise_ratio']:>11.4f}")
-    print(f"predicted: {base.machine_label} with {base.compensator_name} on each log's setpoints, read with the "
-          "log's accelerometer noise (m/s², from the third period)")
-    for r in rows:
-        print(f"{pathlib.Path(r['log']).name} (accelerometer noise {r['accelerometer_noise_mps2']:.3f} m/s²): "
-              f"{r['verdict']['sentence']}")
+    print("\n".join(check_lines(rows, base.machine_label, base.compensator_name)))
     if args.json:
         write_json(args.json, {"machine": base.machine_label, "proofs": rows})
         print(f"wrote {args.json}")

@@ -352,3 +352,15 @@ def tune_table(result: TuneResult) -> str:
                          f"{red:>8.0f}% {_worst_reversal(row, base):>10.2f} {felt:>7}")
     return "\n".join(lines)
 
+
+def tune_lines(result: TuneResult, neighbours_scored) -> list[str]:
+    """What ``hexsim tune`` says of ``result``: the candidates refused and not chosen with the reason, the
+    table (:func:`tune_table`) and the choice with its worst case among ``neighbours_scored`` (the
+    :func:`neighbours` it was scored on)."""
+    lines = [f"refused {label}: {why}" for label, why in result.refused.items()]
+    lines += [f"not chosen {label}: {why}" for label, why in result.worse.items()]
+    lines.append(tune_table(result))
+    motion, neighbour = result.worst_at
+    lines.append(f"tuned: {result.chosen.label} (worst case {100 * (1 - result.worst_ratio):.0f} % below none, on "
+                 f"{motion}, {neighbour}; neighbours: {', '.join(n.name for n in neighbours_scored)})")
+    return lines

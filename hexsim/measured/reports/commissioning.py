@@ -1,0 +1,40 @@
+"""The commissioning loop's lines (docs/compensation.md, "Proof on logs" and "Commissioning"): ``hexsim tune
+--check`` (each log of the machine running a compensator beside hexsim's prediction of it, and the verdict) and
+``hexsim tune --from-logs`` (what the logs taught the model, and the improved file's predictions)."""
+
+from __future__ import annotations
+
+import pathlib
+
+
+def check_lines(rows: list[dict], machine_label: str, compensator_name: str) -> list[str]:
+    """The ``--check`` table and verdicts: ``rows`` as :func:`hexsim.measured.proof.proof` returns them (each log's
+    measured and predicted smoothness, its accelerometer noise and verdict), ``machine_label`` and
+    ``compensator_name`` of the prediction."""
+    lines = [f"{'log':<28} {'':<10} {'mean rev. peak':>14} {'max rev. peak':>13} {'noise ratio':>11}"]
+    for r in rows:
+        for what in ("measured", "predicted"):
+            f = r[what]
+            peak = f"{f['max_reversal_peak']:.4f}" if f["max_reversal_peak"] is not None else "—"
+            lines.append(f"{pathlib.Path(r['log']).name:<28} {what:<10} {f['mean_reversal_peak']:>14.4f} {peak:>13} "
+                         f"{f['noise_ratio']:>11.4f}")
+    lines.append(f"predicted: {machine_label} with {compensator_name} on each log's setpoints, read with the "
+                 "log's accelerometer noise (m/s², from the third period)")
+    for r in rows:
+        lines.append(f"{pathlib.Path(r['log']).name} (accelerometer noise {r['accelerometer_noise_mps2']:.3f} m/s²): "
+                     f"{r['verdict']['sentence']}")
+    return lines
+
+
+def learned_lines(learned) -> list[str]:
+    """What ``--from-logs`` read (``learned``: :class:`hexsim.measured.commissioning.Commissioning`): how far each
+    valve edge's curve reaches, from which logs."""
+    curves = learned.curves
+    return [f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
+            f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs)]
+
+
+def predicted_lines(predicted: dict) -> list[str]:
+    """The improved tuned file's predictions (its document's ``predicted``: label -> rows per motion)."""
+    return [f"predicted {label:<30} {row['motion']:<9} mean rev. peak {row['final_mean_reversal_peak']:.4f}"
+            for label, rows in predicted.items() for row in rows]
