@@ -20,6 +20,7 @@ server's hands the stretches over, so a writer that falls behind never holds up 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import pathlib
@@ -54,7 +55,11 @@ def _receive(stream):
     head = stream.read(_LENGTH.size)
     if len(head) < _LENGTH.size:
         raise EOFError("the stream ended")
-    return pickle.loads(stream.read(_LENGTH.unpack(head)[0]))
+    size = _LENGTH.unpack(head)[0]
+    body = stream.read(size)
+    if len(body) < size:
+        raise EOFError("the stream ended within a message")
+    return pickle.loads(body)
 
 
 class SessionLog:
@@ -70,15 +75,22 @@ class SessionLog:
         self.sent = 0  # samples handed over (a count since the start, as sim.rows)
         self.stretch = max(2, int(round(STREAM_S * sim.record_rate)))
         self._errors = tempfile.TemporaryFile()
+        # a session of its own: the Ctrl-C that ends the session reaches the server, which ends the files in order
         self._process = subprocess.Popen([sys.executable, "-m", "hexsim.interfaces.session_log"],
-                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._errors)
+                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._errors,
+                                         start_new_session=True)
         self._answers: queue.Queue = queue.Queue()
         threading.Thread(target=self._read_answers, daemon=True).start()
         self._stretches: queue.Queue = queue.Queue()
         self._feeder = threading.Thread(target=self._feed, daemon=True)
         self._feeder.start()
         self._stretches.put((config, None if log is None else str(log), None if rrd is None else str(rrd)))
-        self._expect("ready")
+        try:
+            self._expect("ready")
+        except InputError:
+            self._process.kill()
+            self._errors.close()
+            raise
 
     def due(self) -> bool:
         """Whether a stretch of :data:`STREAM_S` is waiting."""
@@ -156,7 +168,13 @@ def _write_session(source, answers) -> None:
     streams = ([LogStream(log)] if log is not None else []) + ([RerunStream(rrd)] if rrd is not None else [])
     _send(answers, ("ready", None))
     failure = None
-    while (result := _receive(source)) is not None:
+    while True:
+        try:
+            result = _receive(source)
+        except EOFError:  # the server is gone without its last word: end the files with what came
+            break
+        if result is None:
+            break
         if failure is None:
             try:
                 for stream in streams:
@@ -168,7 +186,8 @@ def _write_session(source, answers) -> None:
             stream.close()
         except Exception as exc:
             failure = failure or _said(exc)
-    _send(answers, ("error", failure) if failure else ("done", [str(p) for s in streams for p in s.written]))
+    with contextlib.suppress(OSError):  # a server gone has no one to tell
+        _send(answers, ("error", failure) if failure else ("done", [str(p) for s in streams for p in s.written]))
 
 
 if __name__ == "__main__":

@@ -134,8 +134,8 @@ class LogStream:
     :class:`~hexsim.engine.config.SimulationResult` of the samples since the last) to the CSV at ``path``,
     flushed to the file, the first one after the sidecar (same stem, .json, written atomically from it);
     :meth:`close` ends it. The CSV holds whole rows up to the last stretch appended, so a session that ends
-    abruptly leaves a log that reads up to there; it is not written atomically. Raises OSError where the
-    files cannot be written."""
+    abruptly leaves a log that reads up to there; it is not written atomically. Raises InputError for a folder
+    that does not exist, OSError where the files cannot be written."""
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = pathlib.Path(path)
