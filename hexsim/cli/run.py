@@ -100,19 +100,12 @@ def _vehicle_outputs(args: argparse.Namespace, result, thresholds) -> int:
     """``hexsim run vehicle:PATH``: the cue report on stdout, and the files asked for."""
     from hexsim.outputs.plotting import plot_cueing
     from hexsim.outputs.rerun_log import write_rrd
-    from hexsim.studies.cueing import cue_report, cue_table
+    from hexsim.studies.cueing import cue_lines, cue_report
 
     cfg = result.config
     report = cue_report(result, thresholds)
     solver = cfg.scenario.cueing[2].solver
-    cueing = "washout" if solver is None else "mpc cueing"
-    print(f"scenario  {cfg.scenario.name} (hexapod, {cfg.scenario.duration:g} s, {cueing} {report.washout}, "
-          f"compensator {cfg.compensator_name})\nmachine   {cfg.machine_label}")
-    if solver is not None:
-        print(f"mpc       {solver['programmes']} programmes of {solver['variables']} variables, "
-              f"{solver['unsolved']} unsolved; solve {solver['solve_ms_mean']:.1f} ms mean, "
-              f"{solver['solve_ms_max']:.1f} ms largest: {solver['real_time_factor']:.1f}x real time")
-    print(cue_table(report))
+    print("\n".join(cue_lines(cfg, report)))
     written = []
     if args.json:
         doc = {"scenario": cfg.scenario.name, "machine": cfg.machine_label, "compensator": cfg.compensator_name,

@@ -286,3 +286,18 @@ def cue_table(report: CueReport) -> str:
     rows.append(f"washout: limited samples {report.washout_limited_samples}, tilt at its rate limit "
                 f"{report.tilt_rate_limited_samples} samples, tilt up to {max(report.max_tilt_deg):.2f} deg")
     return "\n".join(rows)
+
+
+def cue_lines(config, report: CueReport) -> list[str]:
+    """What ``hexsim run vehicle:FILE`` says of a drive: the scenario and machine of ``config`` (the run's
+    :class:`~hexsim.engine.config.RunConfig`), the MPC's programmes where it cued, then :func:`cue_table`."""
+    solver = config.scenario.cueing[2].solver
+    cueing = "washout" if solver is None else "mpc cueing"
+    lines = [f"scenario  {config.scenario.name} (hexapod, {config.scenario.duration:g} s, {cueing} {report.washout}, "
+             f"compensator {config.compensator_name})", f"machine   {config.machine_label}"]
+    if solver is not None:
+        lines.append(f"mpc       {solver['programmes']} programmes of {solver['variables']} variables, "
+                     f"{solver['unsolved']} unsolved; solve {solver['solve_ms_mean']:.1f} ms mean, "
+                     f"{solver['solve_ms_max']:.1f} ms largest: {solver['real_time_factor']:.1f}x real time")
+    lines.append(cue_table(report))
+    return lines
