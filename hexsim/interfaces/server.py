@@ -32,6 +32,7 @@ import math
 import multiprocessing
 import os
 import select
+import signal
 import socket
 import sys
 import threading
@@ -234,7 +235,7 @@ class VirtualMotionSystem:
             # in a process of its own (a thread would hold the interpreter's lock from the loop for tens of ms),
             # forked (it has the modules already), at a lower priority than the loop
             self._worker = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("fork"),
-                                               initializer=os.nice, initargs=(WORKER_NICE,))
+                                               initializer=_learning_worker)
             sim.compensator.learn_in(self._worker)
 
     def _occupant(self, config: RunConfig, settings: ServeSettings) -> None:
@@ -457,6 +458,14 @@ class VirtualMotionSystem:
         return ServeReport(self.config.machine_label, self.config.compensator_name, self.sim.time,
                            self.timing.summary(), packets, list(self.transitions), self.modes.status.name.lower(),
                            self._scheduling)
+
+
+def _learning_worker() -> None:
+    """The learning worker's start: at :data:`WORKER_NICE`, and deaf to SIGINT (the Ctrl-C that ends a session
+    reaches the whole process group; the server ends the worker itself, where the worker would have printed a
+    KeyboardInterrupt traceback)."""
+    os.nice(WORKER_NICE)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def serve_session(base: RunConfig, settings: ServeSettings, *, log=None, rrd=None, json_path=None,

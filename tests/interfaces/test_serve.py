@@ -10,6 +10,7 @@ import json
 import os
 import pathlib
 import shutil
+import signal
 import struct
 import subprocess
 import sys
@@ -442,11 +443,14 @@ def _may_run_real_time() -> bool:
 
 def test_an_adaptive_compensator_is_taught_beside_the_loop_which_may_run_at_real_time_priority():
     """An adaptive compensator's buffers are taught in a worker process, not in the tick (a lesson took 20-100 ms,
-    ten to fifty ticks); where the process may, the loop's thread runs at SCHED_FIFO when asked, says so, and gets
-    its policy back (elsewhere the session runs on the normal scheduler and the rest is checked)."""
+    ten to fifty ticks), a worker deaf to the Ctrl-C that ends a session (it reaches the whole process group: the
+    worker printed a KeyboardInterrupt traceback; the server ends it); where the process may, the loop's thread
+    runs at SCHED_FIFO when asked, says so, and gets its policy back (elsewhere the session runs on the normal
+    scheduler and the rest is checked)."""
     real_time = _may_run_real_time()
     base = RunConfig.from_machine(load_machine(None), "heave", compensator="adaptive")
     vms = VirtualMotionSystem(base, ServeSettings(port=0, duration_s=5.5, priority=10 if real_time else None))
+    assert vms._worker.submit(signal.getsignal, signal.SIGINT).result() == signal.SIG_IGN
     policies = []
 
     def serve():
