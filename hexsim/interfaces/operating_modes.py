@@ -112,6 +112,8 @@ def quintic(s: float) -> float:
 
 #: A move from rest on :class:`_Move`'s quintic peaks at this many times its mean speed (15/8).
 QUINTIC_PEAK_SPEED = 1.875
+#: The shortest a move is made to keep a leg that was moving inside its envelope [s]: from 0.2 m/s, 1.6 m/s^2 at most.
+SHORTEST_MOVE_S = 0.5
 
 
 @dataclasses.dataclass
@@ -257,8 +259,22 @@ class OperatingModes:
         at the seat.)"""
         distance = float(np.max(np.abs(target - self.cmd)))
         T = max(floor, QUINTIC_PEAK_SPEED * distance / self.settings.move_speed, 1e-3)
-        self._move = _Move(self._t, T, self.cmd.copy(), self.vel.copy(), self.acc.copy(), target.copy(), then)
+        move = _Move(self._t, T, self.cmd.copy(), self.vel.copy(), self.acc.copy(), target.copy(), then)
+        self._move = self._within_stroke(move)
         self.status = status
+
+    def _within_stroke(self, move: _Move) -> _Move:
+        """``move``, or a shorter one where its path would carry a leg beyond the envelope (the stroke less
+        ``margin_m``): a move that starts at speed goes on past where it started, by up to 0.19 v0 T, before
+        it turns (a leg at 0.2 m/s over 2 s: 77 mm). The longest of T, T/1.5, T/1.5^2 … (not below
+        :data:`SHORTEST_MOVE_S`) whose path stays inside, else the shortest."""
+        s = np.linspace(0.0, 1.0, 41)
+        for _ in range(12):
+            path = np.array([move.at(move.t0 + x * move.T) for x in s])
+            if (np.all(path >= self.lo - 1e-12) and np.all(path <= self.hi + 1e-12)) or move.T <= SHORTEST_MOVE_S:
+                return move
+            move = dataclasses.replace(move, T=max(move.T / 1.5, SHORTEST_MOVE_S))
+        return move
 
     def setpoint(self, t: float) -> np.ndarray:
         """Advance to the controller tick at ``t`` [s] (increasing): the modes' transitions, then the piston

@@ -214,6 +214,24 @@ def test_a_moving_host_asking_for_neutral_is_met_at_its_velocity_and_acceleratio
     assert np.abs(np.diff(v[-300:])).max() < 1e-9  # at rest at the end, no acceleration left
 
 
+def test_a_return_that_starts_at_speed_near_the_end_of_the_stroke_stays_inside_the_envelope():
+    """Leg 1 runs out at 0.1 m/s towards its end and the host asks for neutral 15 mm short of the envelope's
+    top: a 2 s return from that speed would carry it 38 mm on before it turns (0.19 v0 T), past the end; the
+    move is made shorter instead, so every setpoint stays inside the stroke less the margin, and still without a
+    step in velocity (the setpoint's velocity changes by under 2 % of v0 a tick)."""
+    modes = _modes(engage_s=0.2, return_s=2.0)
+    hi = STROKE[0, 1] - 0.005
+    ramp = lambda t: np.r_[min(0.1 * t, 0.09), np.zeros(5)]  # noqa: E731  (the leg's 0.1 + this: 0.195 at most)
+    switch = (hi - 0.015 - NEUTRAL[0]) / 0.1 + 0.015  # the played line reaches hi - 15 mm (1.5 frames late)
+    y = _drive(modes, 4.0, lambda t: ("engage" if t < switch else "neutral", ramp(t)))
+    assert modes.status == Status.NEUTRAL and y[-1] == pytest.approx(NEUTRAL)
+    assert y[:, 0].max() <= hi + 1e-12 and y[:, 0].max() > hi - 0.015
+    v = np.diff(y[:, 0]) / TICK
+    t = np.arange(len(y))[1:-1] * TICK
+    after = (t > switch - 0.01) & (t < switch + 0.1)
+    assert np.abs(np.diff(v))[after].max() < 0.02 * 0.1
+
+
 def test_park_lowers_the_legs_to_above_the_retracted_end_and_raises_them_again():
     modes = _modes(move_speed=0.05)
     y = _drive(modes, 6.0, lambda t: ("park", np.zeros(6)))
