@@ -15,6 +15,7 @@ import struct
 import subprocess
 import sys
 import threading
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -265,8 +266,18 @@ def test_the_quintic_fade_is_flat_at_both_ends():
 
 
 # ----------------------------------------------------------------------------------------------- a session
+class Served(NamedTuple):
+    """A served session (:func:`session`): the server, what the host saw, the session's log mid-way (the session's
+    time then, the log's last time and its rows) and the files it wrote."""
+
+    vms: VirtualMotionSystem
+    record: object
+    midway: tuple[float, float, int]
+    written: list
+
+
 @pytest.fixture(scope="module")
-def session(tmp_path_factory):
+def session(tmp_path_factory) -> Served:
     """The built-in hexapod with the buffered compensator served 11 s on localhost (a thread), the occupant's
     perception in the loop (the version 2 state packet), the session written as it runs (a measurement log and
     a rerun recording), a host client (this thread) at 100 Hz: neutral 1 s, engage and 0.5 Hz, 40 mm heave for
@@ -286,7 +297,7 @@ def session(tmp_path_factory):
             record = host.session(script, total)
             now = vms.sim.time
             rows = (out / "session.csv").read_text().splitlines()
-            record.midway = (now, float(rows[-1].split(",")[0]), len(rows) - 1)
+            midway = (now, float(rows[-1].split(",")[0]), len(rows) - 1)
             host.send_raw(b"\x01\x00")  # too short
             host.send_raw(host.packet("neutral", np.zeros(6))[:-8] + struct.pack("<d", float("inf")))
             host.send_raw(host.packet("neutral", np.zeros(6), frame=3))  # long past
@@ -294,12 +305,12 @@ def session(tmp_path_factory):
             host.session(lambda t: None, 1.0, record)  # silence, still reading
     finally:
         served.join()
-        record.written = vms.close()
-    return vms, record
+        written = vms.close()
+    return Served(vms, record, midway, written)
 
 
 def test_the_host_sees_the_platform_engage_follow_and_return(session):
-    _, record = session
+    record = session.record
     _, status = record.series("status")
     seen = [int(status[0])] + [int(b) for a, b in itertools.pairwise(status) if b != a]
     assert seen == [Status.NEUTRAL, Status.ENGAGING, Status.ENGAGED, Status.RETURNING, Status.NEUTRAL]
@@ -320,7 +331,7 @@ def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
     no 13 s transient) and the heave's specific force while engaged with the otolith model's gain at 0.5 Hz (1.07:
     Young & Meiry's tau_a 13.2, tau_L 5.33, tau_s 0.66 s), the fundamentals compared (the bumps are on both); the
     seat's weighted acceleration carries the sine and its bumps while engaged, nothing at neutral."""
-    _, record = session
+    record = session.record
     _, status = record.series("status")
     _, time = record.series("time")
     _, fz = record.series("head_fz")
@@ -361,7 +372,7 @@ def test_live_perception_is_the_recorded_runs_perception_sample_by_sample():
 
 
 def test_bad_packets_are_counted_by_reason_and_the_platform_is_undisturbed(session):
-    vms, record = session
+    vms, record = session.vms, session.record
     rep = vms.report()
     assert rep.packets["rejected"] == {"size": 1, "number": 1, "order": 1, "envelope": 1}
     assert rep.packets["accepted"] == len(record.sent)  # every scripted frame
@@ -372,7 +383,7 @@ def test_bad_packets_are_counted_by_reason_and_the_platform_is_undisturbed(sessi
 
 
 def test_the_session_reports_its_timing_and_records_what_the_legs_did(session):
-    vms, _ = session
+    vms = session.vms
     timing = vms.report().timing
     assert timing["ticks"] == round(11.0 / 0.002)
     assert {"jitter_p99_ms", "late_ticks", "overruns", "work_mean_ms"} <= set(timing)
@@ -389,12 +400,12 @@ def test_the_session_is_written_while_it_runs_and_whole_when_it_ends(session):
     (to the CSV's nine digits), reads as a measurement log, and the rerun recording verifies with rerun's own tool."""
     from hexsim.measured.measurement import read_log
 
-    vms, record = session
-    now, last, rows = record.midway
+    vms = session.vms
+    now, last, rows = session.midway
     assert 8.0 < now and now - 1.5 < last <= now and rows == pytest.approx(last * 500, abs=1)
-    paths = {p.name for p in record.written}
+    paths = {p.name for p in session.written}
     assert paths == {"session.csv", "session.json", "session.rrd"}
-    csv = next(p for p in record.written if p.name == "session.csv")
+    csv = next(p for p in session.written if p.name == "session.csv")
     log = read_log(csv)
     result = vms.result()
     assert log.time.size == result.t.size == 5500  # 11 s at 500 Hz: all of it, none twice
