@@ -295,11 +295,15 @@ def _write(tmp: pathlib.Path, result: SimulationResult, sm: Smoothness | None, p
         _perception(rec, perception)
     if cueing is not None:
         _cueing(rec, cueing)
-    step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
-    rows = np.arange(0, len(result.t), step)
+    rows = np.arange(0, len(result.t), _view_step(result.t))
     _log_scene(rec, m, result, rows, rr.TimeColumn("time", duration=result.t[rows]))
     rec.flush()
     rec.disconnect()
+
+
+def _view_step(t: np.ndarray) -> int:
+    """Samples of the recording (times ``t`` (N,) [s], N >= 2) per sample of the 3D scene (:data:`VIEW_RATE_HZ`)."""
+    return max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(t))))))
 
 
 def _open(path: pathlib.Path, result: SimulationResult, analysis: str = "acceleration", perception: bool = False,
@@ -378,7 +382,7 @@ class RerunStream:
         if self._rec is None:
             self._rec, self._m = _open(self.path, result)
             if len(result.t) > 1:
-                self._step = max(1, int(round(1.0 / (VIEW_RATE_HZ * np.median(np.diff(result.t))))))
+                self._step = _view_step(result.t)
         times = rr.TimeColumn("time", duration=result.t)
         _log_samples(self._rec, result, times)
         _scalars(self._rec, "/acceleration/signal", times, result.acc[:, 2])
