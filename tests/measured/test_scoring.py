@@ -166,3 +166,33 @@ def test_a_budget_the_calibrations_floor_sets_is_named_with_both_figures():
     (sentence,) = floor_sentences(budget, units)
     assert "p1 (42 bar against 0.045 bar of sensor noise, 933×)" in sentence and "position" not in sentence
     assert floor_sentences(Budget(noise=budget.noise, tolerance=budget.noise, calibration={}), units) == []
+
+
+def test_the_calibrations_uncertainty_moves_each_key_from_the_files_own_value(tmp_path):
+    """A commissioned file's curve carries the edge gains, so its ``valve.edge_gain_PA`` reads 1 where the calibration
+    block says 0.95 ± 0.0002. The replay's uncertainty moves the key by its standard error from the file's value;
+    moving it to the calibrated value plus the error scaled the whole curve by 0.95 (on R1, commissioned from a
+    sine: a position floor of 0.85 mm against 5 µm of noise, 170×, under which every effect was `none`)."""
+    import dataclasses
+
+    from hexsim.control.scenario import make_scenario
+    from hexsim.engine.config import RunConfig
+    from hexsim.engine.runner import simulate
+    from hexsim.measured.identify import make_problem
+    from hexsim.measured.measurement import read_log
+    from hexsim.measured.scoring import calibration_uncertainty
+    from hexsim.outputs.logio import write_log
+    from hexsim.plant.machine import Machine, with_keys
+
+    path = tmp_path / "run.csv"
+    write_log(path, simulate(RunConfig(make_scenario("actuator", duration=6.0), Machine(), seed=3)),
+              noise=np.random.default_rng(4))
+    row = {"key": "valve.edge_gain_PA", "unit": "-", "value": 0.95, "std_error": 2e-4, "lower": 0.7, "upper": 1.3,
+           "status": "fitted"}
+    block = {"parameters": [row], "correlation": {"keys": [row["key"]], "matrix": [[1.0]]}}
+    floors = {}
+    for gain in (0.95, 1.0):
+        machine = dataclasses.replace(with_keys(Machine(), {row["key"]: gain}), calibration=block)
+        problem = make_problem(read_log(path, machine=machine))
+        floors[gain] = calibration_uncertainty(problem, problem.simulate(problem.nominal))["position"]
+    assert 0.0 < floors[1.0] < 1.5 * floors[0.95], floors
