@@ -35,6 +35,7 @@ import numpy as np
 from hexsim.errors import InputError
 from hexsim.measured.acquisition import accelerometer_sampling
 from hexsim.measured.curves import curve_report, reaches_budget, with_curve
+from hexsim.measured.envelope import measured_commands
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
 from hexsim.measured.measurement import MeasurementLog
@@ -431,6 +432,9 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
             report["flow_area"]["curve"] = curve_report(best["curve"], best["form"], calibrated)
         report["transients"] = [{"before": r.errors(machine).record(), "after": a}
                                 for r, a in zip(ev.replays, after)]
+        if not ev.hexapod:  # where the logs dwelt: a validation beyond is the calibration's envelope
+            report["commands_measured_V"] = [round(v, 4) for v in measured_commands([r.log for r in ev.replays],
+                                                                                  calibrated.hydraulics.null_offset)]
     elif ev.steady:
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
     _add_priors(report, best.get("prior", best["start"]), best["params"])

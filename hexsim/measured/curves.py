@@ -51,11 +51,12 @@ def reaches_budget(replays: list, machine: Machine) -> bool:
     return all(v <= limit for r in replays for v in r.errors(machine).held_out_rms_in_budgets.values())
 
 
-def curve_machine(machine: Machine, curves: FlowCurves) -> Machine:
+def curve_machine(machine: Machine, curves: FlowCurves, points: tuple[list, list] | None = None) -> Machine:
     """``machine`` with its valve's opening the edges' curves (flow area ``curve``: :meth:`FlowCurves.points`,
-    ``machine``'s form beyond the commands the logs reached), the curves carrying the P→A and A→T gains (1
-    now; a 4-way valve's P→B and B→T relative to them) and any overlap or underlap (the file's 0)."""
-    pa, at = curves.points(machine)
+    ``machine``'s form beyond the commands the logs reached, or the edges' ``points`` where given), the curves
+    carrying the P→A and A→T gains (1 now; a 4-way valve's P→B and B→T relative to them) and any overlap or
+    underlap (the file's 0)."""
+    pa, at = curves.points(machine) if points is None else points
     eff = machine.effects
     return with_valve(machine, flow_area="curve", opening_table=[], flow_curve_PA=pa, flow_curve_AT=at, overlap_m=0.0,
                       edge_gain_PA=1.0, edge_gain_AT=1.0, edge_gain_PB=eff.edge_gain_pb / eff.edge_gain_at,

@@ -93,6 +93,9 @@ _BETA = (1.0 / 3.0e9, 1.0 / 1.0e8)
 #: Strengths tried for holding a commissioning's curves to the machine's openings (:func:`_machine_openings`),
 #: as a share of the flows' weighted sum of squares per knot: none, then from faint to as much as the flows.
 STRENGTHS = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+#: ... and the strength the openings within the commands a calibration measured are held with, where only those are
+#: (``hold_within``): a hundred times the flows' weight, so there the calibrated curve stays.
+HOLD_WITHIN_STRENGTH = 100.0
 #: The openings are held relative to the machine's own, but never to less than its opening this far [V] past
 #: where its edge opens.
 FLOOR_V = 0.02
@@ -256,20 +259,25 @@ def _solve(gram: np.ndarray, rhs: np.ndarray, D: scipy.sparse.csr_matrix, weight
     return x
 
 
-def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine: bool = False) -> FlowCurves:
+def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine: bool = False,
+                    hold_within: tuple[float, float] | None = None) -> FlowCurves:
     """Each edge's curve read from ``logs``' flow balance on ``machine`` (its areas, null offset, spool loop,
     bulk modulus and dead volume; the curves carry the edges' gains: P→A and A→T read with unit gains, a 4-way
     valve's rod side with its gains relative to them), the slope-change penalty's weight chosen by held-out
     windows, then fitted again with knots added either side of each corner the first fit found
     (:func:`_refined`: the knots go where the flows ask for them); with ``toward_machine`` the openings held to
-    ``machine``'s as strongly as the held-out windows allow (module doc: "Held to the machine").
+    ``machine``'s as strongly as the held-out windows allow (module doc: "Held to the machine"); with
+    ``hold_within`` (lowest, highest command [V] at the spool), only the openings at knots within those commands, at
+    :data:`HOLD_WITHIN_STRENGTH`, the rest read from the flows alone (:mod:`hexsim.measured.envelope`: a log beyond
+    the commands its machine's calibration measured).
 
     Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 100 intervals
     away from the stops remain."""
     samples, reach, u_all = _balance(logs, _unit_gains(machine), machine.sensors.sample_skew)
     grids = (edge_grid(reach[0]), edge_grid(reach[1]))
-    opened = _fit_on(samples, reach, *grids, machine, toward_machine=toward_machine)
-    shut = _fit_on(samples, reach, *(g[g >= 0.0] for g in grids), machine, toward_machine=toward_machine)
+    strength = None if hold_within is None else HOLD_WITHIN_STRENGTH
+    opened = _fit_on(samples, reach, *grids, machine, None, toward_machine, strength, hold_within)
+    shut = _fit_on(samples, reach, *(g[g >= 0.0] for g in grids), machine, None, toward_machine, strength, hold_within)
     # the simpler shut edges unless the underlap predicts the held-out windows better by one standard error; in a
     # commissioning, the machine's own edges (shut or opening before null) unless the other predicts them better
     if toward_machine and _opens_before_null(machine):
@@ -277,7 +285,7 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
     else:
         first = shut if _held_out_ms(shut)[0] <= sum(_held_out_ms(opened)) else opened
     second = _fit_on(samples, reach, _refined(first.pa), _refined(first.at), machine, first.weight,
-                     toward_machine, first.prior_strength)
+                     toward_machine, first.prior_strength, hold_within)
     return dataclasses.replace(second, held_out=first.held_out, held_out_se=first.held_out_se,
                                reached=(float(u_all.min()), float(u_all.max())))
 
@@ -362,14 +370,16 @@ def _held_out_ms(curves: FlowCurves) -> tuple[float, float]:
 
 
 def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: np.ndarray, machine: Machine,
-            weight: float | None = None, toward_machine: bool = False, strength: float | None = None) -> FlowCurves:
+            weight: float | None = None, toward_machine: bool = False, strength: float | None = None,
+            hold_within: tuple[float, float] | None = None) -> FlowCurves:
     """The curves on the knots ``pa`` and ``at`` (V, each edge's up to its ``reach``): the flows' robust weights
     (soft-L1 as reweighted least squares, three passes), then the penalty's ``weight`` chosen by the blocked
     held-out windows where it is not given (the smoothest within one standard error of the best: Hastie,
     Tibshirani & Friedman, The Elements of Statistical Learning, 2nd ed., §7.10; a compensator inverts this
     curve, and a wiggle the held-out windows cannot tell from the best fit is a bump at every crossing); with
     ``toward_machine``, the openings held to ``machine``'s with the ``strength`` the held-out windows choose
-    where it is not given (:func:`_machine_openings`; the strongest within one standard error of the best)."""
+    where it is not given (:func:`_machine_openings`; the strongest within one standard error of the best), only
+    those at knots within the commands ``hold_within`` where it is given."""
     A, b, block, most = _edge_rows(samples, pa, at)
     keep = (most[:, 0] <= reach[0]) & (most[:, 1] <= reach[1])  # an interval beyond an edge's reach is not its
     A, b, block = A[keep], b[keep], block[keep]
@@ -400,7 +410,10 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
         weight = _within_one_se(scores, WIGGLE_MARGIN if toward_machine else 0.0)
     if toward_machine:
         P, t = _machine_openings(machine, pa, at)
-        unit_prior = float(np.sum(w * b * b)) / c**2 / len(t)  # strength 1: the openings ~ the flows
+        if hold_within is not None:  # each edge's knots (past null) within the commands, A→T's at -u
+            keep = np.concatenate([pa[1:] <= hold_within[1], at[1:] <= -hold_within[0]])
+            P, t = P[keep], t[keep]
+        unit_prior = float(np.sum(w * b * b)) / c**2 / max(len(t), 1)  # strength 1: the openings ~ the flows
         held_gram, held_rhs = unit_prior * (P.T @ P), unit_prior * (P.T @ t)
         if strength is None:
             strength = _within_one_se({k: folds.held_out(gram + k * held_gram, rhs + k * held_rhs,

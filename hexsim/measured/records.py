@@ -116,6 +116,7 @@ class CalibrationReport(TypedDict, total=False):
     correlation: dict  # "keys" of the fitted parameters, their "matrix"
     flow_area: dict  # the form chosen, each tried with its held-out cost, the curves read from the flows
     transients: list[dict]  # per replayed log: "before" and "after" (held-out RMS in budgets, budget)
+    commands_measured_V: list[float]  # a single actuator's: the commands the logs dwelt on (hexsim.measured.envelope)
     replayed: list[dict]  # a steady calibration's logs replayed in windows
     own_budget: OwnBudget
     acquisition: dict  # how the accelerometer sampled, from the logs' timing
@@ -255,7 +256,8 @@ class CalibrationRecord:
     """A calibrated machine's record: its parameters' estimates (by key), the correlation matrix of those it
     fitted (``correlated``: keys, (k, k) matrix), the calibrated model's fit of its own logs (``own_fits``)
     and, where the valve's flow curve was read from the logs, the commands [V] those logs reached
-    (``curve_commands_V``) and the form the curve was held towards (``curve_form``)."""
+    (``curve_commands_V``) and the form the curve was held towards (``curve_form``); the commands [V] a
+    single actuator's logs measured the curve over (``commands_measured_V``, :mod:`hexsim.measured.envelope`)."""
 
     estimates: dict[str, Estimate]
     correlated: tuple[str, ...]
@@ -263,6 +265,7 @@ class CalibrationRecord:
     own_fits: tuple[OwnFit, ...]
     curve_commands_V: tuple[float, float] | None = None
     curve_form: str = "prior"
+    commands_measured_V: tuple[float, float] | None = None
 
     @classmethod
     def of(cls, block: dict | None, where: str = "calibration") -> CalibrationRecord | None:
@@ -296,9 +299,10 @@ class CalibrationRecord:
                 raise InputError(f"{where}: an own-fit row of {t.get('log', '?')}: {exc}") from None
         curve = (block.get("flow_area") or {}).get("curve") or {}
         reached = curve.get("commands_measured_V")
+        dwelt = block.get("commands_measured_V")
         return cls(estimates, keys, matrix, tuple(fits),
                    None if reached is None else (float(reached[0]), float(reached[1])),
-                   str(curve.get("from_form", "prior")))
+                   str(curve.get("from_form", "prior")), None if dwelt is None else (float(dwelt[0]), float(dwelt[1])))
 
     def identified(self) -> list[str]:
         """The correlated keys whose estimates are identified (:attr:`Estimate.identified`), in order: those

@@ -20,6 +20,7 @@ from hexsim.measured.advice import (
 )
 from hexsim.measured.candidates import CANDIDATES
 from hexsim.measured.effect_fit import ALPHA, MIN_EXCESS_SHARE, WORSE_REL, signal_labels
+from hexsim.measured.envelope import beyond_curve, curve_read_from_log
 from hexsim.measured.identify import (
     FIT_PER_ROUND,
     MAX_EFFECTS,
@@ -31,7 +32,6 @@ from hexsim.measured.identify import (
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.records import (
     UNSETTLED,
-    CalibrationRecord,
     Discovery,
     ValidationReport,
 )
@@ -389,31 +389,6 @@ def summary(ident: Identification) -> ValidationReport:
     }
 
 
-#: A log's commands beyond the calibrated flow curve's by more than this fraction of its range are reported.
-CURVE_MARGIN = 0.05
-
-
-def beyond_curve(log: MeasurementLog) -> dict | None:
-    """Where a single-actuator ``log``'s valve commands (at the spool, u_v - u_0) go beyond those its machine's
-    flow curve was read from (:attr:`hexsim.measured.records.CalibrationRecord.curve_commands_V`,
-    :func:`hexsim.measured.flow_curve.fit_flow_curve`) by more than :data:`CURVE_MARGIN` of that range: the
-    commands, the calibrated range and a sentence (a misfit there is the calibration's envelope, not an
-    effect); None where the machine's curve was not read from logs or the log stays inside it."""
-    record = CalibrationRecord.of(log.machine.calibration, f"{log.machine.label}: calibration")
-    if log.system != "single-actuator" or record is None or record.curve_commands_V is None:
-        return None
-    lo, hi = record.curve_commands_V
-    u = log.columns["valve_cmd_V"] - log.machine.hydraulics.null_offset
-    margin = CURVE_MARGIN * (hi - lo)
-    if u.min() >= lo - margin and u.max() <= hi + margin:
-        return None
-    return {"commands_V": [float(u.min()), float(u.max())], "calibrated_V": [lo, hi],
-            "sentence": f"The log's valve commands reach {u.min():.3g}…{u.max():.3g} V; the machine's flow curve was "
-                        f"read from logs that reached {lo:.3g}…{hi:.3g} V (beyond, its table is the "
-                        f"{record.curve_form} form's): a misfit at the larger commands is the "
-                        f"calibration's envelope before it is an effect. Calibrate with a log that reaches them."}
-
-
 def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice | None:
     """What validate says of the log's machine before any effect, composed from the calibration's checks
     (:mod:`hexsim.measured.calibration`): an uncalibrated machine visibly off a constant-command log's steady
@@ -462,5 +437,14 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
         doc["beyond_calibrated_curve"] = beyond
         if ident.verdict != "none":
             doc["conclusions"].insert(0, beyond["sentence"])
+        if ident.verdict == "unexplained":  # nothing named: is it the curve the calibration never measured?
+            if notify:
+                notify("reading the valve's curve from the log beyond the commands the calibration measured")
+            read = curve_read_from_log(log, beyond)
+            if read is not None:
+                beyond["curve_read_from_log"] = read
+                doc["conclusions"].insert(1, read["sentence"])
+                if read["within"]:
+                    doc["verdict"] = "none"
     write_report(ident, doc, report, json_path)
     return doc

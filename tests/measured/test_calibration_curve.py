@@ -167,18 +167,21 @@ def test_null_logs_of_motions_not_calibrated_on_answer_none(curve, frequency, am
 
 
 def test_a_log_beyond_the_commands_the_curve_was_read_from_is_said_to_be(curve):
-    """1 Hz 50 mm drives the valve to about 2.8 V, beyond the 1.7 V the calibration logs reached: validate's
-    JSON names both ranges, and where it does not answer none that is its first conclusion."""
+    """1 Hz 50 mm drives the valve to about 2.8 V, beyond the 1.6-1.7 V the calibration logs dwelt on: validate's
+    JSON names both ranges and the share of the log's time beyond, and where it does not answer none that is its
+    first conclusion (with what the curve read there from the log leaves, where nothing was named)."""
     _, report, path, folder = curve
     log = write(motion(TRUTH, 6.0, 1.0, 0.05, np.random.default_rng(40)), folder / "beyond.csv", "beyond")
     answer = folder / "beyond.answer.json"
     assert main(["validate", str(log), "--machine", str(path), "--json", str(answer), "--quiet", "--jobs", "2"]) == 0
     doc = json.loads(answer.read_text())
     beyond = doc["beyond_calibrated_curve"]
-    assert beyond["calibrated_V"] == report["flow_area"]["curve"]["commands_measured_V"]
-    assert beyond["commands_V"][1] > 1.2 * beyond["calibrated_V"][1], beyond
+    assert beyond["calibrated_V"] == report["commands_measured_V"]  # where the calibration logs dwelt
+    assert beyond["commands_V"][1] > 1.2 * beyond["calibrated_V"][1] and 0.1 < beyond["time_share"] < 1.0, beyond
     if doc["verdict"] != "none":
         assert doc["conclusions"][0] == beyond["sentence"]
+    if "curve_read_from_log" in beyond:  # nothing was named: the curve read there from the log, and said
+        assert doc["conclusions"][1] == beyond["curve_read_from_log"]["sentence"]
 
 
 def test_the_curve_asked_for_on_logs_without_the_chamber_pressure_is_refused(tmp_path):

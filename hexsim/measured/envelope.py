@@ -1,0 +1,182 @@
+"""The valve commands a calibration measured, and a log that runs the valve beyond them.
+
+A calibration reads the valve's flow curve where its logs *dwelt*: a chirp measures the small commands it sweeps
+slowly, a step passes the rest in milliseconds. On the reference plant R1 the shipped calibration logs spend 10-20 ms
+per 50 mV above 0.8 V, where every sine log runs (and where R1's spool meets its port, a corner): the calibrated curve
+there is the flow-area form's extrapolation, and a null log was answered `unexplained`, 15 budgets off in position, an
+effect log `partial`. The misfit is the calibration's envelope, not an effect:
+
+- :func:`measured_commands` gives the commands a calibration's logs measured (written into the calibrated file's
+  ``calibration.commands_measured_V``);
+- :func:`beyond_curve` says where a log runs beyond them, and how much of its time;
+- :func:`curve_read_from_log` reads the curve there from the log itself (the measured commands held to the
+  calibrated file's curve, :func:`hexsim.measured.flow_curve.fit_flow_curves`) and replays the log on it: where the
+  nominal model is then within its budget, the verdict is `none`, and it says that an effect confined to those
+  commands is not resolved on this calibration.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from hexsim.errors import InputError
+from hexsim.measured.flow_curve import (
+    GRID_MIN_V,
+    GRID_REL,
+    FlowCurves,
+    edge_grid,
+    fit_flow_curves,
+)
+from hexsim.measured.measurement import MeasurementLog
+from hexsim.measured.records import CalibrationRecord
+from hexsim.plant import hydraulics
+from hexsim.plant.machine import Machine
+from hexsim.plant.params import thin_curve
+
+#: A command is measured where the logs spent at least this long [s] within a knot spacing of the flow curve's grid
+#: either side of it (max(GRID_MIN_V, GRID_REL u)): five of the flow balance's 10 ms intervals. R1's calibration
+#: logs: 0.2-0.3 s at 0.7 V, 10 ms at 0.85 V.
+MIN_DWELL_S = 0.05
+
+#: A log's commands beyond the measured ones by more than this fraction of their range are reported.
+CURVE_MARGIN = 0.05
+
+
+def measured_commands(logs: list[MeasurementLog], null_offset: float | None = None) -> tuple[float, float]:
+    """The commands at the spool [V] (u_v - u_0: ``null_offset``, default each log's machine's), (lowest, highest),
+    over which ``logs``
+    measured the valve's flow curve: on each edge out to the end of the run of knots of the curve's grid
+    (:func:`hexsim.measured.flow_curve.edge_grid`) on each of which the logs together spent at least
+    :data:`MIN_DWELL_S` within a knot spacing, the run with the most time (:func:`_run_end`). 0 on an edge the logs
+    never dwelt on."""
+    u = np.concatenate([log.columns["valve_cmd_V"] - (log.machine.hydraulics.null_offset if null_offset is None
+                                                      else null_offset) for log in logs])
+    dt = np.concatenate([np.full(len(log.columns["valve_cmd_V"]), 1.0 / log.sample_rate_hz) for log in logs])
+    out = []
+    for sign in (-1.0, 1.0):
+        v = sign * u
+        order = np.argsort(v)
+        v, time = v[order], np.concatenate([[0.0], np.cumsum(dt[order])])
+        knots = edge_grid(max(float(v[-1]), GRID_MIN_V))
+        knots = knots[knots > 0.0]
+        half = np.maximum(GRID_MIN_V, GRID_REL * knots)
+        dwell = time[np.searchsorted(v, knots + half, "right")] - time[np.searchsorted(v, knots - half, "left")]
+        out.append(sign * _run_end(knots, dwell))
+    return out[0], out[1]
+
+
+def _run_end(knots: np.ndarray, dwell: np.ndarray) -> float:
+    """The last knot [V] of the run of neighbouring knots each dwelt on for :data:`MIN_DWELL_S` whose dwell adds up
+    to the most (a sine crosses the overlap near null in a few milliseconds, a saturated step dwells at the
+    range's end alone); 0 where no knot was dwelt on."""
+    dwelt = np.r_[False, dwell >= MIN_DWELL_S, False].astype(int)
+    starts, ends = np.flatnonzero(np.diff(dwelt) == 1), np.flatnonzero(np.diff(dwelt) == -1)
+    if starts.size == 0:
+        return 0.0
+    best = max(range(len(starts)), key=lambda r: float(dwell[starts[r]:ends[r]].sum()))
+    return float(knots[ends[best] - 1])
+
+
+def _measured(record: CalibrationRecord) -> tuple[float, float] | None:
+    """The commands the record's calibration measured, or for a file calibrated before they were written, those
+    its curve was read to (None: neither)."""
+    return record.commands_measured_V or record.curve_commands_V
+
+
+def beyond_curve(log: MeasurementLog) -> dict | None:
+    """Where a single-actuator ``log``'s valve commands (at the spool, u_v - u_0) go beyond those its machine's
+    calibration measured (:func:`measured_commands`) by more than :data:`CURVE_MARGIN` of that range: the
+    commands, the measured range, the share of the log's time beyond it and a sentence (a misfit there is the
+    calibration's envelope, not an effect); None where the machine was not calibrated on transients or the log
+    stays inside."""
+    record = CalibrationRecord.of(log.machine.calibration, f"{log.machine.label}: calibration")
+    measured = None if log.system != "single-actuator" or record is None else _measured(record)
+    if measured is None:
+        return None
+    lo, hi = measured
+    u = log.columns["valve_cmd_V"] - log.machine.hydraulics.null_offset
+    margin = CURVE_MARGIN * (hi - lo)
+    outside = (u < lo - margin) | (u > hi + margin)
+    if not outside.any():
+        return None
+    share = float(np.mean(outside))
+    return {"commands_V": [float(u.min()), float(u.max())], "calibrated_V": [lo, hi], "time_share": share,
+            "sentence": f"The log runs the valve at {u.min():.3g}…{u.max():.3g} V, {share:.0%} of its time beyond "
+                        f"the {lo:.3g}…{hi:.3g} V its machine's calibration logs measured the flow curve over (they "
+                        f"passed the rest in less than {MIN_DWELL_S * 1e3:g} ms per knot): a misfit at those "
+                        f"commands is the calibration's envelope before it is an effect. Calibrate with a log "
+                        f"that dwells there (a null log of this motion), or see below what reading the curve there "
+                        f"from this log leaves."}
+
+
+def _spliced(machine: Machine, curves: FlowCurves, lo: float, hi: float, gains=(1.0, 1.0)) -> tuple[list, list]:
+    """Each edge's points for the machine file: ``machine``'s own opening (its form or curve, with its edge gain)
+    within the commands ``lo``…``hi`` [V] its calibration measured, exactly (there the calibration refined the
+    curve's scale by the replays, to parts in a thousand; the flows give it to about a percent), and beyond them
+    the ``curves`` read from the log (:meth:`FlowCurves.points`), scaled to meet it, their rise beyond it times
+    ``gains`` (P→A, A→T)."""
+    hyd, eff = machine.hydraulics, machine.effects
+    full = math.pi * hyd.spool_diameter * hyd.x_v_max
+    out = []
+    for side, edge, limit, pts, gain, k in ((0, curves.pa, hi, curves.points(machine)[0], eff.edge_gain_pa, gains[0]),
+                                            (1, curves.at, -lo, curves.points(machine)[1], eff.edge_gain_at, gains[1])):
+        u = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], hyd.u_v_max, 2001), [limit]]))
+        own = hydraulics.flow_areas((1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max, hyd)[side] * gain / full
+        knots, values = np.array(pts, dtype=float).T
+        read = np.interp(u, knots, values)
+        at_limit, own_limit = float(np.interp(limit, knots, values)), float(np.interp(limit, u, own))
+        scale = own_limit / at_limit if at_limit > 0.0 else 1.0
+        blend = np.clip((u - limit) / (BLEND * limit), 0.0, 1.0) ** 2 * (3.0 - 2.0 * np.clip((u - limit) / (BLEND * limit), 0.0, 1.0))
+        value = (1.0 - blend) * own + blend * (own_limit + k * (scale * read - own_limit))
+        out.append(thin_curve(u, np.maximum.accumulate(np.maximum(value, 0.0))))
+    return out[0], out[1]
+
+
+#: The calibrated curve passes into the one read beyond over this share of the measured command (a smoothstep: a kink
+#: where their slopes differ would be an acceleration step at every crossing).
+BLEND = 0.15
+#: The bounds of the replays' scale of each edge's curve beyond the measured commands (:func:`curve_read_from_log`).
+GAIN_BOUNDS = (0.8, 1.25)
+
+
+def curve_read_from_log(log: MeasurementLog, beyond: dict) -> dict | None:
+    """The nominal replay of ``log`` on its machine with the valve's curve read from the log's own flows beyond the
+    commands the calibration measured (``beyond``, :func:`beyond_curve`; within them held to the calibrated curve),
+    each edge's rise there scaled by the replays of the log's fit windows (the flows give a curve to about a
+    percent, an open-loop replay asks for parts in a thousand: as the calibration refines its curve's gains), and
+    judged on its held-out windows: each channel's held-out RMS in budgets (``held_out_rms_in_budgets``, on the
+    budget measured on that model as :func:`hexsim.measured.identify.identify` measures the nominal's), ``within``
+    (every channel within sqrt(WITHIN) budgets), the commands read (``read_V``), the scales (``gains``) and the
+    sentence. None where the curve cannot be read from the log (no p1_Pa, too few intervals)."""
+    import scipy.optimize
+
+    from hexsim.measured.curves import curve_machine
+    from hexsim.measured.dynamics import ReplayEvidence
+    from hexsim.measured.scoring import WITHIN
+
+    lo, hi = beyond["calibrated_V"]
+    try:
+        curves = fit_flow_curves([log], log.machine, toward_machine=True, hold_within=(lo, hi))
+    except InputError:
+        return None
+
+    def machine(gains) -> Machine:
+        return curve_machine(log.machine, curves, _spliced(log.machine, curves, lo, hi, gains))
+
+    evidence = ReplayEvidence.of(log, machine((1.0, 1.0)))
+    fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k)), [1.0, 1.0], bounds=GAIN_BOUNDS,
+                                       diff_step=1e-3, x_scale=0.01, max_nfev=20)
+    rms = evidence.errors(machine(fit.x)).held_out_rms_in_budgets
+    within = max(rms.values()) <= math.sqrt(WITHIN)
+    figures = ", ".join(f"{ch} {v:.3g}" for ch, v in rms.items())
+    sentence = (f"With the valve's curve read from this log beyond {lo:.3g}…{hi:.3g} V (held to the calibrated "
+                f"curve within, its scale there fitted to this log's fit windows), the nominal model is at {figures} "
+                f"budgets (held-out windows): "
+                + ("within its budget. The misfit is the calibration's envelope; an effect confined to those "
+                   "commands is not resolved on this calibration." if within else
+                   "still beyond its budget: more than the curve there is off, or the curve is not read to the "
+                   "replay's precision."))
+    return {"read_V": [lo, hi], "gains": [float(g) for g in fit.x], "held_out_rms_in_budgets": rms,
+            "within": within, "sentence": sentence}
