@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from hexsim.errors import InputError
+from hexsim.errors import InputError, PhysicsError
 from hexsim.measured.flow_curve import (
     GRID_MIN_V,
     GRID_REL,
@@ -120,15 +120,17 @@ def _spliced(machine: Machine, curves: FlowCurves, lo: float, hi: float, gains=(
     hyd, eff = machine.hydraulics, machine.effects
     full = math.pi * hyd.spool_diameter * hyd.x_v_max
     out = []
-    for side, edge, limit, pts, gain, k in ((0, curves.pa, hi, curves.points(machine)[0], eff.edge_gain_pa, gains[0]),
-                                            (1, curves.at, -lo, curves.points(machine)[1], eff.edge_gain_at, gains[1])):
+    points = curves.points(machine)
+    for side, edge, limit, pts, gain, k in ((0, curves.pa, hi, points[0], eff.edge_gain_pa, gains[0]),
+                                            (1, curves.at, -lo, points[1], eff.edge_gain_at, gains[1])):
         u = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], hyd.u_v_max, 2001), [limit]]))
         own = hydraulics.flow_areas((1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max, hyd)[side] * gain / full
         knots, values = np.array(pts, dtype=float).T
         read = np.interp(u, knots, values)
         at_limit, own_limit = float(np.interp(limit, knots, values)), float(np.interp(limit, u, own))
         scale = own_limit / at_limit if at_limit > 0.0 else 1.0
-        blend = np.clip((u - limit) / (BLEND * limit), 0.0, 1.0) ** 2 * (3.0 - 2.0 * np.clip((u - limit) / (BLEND * limit), 0.0, 1.0))
+        x = np.clip((u - limit) / (BLEND * limit), 0.0, 1.0)
+        blend = x * x * (3.0 - 2.0 * x)  # smoothstep
         value = (1.0 - blend) * own + blend * (own_limit + k * (scale * read - own_limit))
         out.append(thin_curve(u, np.maximum.accumulate(np.maximum(value, 0.0))))
     return out[0], out[1]
@@ -149,7 +151,8 @@ def curve_read_from_log(log: MeasurementLog, beyond: dict) -> dict | None:
     judged on its held-out windows: each channel's held-out RMS in budgets (``held_out_rms_in_budgets``, on the
     budget measured on that model as :func:`hexsim.measured.identify.identify` measures the nominal's), ``within``
     (every channel within sqrt(WITHIN) budgets), the commands read (``read_V``), the scales (``gains``) and the
-    sentence. None where the curve cannot be read from the log (no p1_Pa, too few intervals)."""
+    sentence. None where the curve cannot be read from the log (no p1_Pa, too few intervals) or the log not replayed
+    on it."""
     import scipy.optimize
 
     from hexsim.measured.curves import curve_machine
@@ -165,10 +168,13 @@ def curve_read_from_log(log: MeasurementLog, beyond: dict) -> dict | None:
     def machine(gains) -> Machine:
         return curve_machine(log.machine, curves, _spliced(log.machine, curves, lo, hi, gains))
 
-    evidence = ReplayEvidence.of(log, machine((1.0, 1.0)))
-    fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k)), [1.0, 1.0], bounds=GAIN_BOUNDS,
-                                       diff_step=1e-3, x_scale=0.01, max_nfev=20)
-    rms = evidence.errors(machine(fit.x)).held_out_rms_in_budgets
+    try:
+        evidence = ReplayEvidence.of(log, machine((1.0, 1.0)))
+        fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k)), [1.0, 1.0], bounds=GAIN_BOUNDS,
+                                           diff_step=1e-3, x_scale=0.01, max_nfev=20)
+        rms = evidence.errors(machine(fit.x)).held_out_rms_in_budgets
+    except (InputError, PhysicsError):  # the log cannot be replayed on the curve read (too few windows, a blow-up)
+        return None
     within = max(rms.values()) <= math.sqrt(WITHIN)
     figures = ", ".join(f"{ch} {v:.3g}" for ch, v in rms.items())
     sentence = (f"With the valve's curve read from this log beyond {lo:.3g}…{hi:.3g} V (held to the calibrated "

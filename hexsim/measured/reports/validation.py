@@ -31,7 +31,7 @@ def write_folder(folder: pathlib.Path, ident: Identification, doc: ValidationRep
     and :data:`DOCUMENT` (the JSON document ``doc``), the folder made if needed, each file written whole
     (:func:`hexsim.tables.write_atomic`). Raises OSError where the folder cannot be made."""
     folder.mkdir(parents=True, exist_ok=True)
-    plot(ident, folder / FIGURE)
+    plot(ident, folder / FIGURE, doc["verdict"])
     write_atomic(folder / MARKDOWN, lambda tmp: tmp.write_text(markdown(doc, [FIGURE]), encoding="utf-8"))
     write_json(folder / DOCUMENT, doc)
 
@@ -160,7 +160,7 @@ def _residuals_markdown(doc: dict) -> list[str]:
     return lines
 
 
-def plot(ident: Identification, path: pathlib.Path) -> None:
+def plot(ident: Identification, path: pathlib.Path, verdict: str | None = None) -> None:
     from matplotlib.figure import (
         Figure,  # no pyplot: the user's backend is never switched
     )
@@ -198,7 +198,7 @@ def plot(ident: Identification, path: pathlib.Path) -> None:
         ax[i, 2].set_ylabel("PSD")
     ax[-1, 0].set_xlabel("time [s]")
     added = " + ".join(fit_label(f) for f in ident.accepted) or "nothing"
-    fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {added} (blue), verdict {ident.verdict}")
+    fig.suptitle(f"{p.log.path.name}: residual before (red) / after adding {added} (blue), verdict {verdict or ident.verdict}")
     save_figure(fig, path, dpi=90)
 
 
