@@ -143,13 +143,15 @@ BLEND = 0.15
 GAIN_BOUNDS = (0.8, 1.25)
 
 
-def curve_read_from_log(log: MeasurementLog, beyond: dict) -> dict | None:
-    """The nominal replay of ``log`` on its machine with the valve's curve read from the log's own flows beyond the
-    commands the calibration measured (``beyond``, :func:`beyond_curve`; within them held to the calibrated curve),
-    each edge's rise there scaled by the replays of the log's fit windows (the flows give a curve to about a
-    percent, an open-loop replay asks for parts in a thousand: as the calibration refines its curve's gains), and
-    judged on its held-out windows: each channel's held-out RMS in budgets (``held_out_rms_in_budgets``, on the
-    budget measured on that model as :func:`hexsim.measured.identify.identify` measures the nominal's), ``within``
+def curve_read_from_log(problem, budget, beyond: dict) -> dict | None:
+    """The nominal replay of a single actuator's log (its replay ``problem``, :class:`hexsim.measured.scoring.Problem`,
+    and the ``budget`` measured on its nominal: :attr:`hexsim.measured.identify.Identification.nominal_budget`) on
+    its machine with the valve's curve read from the log's own flows beyond the commands the calibration measured
+    (``beyond``, :func:`beyond_curve`; within them held to the calibrated curve), each edge's rise there scaled by
+    the replays of the log's fit windows (the flows give a curve to about a percent, an open-loop replay asks for
+    parts in a thousand: as the calibration refines its curve's gains), and judged on its held-out windows against
+    that budget, as the identification judges a candidate: each channel's held-out RMS in budgets
+    (``held_out_rms_in_budgets``), ``within``
     (every channel within sqrt(WITHIN) budgets), the commands read (``read_V``), the scales (``gains``) and the
     sentence. None where the curve cannot be read from the log (no p1_Pa, too few intervals) or the log not replayed
     on it."""
@@ -159,6 +161,7 @@ def curve_read_from_log(log: MeasurementLog, beyond: dict) -> dict | None:
     from hexsim.measured.dynamics import ReplayEvidence
     from hexsim.measured.scoring import WITHIN
 
+    log = problem.log
     lo, hi = beyond["calibrated_V"]
     try:
         curves = fit_flow_curves([log], log.machine, toward_machine=True, hold_within=(lo, hi))
@@ -169,7 +172,7 @@ def curve_read_from_log(log: MeasurementLog, beyond: dict) -> dict | None:
         return curve_machine(log.machine, curves, _spliced(log.machine, curves, lo, hi, gains))
 
     try:
-        evidence = ReplayEvidence.of(log, machine((1.0, 1.0)))
+        evidence = ReplayEvidence.of_problem(problem, budget)
         fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k)), [1.0, 1.0], bounds=GAIN_BOUNDS,
                                            diff_step=1e-3, x_scale=0.01, max_nfev=20)
         rms = evidence.errors(machine(fit.x)).held_out_rms_in_budgets

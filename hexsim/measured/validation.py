@@ -440,7 +440,7 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
         if ident.verdict == "unexplained":  # nothing named: is it the curve the calibration never measured?
             if notify:
                 notify("reading the valve's curve from the log beyond the commands the calibration measured")
-            read = curve_read_from_log(log, beyond)
+            read = curve_read_from_log(ident.problem, ident.nominal_budget, beyond)
             if read is not None:
                 beyond["curve_read_from_log"] = read
                 doc["conclusions"].insert(1, read["sentence"])

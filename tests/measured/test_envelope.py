@@ -57,12 +57,13 @@ def _corner_missed(machine):
     return dataclasses.replace(calibrated, calibration={"commands_measured_V": [-0.74, 0.74]})
 
 
-def _nominal_position(log) -> float:
-    """The nominal replay's held-out position RMS in budgets, as hexsim validate measures it."""
+def _nominal(log):
+    """The log's replay problem, the budget measured on its nominal and the nominal's held-out position RMS in
+    budgets, as hexsim validate measures them."""
     problem = make_problem(log)
     sim = problem.simulate(problem.nominal)
     budget = measure_budget(problem, sim)
-    return math.sqrt(within_budget(score(problem, sim, budget), budget)["position"])
+    return problem, budget, math.sqrt(within_budget(score(problem, sim, budget), budget)["position"])
 
 
 def test_r1s_null_log_beyond_its_calibration_is_the_curve_read_there_not_an_effect():
@@ -76,11 +77,12 @@ def test_r1s_null_log_beyond_its_calibration_is_the_curve_read_there_not_an_effe
     if not REFERENCE.is_dir():
         pytest.skip("../shared/reference-plants is not here")
     own = with_keys(r1_machine()[0], {"sensors.sample_skew_s": 1.9e-4, "sensors.acceleration_skew_s": -1e-4})
-    truth = _nominal_position(read_log(REFERENCE / "r1" / "r1_g.csv", machine=own))
+    truth = _nominal(read_log(REFERENCE / "r1" / "r1_g.csv", machine=own))[2]
     log = read_log(REFERENCE / "r1" / "r1_g.csv", machine=_corner_missed(own))
     beyond = beyond_curve(log)
     assert beyond is not None and beyond["calibrated_V"] == [-0.74, 0.74] and beyond["time_share"] > 0.3, beyond
-    assert _nominal_position(log) > 10.0 * truth
-    read = curve_read_from_log(log, beyond)
+    problem, budget, nominal = _nominal(log)
+    assert nominal > 10.0 * truth, (nominal, truth)
+    read = curve_read_from_log(problem, budget, beyond)
     rms = read["held_out_rms_in_budgets"]
     assert rms["position"] <= 2.0 * truth and rms["p1"] <= 2.0 and rms["acceleration"] <= 1.0, (truth, read)
