@@ -71,6 +71,19 @@ def test_one_parameter_declares_the_calibration_the_candidates_and_friction():
     assert [p.key for p in PARAMETERS] == ["sigma", "F_c0", "F_s0", "c_s"]
 
 
+def test_a_parameter_at_a_bound_or_held_names_the_experiment_that_would_free_it():
+    """Issue 52: nothing at a bound without the experiment that frees it. R1's calibration left the dead volume at its
+    lower bound with only "the fit ran into the bound"; the row's experiment is now said, in the terminal table and
+    the Markdown alike; a fitted row says nothing more."""
+    from hexsim.measured.reports.calibration import status
+
+    dead = Parameter("cylinder.dead_volume_cap_m3", 2.5e-7, 2e-6, "hoses", "the oil spring at both ends of the stroke")
+    row = dead.row(dead.estimate(2.5e-7, 0.0)) | {"prior": 5e-7}
+    assert row["status"] == AT_A_BOUND and status(row).endswith("identify it with the oil spring at both ends of "
+                                                                "the stroke")
+    assert status(dead.row(dead.estimate(1e-6, 1e-8))) == FITTED
+
+
 def test_friction_rows_are_estimates():
     """A friction fit with F_c0 run into its lower limit and c_s unseen: rows of the one Estimate, the
     unidentifiable ones with their reason."""

@@ -8,7 +8,7 @@ import pathlib
 
 import numpy as np
 
-from hexsim.measured.estimates import FITTED, HELD
+from hexsim.measured.estimates import AT_A_BOUND, FITTED, HELD
 from hexsim.tables import write_atomic
 
 #: The files of a calibration's report folder.
@@ -24,14 +24,20 @@ def write_folder(folder: pathlib.Path, report: dict) -> None:
     write_atomic(folder / MARKDOWN, lambda tmp: tmp.write_text(markdown(report, FIGURE), encoding="utf-8"))
 
 
+def status(row: dict) -> str:
+    """A parameter row's status, why (all but fitted) and, held or at a bound, the experiment that would identify it
+    (issue 52: nothing at a bound without the experiment that frees it)."""
+    text = row["status"] if row["status"] == FITTED else f"{row['status']}: {row.get('why', '')}"
+    if row["status"] in (HELD, AT_A_BOUND) and row.get("experiment"):
+        text += f"; identify it with {row['experiment']}"
+    return text
+
+
 def table(report: dict) -> str:
     """The report as lines for stdout: parameters, then errors before/after, held out, left out."""
     lines = [f"{'parameter':30s} {'prior':>11s} {'calibrated':>11s} {'± s.e.':>9s}  status"]
     for r in report["parameters"]:
-        tail = r["status"] if r["status"] == FITTED else f"{r['status']}: {r['why']}"
-        if r["status"] == HELD:
-            tail += f"; identify it with {r['experiment']}"
-        lines.append(f"{r['key']:30s} {r['prior']:11.5g} {r['value']:11.5g} {r['std_error']:9.2g}  {tail}")
+        lines.append(f"{r['key']:30s} {r['prior']:11.5g} {r['value']:11.5g} {r['std_error']:9.2g}  {status(r)}")
 
     def errs(e: dict) -> str:
         s = (f"speed {e['speed_error_mean']:.1%} mean, {e['speed_error_max']:.1%} worst ({e['speeds']})"
@@ -84,11 +90,8 @@ def markdown(report: dict, figure: str | None = None) -> str:
         lines += ["Logs held out: " + ", ".join(f"`{pathlib.Path(p).name}`" for p in report["held_out"]["logs"]), ""]
     lines += ["| key | unit | prior | calibrated | ± s.e. | bounds | bounds from | status |", "|---|---|---|---|---|---|---|---|"]
     for r in report["parameters"]:
-        status = r["status"] + (f": {r['why']}" if "why" in r else "")
-        if r["status"] == HELD:
-            status += f"; identify it with {r['experiment']}"
         lines.append(f"| `{r['key']}` | {r['unit']} | {r['prior']:.5g} | {r['value']:.5g} | {r['std_error']:.2g} | "
-                     f"{r['lower']:.4g} … {r['upper']:.4g} | {r['bounds_source']} | {status} |")
+                     f"{r['lower']:.4g} … {r['upper']:.4g} | {r['bounds_source']} | {status(r)} |")
     lines += ["", "```", table(report).split("\n", len(report["parameters"]) + 1)[-1], "```", ""]
     if figure:
         lines += [f"![measured against predicted features]({figure})", ""]
