@@ -114,11 +114,13 @@ class ReplayEvidence:
         """The replay model of ``machine`` for this log (the log's declared mass, inclination and supply kept)."""
         return nominal_plant(dataclasses.replace(self.log, machine=machine))
 
-    def residual(self, machine: Machine) -> np.ndarray:
+    def residual(self, machine: Machine, plant: PlantModel | None = None) -> np.ndarray:
         """The replay's calibrated residuals over the budget, one vector, on the fit windows (at most
-        :data:`MAX_FIT_WINDOWS`). Raises PhysicsError where the machine cannot run this log."""
+        :data:`MAX_FIT_WINDOWS`), of ``machine`` (or the replay model ``plant`` where given: effects a machine file
+        does not carry as the identification fitted them). Raises PhysicsError where the machine cannot run this
+        log."""
         p = self.fitted
-        return residual_vector(p, p.simulate(self.model(machine)), self.budget, p.fit_rows)
+        return residual_vector(p, p.simulate(plant or self.model(machine)), self.budget, p.fit_rows)
 
     @property
     def residual_size(self) -> int:
@@ -135,12 +137,13 @@ class ReplayEvidence:
         n_eff = sum(effective_n(res[ch][:, p.settle:]) for ch in p.channels)
         return n_eff / n if n else 1.0
 
-    def errors(self, machine: Machine) -> ReplayErrors:
-        """How ``machine`` replays this log's held-out windows (the windows not fitted): each channel's RMS in
-        budgets, its budget, the held-out cost and, for a single actuator's windows, the :data:`WORST_WINDOWS`
-        held-out windows of largest cost. Raises PhysicsError where the machine cannot run this log."""
+    def errors(self, machine: Machine, plant: PlantModel | None = None) -> ReplayErrors:
+        """How ``machine`` (or the replay model ``plant``, as :meth:`residual`) replays this log's held-out windows
+        (the windows not fitted): each channel's RMS in budgets, its budget, the held-out cost and, for a single
+        actuator's windows, the :data:`WORST_WINDOWS` held-out windows of largest cost. Raises PhysicsError where
+        the machine cannot run this log."""
         p = self.problem
-        scored = score(p, p.simulate(self.model(machine)), self.budget)
+        scored = score(p, p.simulate(plant or self.model(machine)), self.budget)
         cost = scored.window_cost
         held_out_cost = float(np.sum(cost[p.test_rows]))
         worst = None

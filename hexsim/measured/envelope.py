@@ -17,6 +17,7 @@ effect log `partial`. The misfit is the calibration's envelope, not an effect:
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -31,6 +32,7 @@ from hexsim.measured.flow_curve import (
 )
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.records import CalibrationRecord
+from hexsim.measured.replay import PlantModel
 from hexsim.plant import hydraulics
 from hexsim.plant.machine import Machine
 from hexsim.plant.params import thin_curve
@@ -143,49 +145,68 @@ BLEND = 0.15
 GAIN_BOUNDS = (0.8, 1.25)
 
 
-def curve_read_from_log(problem, budget, beyond: dict) -> dict | None:
-    """The nominal replay of a single actuator's log (its replay ``problem``, :class:`hexsim.measured.scoring.Problem`,
-    and the ``budget`` measured on its nominal: :attr:`hexsim.measured.identify.Identification.nominal_budget`) on
-    its machine with the valve's curve read from the log's own flows beyond the commands the calibration measured
-    (``beyond``, :func:`beyond_curve`; within them held to the calibrated curve), each edge's rise there scaled by
-    the replays of the log's fit windows (the flows give a curve to about a percent, an open-loop replay asks for
-    parts in a thousand: as the calibration refines its curve's gains), and judged on its held-out windows against
-    that budget, as the identification judges a candidate: each channel's held-out RMS in budgets
-    (``held_out_rms_in_budgets``), ``within``
-    (every channel within sqrt(WITHIN) budgets), the commands read (``read_V``), the scales (``gains``) and the
-    sentence. None where the curve cannot be read from the log (no p1_Pa, too few intervals) or the log not replayed
-    on it."""
+def curve_read_from_log(problem, budget, beyond: dict, model=None) -> dict | None:
+    """A single actuator's log (its replay ``problem``, :class:`hexsim.measured.scoring.Problem`, and the ``budget``
+    measured on its nominal: :attr:`hexsim.measured.identify.Identification.nominal_budget`) on its machine with the
+    valve's curve read from the log's own flows beyond the commands the calibration measured (``beyond``,
+    :func:`beyond_curve`; within them held to the calibrated curve, exactly), with the effects of ``model`` (a
+    :class:`hexsim.measured.replay.PlantModel`: the effects the identification named on the calibrated curve, so that
+    the flows are read at the spool through them, e.g. a null offset; None: the nominal), each edge's rise there
+    scaled by the replays of the log's fit windows (the flows give a curve to about a percent, an open-loop replay
+    asks for parts in a thousand: as the calibration refines its curve's gains), judged on its held-out windows
+    against that budget as the identification judges a candidate. Returns ``machine`` (the log's machine with that
+    curve and without the effects: the baseline to identify them on again), each channel's held-out RMS in budgets
+    with the effects (``held_out_rms_in_budgets``), ``within`` (every channel within sqrt(WITHIN) budgets), the
+    commands read (``read_V``) and the scales (``gains``); None where the curve cannot be read from the log (no
+    p1_Pa, too few intervals) or the log not replayed on it."""
     import scipy.optimize
 
     from hexsim.measured.curves import curve_machine
     from hexsim.measured.dynamics import ReplayEvidence
     from hexsim.measured.scoring import WITHIN
 
-    log = problem.log
+    base = problem.log.machine
+    on = base if model is None else dataclasses.replace(base, hydraulics=model.hydraulics, effects=model.effects)
     lo, hi = beyond["calibrated_V"]
     try:
-        curves = fit_flow_curves([log], log.machine, toward_machine=True, hold_within=(lo, hi))
+        curves = fit_flow_curves([dataclasses.replace(problem.log, machine=on)], on, toward_machine=True,
+                                 hold_within=(lo, hi))
     except InputError:
         return None
 
-    def machine(gains) -> Machine:
-        return curve_machine(log.machine, curves, _spliced(log.machine, curves, lo, hi, gains))
+    def machine(gains, of: Machine = on) -> Machine:
+        return curve_machine(of, curves, _spliced(base, curves, lo, hi, gains))
+
+    def plant(gains) -> PlantModel | None:  # the effects as fitted (a supply's set pressure is not the log's median)
+        curve = machine(gains)
+        return None if model is None else model.replace(
+            hydraulics=curve.hydraulics.replace(supply_pressure=model.hydraulics.supply_pressure), effects=curve.effects)
 
     try:
         evidence = ReplayEvidence.of_problem(problem, budget)
-        fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k)), [1.0, 1.0], bounds=GAIN_BOUNDS,
-                                           diff_step=1e-3, x_scale=0.01, max_nfev=20)
-        rms = evidence.errors(machine(fit.x)).held_out_rms_in_budgets
+        fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k), plant(k)), [1.0, 1.0],
+                                           bounds=GAIN_BOUNDS, diff_step=1e-3, x_scale=0.01, max_nfev=20)
+        rms = evidence.errors(machine(fit.x), plant(fit.x)).held_out_rms_in_budgets
     except (InputError, PhysicsError):  # the log cannot be replayed on the curve read (too few windows, a blow-up)
         return None
-    within = max(rms.values()) <= math.sqrt(WITHIN)
-    figures = ", ".join(f"{ch} {v:.3g}" for ch, v in rms.items())
-    sentence = (f"With the valve's curve read from this log beyond {lo:.3g}…{hi:.3g} V (held to the calibrated "
-                f"curve within, its scale there fitted to this log's fit windows), the nominal model is at {figures} "
-                f"budgets (held-out windows): "
-                + ("within its budget. The misfit is the calibration's envelope; an effect confined to those "
-                   "commands is not resolved on this calibration." if within else
-                   "still beyond its budget: more than the curve there is off, or the curve is not read to the "
-                   "replay's precision."))
-    return {"read_V": [lo, hi], "gains": [float(g) for g in fit.x], "held_out_rms_in_budgets": rms,
-            "within": within, "sentence": sentence}
+    return {"machine": machine(fit.x, base), "read_V": [lo, hi], "gains": [float(g) for g in fit.x],
+            "held_out_rms_in_budgets": rms, "within": max(rms.values()) <= math.sqrt(WITHIN)}
+
+
+def read_sentence(read: dict, named: list[str], chosen: bool) -> str:
+    """What the curve read from the log (:func:`curve_read_from_log`) says: the model's held-out RMS with it, and
+    whether the verdict is now made on it (``chosen``: the identification on that baseline settled what the one on the
+    calibrated curve left open); ``named``: the effects the reading was made through."""
+    lo, hi = read["read_V"]
+    figures = ", ".join(f"{ch} {v:.3g}" for ch, v in read["held_out_rms_in_budgets"].items())
+    through = f" through the {', '.join(named)} named on the calibrated curve" if named else ""
+    head = (f"The valve's curve read from this log beyond {lo:.3g}…{hi:.3g} V{through} (held to the calibrated "
+            f"curve within, its scale there fitted to this log's fit windows): {figures} budgets (held-out windows). ")
+    if chosen:
+        return head + ("The verdict is made on that curve: an effect confined to those commands is not resolved on "
+                       "this calibration.")
+    if named and read["within"]:
+        return head + ("What the named effects leave is the calibration's envelope; the verdict stays the one made on "
+                       "the calibrated curve (calibrate with a log that dwells there to settle it).")
+    return head + "It does not settle the verdict: more than the curve there is off, or the curve is not read to the " \
+                  "replay's precision."
