@@ -413,8 +413,10 @@ def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice 
 def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[str, ...], jobs: int, notify):
     """``ident`` (unsettled on a log beyond the commands its calibration measured) with the valve's curve read from
     the log there (:func:`hexsim.measured.envelope.curve_read_from_log`, through the effects ``ident`` named). Where
-    nothing was named, the identification again on the machine with that curve, kept if it answers none or
-    explained; where an effect was named, the reading's figures only (an identification again took 15-30 s more on
+    nothing was named and the reading brings the nominal within its budget, the identification again on the machine
+    with that curve (its own budget, its figures for the report), kept if it answers none or explained; otherwise
+    the reading's figures only (where the curve read leaves the nominal off, every candidate fitted again cost the
+    independent spool's 6 s log 12 s and named nothing) (an identification again took 15-30 s more on
     R1's effect logs and settled none of them: R1's null offset at 1.50 budgets, 1.41 needed). Returns the
     identification kept and the reading (None where the curve could not be read); ``beyond`` takes the reading's
     account (``curve_read_from_log``: commands, scales, held-out RMS, whether chosen, the sentence)."""
@@ -426,8 +428,8 @@ def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[st
     if read is None:
         return ident, None
     machine = read.pop("machine")
-    again = None if named else identify(dataclasses.replace(ident.problem.log, machine=machine),
-                                        candidates=candidates, jobs=jobs, notify=notify)
+    again = None if named or not read["within"] else identify(dataclasses.replace(ident.problem.log, machine=machine),
+                                                              candidates=candidates, jobs=jobs, notify=notify)
     chosen = again is not None and again.verdict in ("none", "explained")
     beyond["curve_read_from_log"] = read | {"chosen": chosen, "sentence": read_sentence(read, named, chosen)}
     return (again if chosen else ident), read
