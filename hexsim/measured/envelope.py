@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -113,29 +114,36 @@ def beyond_curve(log: MeasurementLog) -> dict | None:
                         f"from this log leaves."}
 
 
-def _spliced(machine: Machine, curves: FlowCurves, lo: float, hi: float, gains=(1.0, 1.0)) -> tuple[list, list]:
-    """Each edge's points for the machine file: ``machine``'s own opening (its form or curve, with its edge gain)
-    within the commands ``lo``…``hi`` [V] its calibration measured, exactly (there the calibration refined the
-    curve's scale by the replays, to parts in a thousand; the flows give it to about a percent), and beyond them
-    the ``curves`` read from the log (:meth:`FlowCurves.points`), scaled to meet it, their rise beyond it times
-    ``gains`` (P→A, A→T)."""
+def _spliced(machine: Machine, curves: FlowCurves, lo: float, hi: float) -> Callable[[tuple], tuple[list, list]]:
+    """Each edge's points for the machine file as a function of ``gains`` (P→A, A→T): ``machine``'s own opening
+    (its form or curve, with its edge gain) within the commands ``lo``…``hi`` [V] its calibration measured, exactly
+    (there the calibration refined the curve's scale by the replays, to parts in a thousand; the flows give it to
+    about a percent), and beyond them the ``curves`` read from the log (:meth:`FlowCurves.points`), scaled to meet
+    it, their rise beyond it times the edge's gain, blended in over :data:`BLEND` of the limit. The points are
+    chosen once, at unit gains (:func:`hexsim.plant.params.thin_curve`), and each gain evaluated at them (a gain
+    within :data:`GAIN_BOUNDS` changes the rise's shape by a factor only)."""
     hyd, eff = machine.hydraulics, machine.effects
     full = math.pi * hyd.spool_diameter * hyd.x_v_max
-    out = []
     points = curves.points(machine)
-    for side, edge, limit, pts, gain, k in ((0, curves.pa, hi, points[0], eff.edge_gain_pa, gains[0]),
-                                            (1, curves.at, -lo, points[1], eff.edge_gain_at, gains[1])):
+    edges = []
+    for side, edge, limit, pts, gain in ((0, curves.pa, hi, points[0], eff.edge_gain_pa),
+                                         (1, curves.at, -lo, points[1], eff.edge_gain_at)):
         u = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], hyd.u_v_max, 2001), [limit]]))
         own = hydraulics.flow_areas((1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max, hyd)[side] * gain / full
         knots, values = np.array(pts, dtype=float).T
-        read = np.interp(u, knots, values)
         at_limit, own_limit = float(np.interp(limit, knots, values)), float(np.interp(limit, u, own))
-        scale = own_limit / at_limit if at_limit > 0.0 else 1.0
         x = np.clip((u - limit) / (BLEND * limit), 0.0, 1.0)
         blend = x * x * (3.0 - 2.0 * x)  # smoothstep
-        value = (1.0 - blend) * own + blend * (own_limit + k * (scale * read - own_limit))
-        out.append(thin_curve(u, np.maximum.accumulate(np.maximum(value, 0.0))))
-    return out[0], out[1]
+        rise = blend * ((own_limit / at_limit if at_limit > 0.0 else 1.0) * np.interp(u, knots, values) - own_limit)
+        base = (1.0 - blend) * own + blend * own_limit
+        chosen = np.array(thin_curve(u, np.maximum.accumulate(np.maximum(base + rise, 0.0))))[:, 0]
+        edges.append((chosen, np.interp(chosen, u, base), np.interp(chosen, u, rise)))
+
+    def at(gains) -> tuple[list, list]:
+        return tuple([[float(c), float(v)] for c, v in zip(chosen, np.maximum.accumulate(np.maximum(b + k * r, 0.0)))]
+                     for (chosen, b, r), k in zip(edges, gains))
+
+    return at
 
 
 #: The calibrated curve passes into the one read beyond over this share of the measured command (a smoothstep: a kink
@@ -174,8 +182,10 @@ def curve_read_from_log(problem, budget, beyond: dict, model=None) -> dict | Non
     except InputError:
         return None
 
+    points = _spliced(base, curves, lo, hi)
+
     def machine(gains, of: Machine = on) -> Machine:
-        return curve_machine(of, curves, _spliced(base, curves, lo, hi, gains))
+        return curve_machine(of, curves, points(gains))
 
     def plant(gains) -> PlantModel | None:  # the effects as fitted (a supply's set pressure is not the log's median)
         curve = machine(gains)
