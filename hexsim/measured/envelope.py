@@ -10,9 +10,11 @@ effect log `partial`. The misfit is the calibration's envelope, not an effect:
   ``calibration.commands_measured_V``);
 - :func:`beyond_curve` says where a log runs beyond them, and how much of its time;
 - :func:`curve_read_from_log` reads the curve there from the log itself (the measured commands held to the
-  calibrated file's curve, :func:`hexsim.measured.flow_curve.fit_flow_curves`) and replays the log on it: where the
-  nominal model is then within its budget, the verdict is `none`, and it says that an effect confined to those
-  commands is not resolved on this calibration.
+  calibrated file's curve, :func:`hexsim.measured.flow_curve.fit_flow_curves`; through the effects the
+  identification named) and replays the log on it; :func:`hexsim.measured.validation.validate` identifies again on
+  it where nothing was named and the reading is within the budget, and says that an effect confined to those
+  commands is not resolved on this calibration (R1's nulls: `none`);
+- :func:`read_sentence` says what the reading found.
 """
 
 from __future__ import annotations

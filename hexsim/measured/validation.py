@@ -415,9 +415,9 @@ def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[st
     the log there (:func:`hexsim.measured.envelope.curve_read_from_log`, through the effects ``ident`` named). Where
     nothing was named and the reading brings the nominal within its budget, the identification again on the machine
     with that curve (its own budget, its figures for the report), kept if it answers none or explained; otherwise
-    the reading's figures only (where the curve read leaves the nominal off, every candidate fitted again cost the
-    independent spool's 6 s log 12 s and named nothing) (an identification again took 15-30 s more on
-    R1's effect logs and settled none of them: R1's null offset at 1.50 budgets, 1.41 needed). Returns the
+    the reading's figures only. (Identified again where the reading leaves the nominal off, the independent spool's
+    6 s log took 12 s more and named nothing; where an effect was named, R1's effect logs took 15-30 s more and
+    none was settled: R1's null offset at 1.50 budgets, 1.41 needed.) Returns the
     identification kept and the reading (None where the curve could not be read); ``beyond`` takes the reading's
     account (``curve_read_from_log``: commands, scales, held-out RMS, whether chosen, the sentence)."""
     if notify:
