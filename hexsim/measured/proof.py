@@ -15,6 +15,7 @@ from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog, read_log
+from hexsim.measured.records import CalibrationRecord
 from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency, fit_fundamental
 from hexsim.studies.metrics import REVERSAL_WINDOW, Smoothness, smoothness
@@ -89,16 +90,30 @@ def between_peaks(sm: Smoothness) -> tuple[np.ndarray, np.ndarray]:
 class ProofVerdict:
     """Whether a log's run is what hexsim predicted (:func:`verdict`): the ``reversals``' and the ``between``
     stretches' :class:`Ratio` (None: too few), and the valve commands [V] at the measured peaks between reversals
-    when they sit at one (``corner_V``: median, or None)."""
+    when they sit at one (``corner_V``: median, or None), and the commands at the spool [V] the machine's
+    calibration logs measured the curve over (``measured_V``, :func:`hexsim.measured.envelope.measured_commands`;
+    None: not known)."""
 
     reversals: Ratio | None
     between: Ratio | None
     corner_V: float | None
+    measured_V: tuple[float, float] | None = None  # the commands the machine's calibration measured (envelope.py)
 
     @property
     def within(self) -> bool | None:
         judged = [r for r in (self.reversals, self.between) if r is not None]
         return all(r.within for r in judged) if judged else None
+
+    def _corner_words(self) -> str:
+        """What the one command of the peaks between reversals is: a corner the model lacks, and whether the
+        calibration's logs measured the curve there."""
+        if self.measured_V is None:
+            return "a corner of the flow curve the model lacks?"
+        lo, hi = self.measured_V
+        if lo <= self.corner_V <= hi or lo <= -self.corner_V <= hi:
+            return f"a corner of the flow curve the model lacks? the calibration's logs measured {lo:.3g}…{hi:.3g} V"
+        return (f"beyond the {lo:.3g}…{hi:.3g} V the calibration's logs measured: the model's curve there is the "
+                "calibration's extrapolation until commissioning reads it, tune --from-logs")
 
     def sentence(self) -> str:
         """One line: within its uncertainty, or by how much not and where."""
@@ -112,17 +127,18 @@ class ProofVerdict:
         for r in off:
             where = r.what
             if r.what == "between reversals":
-                where += (f", at a valve command of {self.corner_V:.2f} V each time (a corner of the flow curve the "
-                          "model lacks?)" if self.corner_V is not None else ", at no one valve command")
+                where += (f", at a valve command of {self.corner_V:.2f} V each time ({self._corner_words()})"
+                          if self.corner_V is not None else ", at no one valve command")
             parts.append(f"{where}: measured {r.text()}")
         return "not within its uncertainty: " + "; ".join(parts)
 
 
 def verdict(measured: Smoothness, predicted: Smoothness, valve_cmd: np.ndarray | None = None,
-            t: np.ndarray | None = None) -> ProofVerdict:
+            t: np.ndarray | None = None, measured_V: tuple[float, float] | None = None) -> ProofVerdict:
     """A log's ``measured`` smoothness against the ``predicted`` (same window) as a :class:`ProofVerdict`; the
     log's ``valve_cmd`` (N,) [V] at its times ``t`` (N,) [s], where it has one, places the peaks between
-    reversals on the valve's curve."""
+    reversals on the valve's curve, and ``measured_V`` (the commands the calibration measured) says whether the
+    calibration saw it there."""
     bm, tm = between_peaks(measured)
     bp, _ = between_peaks(predicted)
     corner = None
@@ -131,7 +147,7 @@ def verdict(measured: Smoothness, predicted: Smoothness, valve_cmd: np.ndarray |
         q1, q3 = np.percentile(u, [25, 75])
         corner = float(np.median(u)) if q3 - q1 < CORNER_SPREAD_V else None
     return ProofVerdict(ratio("reversals", measured.reversal_peaks, predicted.reversal_peaks),
-                        ratio("between reversals", bm, bp), corner)
+                        ratio("between reversals", bm, bp), corner, measured_V)
 
 
 def accelerometer_noise(t: np.ndarray, acc: np.ndarray) -> float:
@@ -214,7 +230,9 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
                       "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
                       "noise_ratio": sm.noise_ratio}
     valve = cols.get("valve_cmd_V") if axis < 0 else None
-    judgement = verdict(judged["measured"], judged["predicted"], valve, t)
+    record = CalibrationRecord.of(base.machine.calibration, f"{base.machine.label}: calibration")
+    judgement = verdict(judged["measured"], judged["predicted"], valve, t,
+                        None if record is None else record.commands_measured_V)
     return {"log": str(path), "frequency_hz": frequency, "compensator": base.compensator_name,
             "accelerometer_noise_mps2": sigma, **rows,
             "verdict": {"within": judgement.within, "sentence": judgement.sentence(),

@@ -68,6 +68,11 @@ def test_a_bump_at_a_corner_between_reversals_is_placed_at_its_valve_command():
     assert v.between.low > 10.0
     assert v.corner_V == pytest.approx(2 * math.sin(0.4 * math.pi), abs=0.01)
     assert "between reversals, at a valve command of 1.90 V" in v.sentence()
+    # where the calibration's logs dwelt (the file's calibration.commands_measured_V) says whether it saw 1.90 V
+    beyond = verdict(measured, predicted, valve, t, (-0.74, 0.73)).sentence()
+    assert "beyond the -0.74…0.73 V the calibration's logs measured" in beyond and "tune --from-logs" in beyond
+    inside = verdict(measured, predicted, valve, t, (-2.5, 2.5)).sentence()
+    assert "a corner of the flow curve the model lacks? the calibration's logs measured -2.5…2.5 V" in inside
 
 
 def test_the_accelerometers_white_noise_is_read_under_the_motion_and_a_ringing():
