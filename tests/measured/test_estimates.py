@@ -84,6 +84,16 @@ def test_a_parameter_at_a_bound_or_held_names_the_experiment_that_would_free_it(
     assert status(dead.row(dead.estimate(1e-6, 1e-8))) == FITTED
 
 
+def test_the_calibrations_table_says_which_commands_its_logs_measured():
+    """A calibration's terminal table gives the commands its logs dwelt on (R1's: -0.743…0.728 V), and what rests on
+    the extrapolation beyond them."""
+    from hexsim.measured.reports.calibration import table
+
+    text = table({"parameters": [], "commands_measured_V": [-0.743, 0.728]})
+    assert "commands measured -0.743…0.728 V at the spool" in text and "add a log that dwells" in text
+    assert "commands measured" not in table({"parameters": []})
+
+
 def test_friction_rows_are_estimates():
     """A friction fit with F_c0 run into its lower limit and c_s unseen: rows of the one Estimate, the
     unidentifiable ones with their reason."""

@@ -61,6 +61,11 @@ def table(report: dict) -> str:
                      f"{'screened' if len(fa['tried']) > 1 else 'held-out cost'}: " + ", ".join(
             f"{t['flow_area']} {t['held_out_cost']:.4g}" if "held_out_cost" in t else f"{t['flow_area']} refused"
             for t in fa["tried"]))
+    if "commands_measured_V" in report:
+        lo, hi = report["commands_measured_V"]
+        lines.append(f"commands measured {lo:.3g}…{hi:.3g} V at the spool (the logs dwelt there): beyond, the valve's "
+                     "curve is the calibration's extrapolation, and a validation or a tuned compensator there rests on "
+                     "it; add a log that dwells where the machine will run")
     if "fit" in report:
         lines.append(f"fitted features  before: {errs(report['fit']['before'])}")
         lines.append(f"                 after:  {errs(report['fit']['after'])}")
