@@ -51,9 +51,8 @@ CURVE_MARGIN = 0.05
 
 def measured_commands(logs: list[MeasurementLog], null_offset: float | None = None) -> tuple[float, float]:
     """The commands at the spool [V] (u_v - u_0: ``null_offset``, default each log's machine's), (lowest, highest),
-    over which ``logs``
-    measured the valve's flow curve: on each edge out to the end of the run of knots of the curve's grid
-    (:func:`hexsim.measured.flow_curve.edge_grid`) on each of which the logs together spent at least
+    over which ``logs`` measured the valve's flow curve: on each edge out to the end of the run of knots of the
+    curve's grid (:func:`hexsim.measured.flow_curve.edge_grid`) on each of which the logs together spent at least
     :data:`MIN_DWELL_S` within a knot spacing, the run with the most time (:func:`_run_end`). 0 on an edge the logs
     never dwelt on."""
     u = np.concatenate([log.columns["valve_cmd_V"] - (log.machine.hydraulics.null_offset if null_offset is None
@@ -131,10 +130,11 @@ def _spliced(machine: Machine, curves: FlowCurves, lo: float, hi: float) -> Call
     for side, edge, limit, pts, gain in ((0, curves.pa, hi, points[0], eff.edge_gain_pa),
                                          (1, curves.at, -lo, points[1], eff.edge_gain_at)):
         u = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], hyd.u_v_max, 2001), [limit]]))
-        own = hydraulics.flow_areas((1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max, hyd)[side] * gain / full
+        x_v = (1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max
+        own = hydraulics.flow_areas(x_v, hyd)[side] * gain / full
         knots, values = np.array(pts, dtype=float).T
         at_limit, own_limit = float(np.interp(limit, knots, values)), float(np.interp(limit, u, own))
-        x = np.clip((u - limit) / (BLEND * limit), 0.0, 1.0)
+        x = np.clip((u - limit) / max(BLEND * limit, GRID_MIN_V), 0.0, 1.0)  # an edge never dwelt on: limit 0
         blend = x * x * (3.0 - 2.0 * x)  # smoothstep
         rise = blend * ((own_limit / at_limit if at_limit > 0.0 else 1.0) * np.interp(u, knots, values) - own_limit)
         base = (1.0 - blend) * own + blend * own_limit
@@ -191,8 +191,10 @@ def curve_read_from_log(problem, budget, beyond: dict, model=None) -> dict | Non
 
     def plant(gains) -> PlantModel | None:  # the effects as fitted (a supply's set pressure is not the log's median)
         curve = machine(gains)
-        return None if model is None else model.replace(
-            hydraulics=curve.hydraulics.replace(supply_pressure=model.hydraulics.supply_pressure), effects=curve.effects)
+        if model is None:
+            return None
+        hyd = curve.hydraulics.replace(supply_pressure=model.hydraulics.supply_pressure)
+        return model.replace(hydraulics=hyd, effects=curve.effects)
 
     try:
         evidence = ReplayEvidence.of_problem(problem, budget)
