@@ -271,7 +271,7 @@ class CalibrationRecord:
     def of(cls, block: dict | None, where: str = "calibration") -> CalibrationRecord | None:
         """The record of a machine file's ``calibration`` block (None: not calibrated). Raises InputError naming
         ``where`` and the entry for a malformed parameter row, a correlation matrix that is not k x k for its
-        k keys, or an own-fit row without budgets."""
+        k keys, an own-fit row without budgets, or measured commands that are not two numbers."""
         if block is None:
             return None
         estimates = {}
@@ -300,9 +300,13 @@ class CalibrationRecord:
         curve = (block.get("flow_area") or {}).get("curve") or {}
         reached = curve.get("commands_measured_V")
         dwelt = block.get("commands_measured_V")
+        try:
+            dwelt = None if dwelt is None else (float(dwelt[0]), float(dwelt[1]))
+        except (TypeError, ValueError, IndexError):
+            raise InputError(f"{where}.commands_measured_V: expected [lowest, highest] in V, got {dwelt!r:.60}") from None
         return cls(estimates, keys, matrix, tuple(fits),
                    None if reached is None else (float(reached[0]), float(reached[1])),
-                   str(curve.get("from_form", "prior")), None if dwelt is None else (float(dwelt[0]), float(dwelt[1])))
+                   str(curve.get("from_form", "prior")), dwelt)
 
     def identified(self) -> list[str]:
         """The correlated keys whose estimates are identified (:attr:`Estimate.identified`), in order: those

@@ -92,6 +92,9 @@ def test_the_calibrations_table_says_which_commands_its_logs_measured():
     text = table({"parameters": [], "commands_measured_V": [-0.743, 0.728]})
     assert "commands measured -0.743…0.728 V at the spool" in text and "add a log that dwells" in text
     assert "commands measured" not in table({"parameters": []})
+    assert CalibrationRecord.of({"commands_measured_V": [-0.743, 0.728]}).commands_measured_V == (-0.743, 0.728)
+    with pytest.raises(InputError, match=r"calibration.commands_measured_V: expected \[lowest, highest\] in V"):
+        CalibrationRecord.of({"commands_measured_V": "wide"})
 
 
 def test_friction_rows_are_estimates():
