@@ -31,12 +31,12 @@ from hexsim.measured.flow_curve import (
     GRID_REL,
     FlowCurves,
     edge_grid,
+    edge_opening,
     fit_flow_curves,
 )
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.records import CalibrationRecord
 from hexsim.measured.replay import PlantModel
-from hexsim.plant import hydraulics
 from hexsim.plant.machine import Machine
 from hexsim.plant.params import thin_curve
 
@@ -123,16 +123,13 @@ def _spliced(machine: Machine, curves: FlowCurves, lo: float, hi: float) -> Call
     it, their rise beyond it times the edge's gain, blended in over :data:`BLEND` of the limit. The points are
     chosen once, at unit gains (:func:`hexsim.plant.params.thin_curve`), and each gain evaluated at them (a gain
     within :data:`GAIN_BOUNDS` changes the rise's shape by a factor only)."""
-    hyd, eff = machine.hydraulics, machine.effects
-    full = math.pi * hyd.spool_diameter * hyd.x_v_max
     points = curves.points(machine)
     edges = []
-    for side, edge, limit, pts, gain in ((0, curves.pa, hi, points[0], eff.edge_gain_pa),
-                                         (1, curves.at, -lo, points[1], eff.edge_gain_at)):
-        u = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], hyd.u_v_max, 2001), [limit]]))
-        x_v = (1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max
-        own = hydraulics.flow_areas(x_v, hyd)[side] * gain / full
-        knots, values = np.array(pts, dtype=float).T
+    for side, edge, limit in ((0, curves.pa, hi), (1, curves.at, -lo)):
+        u = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], machine.hydraulics.u_v_max, 2001),
+                                      [limit]]))
+        own = edge_opening(machine, side, u)
+        knots, values = np.array(points[side], dtype=float).T
         at_limit, own_limit = float(np.interp(limit, knots, values)), float(np.interp(limit, u, own))
         x = np.clip((u - limit) / max(BLEND * limit, GRID_MIN_V), 0.0, 1.0)  # an edge never dwelt on: limit 0
         blend = x * x * (3.0 - 2.0 * x)  # smoothstep
@@ -189,18 +186,20 @@ def curve_read_from_log(problem, budget, beyond: dict, model=None) -> dict | Non
     def machine(gains, of: Machine = on) -> Machine:
         return curve_machine(of, curves, points(gains))
 
-    def plant(gains) -> PlantModel | None:  # the effects as fitted (a supply's set pressure is not the log's median)
+    def replayed(gains) -> tuple[Machine, PlantModel | None]:
+        """The machine with the curve, and with named effects their replay model as fitted (a supply's set pressure
+        is not the log's median, which a machine file's replay takes)."""
         curve = machine(gains)
         if model is None:
-            return None
+            return curve, None
         hyd = curve.hydraulics.replace(supply_pressure=model.hydraulics.supply_pressure)
-        return model.replace(hydraulics=hyd, effects=curve.effects)
+        return curve, model.replace(hydraulics=hyd, effects=curve.effects)
 
     try:
         evidence = ReplayEvidence.of_problem(problem, budget)
-        fit = scipy.optimize.least_squares(lambda k: evidence.residual(machine(k), plant(k)), [1.0, 1.0],
+        fit = scipy.optimize.least_squares(lambda k: evidence.residual(*replayed(k)), [1.0, 1.0],
                                            bounds=GAIN_BOUNDS, diff_step=1e-3, x_scale=0.01, max_nfev=20)
-        rms = evidence.errors(machine(fit.x), plant(fit.x)).held_out_rms_in_budgets
+        rms = evidence.errors(*replayed(fit.x)).held_out_rms_in_budgets
     except (InputError, PhysicsError):  # the log cannot be replayed on the curve read (too few windows, a blow-up)
         return None
     return {"machine": machine(fit.x, base), "read_V": [lo, hi], "gains": [float(g) for g in fit.x],

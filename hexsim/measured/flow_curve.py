@@ -121,6 +121,16 @@ def edge_grid(reach: float) -> np.ndarray:
     return np.array(knots)
 
 
+def edge_opening(machine: Machine, side: int, u: np.ndarray) -> np.ndarray:
+    """``machine``'s opening of one edge (``side`` 0: P→A, opened by +u; 1: A→T, opened by -u) at the commands ``u``
+    [V] at the spool (u_v - u_0), as a fraction of the full opening pi d x_v,max: its flow-area form or curve
+    (:func:`hexsim.plant.hydraulics.flow_areas`) times the edge's gain. Shape of ``u``."""
+    hyd, eff = machine.hydraulics, machine.effects
+    full = math.pi * hyd.spool_diameter * hyd.x_v_max
+    gain = eff.edge_gain_pa if side == 0 else eff.edge_gain_at
+    return hydraulics.flow_areas((1.0 if side == 0 else -1.0) * u * hyd.x_v_max / hyd.u_v_max, hyd)[side] * gain / full
+
+
 def _basis(u: np.ndarray, knots: np.ndarray) -> np.ndarray:
     """(n, k - 1): the opening at ``u`` per unit rise of the curve over each interval (linear between knots,
     closed at and below the first, flat beyond the last): column j is the opening of a curve that rises by 1
@@ -184,17 +194,13 @@ class FlowCurves:
         """Each edge's points for the machine file (``valve.flow_curve_PA``, ``valve.flow_curve_AT``): the curve
         within its reach, then ``prior``'s opening of that edge (its flow-area form and edge gain) scaled to meet
         it, up to the command range, thinned (:func:`hexsim.plant.params.thin_curve`)."""
-        hyd, eff = prior.hydraulics, prior.effects
-        full = math.pi * hyd.spool_diameter * hyd.x_v_max
-        u_max = hyd.u_v_max
         out = []
-        for edge, sign, gain in ((self.pa, 1.0, eff.edge_gain_pa), (self.at, -1.0, eff.edge_gain_at)):
-            dense = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], u_max, 2001)]))
+        for side, edge in enumerate((self.pa, self.at)):
+            dense = np.unique(np.concatenate([edge.knots, np.linspace(edge.knots[0], prior.hydraulics.u_v_max, 2001)]))
             value = edge.opening(dense)
             beyond = dense > edge.reach
             if beyond.any():
-                a1, a2 = hydraulics.flow_areas(sign * dense * hyd.x_v_max / u_max, hyd)
-                shape = gain * (a1 if sign > 0 else a2) / full
+                shape = edge_opening(prior, side, dense)
                 at_reach = float(np.interp(edge.reach, dense, shape))
                 last = float(edge.openings[-1])
                 if at_reach > 0.0:
@@ -481,14 +487,11 @@ def _machine_openings(machine: Machine, pa: np.ndarray, at: np.ndarray) -> tuple
     and ``at`` (past null) from ``machine``'s (its flow-area form and edge gains), each relative to that
     opening, at least its opening :data:`FLOOR_V` past where the edge opens (so an edge the machine holds shut
     is not held shut: a dead band a calibration gave a valve that has none is still read open)."""
-    hyd, eff = machine.hydraulics, machine.effects
-    full = math.pi * hyd.spool_diameter * hyd.x_v_max
     m = len(pa) + len(at)  # the rises of both edges (k_pa - 1 + k_at - 1), 1/E and V_pl/E
     rows, targets, offset = [], [], 0
-    for knots, side, gain in ((pa, 0, eff.edge_gain_pa), (at, 1, eff.edge_gain_at)):
+    for side, knots in enumerate((pa, at)):
         fine = np.linspace(float(knots[0]), float(knots[-1]) + 2.0 * FLOOR_V, 4001)
-        area = hydraulics.flow_areas((1.0 if side == 0 else -1.0) * fine * hyd.x_v_max / hyd.u_v_max, hyd)[side]
-        opening = np.maximum.accumulate(area * gain / full)
+        opening = np.maximum.accumulate(edge_opening(machine, side, fine))
         opens = float(fine[np.argmax(opening > 0.0)]) if np.any(opening > 0.0) else float(knots[0])
         o = np.interp(knots[1:], fine, opening)
         scale = np.maximum(o, float(np.interp(opens + FLOOR_V, fine, opening)))
@@ -503,10 +506,8 @@ def _machine_openings(machine: Machine, pa: np.ndarray, at: np.ndarray) -> tuple
 def _prior_unknowns(machine: Machine, pa: np.ndarray, at: np.ndarray) -> np.ndarray:
     """The unknowns of ``machine``'s own valve (its form's openings with its edge gains at the knots, as rises;
     1/E, V_pl/E): where the reweighted least squares starts."""
-    hyd, eff = machine.hydraulics, machine.effects
-    full = math.pi * hyd.spool_diameter * hyd.x_v_max
-    a_pa = hydraulics.flow_areas(pa * hyd.x_v_max / hyd.u_v_max, hyd)[0] * eff.edge_gain_pa / full
-    a_at = hydraulics.flow_areas(-at * hyd.x_v_max / hyd.u_v_max, hyd)[1] * eff.edge_gain_at / full
-    rises = [np.maximum(np.diff(np.maximum.accumulate(a)), 0.0) for a in (a_pa, a_at)]
+    hyd = machine.hydraulics
+    rises = [np.maximum(np.diff(np.maximum.accumulate(edge_opening(machine, side, knots))), 0.0)
+             for side, knots in enumerate((pa, at))]
     beta = 1.0 / hyd.bulk_modulus
     return np.concatenate([*rises, [beta, hyd.pipeline_volume * beta]])

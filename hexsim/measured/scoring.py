@@ -283,9 +283,10 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     machine, s = problem.log.machine, problem.settle
     base = calibrate_sensors(problem, nominal_sim, problem.fit_rows)[0]
     deltas = []
+    doc = machine.document()
     for key in moved:
         est = record.estimates[key]
-        shifted = with_keys(machine, {key: _value(machine, key, est.value) + est.std_error})
+        shifted = with_keys(machine, {key: _value(doc, key, est.value) + est.std_error})
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
         after = calibrate_sensors(problem, sim, problem.fit_rows)[0]
         deltas.append({ch: (after[ch] - base[ch])[:, s:] for ch in problem.channels})
@@ -297,11 +298,11 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     return out
 
 
-def _value(machine, key: str, calibrated: float) -> float:
-    """``key``'s value in ``machine`` (its file may have moved on from the calibration: a commissioning's curve carries
-    the edge gains, so they read 1 where the calibration fitted 0.95), else the ``calibrated`` value."""
+def _value(doc: dict, key: str, calibrated: float) -> float:
+    """``key``'s value in the machine file ``doc`` (it may have moved on from the calibration: a commissioning's curve
+    carries the edge gains, so they read 1 where the calibration fitted 0.95), else the ``calibrated`` value."""
     try:
-        value = get_key(machine.document(), key)
+        value = get_key(doc, key)
     except (KeyError, IndexError, TypeError):
         return calibrated
     return float(value) if isinstance(value, (int, float)) else calibrated

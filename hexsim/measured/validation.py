@@ -417,22 +417,22 @@ def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[st
     with that curve (its own budget, its figures for the report), kept if it answers none or explained; otherwise
     the reading's figures only. (Identified again where the reading leaves the nominal off, the independent spool's
     6 s log took 12 s more and named nothing; where an effect was named, R1's effect logs took 15-30 s more and
-    none was settled: R1's null offset at 1.50 budgets, 1.41 needed.) Returns the
-    identification kept and the reading (None where the curve could not be read); ``beyond`` takes the reading's
-    account (``curve_read_from_log``: commands, scales, held-out RMS, whether chosen, the sentence)."""
+    none was settled: R1's null offset at 1.50 budgets, 1.41 needed.) Returns the identification kept; ``beyond``
+    takes the reading's account where the curve could be read (``curve_read_from_log``: commands, scales, held-out
+    RMS, whether chosen, the sentence)."""
     if notify:
         notify("reading the valve's curve from the log beyond the commands the calibration measured")
     named = [f.name for f in ident.accepted]
     read = curve_read_from_log(ident.problem, ident.nominal_budget, beyond,
                                ident.accepted[-1].model if ident.accepted else None)
     if read is None:
-        return ident, None
+        return ident
     machine = read.pop("machine")
     again = None if named or not read["within"] else identify(dataclasses.replace(ident.problem.log, machine=machine),
                                                               candidates=candidates, jobs=jobs, notify=notify)
     chosen = again is not None and again.verdict in ("none", "explained")
     beyond["curve_read_from_log"] = read | {"chosen": chosen, "sentence": read_sentence(read, named, chosen)}
-    return (again if chosen else ident), read
+    return again if chosen else ident
 
 
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
@@ -452,9 +452,8 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
     candidates = tuple(n for n in default_candidates(log) if n not in without)
     ident = identify(log, candidates=candidates, jobs=jobs, progress=progress, notify=notify, model=model)
     beyond = beyond_curve(log)
-    read = None
     if beyond is not None and ident.verdict in UNSETTLED:  # is it the curve the calibration never measured?
-        ident, read = _on_the_curve_read(ident, beyond, candidates, jobs, notify)
+        ident = _on_the_curve_read(ident, beyond, candidates, jobs, notify)
     doc = summary(ident)
     doc.update(left_out=list(without), model=ident.problem.model)
     check = calibration_advice(ident, notify)
@@ -464,8 +463,9 @@ def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool 
             doc["conclusions"].insert(0, check.sentence)
     if beyond is not None:
         doc["beyond_calibrated_curve"] = beyond
+        read = beyond.get("curve_read_from_log")
         if read is not None:
-            doc["conclusions"].insert(0, beyond["curve_read_from_log"]["sentence"])
+            doc["conclusions"].insert(0, read["sentence"])
         if ident.verdict != "none" or read is not None:
             doc["conclusions"].insert(0, beyond["sentence"])
     write_report(ident, doc, report, json_path)

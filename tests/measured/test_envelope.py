@@ -45,6 +45,18 @@ def test_the_measured_commands_are_where_the_logs_dwelt_not_where_they_passed():
     assert lo < -1.0 and hi > 1.0, (lo, hi)
 
 
+@pytest.fixture(scope="module")
+def r1():
+    """R1's logs folder and R1's own model (its published values, the logs' timing as a calibration reads it);
+    skipped where ../shared/reference-plants is not beside the project (CI has it there)."""
+    from test_acquisition import REFERENCE, r1_machine
+
+    if not REFERENCE.is_dir():
+        pytest.skip("../shared/reference-plants is not here")
+    own = with_keys(r1_machine()[0], {"sensors.sample_skew_s": 1.9e-4, "sensors.acceleration_skew_s": -1e-4})
+    return REFERENCE / "r1", own
+
+
 def _corner_missed(machine):
     """``machine`` (R1's own valve) with its curve beyond 0.74 V as a calibration from R1's logs extrapolates it: on
     at the slope it has there, without the corner at 0.89 V."""
@@ -66,19 +78,15 @@ def _nominal(log):
     return problem, budget, math.sqrt(within_budget(score(problem, sim, budget), budget)["position"])
 
 
-def test_r1s_null_log_beyond_its_calibration_is_the_curve_read_there_not_an_effect():
+def test_r1s_null_log_beyond_its_calibration_is_the_curve_read_there_not_an_effect(r1):
     """R1's two-tone null log on R1's own model (its published values, the logs' timing as a calibration reads it)
     whose curve misses the corner beyond the 0.74 V its calibration logs dwelt on: over 30 % of the log's time
     beyond, the nominal tens of budgets off in position (141); with the curve read from the log beyond 0.74 V (held
     within, scaled by the fit windows' replays), within twice R1's own model's position misfit (measured 2.3 against
     1.5 budgets; on a file calibrated from R1's two logs, whose budget holds the calibration's floor, 1.1: `none`)."""
-    from test_acquisition import REFERENCE, r1_machine
-
-    if not REFERENCE.is_dir():
-        pytest.skip("../shared/reference-plants is not here")
-    own = with_keys(r1_machine()[0], {"sensors.sample_skew_s": 1.9e-4, "sensors.acceleration_skew_s": -1e-4})
-    truth = _nominal(read_log(REFERENCE / "r1" / "r1_g.csv", machine=own))[2]
-    log = read_log(REFERENCE / "r1" / "r1_g.csv", machine=_corner_missed(own))
+    logs, own = r1
+    truth = _nominal(read_log(logs / "r1_g.csv", machine=own))[2]
+    log = read_log(logs / "r1_g.csv", machine=_corner_missed(own))
     beyond = beyond_curve(log)
     assert beyond is not None and beyond["calibrated_V"] == [-0.74, 0.74] and beyond["time_share"] > 0.3, beyond
     problem, budget, nominal = _nominal(log)
@@ -88,19 +96,15 @@ def test_r1s_null_log_beyond_its_calibration_is_the_curve_read_there_not_an_effe
     assert rms["position"] <= 2.0 * truth and rms["p1"] <= 2.0 and rms["acceleration"] <= 1.0, (truth, read)
 
 
-def test_r1s_null_offset_log_is_read_through_the_offset_the_identification_named():
+def test_r1s_null_offset_log_is_read_through_the_offset_the_identification_named(r1):
     """R1's sine with its valve's null 0.08 V off, on the same file: the curve beyond 0.74 V is read at the spool,
     through the null offset the identification named (here R1's own 0.08 V), and the model with both is then near
     R1's own model with the offset (measured 3.3 against 1.9 budgets of position; asserted within 2.5×); read
     without the offset, the curve beyond takes the shifted flows and the model stays far off within the measured
     commands (209 budgets)."""
-    from test_acquisition import REFERENCE, r1_machine
-
-    if not REFERENCE.is_dir():
-        pytest.skip("../shared/reference-plants is not here")
-    own = with_keys(r1_machine()[0], {"sensors.sample_skew_s": 1.9e-4, "sensors.acceleration_skew_s": -1e-4})
-    truth = _nominal(read_log(REFERENCE / "r1" / "r1_b.csv", machine=with_keys(own, {"valve.null_offset_V": 0.08})))[2]
-    log = read_log(REFERENCE / "r1" / "r1_b.csv", machine=_corner_missed(own))
+    logs, own = r1
+    truth = _nominal(read_log(logs / "r1_b.csv", machine=with_keys(own, {"valve.null_offset_V": 0.08})))[2]
+    log = read_log(logs / "r1_b.csv", machine=_corner_missed(own))
     problem, budget, _ = _nominal(log)
     offset = problem.nominal.replace(hydraulics=problem.nominal.hydraulics.replace(null_offset=0.08))
     through = curve_read_from_log(problem, budget, beyond_curve(log), offset)["held_out_rms_in_budgets"]
