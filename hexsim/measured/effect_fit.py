@@ -5,6 +5,7 @@ worse, every parameter plausible)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -109,30 +110,56 @@ def refit_jointly(problem: ReplayProblem, fits: list[FitResult], budget: Budget)
     """All accepted effects refitted together from their values (forward selection refits the whole model
     after each step, so an effect fitted first does not keep what the next one explains). Returns one
     FitResult per effect, each holding the joint model and scores."""
+    return refit_on_baseline(problem, fits, budget, Baseline.nominal(problem))[0]
+
+
+@dataclass(frozen=True)
+class Baseline:
+    """The model the effects are applied on, with parameters of its own fitted together with theirs: ``make``
+    (k,) -> PlantModel, started at ``x0`` (k,) within ``lower``…``upper`` (k,) each. k = 0: a fixed model."""
+
+    make: Callable[[np.ndarray], PlantModel]
+    x0: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+    @classmethod
+    def nominal(cls, problem: ReplayProblem) -> "Baseline":
+        """The problem's nominal model, nothing of its own fitted."""
+        empty = np.zeros(0)
+        return cls(lambda x: problem.nominal, empty, empty, empty)
+
+
+def refit_on_baseline(problem: ReplayProblem, fits: list[FitResult], budget: Budget,
+                      baseline: Baseline) -> tuple[list[FitResult], np.ndarray, Scored]:
+    """The effects of ``fits`` (applied in their order, each from its value) refitted together with the
+    ``baseline``'s own parameters, on the baseline's model (:func:`_least_squares`). Returns one FitResult per
+    effect (each holding the joint model and scores), the baseline's parameters (k,) and the joint model's scores
+    on every window."""
     parsed = [parse_key(f.key) for f in fits]
-    bounds = [plausible_bounds(c, problem.log) for c, _ in parsed]
+    bounds = [(baseline.lower, baseline.upper)] + [plausible_bounds(c, problem.log) for c, _ in parsed]
     lower = np.concatenate([b[0] for b in bounds])
     upper = np.concatenate([b[1] for b in bounds])
-    sizes = np.cumsum([0] + [len(c.parameters) for c, _ in parsed])
+    sizes = np.cumsum([0, len(baseline.x0)] + [len(c.parameters) for c, _ in parsed])
     appliers = [applier(c, leg) for c, leg in parsed]
 
     def apply(x):
-        model = problem.nominal
-        for i, a in enumerate(appliers):
+        model = baseline.make(x[:sizes[1]])
+        for i, a in enumerate(appliers, start=1):
             model = a(model, x[sizes[i]:sizes[i + 1]])
         return model
 
-    x0 = np.clip(np.concatenate([f.x for f in fits]), lower, upper)
+    x0 = np.clip(np.concatenate([baseline.x0, *[f.x for f in fits]]), lower, upper)
     x, se, scored, nfev = _least_squares(problem, apply, lower, upper, [x0], budget)
     model = apply(x)
     out = []
-    for i, (f, (c, leg)) in enumerate(zip(fits, parsed)):
+    for i, (f, (c, leg)) in enumerate(zip(fits, parsed), start=1):
         sl = slice(sizes[i], sizes[i + 1])
         params = _estimates(c, x[sl], se[sl], lower[sl], upper[sl])
         out.append(FitResult(name=f.name, on_top_of=f.on_top_of, parameters=params, x=x[sl], model=model,
                              scored=scored, nfev=nfev, held_out_gain=f.held_out_gain, p_value=f.p_value,
                              accepted=f.accepted, reasons=f.reasons, leg=leg))
-    return out
+    return out, x[:sizes[1]], scored
 
 
 def _least_squares(problem: ReplayProblem, make_model, lower, upper, starts, budget: Budget):

@@ -20,7 +20,13 @@ from hexsim.measured.advice import (
     transient_check,
 )
 from hexsim.measured.candidates import CANDIDATES
-from hexsim.measured.effect_fit import ALPHA, MIN_EXCESS_SHARE, WORSE_REL, signal_labels
+from hexsim.measured.effect_fit import (
+    ALPHA,
+    MIN_EXCESS_SHARE,
+    WORSE_REL,
+    judge,
+    signal_labels,
+)
 from hexsim.measured.envelope import beyond_curve, curve_read_from_log, read_sentence
 from hexsim.measured.identify import (
     FIT_PER_ROUND,
@@ -38,7 +44,7 @@ from hexsim.measured.records import (
 )
 from hexsim.measured.reports.validation import fit_label, write_report
 from hexsim.measured.residuals import analyse
-from hexsim.measured.scoring import SCALED, WITHIN, within_budget
+from hexsim.measured.scoring import SCALED, WITHIN, Scored, within_budget
 from hexsim.plant.machine_keys import KEYS
 from hexsim.plant.params import OFFSET_FIELDS
 from hexsim.studies.metrics import STANDARD_GRAVITY
@@ -412,27 +418,49 @@ def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice 
 
 def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[str, ...], jobs: int, notify):
     """``ident`` (unsettled on a log beyond the commands its calibration measured) with the valve's curve read from
-    the log there (:func:`hexsim.measured.envelope.curve_read_from_log`, through the effects ``ident`` named). Where
-    nothing was named and the reading brings the nominal within its budget, the identification again on the machine
-    with that curve (its own budget, its figures for the report), kept if it answers none or explained; otherwise
-    the reading's figures only. (Identified again where the reading leaves the nominal off, the independent spool's
-    6 s log took 12 s more and named nothing; where an effect was named, R1's effect logs took 15-30 s more and
-    none was settled: R1's null offset at 1.50 budgets, 1.41 needed.) Returns the identification kept; ``beyond``
-    takes the reading's account where the curve could be read (``curve_read_from_log``: commands, scales, held-out
-    RMS, whether chosen, the sentence)."""
+    the log there (:func:`hexsim.measured.envelope.curve_read_from_log`, with the effects ``ident`` named refitted on
+    it). Where effects were named and the reading with them is within the budget, they are judged as the
+    identification judges a candidate against the curve read without them (:func:`_explained_on_the_curve`): the
+    verdict ``explained`` with their values refitted there where they pass (R1's leakage, null offset and supply
+    sag logs on a two-log calibration). Where nothing was named, or the curve read without the named effects is
+    itself within the budget, the identification again on the machine with that curve (its own budget, its figures
+    for the report), kept if it answers none or explained; otherwise the reading's figures only. (Identified again
+    where the reading leaves the nominal off, the independent spool's 6 s log took 12 s more and named nothing.)
+    Returns the identification kept; ``beyond`` takes the reading's account where the curve could be read
+    (``curve_read_from_log``: commands, scales, held-out RMS, whether chosen, the sentence)."""
     if notify:
         notify("reading the valve's curve from the log beyond the commands the calibration measured")
+    problem, budget = ident.problem, ident.nominal_budget
     named = [f.name for f in ident.accepted]
-    read = curve_read_from_log(ident.problem, ident.nominal_budget, beyond,
-                               ident.accepted[-1].model if ident.accepted else None)
+    read = curve_read_from_log(problem, budget, beyond, tuple(ident.accepted))
     if read is None:
         return ident
-    machine = read.pop("machine")
-    again = None if named or not read["within"] else identify(dataclasses.replace(ident.problem.log, machine=machine),
-                                                              candidates=candidates, jobs=jobs, notify=notify)
-    chosen = again is not None and again.verdict in ("none", "explained")
-    beyond["curve_read_from_log"] = read | {"chosen": chosen, "sentence": read_sentence(read, named, chosen)}
-    return again if chosen else ident
+    alone = read if not named else curve_read_from_log(problem, budget, beyond) if read["within"] else None
+    kept = ident
+    if named and alone is not None and not alone["within"]:
+        kept = _explained_on_the_curve(ident, read, alone["scored"])
+    elif alone is not None and alone["within"]:  # the curve alone explains the log: the effects afresh on it
+        again = identify(dataclasses.replace(problem.log, machine=alone["machine"]), candidates=candidates,
+                         jobs=jobs, notify=notify)
+        kept, read, named = (again, alone, []) if again.verdict in ("none", "explained") else (ident, read, named)
+    chosen = kept is not ident
+    shown = {k: v for k, v in read.items() if k not in ("machine", "fits", "scored")}
+    beyond["curve_read_from_log"] = shown | {"chosen": chosen, "sentence": read_sentence(read, named, chosen)}
+    return kept
+
+
+def _explained_on_the_curve(ident: Identification, read: dict, without: Scored) -> Identification:
+    """``ident`` explained by its named effects as the curve read refitted them (``read``'s ``fits``, within the
+    budget), where each passes the identification's test against the curve read without them (``without``:
+    :func:`hexsim.measured.effect_fit.judge`, one candidate tried: significant and material on the held-out windows,
+    no signal worse, its parameters plausible); ``ident`` otherwise."""
+    fits = read["fits"]
+    for f in fits:
+        judge(ident.problem, without, f, ident.nominal_budget, 1)
+    if not all(f.accepted for f in fits):
+        return ident
+    return dataclasses.replace(ident, budget=ident.nominal_budget, accepted=fits, final=fits[-1].scored,
+                               verdict="explained", discovery=None)
 
 
 def validate(log, *, report=None, json_path=None, jobs: int = 2, progress: bool = False, notify=None,
