@@ -9,7 +9,7 @@ rate, a supply set pressure at the top of the logged supply pressure) or floors 
 declarations: the names (:data:`CANDIDATE_NAMES`, :func:`candidates_for` a system), which effects can act on
 one hexapod leg alone (:data:`LEG_LEVEL`, from the fields the effect changes) and the plausibility of a fit.
 The fit is bounded by the plausible range, and a fitted value at its edge (within :data:`PLAUSIBLE_EDGE` of the
-range: a plausibility margin, wider than the optimizer's bound, :func:`hexsim.measured.estimates.at_bound`) is
+range, of its logarithm where it spans decades, :func:`plausible_edges`: a plausibility margin, wider than the optimizer's bound, :func:`hexsim.measured.estimates.at_bound`) is
 flagged and never reported as a finding.
 
 What an effect changes in the plant is the machine's side, not the fit's: its parameters are fields of
@@ -42,6 +42,10 @@ BAR_PER_LPM = 1e5 / (1e-3 / 60)  # [Pa s/m^3] of 1 bar per L/min
 #: :data:`hexsim.measured.estimates.AT_BOUND`, is ten times narrower: a value 0.5 % off the end of what is
 #: plausible is as suspect as one on it).
 PLAUSIBLE_EDGE = 0.01
+#: A plausible range whose ends are this many times apart or more (the supply's tau_s, 1 ms-1 s) spans decades: its
+#: edge is :data:`PLAUSIBLE_EDGE` of the range's logarithm (1.07 ms), not of its width (11 ms, which called R1's
+#: 5.0 ± 0.02 ms accumulator "at a bound").
+DECADES_RATIO = 100.0
 #: the words :func:`plausibility` says a value at a bound of its plausible range with
 AT_EDGE_WORDS = "at a bound of its plausible range"
 #: A fitted value within this many standard errors of the value that switches its effect off is no
@@ -395,6 +399,17 @@ def resolution_floor(cand: Candidate, log: MeasurementLog) -> dict[str, float]:
     return {} if cand.floor is None else cand.floor(log)
 
 
+def plausible_edges(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k,) each: the values at and below / at and above which a parameter within [``lower``, ``upper``] (k,) is at
+    a bound of its plausible range: :data:`PLAUSIBLE_EDGE` of the range in from each end, of its logarithm where the
+    range spans decades (both ends positive, :data:`DECADES_RATIO` apart or more)."""
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    decades = (lower > 0) & (upper >= DECADES_RATIO * lower)
+    ratio = np.where(decades, upper / np.where(decades, lower, 1.0), 1.0) ** PLAUSIBLE_EDGE
+    span = PLAUSIBLE_EDGE * (upper - lower)
+    return np.where(decades, lower * ratio, lower + span), np.where(decades, upper / ratio, upper - span)
+
+
 def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.ndarray | None = None) -> list[str]:
     """Why the fitted parameters ``x`` are not a finding (empty if they are): a value at a bound of its
     plausible range, at the value that means no effect, or finer than the log resolves. ``se``: the
@@ -404,6 +419,7 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
     range (R_s >= 0, C_l >= 0) is the physical limit, not a bound the fit ran into."""
     lower, upper = plausible_bounds(cand, log)
     span = upper - lower
+    low_edge, high_edge = plausible_edges(lower, upper)
     se = np.full(len(x), np.nan) if se is None else np.asarray(se, dtype=float)
     problems = []
     for i, (name, unit) in enumerate(zip(cand.names, cand.units)):
@@ -414,8 +430,7 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
         if off is not None and abs(v - off) <= near:
             problems.append(f"{name} = {v:.4g} {unit} is the value without the effect"
                             + (f" (within {NO_EFFECT_SE:g} standard errors)" if by_se else ""))
-        elif ((v <= lower[i] + PLAUSIBLE_EDGE * span[i] and off != lower[i])
-              or (v >= upper[i] - PLAUSIBLE_EDGE * span[i] and off != upper[i])):
+        elif ((v <= low_edge[i] and off != lower[i]) or (v >= high_edge[i] and off != upper[i])):
             problems.append(f"{name} = {v:.4g} {unit} {AT_EDGE_WORDS} "
                             f"{lower[i]:.4g}…{upper[i]:.4g}")
     for name, floor in resolution_floor(cand, log).items():

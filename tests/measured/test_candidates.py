@@ -81,6 +81,20 @@ def test_the_supply_set_pressure_is_bounded_by_the_logged_supply_and_the_declara
     assert tuple(lower) == supply.lower and tuple(upper) == supply.upper
 
 
+def test_a_range_spanning_decades_has_its_edge_on_the_logarithm():
+    """The supply's time constant (1 ms-1 s): R1's accumulator, 5.0 ± 0.02 ms, is a finding, not "at a bound" (the
+    range's width put the edge at 11 ms); 1.05 ms is at the bound. A range within a decade or two keeps its edge on
+    the width (the spool's 5-300 Hz: 7 Hz is at the bound)."""
+    log = stand_in_log(1000.0, ps_Pa=np.linspace(66e5, 70e5, 101))
+    supply, spool = CANDIDATES["supply_pressure"], CANDIDATES["spool_dynamics"]
+    se = np.array([1e-4, 0.02, 0.01])
+    assert not plausibility(supply, log, np.array([0.6, 5.0, 68.9]), se)
+    (problem,) = plausibility(supply, log, np.array([0.6, 1.05, 68.9]), se)
+    assert problem.startswith("tau_s = 1.05 ms at a bound")
+    (problem,) = plausibility(spool, log, np.array([7.0, 0.7]), np.array([0.1, 0.01]))
+    assert problem.startswith("f_v = 7 Hz at a bound")
+
+
 def test_a_payload_change_adds_to_the_machines_payload_with_its_weight_and_moments_exact():
     """On a calibrated machine (51 kg at c_0), m_p = 0 is that machine, and 90 kg added at c_p gives one
     payload whose mass and first moment are the sum of the two (the weight and its moments on the legs)."""
