@@ -419,44 +419,82 @@ def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice 
 def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[str, ...], jobs: int, notify):
     """``ident`` (unsettled on a log beyond the commands its calibration measured) with the valve's curve read from
     the log there (:func:`hexsim.measured.envelope.curve_read_from_log`, with the effects ``ident`` named refitted on
-    it). Where effects were named and the reading with them is within the budget, they are judged as the
-    identification judges a candidate against the curve read without them (:func:`_explained_on_the_curve`): the
-    verdict ``explained`` with their values refitted there where they pass (R1's leakage, null offset and supply
-    sag logs on a two-log calibration). Where nothing was named, or the curve read without the named effects is
-    itself within the budget, the identification again on the machine with that curve (its own budget, its figures
-    for the report), kept if it answers none or explained; otherwise the reading's figures only. (Identified again
-    where the reading leaves the nominal off, the independent spool's 6 s log took 12 s more and named nothing.)
-    Returns the identification kept; ``beyond`` takes the reading's account where the curve could be read
-    (``curve_read_from_log``: commands, scales, held-out RMS, whether chosen, the sentence)."""
+    it; where one effect was named and that reading stays off, with each of its rivals instead, :func:`_rivals`, the
+    first within the budget kept). Where effects were read and the reading with them is within the budget, they are
+    judged as the identification judges a candidate against the curve read without them
+    (:func:`_explained_on_the_curve`): the verdict ``explained`` with their values refitted there where they pass
+    (R1's leakage, null offset and supply sag logs on a two-log calibration; its spool dynamics log, where the
+    calibrated curve named a sensor delay). Where nothing was named, or the curve read without the effects is itself
+    within the budget, the identification again on the machine with that curve (its own budget, its figures for the
+    report), kept if it answers none or explained; otherwise the reading's figures only. (Identified again where the
+    reading leaves the nominal off, the independent spool's 6 s log took 12 s more and named nothing.) Returns the
+    identification kept; ``beyond`` takes the reading's account where the curve could be read
+    (``curve_read_from_log``: commands, scales, held-out RMS, the effects read with, whether chosen, the sentence)."""
     if notify:
         notify("reading the valve's curve from the log beyond the commands the calibration measured")
     problem, budget = ident.problem, ident.nominal_budget
-    named = [f.name for f in ident.accepted]
     read = curve_read_from_log(problem, budget, beyond, tuple(ident.accepted))
     if read is None:
         return ident
-    alone = read if not named else curve_read_from_log(problem, budget, beyond) if read["within"] else None
+    instead, tried = None, 1
+    if len(ident.accepted) == 1 and not read["within"]:
+        for rival in _rivals(ident):
+            if notify:
+                notify(f"reading the curve with {rival.name} instead of {ident.accepted[0].name}")
+            tried += 1
+            other = curve_read_from_log(problem, budget, beyond, (rival,), like=read["curves"])
+            if other is not None and other["within"]:
+                read, instead = other, ident.accepted[0].name
+                break
+    effects = [f.name for f in read["fits"]]
+    alone = read if not effects else curve_read_from_log(problem, budget, beyond, like=read["curves"]) \
+        if read["within"] else None
     kept = ident
-    if named and alone is not None and not alone["within"]:
-        kept = _explained_on_the_curve(ident, read, alone["scored"])
+    if effects and alone is not None and not alone["within"]:
+        kept = _explained_on_the_curve(ident, read, alone["scored"], tried)
     elif alone is not None and alone["within"]:  # the curve alone explains the log: the effects afresh on it
         again = identify(dataclasses.replace(problem.log, machine=alone["machine"]), candidates=candidates,
                          jobs=jobs, notify=notify)
-        kept, read, named = (again, alone, []) if again.verdict in ("none", "explained") else (ident, read, named)
+        if again.verdict in ("none", "explained"):
+            kept, read, effects, instead = again, alone, [], None
     chosen = kept is not ident
-    shown = {k: v for k, v in read.items() if k not in ("machine", "fits", "scored")}
-    beyond["curve_read_from_log"] = shown | {"chosen": chosen, "sentence": read_sentence(read, named, chosen)}
+    shown = {k: v for k, v in read.items() if k not in ("machine", "fits", "scored", "curves")}
+    beyond["curve_read_from_log"] = shown | {"effects": effects, "instead_of": instead, "chosen": chosen,
+                                             "sentence": read_sentence(read, effects, chosen, instead)}
     return kept
 
 
-def _explained_on_the_curve(ident: Identification, read: dict, without: Scored) -> Identification:
+#: A first-round candidate whose held-out gain on the calibrated curve is at least this share of the best one's is a
+#: rival of the effect named there (:func:`_rivals`): R1's spool dynamics log, 0.82 against the sensor delay's 0.84.
+RIVAL_SHARE = 0.5
+#: Rivals read at most, best first (each reading costs a few seconds).
+MAX_RIVALS = 2
+
+
+def _rivals(ident: Identification) -> list:
+    """The first round's candidates other than the one named whose held-out gain is at least :data:`RIVAL_SHARE`
+    of the best one's, best first, at most :data:`MAX_RIVALS`: on a curve missed beyond the measured commands the
+    best may be the one that carries the curve's misfit, not the effect (R1's 25 Hz spool read as an 8.7 ms sensor
+    delay)."""
+    first = ident.rounds[0] if ident.rounds else []
+    gains = [f.held_out_gain for f in first if math.isfinite(f.held_out_gain)]
+    if not gains:
+        return []
+    named = ident.accepted[0].key
+    rivals = [f for f in first if f.key != named and math.isfinite(f.held_out_gain)
+              and f.held_out_gain >= RIVAL_SHARE * max(gains)]
+    return sorted(rivals, key=lambda f: -f.held_out_gain)[:MAX_RIVALS]
+
+
+def _explained_on_the_curve(ident: Identification, read: dict, without: Scored, tried: int = 1) -> Identification:
     """``ident`` explained by its named effects as the curve read refitted them (``read``'s ``fits``, within the
     budget), where each passes the identification's test against the curve read without them (``without``:
-    :func:`hexsim.measured.effect_fit.judge`, one candidate tried: significant and material on the held-out windows,
-    no signal worse, its parameters plausible); ``ident`` otherwise."""
+    :func:`hexsim.measured.effect_fit.judge`, with the readings ``tried`` as the candidates of a round: significant and material on the held-out windows,
+    no signal worse, its parameters plausible); ``ident`` otherwise. An effect read in place of the one named (a
+    rival, :func:`_rivals`) takes its place."""
     fits = read["fits"]
     for f in fits:
-        judge(ident.problem, without, f, ident.nominal_budget, 1)
+        judge(ident.problem, without, f, ident.nominal_budget, tried)
     if not all(f.accepted for f in fits):
         return ident
     return dataclasses.replace(ident, budget=ident.nominal_budget, accepted=fits, final=fits[-1].scored,
