@@ -124,3 +124,20 @@ def test_r1s_null_offset_log_is_explained_by_the_offset_refitted_on_the_curve_re
                            accepted=[named], final=without["scored"], verdict="partial", nominal_budget=budget)
     explained = _explained_on_the_curve(ident, through, without["scored"])
     assert explained.verdict == "explained" and explained.accepted[0].parameters["u_0"]["value"] == refitted
+
+
+def test_the_rivals_of_a_named_effect_are_the_first_rounds_near_best_candidates():
+    """R1's spool log on its two-log calibration: the sensor delay named (held-out gain 0.84), its rivals the spool
+    (0.82) and the hysteresis (0.70), best first; the bulk modulus (0.37, under half the best) and a failed fit are
+    not; at most MAX_RIVALS."""
+    from hexsim.measured.validation import MAX_RIVALS, _rivals
+
+    def fit(name, gain):
+        return SimpleNamespace(name=name, key=name, held_out_gain=gain)
+
+    first = [fit("hysteresis", 0.70), fit("sensor_delay", 0.84), fit("bulk_modulus", 0.37),
+             fit("spool_dynamics", 0.82), fit("friction", float("nan"))]
+    ident = SimpleNamespace(rounds=[first], accepted=[first[1]])
+    assert [f.name for f in _rivals(ident)] == ["spool_dynamics", "hysteresis"] and MAX_RIVALS == 2
+    first.append(fit("edge_asymmetry", 0.80))
+    assert [f.name for f in _rivals(ident)] == ["spool_dynamics", "edge_asymmetry"]
