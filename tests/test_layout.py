@@ -99,7 +99,7 @@ MEASURED_FLOORS = (
     {"fitting", "hexapod_replay", "proof", "flow_balance"},
     {"scoring", "flow_curve", "friction_id", "steady"},
     {"calibration", "acquisition", "curves", "dynamics", "envelope", "candidates", "discovery", "identify", "effect_fit"},
-    {"reports.calibration", "reports.commissioning", "reports.friction", "reports.validation", "advice"},
+    {"reports.calibration", "reports.commissioning", "reports.friction", "reports.validation", "advice", "curve_read"},
     {"validation", "commissioning"},
 )
 #: The two sides of the floor above scoring: a machine's nominal, and the effects the nominal lacks.

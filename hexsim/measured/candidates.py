@@ -9,8 +9,8 @@ rate, a supply set pressure at the top of the logged supply pressure) or floors 
 declarations: the names (:data:`CANDIDATE_NAMES`, :func:`candidates_for` a system), which effects can act on
 one hexapod leg alone (:data:`LEG_LEVEL`, from the fields the effect changes) and the plausibility of a fit.
 The fit is bounded by the plausible range, and a fitted value at its edge (within :data:`PLAUSIBLE_EDGE` of the
-range, of its logarithm where it spans decades, :func:`plausible_edges`: a plausibility margin, wider than the optimizer's bound, :func:`hexsim.measured.estimates.at_bound`) is
-flagged and never reported as a finding.
+range, of its logarithm where it spans decades, :func:`plausible_edges`: a plausibility margin, wider than the
+optimizer's bound, :func:`hexsim.measured.estimates.at_bound`) is flagged and never reported as a finding.
 
 What an effect changes in the plant is the machine's side, not the fit's: its parameters are fields of
 :class:`~hexsim.plant.effects.Effects` or :class:`~hexsim.plant.params.HydraulicParams` (whose zero value

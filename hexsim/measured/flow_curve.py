@@ -277,7 +277,7 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
     :data:`HOLD_WITHIN_STRENGTH`, the rest read from the flows alone (:mod:`hexsim.measured.envelope`: a log beyond
     the commands its machine's calibration measured). ``like``: an earlier reading of the same logs whose penalty
     weight and choice of edges (opening before null or shut) are kept, not chosen again by the held-out windows (a
-    reading through effects refitted since: :func:`hexsim.measured.envelope.curve_read_from_log`; 0.5 s in place of
+    reading through effects refitted since: :func:`hexsim.measured.curve_read.curve_read_from_log`; 0.5 s in place of
     4.8 s on R1's 20 s logs).
 
     Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 100 intervals

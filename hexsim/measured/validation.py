@@ -20,6 +20,7 @@ from hexsim.measured.advice import (
     transient_check,
 )
 from hexsim.measured.candidates import CANDIDATES
+from hexsim.measured.curve_read import curve_read_from_log, read_sentence
 from hexsim.measured.effect_fit import (
     ALPHA,
     MIN_EXCESS_SHARE,
@@ -27,7 +28,7 @@ from hexsim.measured.effect_fit import (
     judge,
     signal_labels,
 )
-from hexsim.measured.envelope import beyond_curve, curve_read_from_log, read_sentence
+from hexsim.measured.envelope import beyond_curve
 from hexsim.measured.identify import (
     FIT_PER_ROUND,
     MAX_EFFECTS,
@@ -418,7 +419,7 @@ def calibration_advice(ident: Identification, notify=None) -> CalibrationAdvice 
 
 def _on_the_curve_read(ident: Identification, beyond: dict, candidates: tuple[str, ...], jobs: int, notify):
     """``ident`` (unsettled on a log beyond the commands its calibration measured) with the valve's curve read from
-    the log there (:func:`hexsim.measured.envelope.curve_read_from_log`, with the effects ``ident`` named refitted on
+    the log there (:func:`hexsim.measured.curve_read.curve_read_from_log`, with the effects ``ident`` named refitted on
     it; where one effect was named and that reading stays off, with each of its rivals instead, :func:`_rivals`, the
     first within the budget kept). Where effects were read and the reading with them is within the budget, they are
     judged as the identification judges a candidate against the curve read without them

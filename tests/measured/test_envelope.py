@@ -13,11 +13,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hexsim.measured.envelope import (
-    beyond_curve,
-    curve_read_from_log,
-    measured_commands,
-)
+from hexsim.measured.curve_read import curve_read_from_log
+from hexsim.measured.envelope import beyond_curve, measured_commands
 from hexsim.measured.identify import make_problem
 from hexsim.measured.measurement import read_log
 from hexsim.measured.scoring import measure_budget, score, within_budget
@@ -101,8 +98,9 @@ def test_r1s_null_offset_log_is_explained_by_the_offset_refitted_on_the_curve_re
     identification on the curve that misses the corner may leave it): the curve beyond 0.74 V is read at the spool
     through the offset and refitted with it, read again through the offset so refitted: the offset returns to R1's
     0.08 V (measured 0.0799 V), the model is near R1's own model with the offset (measured 3.0 against 1.9 budgets of
-    position; asserted within 2.5×), and the offset passes the identification's test against the curve read without it (which stays far
-    off within the measured commands, 209 budgets): the verdict `explained` (validate's own step)."""
+    position; asserted within 2.5×), and the offset passes the identification's test against the curve read
+    without it (which stays far off within the measured commands, 209 budgets): the verdict `explained` (validate's
+    own step)."""
     from hexsim.measured.effect_fit import FitResult
     from hexsim.measured.identify import Identification
     from hexsim.measured.validation import _explained_on_the_curve
