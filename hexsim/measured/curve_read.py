@@ -46,13 +46,14 @@ def curve_read_from_log(problem, budget, beyond: dict, fits: tuple = (), like: F
     measured on its nominal: :attr:`hexsim.measured.identify.Identification.nominal_budget`) on its machine with the
     valve's curve read from the log's own flows beyond the commands the calibration measured (``beyond``,
     :func:`hexsim.measured.envelope.beyond_curve`; within them held to the calibrated curve, exactly), with the
-    effects the identification named on the calibrated curve (``fits``, :class:`hexsim.measured.effect_fit.FitResult`, in their order; the flows
-    are read at the spool through them, e.g. a null offset). Each edge's rise there is scaled by a gain fitted on the
-    log's fit windows together with the effects' parameters (:func:`hexsim.measured.effect_fit.refit_on_baseline`:
-    the flows give a curve to about a percent, an open-loop replay asks for parts in a thousand, as the calibration
-    refines its curve's gains; an effect fitted on the calibrated curve carries what the curve there missed), the
-    flows read again through the effects so fitted while they leave the log off, move and gain (:data:`READINGS`),
-    judged on its held-out windows against that budget as the identification judges a candidate.
+    effects the identification named on the calibrated curve (``fits``, :class:`hexsim.measured.effect_fit.FitResult`,
+    in their order; the flows are read at the spool through them, e.g. a null offset). Each edge's rise there is
+    scaled by a gain fitted on the log's fit windows together with the effects' parameters
+    (:func:`hexsim.measured.effect_fit.refit_on_baseline`: the flows give a curve to about a percent, an open-loop
+    replay asks for parts in a thousand, as the calibration refines its curve's gains; an effect fitted on the
+    calibrated curve carries what the curve there missed), the flows read again through the effects so fitted while they leave the log off, move and gain (:data:`READINGS`),
+    the best reading kept, judged on its held-out windows against that budget as the identification judges a
+    candidate.
 
     Returns ``machine`` (the log's machine with that curve and without the effects: the baseline to identify them on
     again), each channel's held-out RMS in budgets with the effects (``held_out_rms_in_budgets``), ``within`` (every
@@ -64,7 +65,7 @@ def curve_read_from_log(problem, budget, beyond: dict, fits: tuple = (), like: F
     too few intervals) or the log not replayed on it."""
     base = problem.log.machine
     lo, hi = beyond["calibrated_V"]
-    gains, worst = np.ones(2), math.inf
+    best = None
     for _ in range(READINGS if fits else 1):
         on = base if not fits else dataclasses.replace(base, hydraulics=fits[-1].model.hydraulics,
                                                         effects=fits[-1].model.effects)
@@ -88,12 +89,15 @@ def curve_read_from_log(problem, budget, beyond: dict, fits: tuple = (), like: F
         rms = {ch: math.sqrt(v) for ch, v in within_budget(scored, budget).items()}
         moved = max((float(np.max(np.abs(f.x - r.x) / np.maximum(np.abs(f.x), 1e-12))) for f, r in zip(fits, refitted)),
                     default=0.0)
-        fits, worst, was = tuple(refitted), max(rms.values()), worst
-        if worst <= math.sqrt(WITHIN) or moved <= READ_TOLERANCE or worst > (1.0 - READ_GAIN) * was:
+        fits, was = tuple(refitted), best["worst"] if best else math.inf
+        if best is None or max(rms.values()) < was:  # the best reading is kept, not the last
+            best = {"machine": machine(gains), "read_V": [lo, hi], "gains": [float(g) for g in gains],
+                    "fits": list(fits), "scored": scored, "curves": like, "held_out_rms_in_budgets": rms,
+                    "within": max(rms.values()) <= math.sqrt(WITHIN), "worst": max(rms.values())}
+        if best["within"] or moved <= READ_TOLERANCE or max(rms.values()) > (1.0 - READ_GAIN) * was:
             break
-    return {"machine": machine(gains), "read_V": [lo, hi], "gains": [float(g) for g in gains], "fits": list(fits),
-            "scored": scored, "curves": like, "held_out_rms_in_budgets": rms,
-            "within": max(rms.values()) <= math.sqrt(WITHIN)}
+    best.pop("worst")
+    return best
 
 
 def read_sentence(read: dict, effects: list[str], chosen: bool, instead: str | None = None) -> str:
