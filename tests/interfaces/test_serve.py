@@ -19,6 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pytest
+from scipy.signal import butter, sosfiltfilt
 
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
@@ -319,9 +320,18 @@ def test_the_host_sees_the_platform_engage_follow_and_return(session):
     engaged = status == Status.ENGAGED
     assert heave[engaged].max() == pytest.approx(0.04, abs=0.004)  # the platform's own pose, as MuJoCo has it
     assert heave[engaged].min() == pytest.approx(-0.04, abs=0.004)
-    # the head's specific force: gravity plus the sine's acceleration (-w^2 heave), with the reversal bumps on it
-    assert fz[engaged].mean() == pytest.approx(9.81, abs=0.05)
-    assert np.corrcoef(fz[engaged], -heave[engaged])[0, 1] > 0.6  # measured 0.80
+    # the head's specific force: gravity plus the sine's acceleration (-w^2 heave), with the reversal bumps on it;
+    # in the simulated time the states carry, at 100 Hz (the host's arrival times crowd where a loaded machine made
+    # the server catch up), below 2 Hz (the bumps above): correlation measured 0.997 alone, 0.996 with two busy
+    # processes beside it on two cores (the raw states 0.96 both); with four, 0.89 (raw 0.38: tests/conftest.py
+    # runs this file first)
+    _, sim_time = record.series("time")
+    t, first = np.unique(sim_time[engaged], return_index=True)
+    grid = np.arange(t[0], t[-1], 0.01)
+    fz_t, heave_t = (np.interp(grid, t, x[engaged][first]) for x in (fz, heave))
+    assert fz_t.mean() == pytest.approx(9.81, abs=0.05)
+    smooth = sosfiltfilt(butter(2, 2.0, fs=100.0, output="sos"), fz_t)
+    assert np.corrcoef(smooth, -heave_t)[0, 1] > 0.9
     _, p1 = record.series("p1_leg1")
     assert np.all((p1 > 0) & (p1 < 100e5))
 
