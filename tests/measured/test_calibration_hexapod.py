@@ -65,9 +65,9 @@ def _other_motion(t: float) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def calibrated(tmp_path_factory):
-    """The calibration log (8 s), the calibrated machine and the report; logs of the other motion (5 s)."""
+    """The calibration log (6 s), the calibrated machine and the report; logs of the other motion (5 s)."""
     folder = tmp_path_factory.mktemp("independent_hexapod")
-    paths = {"calibration": write(motion(_machine(), 8.0, _calibration_motion, np.random.default_rng(1)),
+    paths = {"calibration": write(motion(_machine(), 6.0, _calibration_motion, np.random.default_rng(1)),
                                   folder / "calibration.csv", "heave, roll and pitch"),
              "null": write(motion(_machine(), 5.0, _other_motion, np.random.default_rng(2)), folder / "null.csv",
                            "surge, heave and yaw"),
