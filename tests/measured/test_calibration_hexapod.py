@@ -65,15 +65,15 @@ def _other_motion(t: float) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def calibrated(tmp_path_factory):
-    """The calibration log (6 s), the calibrated machine and the report; logs of the other motion (5 s)."""
+    """The calibration log (6 s), the calibrated machine and the report; logs of the other motion (4 s)."""
     folder = tmp_path_factory.mktemp("independent_hexapod")
     paths = {"calibration": write(motion(_machine(), 6.0, _calibration_motion, np.random.default_rng(1)),
                                   folder / "calibration.csv", "heave, roll and pitch"),
-             "null": write(motion(_machine(), 5.0, _other_motion, np.random.default_rng(2)), folder / "null.csv",
+             "null": write(motion(_machine(), 4.0, _other_motion, np.random.default_rng(2)), folder / "null.csv",
                            "surge, heave and yaw"),
-             "leak": write(motion(_machine(LEAK_LEG), 5.0, _other_motion, np.random.default_rng(3)),
+             "leak": write(motion(_machine(LEAK_LEG), 4.0, _other_motion, np.random.default_rng(3)),
                            folder / "leak.csv", "surge, heave and yaw; a leak on one leg"),
-             "null_offset": write(motion(_machine(null_leg=NULL_LEG), 5.0, _other_motion, np.random.default_rng(4)),
+             "null_offset": write(motion(_machine(null_leg=NULL_LEG), 4.0, _other_motion, np.random.default_rng(4)),
                                   folder / "null_offset.csv", "surge, heave and yaw; one leg's valve null drifted")}
     prior = load_machine(None)
     result = calibrate([read_log(paths["calibration"], machine=prior)], prior, flow_areas=("smooth", "port"))
@@ -142,7 +142,7 @@ def test_a_heavier_payload_is_named_as_the_change_to_the_calibrated_one(calibrat
     paths, machine, _ = calibrated
     truth = _machine()
     heavier = dataclasses.replace(truth, mass=truth.mass + 90.0)
-    log = write(motion(heavier, 5.0, _other_motion, np.random.default_rng(5)), tmp_path / "payload.csv",
+    log = write(motion(heavier, 4.0, _other_motion, np.random.default_rng(5)), tmp_path / "payload.csv",
                 "surge, heave and yaw; 90 kg more on the platform")
     doc = validate(read_log(log, machine=machine))
     assert doc["verdict"] == "explained", doc["conclusions"]

@@ -97,13 +97,13 @@ EFFECTS = {
 
 @pytest.fixture(scope="module")
 def answers(calibrated):
-    """``hexsim validate LOG --machine calibrated.json`` on another motion of TRUTH (1 Hz, 50 mm, 6 s), with
+    """``hexsim validate LOG --machine calibrated.json`` on another motion of TRUTH (1 Hz, 50 mm, 5 s), with
     nothing added ("none") and with each of :data:`EFFECTS`: the answers' JSON by name."""
     path, _, folder = calibrated
     out = {}
     for k, name in enumerate(("none", *EFFECTS)):
         changes = EFFECTS[name][0] if name in EFFECTS else {}
-        log = write(motion(TRUTH.replace(**changes), 6.0, 1.0, 0.05, np.random.default_rng(40 + k)),
+        log = write(motion(TRUTH.replace(**changes), 5.0, 1.0, 0.05, np.random.default_rng(40 + k)),
                     folder / f"{name}.csv", name)
         answer = folder / f"{name}.answer.json"
         assert main(["validate", str(log), "--machine", str(path), "--json", str(answer), "--quiet",
