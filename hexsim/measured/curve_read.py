@@ -51,9 +51,9 @@ def curve_read_from_log(problem, budget, beyond: dict, fits: tuple = (), like: F
     scaled by a gain fitted on the log's fit windows together with the effects' parameters
     (:func:`hexsim.measured.effect_fit.refit_on_baseline`: the flows give a curve to about a percent, an open-loop
     replay asks for parts in a thousand, as the calibration refines its curve's gains; an effect fitted on the
-    calibrated curve carries what the curve there missed), the flows read again through the effects so fitted while they leave the log off, move and gain (:data:`READINGS`),
-    the best reading kept, judged on its held-out windows against that budget as the identification judges a
-    candidate.
+    calibrated curve carries what the curve there missed), the flows read again through the effects so fitted while
+    they leave the log off, move and gain (:data:`READINGS`), the best reading kept, judged on its held-out windows
+    against that budget as the identification judges a candidate.
 
     Returns ``machine`` (the log's machine with that curve and without the effects: the baseline to identify them on
     again), each channel's held-out RMS in budgets with the effects (``held_out_rms_in_budgets``), ``within`` (every

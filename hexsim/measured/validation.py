@@ -490,9 +490,9 @@ def _rivals(ident: Identification) -> list:
 def _explained_on_the_curve(ident: Identification, read: dict, without: Scored, tried: int = 1) -> Identification:
     """``ident`` explained by its named effects as the curve read refitted them (``read``'s ``fits``, within the
     budget), where each passes the identification's test against the curve read without them (``without``:
-    :func:`hexsim.measured.effect_fit.judge`, with the readings ``tried`` as the candidates of a round: significant and material on the held-out windows,
-    no signal worse, its parameters plausible); ``ident`` otherwise. An effect read in place of the one named (a
-    rival, :func:`_rivals`) takes its place."""
+    :func:`hexsim.measured.effect_fit.judge`, with the readings ``tried`` as the candidates of a round: significant
+    and material on the held-out windows, no signal worse, its parameters plausible); ``ident`` otherwise. An effect
+    read in place of the one named (a rival, :func:`_rivals`) takes its place."""
     fits = read["fits"]
     for f in fits:
         judge(ident.problem, without, f, ident.nominal_budget, tried)
