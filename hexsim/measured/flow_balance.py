@@ -20,7 +20,7 @@ from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.measured.replay import near_jumps
 from hexsim.plant import hydraulics
-from hexsim.plant.legs import bulk_modulus, leg_params
+from hexsim.plant.legs import backlash_history, bulk_modulus, leg_params
 from hexsim.plant.machine import Machine
 
 #: Span [s] of the Savitzky-Golay cubic that smooths the position at the intervals' ends (zero phase; 11 ms,
@@ -39,14 +39,15 @@ FOLDS = 5
 @dataclass(frozen=True)
 class FlowSamples:
     """One chamber's flow balance in a log, interval by interval: per sample i of the intervals kept (all (n,)),
-    ``u`` the signed command at the spool [V] (u_v - u_0, through the spool's loop where the machine has one),
-    ``supply`` and ``ret`` the volume [m^3] a full opening pi d x_v,max of the supply and the return edge would
-    pass over the sample's period at the logged pressures (into the chamber positive), ``interval`` the interval
-    it belongs to (0 … k - 1); per interval j (all (k,)) ``displaced`` the volume [m^3] the piston displaced
-    into the chamber over it less the leakage, ``swept_dp`` and ``dead_dp`` the compressed volume's factors:
-    the chamber's swept volume times its pressure's change [m^3 Pa] and that change [Pa] (the dead volume's,
-    cap side; the rod side's dead volume is the machine's, in ``swept_dp``), so that the volume that entered is
-    displaced + swept_dp / E + dead_dp V_pl / E, ``block`` its cross-validation window (0 … :data:`FOLDS` - 1);
+    ``u`` the signed command at the spool [V] (u_v - u_0, through the valve's play and the spool's loop where the
+    machine has them), ``supply`` and ``ret`` the volume [m^3] a full opening pi d x_v,max of the supply and the
+    return edge would pass over the sample's period at the logged pressures (into the chamber positive),
+    ``interval`` the interval it belongs to (0 … k - 1); per interval j (all (k,)) ``displaced`` the volume [m^3]
+    the piston displaced into the chamber over it less the leakage, ``swept_dp`` and ``dead_dp`` the compressed
+    volume's factors: the chamber's swept volume times its pressure's change [m^3 Pa] and that change [Pa] (the
+    dead volume's, cap side; the rod side's dead volume is the machine's, in ``swept_dp``), so that the volume that
+    entered is displaced + swept_dp / E + dead_dp V_pl / E, ``block`` its cross-validation window (0 …
+    :data:`FOLDS` - 1);
     ``mirror`` True for the rod side (its supply edge opens at -u)."""
 
     u: np.ndarray
@@ -67,10 +68,15 @@ def _smooth(x: np.ndarray, rate: float) -> np.ndarray:
 
 
 def _spool_command(u_v: np.ndarray, time: np.ndarray, machine: Machine) -> np.ndarray:
-    """The signed command at the spool [V]: u_v - u_0 (seed eq. 3.2), through the machine's second-order spool
-    loop where it has one (:class:`hexsim.plant.effects.Effects` ``spool_frequency``)."""
+    """The signed command at the spool [V]: u_v - u_0 (seed eq. 3.2), through the valve's play where it has one
+    (:class:`hexsim.plant.effects.Effects` ``spool_play``, seed §4.4: the backlash of half width h each sample's
+    command passes, :func:`hexsim.plant.legs.backlash`) and its second-order spool loop where it has one
+    (``spool_frequency``)."""
     u = u_v - machine.hydraulics.null_offset
     eff = machine.effects
+    if eff.spool_play > 0:
+        h = eff.spool_play
+        u = np.clip(backlash_history(np.ascontiguousarray(u, dtype=float), h), u - h, u + h)  # past the play
     if eff.spool_frequency <= 0:
         return u
     w = 2.0 * math.pi * eff.spool_frequency
