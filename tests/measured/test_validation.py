@@ -204,3 +204,34 @@ def test_bad_log_is_refused_with_file_column_row(tmp_path, logs, capsys, case):
 
     assert re.search(pattern, err), err
     assert not out_json.exists()
+
+
+def test_an_accelerometer_offset_the_accepted_effect_accounts_for_is_not_blamed_on_the_mount():
+    """R1's hysteresis log on its two-log calibration: the nominal model asks +0.46 m/s² of the accelerometer
+    (beyond the data sheet's ±0.2), the model with the hysteresis +0.017. The answer says that the effect accounts
+    for it, not "an inclination … or a load", which R1 does not have; where the accepted model still asks beyond
+    the data sheet, it names the physics that would give such an offset."""
+    from types import SimpleNamespace
+
+    from hexsim.measured.validation import _beyond_sentences
+    from hexsim.plant.params import SensorSpec
+
+    log = SimpleNamespace(machine=SimpleNamespace(sensors=SensorSpec()), inclination_deg=0.0,
+                          system="single-actuator")
+    problem = SimpleNamespace(log=log, measured={"acceleration": np.zeros((2, 10))})
+    nominal = SimpleNamespace(calibration={"acceleration": {"offset": [0.2], "scale": [1.0], "beyond": [0.461]}})
+    hysteresis = SimpleNamespace(name="hysteresis", leg=None)
+
+    def said(final: dict, accepted: list) -> str:
+        ident = SimpleNamespace(problem=problem, nominal=nominal, final=SimpleNamespace(calibration=final),
+                                accepted=accepted)
+        (sentence,) = _beyond_sentences(ident)
+        return sentence
+
+    explained = said({"acceleration": {"offset": [0.0169], "scale": [1.0]}}, [hysteresis])
+    assert "+0.461" in explained and "hysteresis accounts for it" in explained and "+0.0169" in explained
+    assert "inclination" not in explained and "physics, not the sensor" in explained
+    for final, accepted in (({"acceleration": {"offset": [0.2], "scale": [1.0], "beyond": [0.45]}}, [hysteresis]),
+                            (nominal.calibration, [])):
+        left = said(final, accepted)
+        assert "an inclination" in left and "accounts for it" not in left, left
