@@ -91,8 +91,11 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
     signal, so a step's fast pressure jump is measured as well as a slow motion (the equation error in integral
     form, Young, Automatica 17(1), 1981). The cap side's (and with a 4-way valve and a logged ``p2_Pa`` the rod
     side's) :class:`FlowSamples`, the edges' gains those of ``machine``; intervals that come within
-    :data:`STOP_MARGIN` of either end of the stroke are left out. ``skew`` [s], within a sample either way: the
-    state was read that long after its row's command took effect (:mod:`hexsim.measured.acquisition`), so an
+    :data:`STOP_MARGIN` of either end of the stroke are left out. The piston's positions are the transducer's
+    readings tau_y later where ``machine`` has a lagging transducer (:class:`hexsim.plant.effects.Effects`
+    ``sensor_delay``: it shows y(t - tau_y), as the replay has it), the intervals of the log's last tau_y left out;
+    the commands pass the valve's play and spool loop (:func:`_spool_command`). ``skew`` [s], within a sample either
+    way: the state was read that long after its row's command took effect (:mod:`hexsim.measured.acquisition`), so an
     interval gains that share of the next row's flow and loses it of its first row's (negative: the rows
     before each end). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
     hyd, eff = machine.hydraulics, machine.effects
@@ -101,10 +104,11 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
     step = max(1, int(round(INTERVAL_S * rate)))
     n = (len(log.time) - 1) // step
     edges = np.arange(n + 1) * step  # sample index of each interval's ends
-    y = _end_positions(log)
+    y = _end_positions(log, eff.sensor_delay)
     u = _spool_command(cols["valve_cmd_V"], log.time, machine)
     p_s = cols["ps_Pa"] if "ps_Pa" in cols else np.full_like(y, hyd.supply_pressure)
-    inside = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN)
+    # within the stroke, and not in the log's last tau_y, whose positions the lagging transducer has not shown yet
+    inside = (y > STOP_MARGIN) & (y < log.stroke_m - STOP_MARGIN) & (log.time + eff.sensor_delay <= log.time[-1])
     keep = np.array([inside[a:b + 1].all() for a, b in zip(edges[:-1], edges[1:])], dtype=bool)
     block = np.minimum((np.arange(n) * FOLDS) // max(n, 1), FOLDS - 1)
     across = cols["p2_Pa"] if hyd.four_way and "p2_Pa" in cols else p_s  # the leak's far side
@@ -141,10 +145,12 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
     return out
 
 
-def _end_positions(log: MeasurementLog) -> np.ndarray:
+def _end_positions(log: MeasurementLog, delay: float = 0.0) -> np.ndarray:
     """(n,) [m]: the piston's positions as the intervals' ends read them, the transducer's noise smoothed (zero
     phase, :func:`_smooth`) except where the smoothing would reach over the kink of a command's jump (the raw
-    position there). Raises InputError (naming the log) for a hexapod log or one without ``p1_Pa``."""
+    position there); a transducer lagging ``delay`` [s] (it shows y(t - delay)) read that much later (the last
+    ``delay`` of the log held at its last reading). Raises InputError (naming the log) for a hexapod log or one
+    without ``p1_Pa``."""
     if log.system != "single-actuator":
         raise InputError(f"{log.path.name}: a flow curve is read from single-actuator logs (this one is {log.system})")
     if "p1_Pa" not in log.columns:
@@ -152,7 +158,7 @@ def _end_positions(log: MeasurementLog) -> np.ndarray:
     y = _smooth(log.columns["pos_m"], log.sample_rate_hz)
     kinked = near_jumps(log, WINDOW_S)
     y[kinked] = log.columns["pos_m"][kinked]
-    return y
+    return np.interp(log.time + delay, log.time, y) if delay > 0 else y
 
 
 def _skewed(samples: np.ndarray, interval: np.ndarray, a: np.ndarray, b: np.ndarray, share: float, n: int
