@@ -7,7 +7,7 @@ why a misfit beyond them is the calibration's envelope before it is an effect).
   effects' parameters (:func:`hexsim.measured.effect_fit.refit_on_baseline`), and replays the log on it;
   :func:`hexsim.measured.validation.validate` judges the effects there, or identifies again on it where nothing was
   named and the reading is within the budget, and says that an effect confined to those commands is not resolved on
-  this calibration (R1's nulls: `none`; its leakage, null offset, spool and supply sag: `explained`);
+  this calibration (R1's nulls: `none`; its leakage, null offset, spool, hysteresis and supply sag: `explained`);
 - :func:`read_sentence` says what the reading found.
 
 On the identification's side of the floor above scoring (it refits effects), above the envelope it reads.

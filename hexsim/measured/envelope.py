@@ -11,7 +11,7 @@ effect log `partial`. The misfit is the calibration's envelope, not an effect:
 - :func:`beyond_curve` says where a log runs beyond them, and how much of its time;
 - :func:`splice` joins the calibrated curve within them to one read beyond them;
   :mod:`hexsim.measured.curve_read` reads the curve there from the log itself, with the effects the identification
-  named refitted on it (R1's nulls: `none`; four of its five effects `explained`).
+  named refitted on it (R1's nulls: `none`; its five effects `explained`).
 """
 
 from __future__ import annotations
