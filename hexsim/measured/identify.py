@@ -481,8 +481,8 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
         f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))
     rounds, screening, accepted, current, model, budget = _select(problem, candidates, nominal, budget, jobs,
                                                                   progress, notify)
-    if not rounds:
-        verdict = "none"
+    if not rounds:  # nothing fitted: the nominal within its budget, or no candidate left to try (--without)
+        verdict = "none" if max(within_budget(nominal, budget).values()) <= WITHIN else "unexplained"
     elif not accepted:
         verdict = "unexplained"
     elif any(a.at_edge for a in accepted):

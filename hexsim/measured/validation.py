@@ -334,6 +334,9 @@ def _verdict_sentences(ident: Identification) -> list[str]:
                 out.append(f"{fit_label(f)} explains {f.held_out_gain:.1%} of the held-out error with "
                            f"{'; '.join(f.at_edge)}: the effect is in this log, but its form or its range does not "
                            f"fit this machine (a partial explanation, not a calibrated value).")
+    elif ident.verdict == "unexplained" and not ident.rounds:
+        out.append("No library effect was tried (every candidate left out): the model is off this log beyond its "
+                   "budget, and what it lacks is not named here.")
     elif ident.verdict == "unexplained":
         out.append("No library effect passes the acceptance test: the model lacks something outside the list.")
     out += _close_call_sentences(ident)

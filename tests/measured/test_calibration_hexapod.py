@@ -20,6 +20,7 @@ from independent_actuator import Actuator
 from independent_hexapod import Hexapod, motion, write
 
 from hexsim.measured.calibration import calibrate
+from hexsim.measured.candidates import CANDIDATES
 from hexsim.measured.measurement import read_log
 from hexsim.measured.validation import validate
 from hexsim.plant.machine import load_machine
@@ -103,8 +104,10 @@ def test_each_legs_valve_edges_the_bulk_modulus_and_the_payload_are_recovered(ca
 
 def test_on_the_calibrated_machine_a_log_of_another_motion_is_none(calibrated):
     paths, machine, _ = calibrated
-    before = validate(read_log(paths["null"]))  # the built-in file: each leg's valve is off
-    assert before["verdict"] != "none" and "never calibrated" in before["conclusions"][0]
+    # the built-in file: each leg's valve is off, beyond the budget with no effect fitted (a search of the
+    # library on top of it would only take the time)
+    before = validate(read_log(paths["null"]), without=tuple(CANDIDATES))
+    assert before["verdict"] == "unexplained" and "never calibrated" in before["conclusions"][0]
     doc = validate(read_log(paths["null"], machine=machine))
     assert doc["verdict"] == "none", doc["conclusions"]
 
