@@ -124,19 +124,6 @@ def test_report_folder(logs, tmp_path, capsys):
     assert "added effect: leakage" in capsys.readouterr().out
 
 
-def test_a_log_off_its_model_with_every_effect_left_out_is_unexplained_not_none(logs, tmp_path):
-    """``--without`` every library effect leaves nothing to fit: a log beyond its budget is then not within
-    it (it was answered ``none``), and the answer says that no effect was tried."""
-    from hexsim.measured.candidates import CANDIDATES
-
-    js = tmp_path / "leakage.json"
-    assert main(["validate", logs["leakage"], "--json", str(js), "--quiet", "--jobs", "1",
-                 "--without", ",".join(CANDIDATES)]) == 0
-    doc = json.loads(js.read_text())
-    assert doc["verdict"] == "unexplained" and doc["added_effects"] == [], doc["conclusions"]
-    assert any(c.startswith("No library effect was tried") for c in doc["conclusions"]), doc["conclusions"]
-
-
 def test_friction_from_pressures_and_from_force(logs, tmp_path):
     from hexsim.measured.friction_id import identify_friction
     from hexsim.measured.measurement import read_log
