@@ -149,10 +149,13 @@ def _fit_in_worker(source: tuple, key: str, base: PlantModel, budget: Budget,
     return _fit_one(_rebuilt(source), key, base, budget, on_top_of, starts)
 
 
-def start_cost(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget) -> tuple[tuple[float, ...], float]:
+def start_cost(problem: ReplayProblem, key: str, base: PlantModel, budget: Budget,
+               base_residual: np.ndarray | None = None) -> tuple[tuple[float, ...], float]:
     """(best start, its cost on the fit windows of the search problem) of a candidate: one replay per
     start, the candidate's own starts and the linearised one (:func:`linear_start`). A start the model
-    cannot run scores infinite."""
+    cannot run scores infinite. ``base_residual``: ``base``'s own residual there (:func:`residual_vector`
+    on the fit rows), taken for every start that leaves ``base`` as it is (the linearised start's origin, the
+    model without the effect: one replay less per candidate)."""
     search = search_problem(problem).fit_windows()
     cand, leg = parse_key(key)
     lower, upper = plausible_bounds(cand, search.log)
@@ -160,7 +163,10 @@ def start_cost(problem: ReplayProblem, key: str, base: PlantModel, budget: Budge
 
     def cost_at(x: np.ndarray) -> tuple[np.ndarray | None, float]:
         try:
-            r = residual_vector(search, search.simulate(apply(base, x)), budget, search.fit_rows)
+            model = apply(base, x)
+            if base_residual is not None and model == base:
+                return base_residual, float(base_residual @ base_residual)
+            r = residual_vector(search, search.simulate(model), budget, search.fit_rows)
         except (PhysicsError, FloatingPointError, ValueError):
             return None, math.inf
         return r, float(r @ r)
@@ -211,8 +217,8 @@ def linear_start(cand, starts: list[np.ndarray], lower: np.ndarray, upper: np.nd
     return np.clip(x, lower, upper)
 
 
-def _start_cost_in_worker(source, key, base, budget):
-    return start_cost(_rebuilt(source), key, base, budget)
+def _start_cost_in_worker(source, key, base, budget, base_residual=None):
+    return start_cost(_rebuilt(source), key, base, budget, base_residual)
 
 
 def standout_legs(problem: ReplayProblem, scored: Scored, budget: Budget) -> list[int]:
@@ -299,16 +305,18 @@ def _parallel(jobs: int, fn, worker, problem, calls: list[tuple], on_done=None) 
     return results
 
 
-def _screen(problem: ReplayProblem, log, keys: list[str], base: PlantModel, budget: Budget, base_cost: float,
-            jobs: int, notify) -> tuple[list[str], dict[str, tuple], list[dict]]:
+def _screen(problem: ReplayProblem, log, keys: list[str], base: PlantModel, budget: Budget,
+            base_residual: np.ndarray | None, jobs: int, notify) -> tuple[list[str], dict[str, tuple], list[dict]]:
     """Hexapod: the cost of each candidate's best start on the search segments (:func:`start_cost`); the
-    :data:`FIT_PER_ROUND` lowest go on to be fitted from that start. Returns (keys to fit, their start,
-    the screening table)."""
+    :data:`FIT_PER_ROUND` lowest go on to be fitted from that start. ``base_residual``: ``base``'s residual on
+    the search segments' fit rows (None where no screening is due). Returns (keys to fit, their start, the
+    screening table)."""
     if not problem.screens or len(keys) <= FIT_PER_ROUND:
         return keys, {}, []
     notify(f"screening {len(keys)} candidates by their best start on the first {SEARCH_SEGMENTS} segments")
+    base_cost = float(base_residual @ base_residual)
     costs = _parallel(jobs, partial(start_cost, problem), _start_cost_in_worker, problem,
-                      [(k, base, budget) for k in keys])
+                      [(k, base, budget, base_residual) for k in keys])
     ranked = sorted(range(len(keys)), key=lambda i: costs[i][1])
     chosen = [keys[i] for i in ranked[:FIT_PER_ROUND]]
     table = [{"candidate": keys[i], "start": list(costs[i][0]), "start_cost_ratio": costs[i][1] / base_cost
@@ -363,9 +371,9 @@ def _select(problem: Problem, candidates: tuple[str, ...], nominal: Scored, budg
             if not keys:
                 break
             on_top = tuple(a.key for a in accepted)
-            base_cost = float(np.sum(residual_vector(search, search.simulate(model), budget, search.fit_rows) ** 2)) \
-                if problem.screens and len(keys) > FIT_PER_ROUND else 0.0
-            keys, starts, table = _screen(problem, log, keys, model, budget, base_cost, jobs, notify)
+            base_residual = residual_vector(search, search.simulate(model), budget, search.fit_rows) \
+                if problem.screens and len(keys) > FIT_PER_ROUND else None
+            keys, starts, table = _screen(problem, log, keys, model, budget, base_residual, jobs, notify)
             screening.append(table)
             notify(f"round {len(rounds) + 1}: fitting {len(keys)} candidates")
             fits = _fit_round(problem, log, keys, model, budget, on_top, jobs, bar, notify, starts)
