@@ -82,6 +82,10 @@ class Candidate:
     narrow: Callable[[MeasurementLog, np.ndarray, np.ndarray], None] | None = None
     #: the smallest value of a parameter a log resolves, name -> value (:func:`resolution_floor`)
     floor: Callable[[MeasurementLog], dict[str, float]] | None = None
+    #: per parameter, the values that switch the effect off on a log, together: the effect is absent only where
+    #: every one is at its value (a load's declared mass and inclination: a heavier mass on the declared axis is a
+    #: load); None: each parameter's own :attr:`Parameter.no_effect`, any one of them alone
+    no_effect_of: Callable[[MeasurementLog], tuple[float, ...]] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "parameters", tuple(p if p.source else replace(p, source=self.source)
@@ -321,13 +325,14 @@ CANDIDATES: dict[str, Candidate] = {c.name: c for c in (
               lambda m, x: _eff(m, leakage=x[0] * 1e-12),
               "internal leakage across the piston, C_l (P_s - P1) into the bottom chamber (a 4-way valve: "
               "C_l (P2 - P1), from the rod side)"),
-    Candidate("load", (_p("M", "kg", 5.0, 400.0), _p("inclination", "deg", 0.0, 89.0, no_effect=0.0)),
+    Candidate("load", (_p("M", "kg", 5.0, 400.0), _p("inclination", "deg", 0.0, 89.0, neutral=0.0)),
               lambda log: ((log.moving_mass_kg, max(log.inclination_deg, 1.0)),
                            (1.5 * log.moving_mass_kg, 30.0)),
               "a moving mass of 5-400 kg per axis (seed app. A: 40 kg) and any inclination short of "
               "horizontal",
               _load, "moving mass and inclination of the axis differ from the declared (seed ch. 4: gravity not "
-              "along the actuator)", systems=("single-actuator",)),
+              "along the actuator)", systems=("single-actuator",),
+              no_effect_of=lambda log: (log.moving_mass_kg, log.inclination_deg)),
     Candidate("friction", (_p("k_c", "-", 0.0, 10.0, neutral=1.0), _p("k_sigma", "-", 0.0, 10.0, neutral=1.0)),
               lambda log: ((1.0, 1.0), (0.5, 1.0), (2.5, 1.0)),
               "Coulomb/static and viscous levels within 0-10x the seed's identified ones (seed §2.3.3, "
@@ -416,23 +421,31 @@ def plausibility(cand: Candidate, log: MeasurementLog, x: np.ndarray, se: np.nda
     parameters' standard errors (same units; nan where the fit held a parameter at a bound). A value is
     at the no-effect value when it lies within :data:`NO_EFFECT_SE` standard errors of it (without a
     standard error: within :data:`PLAUSIBLE_EDGE` of the range); a no-effect value that is also a bound of the
-    range (R_s >= 0, C_l >= 0) is the physical limit, not a bound the fit ran into."""
+    range (R_s >= 0, C_l >= 0) is the physical limit, not a bound the fit ran into. A candidate whose no-effect
+    values come from the log together (:attr:`Candidate.no_effect_of`, the load) is no finding only where all of
+    them are at theirs."""
     lower, upper = plausible_bounds(cand, log)
     span = upper - lower
     low_edge, high_edge = plausible_edges(lower, upper)
     se = np.full(len(x), np.nan) if se is None else np.asarray(se, dtype=float)
     problems = []
+    offs = cand.no_effect if cand.no_effect_of is None else cand.no_effect_of(log)
+    at_off = []  # the parameters at their no-effect value, and the words that say so
     for i, (name, unit) in enumerate(zip(cand.names, cand.units)):
-        off = cand.no_effect[i]
+        off = offs[i]
         v = float(x[i])
         by_se = bool(np.isfinite(se[i]) and se[i] > 0)
         near = NO_EFFECT_SE * se[i] if by_se else PLAUSIBLE_EDGE * span[i]
         if off is not None and abs(v - off) <= near:
-            problems.append(f"{name} = {v:.4g} {unit} is the value without the effect"
-                            + (f" (within {NO_EFFECT_SE:g} standard errors)" if by_se else ""))
+            within = f" (within {NO_EFFECT_SE:g} standard errors)" if by_se else ""
+            at_off.append(f"{name} = {v:.4g} {unit}{within}")
+            if cand.no_effect_of is None:
+                problems.append(f"{name} = {v:.4g} {unit} is the value without the effect{within}")
         elif ((v <= low_edge[i] and off != lower[i]) or (v >= high_edge[i] and off != upper[i])):
             problems.append(f"{name} = {v:.4g} {unit} {AT_EDGE_WORDS} "
                             f"{lower[i]:.4g}…{upper[i]:.4g}")
+    if cand.no_effect_of is not None and len(at_off) == len(offs):
+        problems.append(" and ".join(at_off) + " are the values without the effect")
     for name, floor in resolution_floor(cand, log).items():
         i = cand.names.index(name)
         if float(x[i]) < floor:

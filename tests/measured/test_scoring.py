@@ -196,3 +196,20 @@ def test_the_calibrations_uncertainty_moves_each_key_from_the_files_own_value(tm
         problem = make_problem(read_log(path, machine=machine))
         floors[gain] = calibration_uncertainty(problem, problem.simulate(problem.nominal))["position"]
     assert 0.0 < floors[1.0] < 1.5 * floors[0.95], floors
+
+
+def test_a_load_is_no_finding_only_where_its_mass_and_its_inclination_are_both_the_declared():
+    """The load's no-effect values are the log's declared mass and inclination, together: a heavier mass on the
+    declared vertical axis is a finding (it was refused for its inclination of 0 alone), the declared pair is not,
+    and an inclination alone is one as well."""
+    from types import SimpleNamespace
+
+    from hexsim.measured.candidates import CANDIDATES, plausibility
+
+    load, log = CANDIDATES["load"], SimpleNamespace(moving_mass_kg=40.0, inclination_deg=0.0)
+    se = np.array([0.5, 0.5])
+    assert plausibility(load, log, np.array([70.0, 0.0]), se) == []
+    assert plausibility(load, log, np.array([40.0, 25.0]), se) == []
+    (nothing,) = plausibility(load, log, np.array([40.3, 0.2]), se)
+    assert nothing.startswith("M = 40.3 kg (within 4 standard errors) and inclination = 0.2 deg") and \
+        nothing.endswith("are the values without the effect"), nothing

@@ -124,6 +124,22 @@ def test_report_folder(logs, tmp_path, capsys):
     assert "added effect: leakage" in capsys.readouterr().out
 
 
+def test_a_heavier_mass_on_the_declared_vertical_axis_is_named_a_load(tmp_path):
+    """A load needs no inclination: 30 kg more on the seed's vertical actuator (its inclination the declared
+    0°) is named ``load`` with its mass. It was refused as "inclination = 0 deg is the value without the effect",
+    as if the inclination alone switched the effect off, and the log answered ``unexplained``."""
+    log = tmp_path / "heavier.csv"
+    result = simulate(RunConfig(make_scenario("actuator", duration=DURATION), Machine(effects=Effects(mass_kg=70.0)),
+                                seed=7))
+    write_log(log, result, noise=np.random.default_rng(8))
+    js = tmp_path / "heavier.answer.json"
+    assert main(["validate", str(log), "--json", str(js), "--quiet", "--jobs", "1"]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["verdict"] == "explained" and [e["name"] for e in doc["added_effects"]] == ["load"], doc["conclusions"]
+    found = {k: v["value"] for k, v in doc["added_effects"][0]["parameters"].items()}
+    assert found["M"] == pytest.approx(70.0, rel=0.05) and found["inclination"] < 10.0, found
+
+
 def test_friction_from_pressures_and_from_force(logs, tmp_path):
     from hexsim.measured.friction_id import identify_friction
     from hexsim.measured.measurement import read_log
