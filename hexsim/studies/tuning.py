@@ -216,8 +216,8 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     safe = {label: v for label, v in ratios.items() if label not in worse}
     if not safe or not min(safe.values())[0] < 1.0:
         raise InputError("tune: no compensator makes the reversal bump smaller than none on these motions and their "
-                         "neighbours without making a reversal worse somewhere (a smaller --dead-band-tolerance, "
-                         "if the valve's edges are known better, narrows the neighbours)")
+                         f"neighbours without making a reversal worse somewhere: {_nearest(rows, none)} (a smaller "
+                         "--dead-band-tolerance, if the valve's edges are known better, narrows the neighbours)")
     best = min(v[0] for v in safe.values())
     robust = [label for label, v in safe.items() if v[0] <= ROBUST_TIE * best]
     own = {label: max(_ratio(r, none[r["motion"], r["neighbour"]]) for r in rows[label]
@@ -225,6 +225,21 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     label = min(robust, key=lambda k: (own[k], safe[k]))
     return TuneResult(tuple(tried), rows, next(c for c in tried if c.label == label), safe[label][0], refused, model,
                       safe[label][1], worse, tuple(neighbours))
+
+
+def _nearest(rows: dict[str, list[dict]], none: dict) -> str:
+    """What the candidate nearest to a safe one did (``rows`` per candidate label, ``none`` the uncompensated row per
+    (motion, neighbour)): the one whose worst single reversal against none's is smallest, with its mean bump's range
+    against none's over the motions and neighbours and where its worst reversal was."""
+    worst = {label: max((_worst_reversal(r, none[r["motion"], r["neighbour"]]), r["motion"], r["neighbour"])
+                        for r in rs) for label, rs in rows.items() if label != "none" and rs}
+    if not worst:
+        return "no candidate ran"
+    label = min(worst, key=lambda k: worst[k][0])
+    ratios = [_ratio(r, none[r["motion"], r["neighbour"]]) for r in rows[label]]
+    w, motion, neighbour = worst[label]
+    return (f"the nearest, {label}, takes the mean reversal bump to {min(ratios):.2f}-{max(ratios):.2f}x none's over "
+            f"them, and one reversal to {w:.2f}x none's on {motion}, {neighbour}")
 
 
 def _worst_reversal(row: dict, none: dict) -> float:

@@ -195,3 +195,23 @@ def test_the_model_check_names_what_is_wrong():
                          ({"friction_f": np.array([100.0, -100.0])}, "oppose")):
         with pytest.raises(SettingsError, match=text):
             LegModel(**{**good, **change})
+
+
+def test_a_tune_with_no_safe_compensator_names_the_nearest_and_where_it_fails():
+    """Where every candidate makes some reversal worse than none on some neighbour, the error says which came
+    nearest (the smallest worst reversal), its mean bump against none's and where its worst reversal was: on an
+    independent 4-way vertical axis (examples/four_way_axis.py) the bare sentence left the user nothing to act on."""
+    from hexsim.studies.tuning import _nearest
+
+    def row(label, neighbour, mean, peaks):
+        return {"candidate": label, "motion": "actuator", "neighbour": neighbour, "final_mean_reversal_peak": mean,
+                "final_reversal_peaks": peaks}
+
+    none = {("actuator", n): row("none", n, 1.0, [1.0, 1.0]) for n in ("calibrated", "drift")}
+    rows = {"none": list(none.values()),
+            "feedforward": [row("feedforward", "calibrated", 0.5, [0.4, 0.6]),
+                            row("feedforward", "drift", 0.9, [0.5, 1.4])],
+            "buffered": [row("buffered", "calibrated", 0.95, [0.9, 1.0]), row("buffered", "drift", 0.97, [1.1, 0.9])]}
+    said = _nearest(rows, none)
+    assert said.startswith("the nearest, buffered, takes the mean reversal bump to 0.95-0.97x none's"), said
+    assert said.endswith("one reversal to 1.10x none's on actuator, drift"), said
