@@ -131,7 +131,8 @@ def main() -> None:
         list(pool.map(_log, [out] * len(names), names))
     print(f"{len(names)} logs of the axis (20 s each) in {time.perf_counter() - start:.0f} s\n")
     cal = calibrated(out)
-    print("\n| log (hidden truth) | verdict | named effects (fitted) | held-out RMS / budget | wall |\n|---|---|---|---|---|")
+    print("\n| log (hidden truth) | verdict | named effects (fitted) | held-out RMS / budget | wall |")
+    print("|---|---|---|---|---|")
     for name in names[2:]:
         answer = out / f"{name}.answer.json"
         start = time.perf_counter()

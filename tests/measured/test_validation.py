@@ -127,7 +127,8 @@ def test_report_folder(logs, tmp_path, capsys):
 def test_a_heavier_mass_on_the_declared_vertical_axis_is_named_a_load(tmp_path):
     """A load needs no inclination: 30 kg more on the seed's vertical actuator (its inclination the declared
     0°) is named ``load`` with its mass. It was refused as "inclination = 0 deg is the value without the effect",
-    as if the inclination alone switched the effect off, and the log answered ``unexplained``."""
+    as if the inclination alone switched the effect off, and the log was not explained (``partial`` here,
+    ``unexplained`` on the 4-way axis of examples/four_way_axis.py)."""
     log = tmp_path / "heavier.csv"
     result = simulate(RunConfig(make_scenario("actuator", duration=DURATION), Machine(effects=Effects(mass_kg=70.0)),
                                 seed=7))
