@@ -190,22 +190,20 @@ def _beyond_sentences(ident: Identification) -> list[str]:
         limit = log.machine.sensors.offset_limit(ch)
         scale = 1e5 if unit == "Pa" else 1.0
         shown = "bar" if unit == "Pa" else unit
+        asks = f"The {labels[j] if len(labels) > 1 else ch} sensor's offset asks {worst / scale:+.3g} {shown}"
+        sheet = f"beyond its data sheet's ±{limit / scale:.3g} {shown} ({key}): physics, not the sensor"
         now = final.get(ch, {})
         if ident.accepted and not any(b is not None for b in now.get("beyond", [])) and len(now.get("offset", [])) > j:
             effects = " + ".join(fit_label(f) for f in ident.accepted)
-            out.append(f"The {labels[j] if len(labels) > 1 else ch} sensor's offset asks {worst / scale:+.3g} {shown} "
-                       f"on the nominal model, beyond its data sheet's ±{limit / scale:.3g} {shown} ({key}): physics, "
-                       f"not the sensor, and the model with {effects} accounts for it (its offset there "
-                       f"{now['offset'][j] / scale:+.3g} {shown}, within the data sheet); the candidates were "
+            out.append(f"{asks} on the nominal model, {sheet}, and the model with {effects} accounts for it (its offset "
+                       f"there {now['offset'][j] / scale:+.3g} {shown}, within the data sheet); the candidates were "
                        f"judged with it held at its limit.")
             continue
         what = (f"an inclination: the axis {_tilt(log, worst)} from vertical instead of "
                 f"{log.inclination_deg:g}°, or a load" if ch == "acceleration" and log.system == "single-actuator"
                 else "a load (weight, payload) or a supply level" if ch != "acceleration"
                 else "the platform's pose or a payload")
-        out.append(f"The {labels[j] if len(labels) > 1 else ch} sensor's offset asks {worst / scale:+.3g} {shown}, "
-                   f"beyond its data sheet's ±{limit / scale:.3g} {shown} ({key}): physics, not the sensor ({what}); "
-                   f"it is held at its limit and the effects are judged with it held.")
+        out.append(f"{asks}, {sheet} ({what}); it is held at its limit and the effects are judged with it held.")
     return out
 
 
