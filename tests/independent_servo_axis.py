@@ -10,8 +10,10 @@
   q_L = C_L (p2 - p1) across the piston seal; pressures kept above -0.9 bar;
 - piston: M dv/dt = p1 A1 - p2 A2 - F_f(v) - M g + end stops (stiff springs with damping at 0 and L), F_f = (F_c +
   F_s exp(-|v| / v_s)) tanh(v / 0.5 mm/s) + sigma v, each direction its own F_c, F_s;
-- the loop: u = sat(K_p (r - y_m), +-10 V) at 500 Hz, held between samples, y_m the position with the
-  transducer's noise;
+- the loop: u = sat(K_p (r - y_m) + U_c, +-10 V) at 500 Hz, held between samples, y_m the position with the
+  transducer's noise, U_c a compensator's output where one is hooked in (``run(..., compensate=...)``, called as
+  hexsim's P controller calls one);
+- the valve's null may drift (``null_rate`` [V/s], from ``null_offset`` at t = 0);
 - the log at 1 kHz: time_s, ref_m, valve_cmd_V, pos_m, p1_Pa, p2_Pa, ps_Pa with 5 um and 0.045 bar of white
   noise (a supply held at its set pressure).
 """
@@ -43,6 +45,7 @@ class Axis:
     knee_f: float = 0.5  # the opening's fraction there
     overlap_v: float = 0.1  # [V]
     null_offset: float = 0.0  # [V]
+    null_rate: float = 0.0  # [V/s]
     spool_hz: float = 60.0
     spool_zeta: float = 0.7
     k_pa: float = 1.0
@@ -77,8 +80,15 @@ def opening(ax: Axis, u: float) -> float:
     return min(ax.knee_f + (1.0 - ax.knee_f) * (a - knee) / (10.0 - ax.knee_v), 1.0)
 
 
-def run(ax: Axis, ref: np.ndarray, seed: int) -> np.ndarray:
-    """The axis following ``ref`` (n,) [m] at 1 kHz from rest at ref[0]: the log's columns (n, 7)."""
+def run(ax: Axis, ref: np.ndarray, seed: int, compensate=None, states: dict | None = None) -> np.ndarray:
+    """The axis following ``ref`` (n,) [m] at 1 kHz from rest at ref[0]: the log's columns (n, 7).
+
+    ``compensate(u_p, y, r, r_dot, r_ddot, r_dddot, p1) -> U_c`` [V] is called at each controller sample with the P
+    output, the measured position, the reference and its derivatives (central differences of the 500 Hz setpoints)
+    and the measured cap pressure, as hexsim's P controller calls a compensator; U_c is added before the
+    saturation. ``states``, where given, receives the run without sensor noise at the log's samples: ``acc_mps2``
+    (the piston's acceleration averaged over the millisecond before each sample, as an accelerometer sampled at
+    1 kHz gives it), ``velocity_mps``, ``comp_V`` (U_c)."""
     a1 = math.pi / 4 * ax.bore**2
     a2 = a1 - math.pi / 4 * ax.rod**2
     cd, rho, g = 0.61, 860.0, 9.81
@@ -110,26 +120,39 @@ def run(ax: Axis, ref: np.ndarray, seed: int) -> np.ndarray:
         elif y > ax.stroke:
             stop = -5e7 * (y - ax.stroke) - 2e4 * v
         dv = (p1 * a1 - p2 * a2 - friction - ax.mass * g + stop) / ax.mass
-        return [v, dv, dp1, dp2, vs, w * w * (cmd - ax.null_offset - xs) - 2 * ax.spool_zeta * w * vs]
+        null = ax.null_offset + ax.null_rate * t
+        return [v, dv, dp1, dp2, vs, w * w * (cmd - null - xs) - 2 * ax.spool_zeta * w * vs]
 
     rng = np.random.default_rng(seed)
     n = ref.size
     p1_0 = (ax.mass * g + 0.5 * ax.supply * a2) / a1  # at rest, the rod side at half the supply
     state = np.array([float(ref[0]), 0.0, p1_0, 0.5 * ax.supply, 0.0, 0.0])
     out = np.empty((n, 4))
-    cmds = np.empty(n)
+    cmds, comp = np.empty(n), np.zeros(n)
     per = int(round(LOG_HZ / ax.rate))
+    derivatives = [np.gradient(ref[::per], per / LOG_HZ)]
+    for _ in range(2):
+        derivatives.append(np.gradient(derivatives[-1], per / LOG_HZ))
+    p_noise = rng.normal(0.0, ax.p_noise, n) if compensate is not None else None
     tol = dict(method="LSODA", rtol=1e-6, atol=[1e-9, 1e-7, 1.0, 1.0, 1e-6, 1e-3])
     for k in range(0, n, per):
-        cmd = float(np.clip(ax.kp * (ref[k] - state[0] - rng.normal(0.0, ax.pos_noise)), -10.0, 10.0))
+        e = rng.normal(0.0, ax.pos_noise)
+        u_p, u_c = ax.kp * (ref[k] - state[0] - e), 0.0
+        if compensate is not None:
+            d1, d2, d3 = (d[k // per] for d in derivatives)
+            u_c = float(compensate(u_p, state[0] + e, ref[k], d1, d2, d3, state[2] + p_noise[k]))
+        cmd = float(np.clip(u_p + u_c, -10.0, 10.0))
         t0, t1 = k / LOG_HZ, (k + per) / LOG_HZ
         rows = np.arange(k, min(k + per, n))
         sol = solve_ivp(rhs, (t0, t1), state, t_eval=[*(rows / LOG_HZ), t1], args=(cmd,), **tol)
         assert sol.success, sol.message
         out[rows] = sol.y[:4, :rows.size].T
-        cmds[rows] = cmd
+        cmds[rows], comp[rows] = cmd, u_c
         state = sol.y[:, -1]
     t = np.arange(n) / LOG_HZ
+    if states is not None:
+        v = out[:, 1]
+        states.update(velocity_mps=v.copy(), comp_V=comp, acc_mps2=np.concatenate([[0.0], np.diff(v) * LOG_HZ]))
     noise = rng.normal(0.0, 1.0, (n, 4)) * [ax.pos_noise, ax.p_noise, ax.p_noise, ax.p_noise]
     return np.column_stack([t, ref, cmds, out[:, 0] + noise[:, 0], out[:, 2] + noise[:, 1], out[:, 3] + noise[:, 2],
                             ax.supply + noise[:, 3]])
