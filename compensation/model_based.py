@@ -259,14 +259,17 @@ class FeedforwardCompensator(Compensator):
         """u_v [V] (n_legs,) giving the static ``velocity`` [m/s] at bottom pressure ``p1`` [Pa]: the flow
         curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted; the
         scale held within 0.5…2 (a chamber near supply or tank pressure would otherwise ask for the whole
-        valve)."""
+        valve). With ``settings.dead_band_margin`` m > 0 the curve is read as opening m earlier on each edge:
+        u_v moved m towards 0 V, and held at 0 V within m of it."""
         m = self.model
         target = np.asarray(velocity, dtype=float)
         if m.pressure_scaling:
             up = (m.supply_pressure - p1) / self._rest_drop[0]
             down = (p1 - m.tank_pressure) / self._rest_drop[1]
             target = target / np.sqrt(np.clip(np.where(target >= 0, up, down), 0.25, 4.0))
-        return np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
+        u = np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
+        margin = self.settings.dead_band_margin
+        return np.sign(u) * np.maximum(np.abs(u) - margin, 0.0) if margin else u
 
     def pressure_filter(self, p1: np.ndarray) -> np.ndarray:
         """The measured p1's departure from P1_ref [Pa] (n_legs,) low-passed at :data:`PRESSURE_FILTER_HZ`

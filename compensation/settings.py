@@ -43,7 +43,11 @@ class CompensatorSettings:
         near zero velocity, is otherwise most of what is left of the bump (see :mod:`compensation.model_based`);
     adapt_time: [s] time constant with which the adaptive feedforward's correction table follows the
         volts the P loop adds; adapt_rate: [V/s] its largest step rate; adapt_limit: [V] its largest
-        correction (a drifting null, a changed flow gain; beyond it the model is wrong, not drifting).
+        correction (a drifting null, a changed flow gain; beyond it the model is wrong, not drifting);
+    dead_band_margin: [V] how far short of each valve edge the model-based feedforward's inverse stops (its
+        curve read as opening this much earlier, :func:`hexsim.plant.hydraulics.as_curve`'s shift): a dead band
+        known to within ± this much is never jumped too far, at the price of that much left to the P loop at
+        each reversal (0, default: the calibrated edges taken as exact; ``hexsim tune``'s dead-band tolerance).
     """
 
     velocity_cutoff_hz: float = 20.0
@@ -62,6 +66,7 @@ class CompensatorSettings:
     adapt_time: float = 0.3
     adapt_rate: float = 0.5
     adapt_limit: float = 1.0
+    dead_band_margin: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("velocity_cutoff_hz", "velocity_band", "q_threshold", "iterative_gain", "buffer_time",
@@ -70,6 +75,9 @@ class CompensatorSettings:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise SettingsError(f"compensator setting {name} must be a finite positive number, got {value!r}")
+        if not (isinstance(self.dead_band_margin, (int, float)) and 0.0 <= self.dead_band_margin <= 0.1):
+            raise SettingsError("compensator setting dead_band_margin must be between 0 and 0.1 V, got "
+                                f"{self.dead_band_margin!r}")
         if self.held_maximum not in ("per-side", "seed"):
             raise SettingsError(f"compensator setting held_maximum must be 'per-side' or 'seed', got {self.held_maximum!r}")
         if self.feedforward_pressure not in ("reference", "measured"):

@@ -184,7 +184,10 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     calibrated machine's leg model on all of them, and choose the best worst case (module docstring): among the
     candidates that make no single reversal worse than none's anywhere, those whose largest ratio of the final
     mean reversal peak to none's is within :data:`ROBUST_TIE` of the smallest, and of them the best on the
-    machine as calibrated (the first neighbour). Raises InputError when no candidate does."""
+    machine as calibrated (the first neighbour). Where none is safe and the neighbours move the valve's edges, a
+    second round tries the model-based candidates again stopping that far short of each edge
+    (``dead_band_margin``: a dead band known to that tolerance is never jumped too far). Raises InputError when
+    no candidate of either round is safe."""
     candidates = tuple(Candidate(name, dataclasses.replace(base.compensator_settings, **changes))
                        for name, changes in CANDIDATES)
     refused: dict[str, str] = {}
@@ -194,27 +197,18 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     except InputError as exc:
         refused.update({c.label: str(exc) for c in candidates if c.compensator in MODEL_BASED})
     tried = [c for c in candidates if c.label not in refused]
-    points = []
-    for c in tried:
-        held = {"compensator_model": model} if c.compensator in MODEL_BASED else {}
-        for motion in motions:
-            for n in neighbours:
-                config = n.apply(dataclasses.replace(base, scenario=_motion(base, motion), compensator=c.compensator,
-                                                     compensator_settings=c.settings, progress=False, **held))
-                points.append(Point(len(points), {"candidate": c.label, "motion": motion, "neighbour": n.name}, config))
-    flat, _ = run_sweep(points, jobs=jobs, progress=progress, evaluate=evaluate_tuning)
-    rows = {c.label: [r for r in flat if r["candidate"] == c.label] for c in tried}
+    rows = _rows(base, tried, motions, neighbours, model, jobs, progress)
     none = {(r["motion"], r["neighbour"]): r for r in rows["none"]}
-    ratios, worse = {}, {}
-    for label, rs in rows.items():
-        if label == "none":
-            continue
-        ratios[label] = max((_ratio(r, none[r["motion"], r["neighbour"]]), (r["motion"], r["neighbour"])) for r in rs)
-        bad = [(r["motion"], r["neighbour"]) for r in rs if _worst_reversal(r, none[r["motion"], r["neighbour"]]) >= 1.0]
-        if bad:
-            worse[label] = f"a reversal worse than none's on {bad[0][0]}, {bad[0][1]}"
+    ratios, worse = _judged(rows, none)
+    margin = max((n.open_earlier_V for n in neighbours), default=0.0)
+    if not _any_safe(ratios, worse) and margin > 0 and model is not None:
+        short = [Candidate(c.compensator, dataclasses.replace(c.settings, dead_band_margin=margin))
+                 for c in tried if c.compensator in MODEL_BASED]
+        rows.update(_rows(base, short, motions, neighbours, model, jobs, progress))
+        tried += short
+        ratios, worse = _judged(rows, none)
     safe = {label: v for label, v in ratios.items() if label not in worse}
-    if not safe or not min(safe.values())[0] < 1.0:
+    if not _any_safe(ratios, worse):
         raise InputError("tune: no compensator makes the reversal bump smaller than none on these motions and their "
                          f"neighbours without making a reversal worse somewhere: {_nearest(rows, none)} (a smaller "
                          "--dead-band-tolerance, if the valve's edges are known better, narrows the neighbours)")
@@ -225,6 +219,40 @@ def tune(base: RunConfig, motions: tuple[str, ...], *, jobs: int = 2, progress: 
     label = min(robust, key=lambda k: (own[k], safe[k]))
     return TuneResult(tuple(tried), rows, next(c for c in tried if c.label == label), safe[label][0], refused, model,
                       safe[label][1], worse, tuple(neighbours))
+
+
+def _rows(base: RunConfig, candidates: list[Candidate], motions: tuple[str, ...], neighbours: tuple[Neighbour, ...],
+          model: LegModel | None, jobs: int, progress: bool) -> dict[str, list[dict]]:
+    """Each candidate's rows (:func:`evaluate_tuning`, one per motion and neighbour), run on the sweep path."""
+    points = []
+    for c in candidates:
+        held = {"compensator_model": model} if c.compensator in MODEL_BASED else {}
+        for motion in motions:
+            for n in neighbours:
+                config = n.apply(dataclasses.replace(base, scenario=_motion(base, motion), compensator=c.compensator,
+                                                     compensator_settings=c.settings, progress=False, **held))
+                points.append(Point(len(points), {"candidate": c.label, "motion": motion, "neighbour": n.name}, config))
+    flat, _ = run_sweep(points, jobs=jobs, progress=progress, evaluate=evaluate_tuning)
+    return {c.label: [r for r in flat if r["candidate"] == c.label] for c in candidates}
+
+
+def _judged(rows: dict[str, list[dict]], none: dict) -> tuple[dict, dict]:
+    """(label -> (the largest ratio of its final mean reversal peak to none's, where), label -> where it made a
+    reversal worse than none's) over the candidates' ``rows`` but none's."""
+    ratios, worse = {}, {}
+    for label, rs in rows.items():
+        if label == "none":
+            continue
+        ratios[label] = max((_ratio(r, none[r["motion"], r["neighbour"]]), (r["motion"], r["neighbour"])) for r in rs)
+        bad = [(r["motion"], r["neighbour"]) for r in rs if _worst_reversal(r, none[r["motion"], r["neighbour"]]) >= 1.0]
+        if bad:
+            worse[label] = f"a reversal worse than none's on {bad[0][0]}, {bad[0][1]}"
+    return ratios, worse
+
+
+def _any_safe(ratios: dict, worse: dict) -> bool:
+    """Whether a candidate makes the bump smaller than none's everywhere without a worse reversal anywhere."""
+    return any(v[0] < 1.0 for label, v in ratios.items() if label not in worse)
 
 
 def _nearest(rows: dict[str, list[dict]], none: dict) -> str:

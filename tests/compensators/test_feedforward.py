@@ -199,6 +199,27 @@ def test_the_model_check_names_what_is_wrong():
             LegModel(**{**good, **change})
 
 
+def test_a_dead_band_margin_stops_the_inverse_that_far_short_of_each_valve_edge():
+    """dead_band_margin m: the inverse reads the curve as opening m earlier on each edge (the tuning's underlap
+    neighbour), so u_v moves m towards 0 V and stays at 0 V within m of it; out of 0…0.1 V it is refused."""
+    u = np.linspace(-10, 10, 2001)
+    velocity = 0.02 * np.sign(u) * np.maximum(np.abs(u) - 0.1, 0.0)  # a 0.1 V overlap either side
+    model = LegModel(u=u, velocity=velocity[None, :], p_rest=np.array([4e6]), supply_pressure=7e6, tank_pressure=0.0,
+                     area_bottom=1.2e-3, bulk_modulus=1.5e9, pipeline_volume=5e-7, mass=np.array([[40.0]]),
+                     friction_v=np.array([-1.0, 1.0]), friction_f=np.array([-100.0, 100.0]), slope=np.array([0.02]),
+                     pressure_scaling=False)
+    exact = make_compensator("feedforward", 1, 500.0, model=model)
+    short = make_compensator("feedforward", 1, 500.0, model=model, settings=CompensatorSettings(dead_band_margin=0.01))
+    p1 = np.array([4e6])
+    for v, at_edge in ((1e-5, 0.1005), (-1e-5, -0.1005), (0.02, 1.1), (-0.1, -5.1)):
+        assert exact.inverse(np.array([v]), p1)[0] == pytest.approx(at_edge, abs=1e-6)
+        assert short.inverse(np.array([v]), p1)[0] == pytest.approx(at_edge - np.sign(v) * 0.01, abs=1e-6)
+    assert short.inverse(np.array([1e-14]), p1)[0] == 0.0
+    for bad in (-0.001, 0.2, float("nan")):
+        with pytest.raises(SettingsError, match="dead_band_margin"):
+            CompensatorSettings(dead_band_margin=bad)
+
+
 def test_a_tune_with_no_safe_compensator_names_the_nearest_and_where_it_fails():
     """Where every candidate makes some reversal worse than none on some neighbour, the error says which came
     nearest (the smallest worst reversal), its mean bump against none's and where its worst reversal was: on an
