@@ -10,7 +10,8 @@ tolerance off the file's), the compensator keeping the calibrated machine's leg 
 is the one whose worst case (motion and neighbour) has the smallest mean reversal peak relative to the
 uncompensated machine (ties within :data:`ROBUST_TIE` go to the best on the machine as calibrated); a
 candidate that makes a single reversal worse than none's anywhere, or refused by its model check, is never
-chosen.
+chosen. Where no candidate is left, a second round runs the model-based ones again stopping the neighbours'
+dead-band tolerance short of each valve edge (``dead_band_margin``, :class:`compensation.CompensatorSettings`).
 
 The tuned file (JSON, :data:`FORMAT`) holds the compensator's name and settings and, for the model-based
 ones, the leg model it inverts (:class:`compensation.model_based.LegModel`: per leg the flow curve table
@@ -160,11 +161,11 @@ ROBUST_TIE = 1.1
 @dataclass(frozen=True)
 class TuneResult:
     """Every candidate's rows (one per motion and neighbour, :func:`evaluate_tuning`'s figures with
-    ``neighbour``), the chosen candidate, the worst ratio of its final mean reversal peak to none's over the
-    motions and neighbours and where (``worst_at``: (motion, neighbour)); ``refused``: candidates whose model
-    the checks refused, with the reason; ``worse``: candidates that made a reversal worse than none's on some
-    motion and neighbour (never chosen), with where; ``model``: the machine's leg model the model-based
-    candidates ran on (None where it was refused)."""
+    ``neighbour``; the second round's too, where :func:`tune` ran one), the chosen candidate, the worst ratio of
+    its final mean reversal peak to none's over the motions and neighbours and where (``worst_at``: (motion,
+    neighbour)); ``refused``: candidates whose model the checks refused, with the reason; ``worse``: candidates
+    that made a reversal worse than none's on some motion and neighbour (never chosen), with where; ``model``:
+    the machine's leg model the model-based candidates ran on (None where it was refused)."""
 
     candidates: tuple[Candidate, ...]
     rows: dict[str, list[dict]]
@@ -386,7 +387,7 @@ def tune_table(result: TuneResult) -> str:
            f"{'reduction':>9} {'worst rev.':>10} {'felt':>7}"
     lines = [head, "-" * len(head)]
     none = result.rows["none"]
-    for label in dict.fromkeys(("none", "buffered", result.chosen.label)):
+    for label in (k for k in dict.fromkeys(("none", "buffered", result.chosen.label)) if k in result.rows):
         for row, base in zip(result.rows[label], none):
             felt = f"{row['felt']}/{row['reversals']}" if "felt" in row else "—"
             red = 100.0 * (1.0 - _ratio(row, base))
@@ -402,6 +403,10 @@ def tune_lines(result: TuneResult, neighbours_scored) -> list[str]:
     :func:`neighbours` it was scored on)."""
     lines = [f"refused {label}: {why}" for label, why in result.refused.items()]
     lines += [f"not chosen {label}: {why}" for label, why in result.worse.items()]
+    margins = {c.settings.dead_band_margin for c in result.candidates}
+    if len(margins) > 1:
+        lines.append(f"no candidate of the first round was safe: the model-based ones ran again stopping "
+                     f"{1e3 * max(margins):g} mV short of each valve edge (dead_band_margin)")
     lines.append(tune_table(result))
     motion, neighbour = result.worst_at
     lines.append(f"tuned: {result.chosen.label} (worst case {100 * (1 - result.worst_ratio):.0f} % below none, on "

@@ -37,6 +37,8 @@ def test_where_every_exact_inverse_fails_a_neighbour_tune_stops_short_of_the_edg
     assert "underlap" in result.worse["feedforward"]
     assert result.chosen.settings.dead_band_margin == pytest.approx(tuning.DEAD_BAND_TOLERANCE_V)
     assert result.chosen.compensator in ("feedforward", "adaptive") and result.worst_ratio < 1.0
+    said = tuning.tune_lines(result, tuning.NEIGHBOURS)
+    assert any("stopping 10 mV short of each valve edge" in line for line in said)
 
     duration = 30.0
     ref = sine(duration, f=0.5, mid=0.15, amp=0.05)
