@@ -461,6 +461,7 @@ def own_budget(report: CalibrationReport) -> OwnBudget:
     ``worse_than_prior`` (channel -> [prior's, calibrated's] budgets): the channels it misses by more than
     :data:`WORSE_THAN_PRIOR` times what the prior missed them by on the same windows."""
     from hexsim.measured.dynamics import worst_windows_text
+    from hexsim.measured.envelope import windows_beyond_text
     from hexsim.measured.scoring import WITHIN
 
     def worst_of(which: str) -> dict[str, float]:
@@ -482,7 +483,8 @@ def own_budget(report: CalibrationReport) -> OwnBudget:
             "What it leaves is model form the calibration cannot fit (a valve curve between the forms, a dynamic "
             "the model lacks): hexsim validate counts it as this machine's floor and judges effects against it; "
             "small effects on this machine are not resolved below it. " + worst_windows_text(
-                [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t])).strip()
+                [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t])
+            + " " + windows_beyond_text(report)).strip()
     return out
 
 

@@ -107,6 +107,30 @@ def beyond_curve(log: MeasurementLog) -> dict | None:
                         f"from this log leaves."}
 
 
+def windows_beyond_text(report: dict) -> str:
+    """Whether the worst held-out windows a calibration ``report`` names (those of
+    :func:`hexsim.measured.dynamics.worst_windows_text`: the log of largest held-out cost among its ``transients``)
+    run the valve beyond the commands at the spool it measured (``commands_measured_V`` [V], lowest and highest:
+    :func:`measured_commands`) by more than :data:`CURVE_MARGIN` of their range, the calibrated null offset taken
+    off: one sentence, or "" where none does or nothing was measured."""
+    errors = [t["after"] for t in report.get("transients", []) if "after" in t]
+    measured = report.get("commands_measured_V")
+    null_offset = next((r["value"] for r in report.get("parameters", []) if r.get("key") == "valve.null_offset_V"), 0.0)
+    rows = [e for e in errors if e.get("worst_windows")]
+    if not rows or not measured:
+        return ""
+    lo, hi = measured
+    margin = CURVE_MARGIN * (hi - lo)
+    windows = max(rows, key=lambda e: e["held_out_cost"])["worst_windows"]
+    beyond = [w for w in windows if w["command_V"][0] - null_offset < lo - margin
+              or w["command_V"][1] - null_offset > hi + margin]
+    if not beyond:
+        return ""
+    return (f"{len(beyond)} of those {len(windows)} run the valve beyond the {lo:.3g}…{hi:.3g} V at the spool the "
+            f"logs dwelt on (less than {MIN_DWELL_S * 1e3:g} ms per knot beyond), where the flow curve is the "
+            "calibration's extrapolation: a corner of the valve's curve there is not read.")
+
+
 def splice(machine: Machine, curves: FlowCurves, lo: float, hi: float) -> Callable[[tuple], tuple[list, list]]:
     """Each edge's points for the machine file as a function of ``gains`` (P→A, A→T): ``machine``'s own opening
     (its form or curve, with its edge gain) within the commands ``lo``…``hi`` [V] its calibration measured, exactly

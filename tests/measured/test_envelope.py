@@ -14,7 +14,11 @@ import numpy as np
 import pytest
 
 from hexsim.measured.curve_read import curve_read_from_log
-from hexsim.measured.envelope import beyond_curve, measured_commands
+from hexsim.measured.envelope import (
+    beyond_curve,
+    measured_commands,
+    windows_beyond_text,
+)
 from hexsim.measured.identify import make_problem
 from hexsim.measured.measurement import read_log
 from hexsim.measured.scoring import measure_budget, score, within_budget
@@ -24,6 +28,27 @@ from hexsim.plant.machine import with_keys, with_valve
 def _log(u: np.ndarray, rate: float = 1000.0):
     return SimpleNamespace(columns={"valve_cmd_V": u}, sample_rate_hz=rate,
                            machine=SimpleNamespace(hydraulics=SimpleNamespace(null_offset=0.0)))
+
+
+def test_the_calibration_says_which_of_its_worst_windows_ran_the_valve_beyond_the_commands_it_measured():
+    """The worst held-out windows of the log that misses most, set against the commands at the spool the logs
+    dwelt on (the null offset taken off, 5 % of their range to spare): how many ran beyond; nothing where none did
+    or nothing was measured."""
+    def window(lo, hi):
+        return {"start_s": 1.0, "share": 0.1, "command_V": [lo, hi]}
+
+    def report(measured, null_offset=0.0):
+        return {"transients": [{"after": {"held_out_cost": 1.0, "worst_windows": [window(-1.0, 1.0)]}},
+                               {"after": {"held_out_cost": 5.0, "worst_windows": [
+                                   window(-10.0, -0.1), window(0.0, 2.6), window(0.1, 2.0)]}}],
+                "parameters": [{"key": "valve.null_offset_V", "value": null_offset}],
+                **({"commands_measured_V": measured} if measured else {})}
+
+    said = windows_beyond_text(report([-3.0, 2.5]))
+    assert said.startswith("1 of those 3 run the valve beyond the -3…2.5 V") and "extrapolation" in said
+    assert windows_beyond_text(report([-3.0, 2.5], -0.3)).startswith("2 of those 3")  # 2.6 V is 2.9 at the spool
+    assert windows_beyond_text(report([-10.0, 10.0])) == ""
+    assert windows_beyond_text(report(None)) == ""
 
 
 def test_the_measured_commands_are_where_the_logs_dwelt_not_where_they_passed():
