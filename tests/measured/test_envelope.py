@@ -45,7 +45,7 @@ def test_the_calibration_says_which_of_its_worst_windows_ran_the_valve_beyond_th
                 **({"commands_measured_V": measured} if measured else {})}
 
     said = windows_beyond_text(report([-3.0, 2.5]))
-    assert said.startswith("1 of those 3 run the valve beyond the -3…2.5 V") and "extrapolation" in said
+    assert said.startswith("1 of those 3 runs the valve beyond the -3…2.5 V") and "extrapolation" in said
     assert windows_beyond_text(report([-3.0, 2.5], -0.3)).startswith("2 of those 3")  # 2.6 V is 2.9 at the spool
     assert windows_beyond_text(report([-10.0, 10.0])) == ""
     assert windows_beyond_text(report(None)) == ""
