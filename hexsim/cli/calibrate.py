@@ -82,11 +82,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     calibrated, report = result.machine, result.report
     print(table(report))
     worse = report.get("own_budget", {}).get("worse_than_prior", {})
+    on = report.get("own_budget", {}).get("worse_than_prior_on", {})
     if worse and not args.keep_worse:
         raise InputError(
             "calibrate: the calibrated model predicts its own logs' held-out windows worse than the prior "
-            f"{machine.label} did (" + ", ".join(f"{ch} {b:.3g} → {a:.3g}" for ch, (b, a) in worse.items())
-            + " budgets); nothing written. The prior is the better model of these logs: give logs that excite what "
+            f"{machine.label} did (" + ", ".join(f"{ch} {b:.3g} → {a:.3g}" + (f" on {on[ch]}" if on.get(ch) else "")
+                                                 for ch, (b, a) in worse.items())
+            + " budgets); nothing written. There the prior is the better model: give logs that excite what "
             "was fitted (docs/calibration.md), another --flow-area, or --keep-worse to write it anyway")
     doc = calibrated.document()
     machine_from_document(doc, str(args.out))  # checked as any machine file before it is written

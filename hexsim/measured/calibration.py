@@ -45,7 +45,7 @@ from hexsim.measured.parameters import (
     default_parameters,
     leg_null_parameter,
 )
-from hexsim.measured.records import CalibrationRecord, CalibrationReport, OwnBudget
+from hexsim.measured.records import CalibrationRecord, CalibrationReport
 from hexsim.measured.replay import command_jumps
 from hexsim.measured.steady import (
     PRESSURE_SIGMA,
@@ -439,53 +439,13 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
         report["replayed"] = _replayed(ev.steady, machine, calibrated)
     _add_priors(report, best.get("prior", best["start"]), best["params"])
     if ev.replays or ev.steady:
+        from hexsim.measured.dynamics import own_budget
+
         report["own_budget"] = own_budget(report)
     if ev.feats:
         report["fit"] = {"before": feature_errors(ev.feats, predict(ev.feats, machine, ev.loads)),
                          "after": feature_errors(ev.feats, predict(ev.feats, calibrated, ev.loads))}
     return report
-
-
-#: A calibrated model whose worst held-out error on a channel of its own logs exceeds the prior's by this factor
-#: (and misses the budget) is worse than the file it started from there: ``hexsim calibrate`` writes no file.
-WORSE_THAN_PRIOR = 1.1
-
-
-def own_budget(report: CalibrationReport) -> OwnBudget:
-    """Whether the calibrated model reaches its own calibration logs' budget: the worst held-out RMS in
-    budgets per channel over the logs' windows after the calibration (``transients`` or ``replayed``),
-    ``reached`` when every channel's is within sqrt(:data:`hexsim.measured.scoring.WITHIN`), else
-    ``short`` (channel -> budgets) and a ``sentence`` saying what that means for a validation on this machine:
-    the model leaves structure of its own (form the calibration cannot fit), which ``hexsim validate`` counts
-    as the model's floor (:func:`hexsim.measured.scoring.model_floor`) and judges effects against;
-    ``worse_than_prior`` (channel -> [prior's, calibrated's] budgets): the channels it misses by more than
-    :data:`WORSE_THAN_PRIOR` times what the prior missed them by on the same windows."""
-    from hexsim.measured.dynamics import worst_windows_text
-    from hexsim.measured.envelope import windows_beyond_text
-    from hexsim.measured.scoring import WITHIN
-
-    def worst_of(which: str) -> dict[str, float]:
-        rows = [t[which] for t in (*report.get("transients", []), *report.get("replayed", [])) if which in t]
-        worst: dict[str, float] = {}
-        for r in rows:
-            for ch, v in r.get("held_out_rms_in_budgets", {}).items():
-                worst[ch] = max(worst.get(ch, 0.0), float(v))
-        return worst
-
-    worst, before = worst_of("after"), worst_of("before")
-    short = {ch: v for ch, v in worst.items() if v > math.sqrt(WITHIN)}
-    worse = {ch: [before[ch], v] for ch, v in short.items() if ch in before and v > WORSE_THAN_PRIOR * before[ch]}
-    out = {"reached": not short, "held_out_rms_in_budgets": worst, "short": short, "worse_than_prior": worse}
-    if short:
-        out["sentence"] = (
-            "The calibrated model does not reach its own logs' budget: held-out " + ", ".join(
-                f"{ch} {v:.3g}" for ch, v in short.items()) + f" budgets (reached: within {math.sqrt(WITHIN):.2g}). "
-            "What it leaves is model form the calibration cannot fit (a valve curve between the forms, a dynamic "
-            "the model lacks): hexsim validate counts it as this machine's floor and judges effects against it; "
-            "small effects on this machine are not resolved below it. " + worst_windows_text(
-                [t["after"] for t in (*report.get("transients", []), *report.get("replayed", [])) if "after" in t])
-            + " " + windows_beyond_text(report)).strip()
-    return out
 
 
 def _replayed(logs: list[MeasurementLog], prior: Machine, calibrated: Machine) -> list[dict]:

@@ -89,15 +89,17 @@ class ParameterRow(EstimateRow, total=False):
 
 
 class OwnBudget(TypedDict, total=False):
-    """How the calibrated model fits its own logs (:func:`hexsim.measured.calibration.own_budget`): ``reached``
+    """How the calibrated model fits its own logs (:func:`hexsim.measured.dynamics.own_budget`): ``reached``
     (every channel's held-out RMS within 1.4 budgets), each channel's largest held-out RMS over the logs in budgets,
-    the channels ``short`` of the budget, those ``worse_than_prior`` (channel -> [prior's, calibrated's]) and,
-    where it is short, the ``sentence`` the report prints."""
+    the channels ``short`` of the budget, those ``worse_than_prior`` (channel -> [prior's, calibrated's]) on a log
+    (``worse_than_prior_on``: channel -> the log's file name) and, where it is short, the ``sentence`` the report
+    prints."""
 
     reached: bool
     held_out_rms_in_budgets: dict[str, float]
     short: dict[str, float]
     worse_than_prior: dict[str, list[float]]
+    worse_than_prior_on: dict[str, str]
     sentence: str
 
 

@@ -311,12 +311,21 @@ def test_a_calibration_worse_than_its_prior_on_its_own_logs_writes_nothing(tmp_p
     than the prior (more than 1.1 times, and beyond the budget's sqrt 2); p1 3.0 -> 3.1 is not (within 1.1 times).
     ``hexsim calibrate`` then writes nothing, names the channel, exits 2; ``--keep-worse`` writes it."""
     from hexsim.measured import calibration
+    from hexsim.measured.dynamics import own_budget
     from hexsim.measured.reports import calibration as reports
 
-    own = calibration.own_budget({"transients": [
+    own = own_budget({"transients": [
         {"before": {"held_out_rms_in_budgets": {"position": 2.05, "p1": 3.0}},
          "after": {"held_out_rms_in_budgets": {"position": 4.12, "p1": 3.1}}}]})
     assert own["worse_than_prior"] == {"position": [2.05, 4.12]} and not own["reached"]
+    # per log: the steps log 19 -> 29 budgets in p1 is worse than its prior though another log's prior missed by more
+    # (the 4-way axis calibrated on three logs)
+    three = own_budget({"transients": [
+        {"before": {"held_out_rms_in_budgets": {"p1": 19.0}},
+         "after": {"log": "logs/cal_steps.csv", "held_out_rms_in_budgets": {"p1": 29.1}}},
+        {"before": {"held_out_rms_in_budgets": {"p1": 37.7}},
+         "after": {"log": "logs/null.csv", "held_out_rms_in_budgets": {"p1": 5.5}}}]})
+    assert three["worse_than_prior"] == {"p1": [19.0, 29.1]} and three["worse_than_prior_on"] == {"p1": "cal_steps.csv"}
     monkeypatch.setattr(calibration, "calibrate",
                         lambda logs, machine, **_: calibration.Calibration(machine, {"own_budget": own}))
     monkeypatch.setattr(reports, "table", lambda report: "")
