@@ -158,11 +158,19 @@ def run(ax: Axis, ref: np.ndarray, seed: int, compensate=None, states: dict | No
                             ax.supply + noise[:, 3]])
 
 
-def write(ax: Axis, ref: np.ndarray, path: pathlib.Path, seed: int, description: str) -> pathlib.Path:
+def write(ax: Axis, ref: np.ndarray, path: pathlib.Path, seed: int, description: str, compensate=None,
+          accelerometer: float = 0.0) -> pathlib.Path:
     """The log of ``ax`` following ``ref`` at ``path`` (.csv) with its sidecar (.json): a closed loop, a 4-way valve
-    and the cylinder declared; the mass and inclination left to the machine file (a user does not weigh a load)."""
-    np.savetxt(path, run(ax, ref, seed), delimiter=",", header="time_s,ref_m,valve_cmd_V,pos_m,p1_Pa,p2_Pa,ps_Pa",
-               comments="", fmt="%.9g")
+    and the cylinder declared; the mass and inclination left to the machine file (a user does not weigh a load).
+    ``compensate`` as :func:`run`'s; ``accelerometer`` > 0 [m/s^2] adds ``acc_mps2``, an accelerometer on the piston
+    (specific force: the 1 ms mean acceleration plus g) with that white noise, drawn from a stream of its own."""
+    states = {}
+    cols = run(ax, ref, seed, compensate=compensate, states=states)
+    header = "time_s,ref_m,valve_cmd_V,pos_m,p1_Pa,p2_Pa,ps_Pa"
+    if accelerometer > 0:
+        noise = np.random.default_rng(seed + 1000).normal(0.0, accelerometer, len(cols))
+        cols, header = np.column_stack([cols, states["acc_mps2"] + 9.81 + noise]), header + ",acc_mps2"
+    np.savetxt(path, cols, delimiter=",", header=header, comments="", fmt="%.9g")
     path.with_suffix(".json").write_text(json.dumps({
         "system": "single-actuator", "sample_rate_hz": LOG_HZ,
         "controller": {"type": "P", "kp_V_per_m": ax.kp, "rate_hz": ax.rate},
