@@ -18,7 +18,8 @@ the verdict and the named effects, with the wall time of each step (docs/calibra
 and every kind of compensator tune tried, built from the calibrated file, run *in the axis's own loop* on the seed's
 50 mm, 0.5 Hz sine for ``--duration`` s, with the valve's null still and drifting 1 mV/s, beside hexsim's prediction of
 the same run (the passenger's view of the second half, :func:`hexsim.measured.proof.passenger_view`): whether tune's
-answer holds on the machine (docs/compensation.md, "A 4-way vertical axis whose bump is its friction's").
+answer holds on the machine (docs/compensation.md, "A 4-way vertical axis whose bump is its friction's"); then a log
+of the axis running the tuned file, and ``hexsim tune --check`` on it.
 
     python examples/four_way_axis.py [--out DIR] [--only null leak …] [--jobs 2] [--proof [--duration 60]]
 """
@@ -99,6 +100,14 @@ PROOF = (("none", "none", {}), ("buffered buffer_time=1.5", "buffered", {"buffer
 SINE, FREQUENCY, DRIFT_V_PER_S, PROOF_SEED = {"f": 0.5, "mid": 0.15, "amp": 0.05}, 0.5, 1e-3, 11
 
 
+def _hook(comp):
+    """The axis's ``compensate`` callback running hexsim's compensator ``comp`` as its P controller calls one."""
+    def hook(u_p, y, r, r_dot, r_ddot, r_dddot, p1):
+        comp.observe(Reference(*(np.array([x]) for x in (r, r_dot, r_ddot, r_dddot, p1))))
+        return float(comp.update(np.array([u_p]), np.array([y]))[0])
+    return hook
+
+
 def in_the_loop(cal: pathlib.Path, name: str, changes: dict | pathlib.Path, duration: float, drift: bool):
     """The passenger's view of compensator ``name`` (settings ``changes``, or a tuned file) built from the
     calibrated file ``cal``, run in the axis's own loop on the seed's sine (its null drifting where ``drift``), and
@@ -110,14 +119,7 @@ def in_the_loop(cal: pathlib.Path, name: str, changes: dict | pathlib.Path, dura
     else:
         settings = dataclasses.replace(base.compensator_settings, **changes)
         model = leg_model_of(base) if name in MODEL_BASED else None
-    hook = None
-    if name != "none":
-        comp = make_compensator(name, 1, 500.0, settings=settings, model=model)
-
-        def hook(u_p, y, r, r_dot, r_ddot, r_dddot, p1):
-            comp.observe(Reference(*(np.array([x]) for x in (r, r_dot, r_ddot, r_dddot, p1))))
-            return float(comp.update(np.array([u_p]), np.array([y]))[0])
-
+    hook = None if name == "none" else _hook(make_compensator(name, 1, 500.0, settings=settings, model=model))
     ref, states = sine(duration, **SINE), {}
     run(TRUTH.replace(null_rate=DRIFT_V_PER_S if drift else 0.0), ref, PROOF_SEED, compensate=hook, states=states)
     t = np.arange(ref.size) / 1000.0
@@ -154,6 +156,19 @@ def proof(out: pathlib.Path, cal: pathlib.Path, duration: float, jobs: int) -> N
         print(f"| {label} | {'drifting 1 mV/s' if drift else 'still'} | {m.mean:.4f} | {p.mean:.4f} | "
               f"{m.mean / nm.mean:.2f} | {p.mean / npred.mean:.2f} | {m.worst_against(nm):.2f} | "
               f"{p.worst_against(npred):.2f} | {m.seat_ratio:.1f} | {p.seat_ratio:.1f} |", flush=True)
+    if tuned:
+        check(out, cal, tuned[0][2], duration)
+
+
+def check(out: pathlib.Path, cal: pathlib.Path, tuned: pathlib.Path, duration: float) -> None:
+    """The commissioning loop's first step as a user takes it: a log of the axis running the tuned file (with an
+    accelerometer on the piston, 0.05 m/s² of noise), then ``hexsim tune --check`` on it; its verdict printed."""
+    name, settings, model = read_tuned(tuned)
+    hook = _hook(make_compensator(name, 1, 500.0, settings=settings, model=model))
+    log = write(TRUTH, sine(duration, **SINE), out / "tuned_run.csv", PROOF_SEED, "the seed's sine, the tuned file",
+                compensate=hook, accelerometer=0.05)
+    text = _cli("tune", "--check", str(log), "--compensator", str(tuned), "--machine", str(cal))
+    print(f"\nhexsim tune --check {log.name} --compensator {tuned.name} --machine {cal.name}:\n{text.strip()}")
 
 
 def _log(out: pathlib.Path, name: str) -> pathlib.Path:
