@@ -34,7 +34,12 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.acquisition import accelerometer_sampling
-from hexsim.measured.curves import curve_report, reaches_budget, with_curve
+from hexsim.measured.curves import (
+    curve_report,
+    reaches_budget,
+    with_curve,
+    with_curve_again,
+)
 from hexsim.measured.envelope import measured_commands
 from hexsim.measured.estimates import AT_A_BOUND, FROM_LOGS, HELD, Estimate
 from hexsim.measured.fitting import Fit, FitOptions, fit_parameters
@@ -198,15 +203,17 @@ def _gather(logs: list[MeasurementLog], held_out: list[MeasurementLog], machine:
 
 
 def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, flow_areas: tuple[str, ...] | None,
-                 notify: Callable[[str], None], fixed: tuple[str, ...] = (), jobs: int = 1) -> tuple[dict, list[dict]]:
+                 notify: Callable[[str], None], fixed: tuple[str, ...] = (), jobs: int = 1,
+                 curve_passes: int = 1) -> tuple[dict, list[dict]]:
     """Calibrate each flow-area form (default :func:`_forms`; with transients only, else the machine's own),
     each from the prior (a form's calibrated values are another form's far valley): with more than one, a
     screening (a few evaluations, no held-at-prior rule; a hexapod's on its logs' first segments, each replay
     being the whole log's), then the form that predicts the held-out windows best calibrated in full from
     where its screening ended; the keys ``fixed`` are not fitted (the logs state them). Returns (the chosen:
     ``flow_area``, ``start`` machine, ``params``, ``fit``,
-    ``machine``; every form tried, with its held-out cost or why it was refused). Raises InputError if no
-    form could be calibrated."""
+    ``machine``; every form tried, with its held-out cost or why it was refused); the curves read up to
+    ``curve_passes`` times while the calibration misses its own logs' budget (:func:`with_curve_again`). Raises
+    InputError if no form could be calibrated."""
     forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
     curve = _wants_curve(ev, machine, flow_areas)  # refused before any fit where it cannot be read
     options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01, xtol=XTOL, ftol=FTOL,
@@ -242,6 +249,10 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
         best["machine"] = best["params"].apply(best["start"], best["fit"].values)
     if curve or (curve is None and not reaches_budget(ev.replays, best["machine"])):
         best = with_curve(ev.replays, ev.residual(), best, tried, options, share, notify)
+        for _ in range(curve_passes - 1):
+            if "curve" not in best or reaches_budget(ev.replays, best["machine"]):
+                break
+            best = with_curve_again(ev.replays, ev.residual(), best, tried, options, share, notify)
     return best, tried
 
 
@@ -262,7 +273,7 @@ class Calibration:
 def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[MeasurementLog] = (),
               params: ParameterSet | None = None, cross_validate: bool = True, dynamics: str = "auto",
               flow_areas: tuple[str, ...] | None = None, evidence: tuple = (), notify=None,
-              jobs: int = 1) -> Calibration:
+              jobs: int = 1, curve_passes: int = 1) -> Calibration:
     """Fit ``params`` (default :func:`default_parameters`) of ``machine`` to the evidence of ``logs`` (module
     doc); predict ``held_out``. Evidence: the steady features of open-loop constant-command experiments, and
     the transients of every other single-actuator log (:class:`hexsim.measured.dynamics.ReplayEvidence`:
@@ -272,7 +283,8 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     held-out windows' cost (:func:`_choose_form`). ``evidence``: the replays of some of ``logs`` already built
     (:meth:`hexsim.measured.dynamics.ReplayEvidence.of_problem`: a validation's problem and budget), used
     instead of replaying those logs' nominal again. ``jobs``: processes that evaluate the replays' Jacobians
-    (:class:`hexsim.measured.fitting.FitOptions`; the same calibration as one).
+    (:class:`hexsim.measured.fitting.FitOptions`; the same calibration as one). ``curve_passes``: how many times
+    the valve's curves are read from the flows while the calibration misses its own logs (:func:`_choose_form`).
 
     Returns the :class:`Calibration`: the calibrated machine (its ``calibration`` the report without the feature
     rows) and the report (:class:`~hexsim.measured.records.CalibrationReport`): per parameter prior, value,
@@ -286,7 +298,7 @@ def calibrate(logs: list[MeasurementLog], machine: Machine, *, held_out: list[Me
     ev = _gather(logs, held_out, machine, dynamics, evidence)
     machine, sampling = accelerometer_sampling(ev.replays, machine) if ev.jumps else (machine, None)
     best, tried = _choose_form(ev, machine, params, flow_areas, notify, fixed=(supply["key"],) if supply else (),
-                               jobs=jobs)
+                               jobs=jobs, curve_passes=curve_passes)
     nulls = []
     if ev.hexapod:
         best["machine"], nulls = leg_null_offsets(ev.replays, best["machine"])
