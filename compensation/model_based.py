@@ -226,6 +226,7 @@ class FeedforwardCompensator(Compensator):
         # the inverse, per leg: velocity strictly increasing (a vanishing slope inside the overlap)
         self._v = v + 1e-12 * u[None, :]
         self._u = u
+        self._null = np.array([_null(u, v[i]) for i in range(self.n_legs)])
         self.feedforward = np.zeros(self.n_legs)
         nyquist = self.rate_hz / 2
         if self.settings.loop_filter_hz >= nyquist:
@@ -260,7 +261,7 @@ class FeedforwardCompensator(Compensator):
         curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted; the
         scale held within 0.5…2 (a chamber near supply or tank pressure would otherwise ask for the whole
         valve). With ``settings.dead_band_margin`` m > 0 the curve is read as opening m earlier on each edge:
-        u_v moved m towards 0 V, and held at 0 V within m of it."""
+        u_v moved m towards the curve's null (the middle of its overlap, or where it crosses zero), never past it."""
         m = self.model
         target = np.asarray(velocity, dtype=float)
         if m.pressure_scaling:
@@ -269,7 +270,10 @@ class FeedforwardCompensator(Compensator):
             target = target / np.sqrt(np.clip(np.where(target >= 0, up, down), 0.25, 4.0))
         u = np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
         margin = self.settings.dead_band_margin
-        return np.sign(u) * np.maximum(np.abs(u) - margin, 0.0) if margin else u
+        if not margin:
+            return u
+        return np.where(target > 0, np.maximum(u - margin, self._null), np.where(
+            target < 0, np.minimum(u + margin, self._null), u))
 
     def pressure_filter(self, p1: np.ndarray) -> np.ndarray:
         """The measured p1's departure from P1_ref [Pa] (n_legs,) low-passed at :data:`PRESSURE_FILTER_HZ`
@@ -500,6 +504,13 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         off)."""
         return {"s": self.model.slope.copy(), "null_shift": self.null.copy(),
                 "guard": self.off.astype(float)}
+
+
+def _null(u: np.ndarray, velocity: np.ndarray) -> float:
+    """The command [V] at the middle of a non-decreasing flow curve's flat part around null (its overlap: the
+    speeds within 1e-6 of the largest), or where it crosses zero where it has none."""
+    flat = u[np.abs(velocity) <= 1e-6 * np.max(np.abs(velocity))]
+    return float(0.5 * (flat[0] + flat[-1])) if flat.size else float(np.interp(0.0, velocity, u))
 
 
 def _dead_band(u: np.ndarray, velocity: np.ndarray) -> float:

@@ -201,7 +201,8 @@ def test_the_model_check_names_what_is_wrong():
 
 def test_a_dead_band_margin_stops_the_inverse_that_far_short_of_each_valve_edge():
     """dead_band_margin m: the inverse reads the curve as opening m earlier on each edge (the tuning's underlap
-    neighbour), so u_v moves m towards 0 V and stays at 0 V within m of it; out of 0…0.1 V it is refused."""
+    neighbour), so u_v moves m towards the curve's null (the overlap's middle), never past it; out of 0…0.1 V it is
+    refused."""
     u = np.linspace(-10, 10, 2001)
     velocity = 0.02 * np.sign(u) * np.maximum(np.abs(u) - 0.1, 0.0)  # a 0.1 V overlap either side
     model = LegModel(u=u, velocity=velocity[None, :], p_rest=np.array([4e6]), supply_pressure=7e6, tank_pressure=0.0,
@@ -214,7 +215,13 @@ def test_a_dead_band_margin_stops_the_inverse_that_far_short_of_each_valve_edge(
     for v, at_edge in ((1e-5, 0.1005), (-1e-5, -0.1005), (0.02, 1.1), (-0.1, -5.1)):
         assert exact.inverse(np.array([v]), p1)[0] == pytest.approx(at_edge, abs=1e-6)
         assert short.inverse(np.array([v]), p1)[0] == pytest.approx(at_edge - np.sign(v) * 0.01, abs=1e-6)
-    assert short.inverse(np.array([1e-14]), p1)[0] == 0.0
+    assert short.inverse(np.array([1e-14]), p1)[0] == pytest.approx(0.0, abs=1e-9)
+    # a null 0.15 V off 0 V: each edge still moves towards the null (0.05 -> 0.06, 0.25 -> 0.24), never past it
+    off = LegModel(**{**model.__dict__, "velocity": np.interp(u - 0.15, u, velocity)[None, :]})
+    shifted = make_compensator("feedforward", 1, 500.0, model=off, settings=CompensatorSettings(dead_band_margin=0.01))
+    assert shifted.inverse(np.array([1e-5]), p1)[0] == pytest.approx(0.2405, abs=1e-6)
+    assert shifted.inverse(np.array([-1e-5]), p1)[0] == pytest.approx(0.0595, abs=1e-6)
+    assert shifted.inverse(np.array([1e-14]), p1)[0] == pytest.approx(0.15, abs=1e-3)
     for bad in (-0.001, 0.2, float("nan")):
         with pytest.raises(SettingsError, match="dead_band_margin"):
             CompensatorSettings(dead_band_margin=bad)
