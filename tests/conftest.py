@@ -36,12 +36,14 @@ def pytest_cmdline_main(config):
 #: The longest test files, longest first (their setups and calls summed, `pytest --durations=0` on 2 cores at
 #: 27f3f4f: the independent hexapod's calibration 225 s, the hexapod validations 163, the transients' calibration
 #: 149, feedforward 117, the curve calibration 101, calibration 70, validation 34, verdicts 31, the command line 27,
-#: commissioning 27, the flow curves 4; the tuning on the 4-way axis, added later, 40; the whole suite 20 CPU minutes on two workers that finish within a minute
-#: of each other). Handed out first, the two workers finish together; in the alphabetical order the validation
-#: files came last and one worker ran them alone for minutes. They are also the files marked ``slow``.
+#: commissioning 27, the flow curves 4; the tuning on the 4-way axis, added later, 40; the whole suite 20 CPU minutes
+#: on two workers that finish within a minute of each other). Handed out first, the two workers finish together; in
+#: the alphabetical order the validation files came last and one worker ran them alone for minutes. They are also the
+#: files marked ``slow``.
 LONGEST_FIRST = ("test_calibration_hexapod.py", "test_hexapod_validation.py", "test_calibration_transients.py",
                  "test_feedforward.py", "test_calibration_curve.py", "test_calibration.py",
-                 "test_tuning_on_the_machine.py", "test_validation.py", "test_verdicts.py", "test_cli.py", "test_commissioning.py", "test_flow_curves.py")
+                 "test_tuning_on_the_machine.py", "test_validation.py", "test_verdicts.py", "test_cli.py",
+                 "test_commissioning.py", "test_flow_curves.py")
 
 
 #: Files that run a session paced to the wall clock (hexsim serve on localhost), handed out before the longest: the

@@ -126,8 +126,9 @@ def windows_beyond_text(report: dict) -> str:
               or w["command_V"][1] - null_offset > hi + margin]
     if not beyond:
         return ""
-    return (f"{len(beyond)} of those {len(windows)} run{'s' if len(beyond) == 1 else ''} the valve beyond the {lo:.3g}…{hi:.3g} V at the spool the "
-            f"logs dwelt on (less than {MIN_DWELL_S * 1e3:g} ms per knot beyond), where the flow curve is the "
+    verb = "runs" if len(beyond) == 1 else "run"
+    return (f"{len(beyond)} of those {len(windows)} {verb} the valve beyond the {lo:.3g}…{hi:.3g} V at the spool "
+            f"the logs dwelt on (less than {MIN_DWELL_S * 1e3:g} ms per knot beyond), where the flow curve is the "
             "calibration's extrapolation: a corner of the valve's curve there is not read.")
 
 
