@@ -38,8 +38,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from compensation import MODEL_BASED, make_compensator
-from compensation.model_based import Reference
+from compensation import MODEL_BASED
 from hexsim.cli import main as hexsim
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
@@ -49,6 +48,7 @@ from hexsim.plant.machine import load_machine
 from hexsim.studies.tuning import NEIGHBOURS, leg_model_of, read_tuned
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
+from helpers import in_the_loop as compensator_hook  # noqa: E402  (hexsim's compensator as the truth's callback)
 from independent_servo_axis import Axis, chirp, run, sine, steps, write  # noqa: E402  (the truth lives with the tests)
 
 TRUTH = Axis()
@@ -100,14 +100,6 @@ PROOF = (("none", "none", {}), ("buffered buffer_time=1.5", "buffered", {"buffer
 SINE, FREQUENCY, DRIFT_V_PER_S, PROOF_SEED = {"f": 0.5, "mid": 0.15, "amp": 0.05}, 0.5, 1e-3, 11
 
 
-def _hook(comp):
-    """The axis's ``compensate`` callback running hexsim's compensator ``comp`` as its P controller calls one."""
-    def hook(u_p, y, r, r_dot, r_ddot, r_dddot, p1):
-        comp.observe(Reference(*(np.array([x]) for x in (r, r_dot, r_ddot, r_dddot, p1))))
-        return float(comp.update(np.array([u_p]), np.array([y]))[0])
-    return hook
-
-
 def in_the_loop(cal: pathlib.Path, name: str, changes: dict | pathlib.Path, duration: float, drift: bool):
     """The passenger's view of compensator ``name`` (settings ``changes``, or a tuned file) built from the
     calibrated file ``cal``, run in the axis's own loop on the seed's sine (its null drifting where ``drift``), and
@@ -119,7 +111,7 @@ def in_the_loop(cal: pathlib.Path, name: str, changes: dict | pathlib.Path, dura
     else:
         settings = dataclasses.replace(base.compensator_settings, **changes)
         model = leg_model_of(base) if name in MODEL_BASED else None
-    hook = None if name == "none" else _hook(make_compensator(name, 1, 500.0, settings=settings, model=model))
+    hook = None if name == "none" else compensator_hook(name, model, settings)
     ref, states = sine(duration, **SINE), {}
     run(TRUTH.replace(null_rate=DRIFT_V_PER_S if drift else 0.0), ref, PROOF_SEED, compensate=hook, states=states)
     t = np.arange(ref.size) / 1000.0
@@ -164,7 +156,7 @@ def check(out: pathlib.Path, cal: pathlib.Path, tuned: pathlib.Path, duration: f
     """The commissioning loop's first step as a user takes it: a log of the axis running the tuned file (with an
     accelerometer on the piston, 0.05 m/s² of noise), then ``hexsim tune --check`` on it; its verdict printed."""
     name, settings, model = read_tuned(tuned)
-    hook = _hook(make_compensator(name, 1, 500.0, settings=settings, model=model))
+    hook = compensator_hook(name, model, settings)
     log = write(TRUTH, sine(duration, **SINE), out / "tuned_run.csv", PROOF_SEED, "the seed's sine, the tuned file",
                 compensate=hook, accelerometer=0.05)
     text = _cli("tune", "--check", str(log), "--compensator", str(tuned), "--machine", str(cal))
