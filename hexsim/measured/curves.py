@@ -64,14 +64,15 @@ def curve_machine(machine: Machine, curves: FlowCurves, points: tuple[list, list
 
 
 def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: dict, tried: list[dict],
-               options: FitOptions, independent_share, notify: Callable[[str], None]) -> dict:
+               options: FitOptions, independent_share, notify: Callable[[str], None],
+               label: str = "curve (read from the logs' flows)") -> dict:
     """The chosen form's calibration ``best`` (``flow_area``, ``start``, ``params``, ``fit``, ``machine``) with
     the valve's curves read from the ``replays``' logs (:class:`hexsim.measured.dynamics.ReplayEvidence`; at the
     return line's pressure the flows choose, :func:`~hexsim.measured.flow_curve.tank_pressure_from_flows`), the
     form's other parameters fitted again from there to the calibration's own ``residual`` (``options``,
     ``independent_share``: as the form's fit; those the form's fit left at a bound from their prior again,
     :func:`_bounded_by_the_form`); kept in place of the form if it predicts the held-out windows
-    :data:`CURVE_GAIN` better (its cost added to ``tried``). Returns the chosen, as ``best`` with ``curve``
+    :data:`CURVE_GAIN` better (its cost added to ``tried`` as ``label``). Returns the chosen, as ``best`` with ``curve``
     (the :class:`~hexsim.measured.flow_curve.FlowCurves`), ``form`` (the form it started from) and ``prior``
     (the form's start: the user's file, whose values the report calls the priors) when the curves are."""
     params = ParameterSet(p for p in best["params"] if p.key not in CURVE_REPLACES)
@@ -93,7 +94,7 @@ def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: d
     result = params.apply(start, fit.values)
     cost = sum(r.errors(result).held_out_cost for r in replays)
     form_cost = sum(r.errors(best["machine"]).held_out_cost for r in replays)
-    tried.append({"flow_area": "curve (read from the logs' flows)", "held_out_cost": cost})
+    tried.append({"flow_area": label, "held_out_cost": cost})
     if cost >= CURVE_GAIN * form_cost:
         notify(f"kept the {best['flow_area']} flow area: the curves read from the logs predict the held-out windows "
                f"at {cost / form_cost:.2f} of its cost (they replace the form below {CURVE_GAIN:g})")
@@ -112,8 +113,8 @@ def with_curve_again(replays: list, residual: Callable[[Machine], np.ndarray], f
     held out at 2.6 / 4.1 / 4.3 budgets after one reading, 1.6 / 1.4 / 1.7 after two)."""
     again = {**first, "start": first["prior"], "flow_area": first["form"]}  # the user's priors, the form's name
     notify("reading the valve's curves again, from the flows as the calibrated machine replays them")
-    second = with_curve(replays, residual, again, tried, options, independent_share, notify)
-    tried[-1]["flow_area"] = "curve (read again from the calibrated machine's flows)"
+    second = with_curve(replays, residual, again, tried, options, independent_share, notify,
+                        label="curve (read again from the calibrated machine's flows)")
     return first if second is again else second
 
 
