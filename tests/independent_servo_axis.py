@@ -130,10 +130,12 @@ def run(ax: Axis, ref: np.ndarray, seed: int, compensate=None, states: dict | No
     out = np.empty((n, 4))
     cmds, comp = np.empty(n), np.zeros(n)
     per = int(round(LOG_HZ / ax.rate))
-    derivatives = [np.gradient(ref[::per], per / LOG_HZ)]
-    for _ in range(2):
-        derivatives.append(np.gradient(derivatives[-1], per / LOG_HZ))
-    p_noise = rng.normal(0.0, ax.p_noise, n) if compensate is not None else None
+    derivatives, p_noise = [], None
+    if compensate is not None:  # the reference's derivatives at the controller rate, the cap pressure's noise
+        derivatives = [np.gradient(ref[::per], per / LOG_HZ)]
+        for _ in range(2):
+            derivatives.append(np.gradient(derivatives[-1], per / LOG_HZ))
+        p_noise = rng.normal(0.0, ax.p_noise, n)
     tol = dict(method="LSODA", rtol=1e-6, atol=[1e-9, 1e-7, 1.0, 1.0, 1e-6, 1e-3])
     for k in range(0, n, per):
         e = rng.normal(0.0, ax.pos_noise)
