@@ -228,6 +228,7 @@ class VirtualMotionSystem:
         self.address = self.sock.getsockname()
         self._platform = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "platform")
         self._vel = np.zeros(6)
+        self._sent_rows = 0  # the samples recorded when the last state packet went (the next one's mean from there)
         self._occupant(config, settings)
         self._worker = None
         self._log = None  # the files written as the session runs (log_to)
@@ -295,33 +296,41 @@ class VirtualMotionSystem:
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._platform, self._vel, 0)
         out.update(zip(DOF, pose.tolist()))
         out.update(zip(_RATE_NAMES, self._vel[[3, 4, 5, 0, 1, 2]].tolist()))
-        points, omega = self._occupant_motion()
+        points, omega = self._occupant_motion(self._sent_rows)
         out.update(zip(_HEAD_NAMES, points[0].tolist() + omega.tolist()))
         if self.perception is not None:
             out.update(zip(_SENSED_NAMES, self._sensed.tolist()))
             out["seat_peak"] = self.perception.take_seat_peak()
         return out
 
-    def _occupant_motion(self) -> tuple[np.ndarray, np.ndarray]:
-        """The specific force (2, 3) [m/s^2] at the occupant's head and seat (rows) and the angular velocity (3,)
-        [rad/s], platform axes, at the platform's state now: the rigid body's f = f_site + alpha x r + omega x
-        (omega x r) from the accelerometer's site, as :func:`~hexsim.studies.perception.rigid_point_specific_force`
-        gives it for a recorded run (:func:`~hexsim.studies.perception.point_motion`), written out for the two
-        fixed points r (stacked (2, 3), site frame: alpha x r = K alpha with K the matrix of a -> a x r,
-        omega x (omega x r) = omega (omega . r) - r |omega|^2): every tick with the perception on, where np.cross
-        costs some 20 us a call."""
-        d, s = self.sim.data, self.sim.idx.sensor
+    def _occupant_motion(self, since: int) -> tuple[np.ndarray, np.ndarray]:
+        """The specific force (2, 3) [m/s^2] at the occupant's head and seat (rows), the mean over the recorded
+        samples from ``since`` on (:meth:`~hexsim.engine.runner.Simulator.recorded_mean`: the accelerations' boxcar,
+        Δv/Δt over the interval ending one controller tick ago), and the angular velocity (3,) [rad/s] now,
+        platform axes: the rigid body's f = f_site + alpha x r + omega x (omega x r) from the accelerometer's site,
+        as :func:`~hexsim.studies.perception.rigid_point_specific_force` gives it for a recorded run
+        (:func:`~hexsim.studies.perception.point_motion`), written out for the two fixed points r (stacked (2, 3),
+        site frame: alpha x r = K alpha with K the matrix of a -> a x r, omega x (omega x r) = omega (omega . r) -
+        r |omega|^2): every tick with the perception on, where np.cross costs some 20 us a call. A state packet
+        so carries the mean over its own period, as an integrating DAQ samples an accelerometer: the platform's
+        ringing does not alias into it (with the whole process stalled 0.3 s three times, the host's samples of
+        the instantaneous value averaged 9.63 m/s^2 on z over the engaged heave, the means 9.81)."""
+        sim = self.sim
+        d, s = sim.data, sim.idx.sensor
+        acc, angacc = (sim.recorded_mean(name, since) for name in ("platform_acc", "platform_angacc"))
+        if acc is None:  # nothing recorded yet: the sensors now
+            acc, angacc = d.sensordata[s["platform_acc"]], d.sensordata[s["platform_angacc"]]
         mujoco.mju_quat2Mat(self._world_from_body, d.sensordata[s["platform_quat"]])
         omega = d.sensordata[s["platform_gyro"]]
-        alpha = (self._world_from_body.reshape(3, 3) @ self._body_from_site).T @ d.sensordata[s["platform_angacc"]]
+        alpha = (self._world_from_body.reshape(3, 3) @ self._body_from_site).T @ angacc
         r = self._points_in_site
-        f = d.sensordata[s["platform_acc"]] + self._points_cross @ alpha + np.outer(r @ omega, omega) - r * (omega @ omega)
+        f = acc + self._points_cross @ alpha + np.outer(r @ omega, omega) - r * (omega @ omega)
         return f @ self._body_from_site.T, self._body_from_site @ omega
 
     def _perceive(self) -> None:
         """One sample of the occupant's perception (:class:`~hexsim.studies.perception.LivePerception`) at the
-        platform's state now (:meth:`_occupant_motion`)."""
-        (head, seat), omega = self._occupant_motion()
+        platform's state now (:meth:`_occupant_motion` over the last controller tick)."""
+        (head, seat), omega = self._occupant_motion(self.sim.rows - 1)
         self._sensed = self.perception.update(head, omega, seat)
 
     def _send(self) -> None:
@@ -347,6 +356,7 @@ class VirtualMotionSystem:
             self._perceive()
         if n % self._send_div == 0:
             self._send()
+            self._sent_rows = sim.rows  # the next state packet's accelerations: the mean from here on
 
     def _wait(self, deadline: float) -> None:
         """Until ``deadline`` (perf_counter [s]): in ``select`` on the socket, reading packets as they come,
