@@ -50,7 +50,8 @@ LONGEST_FIRST = ("test_calibration_hexapod.py", "test_hexapod_validation.py", "t
 #: other worker then starts the independent hexapod's calibration, one process. Later, beside a validation's two
 #: worker processes, a served session fell behind the clock and the host saw the catch-up's jerks (the specific
 #: force's correlation with the heave 0.32 in one CI run of ten; 0.38 with four busy processes beside it, 0.95 with
-#: two).
+#: two). Since the controller catches up through the packets queued in a stall (hexsim.interfaces.operating_modes),
+#: SIGSTOPs of the whole process of up to 0.8 s leave the served motion as it was without them.
 REAL_TIME_FIRST = ("test_serve.py",)
 
 

@@ -30,7 +30,18 @@ bridged: past the newest packet the setpoints go on along the last two packets' 
 :data:`EXTRAPOLATE_FRAMES` frames (a motion computer's dead reckoning), so the late packet, when it comes,
 continues the line instead of ending a hold with a jump (held, a served session's 8 ms late packet stopped the
 setpoint for four ticks and then stepped it 0.85 mm: 4 g at the platform with the feedforward on). A host that
-stops holds its last setpoint after that.
+stops holds its last setpoint after that; when its packets come again (within ``host_timeout_s``: a host, or the
+network, that stalled), the setpoint **rejoins** the host's line on a quintic correction from where it stood,
+its velocity and acceleration to nothing, at most ``move_speed`` faster than the line and over
+:data:`REJOIN_FLOOR_S` at least, instead of jumping to it (a served session stalled 0.3 s jumped 23 mm in one
+tick: 6 m/s^2 for 0.1 s at the platform and its p1 down to the cavitation pressure).
+
+A stall is told from a lost host by the frames: after a silence longer than ``host_timeout_s`` the next frame
+means the packets waited in a queue (the controller's socket while it stalled, or the host's): the timeline goes
+on, every packet not yet played is kept for the controller to catch up through (:data:`MOST_KEPT`), and those
+queued or a period late teach the timeline nothing (:meth:`OperatingModes._learn`). Frames skipped over the
+silence mean a lost host (restarted, or silent itself): followed, the platform returns to neutral, host lost,
+though no tick saw the silence.
 """
 
 from __future__ import annotations
@@ -63,11 +74,18 @@ LEARN = 0.02
 #: early, so the timeline follows the earliest arrivals and a burst of late ones barely moves it (at LEARN each,
 #: a served session's three packets 30 ms late stepped the setpoint back 0.24 mm in one tick: 2 g)
 LEARN_LATE = 0.001
-#: the host packets kept for the interpolation
+#: late arrivals in a row that say the host's timeline is late (:meth:`OperatingModes._learn`)
 KEEP = 8
+#: the most host packets kept for the interpolation: those not yet played, and the one before (a controller that
+#: stalled catches up through every packet that waited in its socket; the last eight only, it jumped 12 mm to the
+#: eighth last and held there until its ticks reached it)
+MOST_KEPT = 4096
 #: how far past the newest packet [frames] the setpoints go on along the last two packets' line (module doc): a
 #: burst of three packets 30 ms late is bridged (two frames held the setpoint for a tick, then doubled its step)
 EXTRAPOLATE_FRAMES = 5.0
+
+#: The shortest rejoin of the host's line after a hold (module doc) [s]
+REJOIN_FLOOR_S = 0.2
 
 #: The time constant [s] of the low pass the setpoints' acceleration is read through for a move's start: the
 #: host's setpoints, linear between its packets, change their velocity in steps at each packet (their second
@@ -166,14 +184,21 @@ class OperatingModes:
         self._t = 0.0
         self._move: _Move | None = None
         self._fade_t0 = 0.0
-        self._frames: list[int] = []  # the last KEEP accepted packets: unwrapped frame counters
+        self._frames: list[int] = []  # the accepted packets not yet played, and the one before: frames
         self._legs: list[np.ndarray] = []  # and their piston setpoints
         self._arrived = -np.inf  # the newest accepted packet's arrival [s]
         self._first = (0.0, 0)  # the first accepted packet's (arrival [s], frame)
         self.host_period: float | None = None  # [s], learned
         self._offset = 0.0  # the host timeline's start on ours [s], learned
+        self._lost = False  # the host was lost while followed, seen by :meth:`receive`
+        self._stalled = 0  # late arrivals in a row that taught the timeline nothing (:meth:`_learn`)
         self.last_frame: int | None = None
         self.rejected: dict[str, int] = {}
+        # the host's line as played while following (:meth:`_played_host`): held past its dead reckoning at the
+        # last tick, the correction that rejoins it, the last value played [m] with its velocity [m/s] and time [s]
+        self._held = False
+        self._rejoin: _Move | None = None
+        self._played: tuple[np.ndarray, np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ packets
     def reject(self, reason: str) -> None:
@@ -186,7 +211,14 @@ class OperatingModes:
         the six setpoints in ``setpoint`` (6,)) arrived at ``t`` [s]. Returns whether it was accepted (else it is
         counted under its reason and changes nothing)."""
         frame = int(fields["frame"])
-        if t - self._arrived > self.settings.host_timeout_s:  # a host back after silence: a new timeline
+        queued = self.last_frame is not None and (frame - self.last_frame) % self.frame_range == 1
+        if t - self._arrived > self.settings.host_timeout_s and not queued:  # a host back after silence: a new
+            # timeline; followed, it was lost, though no tick saw the silence (the controller stalled with it, its
+            # ticks behind the packets' clock): the next tick returns to neutral, as it would have. The next frame
+            # after a silence is not a new host: its packets waited in a queue (the controller's socket while it
+            # stalled, or the host's) and the timeline goes on (a served session whose process stopped 0.8 s had
+            # jumped to the new timeline's newest packet, 8 mm in a tick)
+            self._lost = self.status in (Status.ENGAGED, Status.ENGAGING)
             self.last_frame, self._frames, self._legs, self.host_period = None, [], [], None
         if self.last_frame is not None:
             ahead = (frame - self.last_frame) % self.frame_range
@@ -199,7 +231,7 @@ class OperatingModes:
             return False
         self._learn(t, frame)
         self.last_frame = frame
-        self._legs = [*self._legs[-(KEEP - 1):], legs]
+        self._legs = [*self._legs[-(MOST_KEPT - 1):], legs]
         if fields["mode"] != "engage":
             self.latched = False
             self.faults &= ~HOST_LOST
@@ -213,10 +245,15 @@ class OperatingModes:
 
     def _learn(self, t: float, frame: int) -> None:
         """Place the accepted packet (arrival ``t`` [s], counter ``frame``) on the host's timeline: its unwrapped
-        frame, and the averages of the host period and the timeline's offset (module doc)."""
+        frame, and the averages of the host period and the timeline's offset (module doc). A stall's packets teach
+        neither (those arriving a period or more late, and those queued behind them, within a quarter period of the
+        one before: their arrival times are the queue's, not the host's; a burst of 30, 0-0.3 s late, pulled the
+        period 2.4 % long and the offset 5 ms late, and the played line stepped at each packet after it, up to
+        3.7 m/s^2), unless :data:`KEEP` late ones in a row, each a quarter period or more after the one before, say
+        the timeline is late (then they are the host's)."""
         n = frame if not self._frames else self._frames[-1] + (frame - self.last_frame) % self.frame_range
-        self._frames = [*self._frames[-(KEEP - 1):], n]
-        self._arrived = t
+        self._frames = [*self._frames[-(MOST_KEPT - 1):], n]
+        previous, self._arrived = self._arrived, t
         if len(self._frames) == 1:
             self._first = (t, n)
             return
@@ -224,29 +261,79 @@ class OperatingModes:
         if self.host_period is None:
             self.host_period = (t - t0) / (n - n0)
             self._offset = t0 - n0 * self.host_period
+            return
+        if t - previous < 0.25 * self.host_period:  # queued behind the one before
+            return
+        if t - n * self.host_period - self._offset >= self.host_period:
+            self._stalled += 1
+            if self._stalled <= KEEP:
+                return
         else:
-            self.host_period += LEARN * ((t - t0) / (n - n0) - self.host_period)
-            late = (t - n * self.host_period) - self._offset
-            self._offset += (LEARN_LATE if late > 0 else LEARN) * late
+            self._stalled = 0
+        self.host_period += LEARN * ((t - t0) / (n - n0) - self.host_period)
+        late = (t - n * self.host_period) - self._offset
+        self._offset += (LEARN_LATE if late > 0 else LEARN) * late
 
     def host_setpoint(self, t: float) -> np.ndarray:
         """The host's piston setpoints at ``t`` [s]: linear on the host's timeline, ``delay_frames`` behind
         the newest packet (module doc); past the newest along the last two packets' line for up to
         :data:`EXTRAPOLATE_FRAMES`, then held there."""
+        return self._line(t)[0]
+
+    def _line(self, t: float) -> tuple[np.ndarray, np.ndarray, bool]:
+        """:meth:`host_setpoint` at ``t`` [s], its velocity on the host's line [m/s] and whether it is held
+        (past the newest packet's dead reckoning)."""
+        still = np.zeros_like(self._legs[-1])
         if self.host_period is None or self.host_period <= 0:
-            return self._legs[-1]
+            return self._legs[-1], still, False
         f = (t - self._offset) / self.host_period - self.settings.delay_frames
         frames = self._frames
         if f >= frames[-1]:
             if len(frames) < 2:
-                return self._legs[-1]
-            ahead = min(f - frames[-1], EXTRAPOLATE_FRAMES) / (frames[-1] - frames[-2])
-            return self._legs[-1] + ahead * (self._legs[-1] - self._legs[-2])
+                return self._legs[-1], still, False
+            slope = (self._legs[-1] - self._legs[-2]) / (frames[-1] - frames[-2])  # per frame
+            held = f - frames[-1] > EXTRAPOLATE_FRAMES
+            ahead = min(f - frames[-1], EXTRAPOLATE_FRAMES)
+            return self._legs[-1] + ahead * slope, still if held else slope / self.host_period, held
         if f <= frames[0]:
-            return self._legs[0]
+            return self._legs[0], still, False
         k = int(np.searchsorted(frames, f, side="right"))  # frames[k - 1] <= f < frames[k]
         s = (f - frames[k - 1]) / (frames[k] - frames[k - 1])
-        return self._legs[k - 1] + s * (self._legs[k] - self._legs[k - 1])
+        slope = (self._legs[k] - self._legs[k - 1]) / (frames[k] - frames[k - 1])
+        return self._legs[k - 1] + s * slope * (frames[k] - frames[k - 1]), slope / self.host_period, False
+
+    def _forget(self, t: float) -> None:
+        """Drop the packets the host's line has passed at the tick ``t`` [s], keeping the one it is on (and two at
+        least: the bridge's line)."""
+        if self.host_period is None or self.host_period <= 0 or len(self._frames) < 3:
+            return
+        f = (t - self._offset) / self.host_period - self.settings.delay_frames
+        k = min(int(np.searchsorted(self._frames, f, side="right")) - 1, len(self._frames) - 2)
+        if k > 0:
+            del self._frames[:k], self._legs[:k]
+
+    def _played_host(self, t: float) -> np.ndarray:
+        """The host's line at ``t`` [s] as the engaged platform plays it: :meth:`host_setpoint`, and where the
+        line was held at the last tick and is not now (its packets came again), the quintic correction that
+        rejoins it from the last value played, its velocity and no acceleration (module doc)."""
+        line, velocity, held = self._line(t)
+        if self._held and not held and self._played is not None:
+            last, last_velocity, t_last = self._played
+            gap = last + last_velocity * (t - t_last) - line
+            T = max(REJOIN_FLOOR_S, QUINTIC_PEAK_SPEED * float(np.max(np.abs(gap))) / self.settings.move_speed)
+            self._rejoin = _Move(t, T, gap, last_velocity - velocity, np.zeros_like(gap), np.zeros_like(gap),
+                                 self.status)
+        self._held = held
+        y = line
+        if self._rejoin is not None:
+            y = np.clip(line + self._rejoin.at(t), self.lo, self.hi)
+            if self._rejoin.done(t):
+                self._rejoin = None
+        if self._played is not None and t > self._played[2]:
+            self._played = (y, (y - self._played[0]) / (t - self._played[2]), t)
+        elif self._played is None:
+            self._played = (y, velocity, t)
+        return y
 
     # ------------------------------------------------------------------ ticks
     def _start_move(self, target: np.ndarray, then: Status, status: Status, floor: float) -> None:
@@ -280,7 +367,8 @@ class OperatingModes:
         """Advance to the controller tick at ``t`` [s] (increasing): the modes' transitions, then the piston
         setpoints (n,) [m] (a copy)."""
         s = self.settings
-        host_ok = t - self._arrived <= s.host_timeout_s
+        host_ok = t - self._arrived <= s.host_timeout_s and not self._lost
+        self._lost = False
         following = self.status in (Status.ENGAGED, Status.ENGAGING)
         if following and not host_ok:
             self.latched = True
@@ -300,13 +388,16 @@ class OperatingModes:
         if self.status == Status.ENGAGING and t - self._fade_t0 >= s.engage_s:
             self.status = Status.ENGAGED
         if self.status == Status.ENGAGED:
-            y = self.host_setpoint(t)
+            y = self._played_host(t)
         elif self.status == Status.ENGAGING:
-            y = self.neutral + quintic((t - self._fade_t0) / s.engage_s) * (self.host_setpoint(t) - self.neutral)
-        elif self._move is not None:
-            y = self._move.at(t)
+            y = self.neutral + quintic((t - self._fade_t0) / s.engage_s) * (self._played_host(t) - self.neutral)
         else:
-            y = self.park if self.status == Status.PARKED else self.neutral
+            self._held, self._rejoin, self._played = False, None, None  # a new line when it follows again
+            if self._move is not None:
+                y = self._move.at(t)
+            else:
+                y = self.park if self.status == Status.PARKED else self.neutral
+        self._forget(t)
         dt = t - self._t
         vel = (y - self.cmd) / dt if dt > 0 else np.zeros_like(y)
         if dt > 0:  # the setpoint's acceleration, smoothed over the host's packets' kinks (ACCELERATION_TAU_S)

@@ -151,6 +151,55 @@ def test_late_packets_neither_stop_nor_step_back_the_setpoint():
     assert np.max(np.abs(step[engaged] - host[engaged]) / np.abs(host[engaged])) < 0.5
 
 
+def test_a_host_that_stalls_is_rejoined_on_a_quintic_not_a_jump():
+    """Engaged on a host's 0.5 Hz, 40 mm sine at 100 Hz whose packets of 2.5-2.8 s all arrive at 2.8 s (a stalled
+    host, or a loaded machine's: tests/conftest.py): the setpoint goes on along the line for five frames and holds;
+    when the packets come it rejoins the host's line on a quintic instead of jumping to it, and the burst does not
+    bend the host's timeline: the setpoint's acceleration after the resume at most 1.32 m/s^2 where the line's own
+    kinks at its packets are 0.99, and 0.99 again from 4 s; back on the line by 3.83 s. Before: one tick jumped
+    10.3 mm (2568 m/s^2), and at 4-5 s the disturbed timeline still kinked it at 17 m/s^2."""
+    modes = _modes(engage_s=0.5)
+    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
+    sends = np.arange(0.0, 5.0, 0.01)
+    arrivals = np.where((sends >= 2.5) & (sends < 2.8), 2.8, sends)
+    out, k = [], 0
+    for n in range(int(round(5.0 / TICK))):
+        t = n * TICK
+        while k < len(sends) and arrivals[k] <= t + 1e-9:
+            modes.receive(t, {"frame": k + 1, "mode": "engage", "setpoint": sine(sends[k])})
+            k += 1
+        out.append(modes.setpoint(t)[0])
+    y, t = np.array(out) - NEUTRAL[0], np.arange(len(out)) * TICK
+    assert np.ptp(y[(t > 2.6) & (t < 2.8)]) == 0.0  # held
+    acc, mid = np.abs(np.diff(y, 2)) / TICK**2, t[1:-1]
+    own = acc[(mid > 1.0) & (mid < 2.5)].max()  # the line's kinks at its packets
+    assert acc[mid > 2.79].max() < 1.5 * own and acc[mid > 4.0].max() < 1.05 * own
+    line = 0.04 * np.sin(np.pi * (t - 0.015))  # the host's line, played 1.5 frames behind
+    assert np.abs(y - line)[(t > 2.8) & (t < 2.81)].min() > 0.01  # away from it at the resume
+    assert np.abs(y - line)[t > 4.0].max() < 1e-5
+
+
+def test_a_silence_the_controller_stalled_through_is_told_from_a_lost_host_by_the_frames():
+    """Engaged on a host's sine, the controller stalls from 2.2 s to 3.0 s (its ticks stop; the host's packets
+    arrive 0.8 s after the last, stamped when read, before the controller's next tick at 2.2 s): longer than the
+    host timeout. Frames that go on from the last one waited in a queue (the controller's socket while it stalled,
+    or the host's): the host was there, the setpoint goes on along its line without a step. A host that skipped
+    frames over the silence (restarted, or silent itself) was lost: the next tick returns to neutral, host lost,
+    on the quintic from the setpoint. Before, both jumped to the newest packet of a new timeline (8 mm in a tick
+    in a served session stopped 0.8 s)."""
+    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
+    for skipped, then in ((0, Status.ENGAGED), (3, Status.RETURNING)):
+        modes = _modes(engage_s=0.5)
+        before = _drive(modes, 2.2, lambda t: ("engage", sine(t)))[:, 0]
+        for sent in np.arange(2.2 + 0.01 * skipped, 3.0, 0.01):  # the host's backlog, all at once
+            frame = modes.last_frame + 1 + (skipped if sent == 2.2 + 0.01 * skipped else 0)
+            modes.receive(3.0, {"frame": frame, "mode": "engage", "setpoint": sine(sent)})
+        after = _drive(modes, 0.5, lambda t: None, t0=2.2)[:, 0]
+        assert modes.status == then and bool(modes.take_faults() & HOST_LOST) == (then == Status.RETURNING)
+        steps = np.abs(np.diff(np.r_[before[-250:], after]))  # engaged (the fade over) on
+        assert steps.max() < 1.01 * 0.04 * np.pi * TICK
+
+
 def test_engage_fades_the_hosts_motion_in_without_a_step_and_then_follows_it():
     """The host sends a 0.5 Hz, 40 mm sine on leg 1 from t = 0 and asks to engage at 1 s: the setpoint stays
     neutral until then; the fade adds no step in velocity (its largest change per tick no larger than the one
@@ -324,10 +373,9 @@ def test_the_host_sees_the_platform_engage_follow_and_return(session):
     # the head's specific force is the platform's own acceleration plus gravity, the packets' heave differentiated
     # twice: in the simulated time the states carry, at 100 Hz, below 2 Hz (the bumps and the ringing above), the
     # filter's first and last 0.5 s left out. Each packet carries the mean over its period, so its mean is gravity
-    # even where a loaded machine stalled the whole test process (host and server stop together, the catch-up
-    # outruns the host's packets, the setpoint holds and jumps: with three 0.3 s SIGSTOPs the instantaneous
-    # samples averaged 9.63 m/s^2). Correlation 0.9997 alone; with SIGSTOPs of 3 x 0.3, 2 x 0.5 and 1 x 0.8 s
-    # 0.999, 0.997, 0.9997; gain 1.00-1.04
+    # even where the platform jerks (where a stall of the whole process, host and server, once made it jerk, the
+    # instantaneous samples averaged 9.63 m/s^2). Correlation 0.9997, gain 1.000, alone and with the process
+    # stopped (SIGSTOP) 3 x 0.3, 2 x 0.5 or 1 x 0.8 s; 4 x 0.4 s: 0.9998, 0.999
     _, sim_time = record.series("time")
     t, first = np.unique(sim_time[engaged], return_index=True)
     grid = np.arange(t[0], t[-1], 0.01)
@@ -336,8 +384,9 @@ def test_the_host_sees_the_platform_engage_follow_and_return(session):
     low = butter(2, 2.0, fs=100.0, output="sos")
     f, a = (sosfiltfilt(low, x)[50:-50] for x in (fz_t - 9.81, np.gradient(np.gradient(heave_t, grid), grid)))
     assert np.corrcoef(f, a)[0, 1] > 0.98 and f @ a / (a @ a) == pytest.approx(1.0, abs=0.1)
-    _, p1 = record.series("p1_leg1")  # gauge; at the cavitation pressure (0.1 bar absolute) after a stall's jump
-    assert np.all((p1 >= load_machine(None).hydraulics.cavitation_pressure) & (p1 < 100e5)) and np.median(p1) > 10e5
+    _, p1 = record.series("p1_leg1")  # gauge; never below the cavitation pressure (0.1 bar absolute), f32 rounding
+    floor = load_machine(None).hydraulics.cavitation_pressure - 1e3
+    assert np.all((p1 >= floor) & (p1 < 100e5)) and np.median(p1) > 10e5
 
 
 def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
