@@ -169,8 +169,11 @@ def client_lines(record: HostRecord) -> list[str]:
         sent_t = np.array([s[0] for s in record.sent])
         sent_heave = np.array([s[3][2] for s in record.sent])
         _, heave = record.series("heave")
-        lines.append(f"heave sent {sent_heave.min():+.4f}…{sent_heave.max():+.4f} m, reported "
-                     f"{heave.min():+.4f}…{heave.max():+.4f} m over {sent_t[-1] - sent_t[0]:.1f} s")
+        engaged = heave[status == Status.ENGAGED]
+        followed = (f"{engaged.min():+.4f}…{engaged.max():+.4f} m engaged, " if engaged.size else "")
+        lines.append(f"heave sent {sent_heave.min():+.4f}…{sent_heave.max():+.4f} m, reported {followed}"
+                     f"{heave.min():+.4f}…{heave.max():+.4f} m in all (the fade-in and the return to neutral "
+                     f"included) over {sent_t[-1] - sent_t[0]:.1f} s")
     if "seat_peak" in record.states[0][1]:
         from hexsim.studies.perception import ISO_PERCEPTION_THRESHOLD
 

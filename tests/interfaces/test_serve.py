@@ -25,7 +25,7 @@ from scipy.signal import butter, sosfiltfilt
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
-from hexsim.interfaces.host import HostClient, motion_script
+from hexsim.interfaces.host import HostClient, client_lines, motion_script
 from hexsim.interfaces.operating_modes import (
     HOST_LOST,
     ModeSettings,
@@ -410,6 +410,14 @@ def test_the_host_sees_what_the_occupant_senses_and_feels_at_the_seat(session):
     gain = abs((13.2 * s + 1) / ((5.33 * s + 1) * (0.66 * s + 1)))
     assert amplitude(sensed) == pytest.approx(gain * amplitude(fz), rel=0.1)
     assert peak[engaged].max() > 0.015  # the 0.5 Hz, 40 mm heave's W_k-weighted 0.4 m/s^2 and its bumps
+
+
+def test_the_clients_summary_gives_the_engaged_range_apart_from_the_return(session):
+    """The client's report (``hexsim serve --client``) gives the heave the platform reported while engaged, the
+    host's own 40 mm here, apart from the whole session's, whose return to neutral starts at the host's speed."""
+    line = next(x for x in client_lines(session.record) if x.startswith("heave sent"))
+    engaged = [float(v) for v in line.split("reported ")[1].split(" m engaged")[0].split("…")]
+    assert engaged == pytest.approx([-0.04, 0.04], abs=0.002) and "in all" in line
 
 
 def test_live_perception_is_the_recorded_runs_perception_sample_by_sample():
