@@ -506,17 +506,22 @@ class AdaptiveFeedforward(FeedforwardCompensator):
                 "guard": self.off.astype(float)}
 
 
+def _flat(u: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """The commands [V] of a flow curve's flat part around null (its overlap): those whose speed is within 1e-6
+    of the largest; empty for an underlapped valve."""
+    return u[np.abs(velocity) <= 1e-6 * np.max(np.abs(velocity))]
+
+
 def _null(u: np.ndarray, velocity: np.ndarray) -> float:
-    """The command [V] at the middle of a non-decreasing flow curve's flat part around null (its overlap: the
-    speeds within 1e-6 of the largest), or where it crosses zero where it has none."""
-    flat = u[np.abs(velocity) <= 1e-6 * np.max(np.abs(velocity))]
+    """The command [V] at the middle of a non-decreasing flow curve's flat part around null (:func:`_flat`), or
+    where it crosses zero where it has none."""
+    flat = _flat(u, velocity)
     return float(0.5 * (flat[0] + flat[-1])) if flat.size else float(np.interp(0.0, velocity, u))
 
 
 def _dead_band(u: np.ndarray, velocity: np.ndarray) -> float:
-    """Width [V] of the flow curve's flat part around null (its overlap): the commands whose speed is
-    within 1e-6 of the largest; 0 for an underlapped valve."""
-    flat = u[np.abs(velocity) <= 1e-6 * np.max(np.abs(velocity))]
+    """Width [V] of the flow curve's flat part around null (:func:`_flat`); 0 for an underlapped valve."""
+    flat = _flat(u, velocity)
     return float(flat[-1] - flat[0]) if flat.size else 0.0
 
 

@@ -405,11 +405,11 @@ class Simulator:
             wall_time_s=self.wall_time_s, gravity=float(-self.model.opt.gravity[2]), stroke=idx.stroke.copy(),
             timestep=self.dt, platform_quat=rec.get("platform_quat"), sensor_site=self.sensor_site())
 
-    def recorded_mean(self, name: str, since: int) -> np.ndarray | None:
-        """The mean of sensor ``name``'s samples recorded from sample ``since`` on (a count of samples since the
-        start, as :attr:`rows`; at least the last one, at most those the ring still holds), (width,) in the
-        sensor's units and frame; None before the first sample. The accelerometers' samples are each the mean
-        over their interval (the boxcar of :class:`~hexsim.engine.native.Recorder`: Δv/Δt), so the mean of
+    def recorded_mean(self, names: tuple[str, ...], since: int) -> list[np.ndarray] | None:
+        """The mean of each sensor in ``names``' samples recorded from sample ``since`` on (a count of samples
+        since the start, as :attr:`rows`; at least the last one, at most those the ring still holds), each (width,)
+        in the sensor's units and frame; None before the first sample. The accelerometers' samples are each the
+        mean over their interval (the boxcar of :class:`~hexsim.engine.native.Recorder`: Δv/Δt), so the mean of
         consecutive ones is the mean over their whole interval, the interval ending one sample before
         :attr:`time`. Raises KeyError for a sensor the model does not have."""
         if self.rows == 0:
@@ -417,8 +417,9 @@ class Simulator:
         n_rec = len(self.rec["t"])
         rows = np.arange(max(min(since, self.rows - 1), self.rows - n_rec, 0), self.rows) % n_rec
         if self.config.engine == "native":
-            return self.recorder.sens[rows, self.idx.sensor[name]].mean(axis=0)
-        return self.sensors[name][rows].mean(axis=0)
+            sens = self.recorder.sens[rows]
+            return [sens[:, self.idx.sensor[name]].mean(axis=0) for name in names]
+        return [self.sensors[name][rows].mean(axis=0) for name in names]
 
     def sensor_site(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The platform accelerometer's site in its body: position (3,) [m], orientation (4,) [w, x, y, z];

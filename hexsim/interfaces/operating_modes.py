@@ -285,9 +285,9 @@ class OperatingModes:
         """:meth:`host_setpoint` at ``t`` [s], its velocity on the host's line [m/s] and whether it is held
         (past the newest packet's dead reckoning)."""
         still = np.zeros_like(self._legs[-1])
-        if self.host_period is None or self.host_period <= 0:
+        f = self._played_frame(t)
+        if f is None:
             return self._legs[-1], still, False
-        f = (t - self._offset) / self.host_period - self.settings.delay_frames
         frames = self._frames
         if f >= frames[-1]:
             if len(frames) < 2:
@@ -303,12 +303,19 @@ class OperatingModes:
         step = self._legs[k] - self._legs[k - 1]
         return self._legs[k - 1] + s * step, step / ((frames[k] - frames[k - 1]) * self.host_period), False
 
+    def _played_frame(self, t: float) -> float | None:
+        """The (unwrapped, fractional) host frame played at ``t`` [s]: ``delay_frames`` behind the frame the host's
+        timeline puts there; None before the host period is learned."""
+        if self.host_period is None or self.host_period <= 0:
+            return None
+        return (t - self._offset) / self.host_period - self.settings.delay_frames
+
     def _forget(self, t: float) -> None:
         """Drop the packets the host's line has passed at the tick ``t`` [s], keeping the one it is on (and two at
         least: the bridge's line)."""
-        if self.host_period is None or self.host_period <= 0 or len(self._frames) < 3:
+        f = self._played_frame(t)
+        if f is None or len(self._frames) < 3:
             return
-        f = (t - self._offset) / self.host_period - self.settings.delay_frames
         k = min(int(np.searchsorted(self._frames, f, side="right")) - 1, len(self._frames) - 2)
         if k > 0:
             del self._frames[:k], self._legs[:k]

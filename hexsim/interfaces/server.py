@@ -317,9 +317,9 @@ class VirtualMotionSystem:
         the instantaneous value averaged 9.63 m/s^2 on z over the engaged heave, the means 9.81)."""
         sim = self.sim
         d, s = sim.data, sim.idx.sensor
-        acc, angacc = (sim.recorded_mean(name, since) for name in ("platform_acc", "platform_angacc"))
-        if acc is None:  # nothing recorded yet: the sensors now
-            acc, angacc = d.sensordata[s["platform_acc"]], d.sensordata[s["platform_angacc"]]
+        means = sim.recorded_mean(("platform_acc", "platform_angacc"), since)
+        acc, angacc = means if means is not None else (  # nothing recorded yet: the sensors now
+            d.sensordata[s["platform_acc"]], d.sensordata[s["platform_angacc"]])
         mujoco.mju_quat2Mat(self._world_from_body, d.sensordata[s["platform_quat"]])
         omega = d.sensordata[s["platform_gyro"]]
         alpha = (self._world_from_body.reshape(3, 3) @ self._body_from_site).T @ angacc
