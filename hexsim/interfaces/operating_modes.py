@@ -20,9 +20,10 @@ the timeout any counter starts a new timeline), or when its setpoint needs a
 leg beyond its stroke less ``margin_m`` ("envelope").
 
 Between packets the host's setpoints are interpolated linearly on the host's own timeline, not on the
-arrival times: each accepted packet sits at its frame counter (unwrapped) times the host period, the period
-and the timeline's offset are learned from the arrivals by slow averages (:data:`LEARN`; the offset from late
-arrivals more slowly still, :data:`LEARN_LATE`: it follows the earliest), and the setpoint
+arrival times: each accepted packet sits at its frame counter (unwrapped) counted from the first packet's times
+the host period, the period and where the first packet's frame sits are learned from the arrivals by slow averages
+(:data:`LEARN`; the period, until 1 / LEARN frames have come, the mean of the lines from the first packet to each;
+the offset from late arrivals more slowly still, :data:`LEARN_LATE`: it follows the earliest), and the setpoint
 is played ``delay_frames`` frames behind the newest (1.5: a packet may arrive up to half a period late without
 the setpoints noticing). Arrival jitter then moves the offset a little, not the setpoints' velocity, which
 would be acceleration spikes of the size jitter x velocity / period^2. A packet later than that is
@@ -30,7 +31,8 @@ bridged: past the newest packet the setpoints go on along the last two packets' 
 :data:`EXTRAPOLATE_FRAMES` frames (a motion computer's dead reckoning), so the late packet, when it comes,
 continues the line instead of ending a hold with a jump (held, a served session's 8 ms late packet stopped the
 setpoint for four ticks and then stepped it 0.85 mm: 4 g at the platform with the feedforward on). A host that
-stops holds its last setpoint after that; when its packets come again (within ``host_timeout_s``: a host, or the
+stops is held after that, the setpoint stopping on a quintic from its velocity over :data:`REJOIN_FLOOR_S`;
+when its packets come again (within ``host_timeout_s``: a host, or the
 network, that stalled), the setpoint **rejoins** the host's line on a quintic correction from where it stood,
 its velocity and acceleration to nothing, at most ``move_speed`` faster than the line and over
 :data:`REJOIN_FLOOR_S` at least, instead of jumping to it (a host silent from 2.5 to 2.8 s on a 0.5 Hz, 40 mm
@@ -40,7 +42,9 @@ its p1 at the cavitation pressure).
 A stall is told from a lost host by the frames: after a silence longer than ``host_timeout_s`` the next frame
 means the packets waited in a queue (the controller's socket while it stalled, or the host's): the timeline goes
 on, every packet not yet played is kept for the controller to catch up through (:data:`MOST_KEPT`), and those
-queued or a period late teach the timeline nothing (:meth:`OperatingModes._learn`). Frames skipped over the
+queued or a period late teach the timeline nothing (:meth:`OperatingModes._learn`), unless :data:`LATE_IN_A_ROW`
+late ones come in a row, regularly spaced and late by the same: a route that got longer, on whose earliest packet
+the timeline is then placed at once, the setpoint rejoining the later line. Frames skipped over the
 silence mean a lost host (restarted, or silent itself): followed, the platform returns to neutral, host lost,
 though no tick saw the silence.
 """
@@ -75,7 +79,7 @@ LEARN = 0.02
 #: early, so the timeline follows the earliest arrivals and a burst of late ones barely moves it (at LEARN each,
 #: a served session's three packets 30 ms late stepped the setpoint back 0.24 mm in one tick: 2 g)
 LEARN_LATE = 0.001
-#: late arrivals in a row that say the host's timeline is late (:meth:`OperatingModes._learn`)
+#: late arrivals in a row that say the host's timeline is late, and place it on them (:meth:`OperatingModes._learn`)
 LATE_IN_A_ROW = 8
 #: the most host packets kept for the interpolation: those not yet played, and the one before (a controller that
 #: stalled catches up through every packet that waited in its socket; the last eight only, it jumped 12 mm to the
@@ -85,7 +89,7 @@ MOST_KEPT = 4096
 #: burst of three packets 30 ms late is bridged (two frames held the setpoint for a tick, then doubled its step)
 EXTRAPOLATE_FRAMES = 5.0
 
-#: The shortest rejoin of the host's line after a hold (module doc) [s]
+#: The shortest rejoin of the host's line after a hold, and the stop when it is held (module doc) [s]
 REJOIN_FLOOR_S = 0.2
 
 #: The time constant [s] of the low pass the setpoints' acceleration is read through for a move's start: the
@@ -190,15 +194,17 @@ class OperatingModes:
         self._arrived = -np.inf  # the newest accepted packet's arrival [s]
         self._first = (0.0, 0)  # the first accepted packet's (arrival [s], frame)
         self.host_period: float | None = None  # [s], learned
-        self._offset = 0.0  # the host timeline's start on ours [s], learned
+        self._offset = 0.0  # where the host's timeline puts the first packet's frame on our clock [s], learned
         self._lost = False  # the host was lost while followed, seen by :meth:`receive`
-        self._stalled = 0  # late arrivals in a row that taught the timeline nothing (:meth:`_learn`)
+        self._late: list[float] = []  # late arrivals in a row [s late], which taught the timeline nothing yet
+        self._replaced = False  # the timeline was re-placed on late arrivals (:meth:`_learn`), not yet rejoined
         self.last_frame: int | None = None
         self.rejected: dict[str, int] = {}
         # the host's line as played while following (:meth:`_played_host`): held past its dead reckoning at the
         # last tick, the correction that rejoins it, the last value played [m] with its velocity [m/s] and time [s]
         self._held = False
         self._rejoin: _Move | None = None
+        self._stopping: _Move | None = None
         self._played: tuple[np.ndarray, np.ndarray, float] | None = None
 
     # ------------------------------------------------------------------ packets
@@ -220,7 +226,7 @@ class OperatingModes:
             # stalled, or the host's) and the timeline goes on (a served session whose process stopped 0.8 s had
             # jumped to the new timeline's newest packet, 8 mm in a tick)
             self._lost = self.status in (Status.ENGAGED, Status.ENGAGING)
-            self.last_frame, self._frames, self._legs, self.host_period = None, [], [], None
+            self.last_frame, self._frames, self._legs, self.host_period, self._late = None, [], [], None, []
         if self.last_frame is not None:
             ahead = (frame - self.last_frame) % self.frame_range
             if ahead == 0 or ahead >= self.frame_range // 2:
@@ -250,8 +256,11 @@ class OperatingModes:
         neither (those arriving a period or more late, and those queued behind them, within a quarter period of the
         one before: their arrival times are the queue's, not the host's; a burst of 30, 0-0.3 s late, pulled the
         period 2.4 % long and the offset 5 ms late, and the played line stepped at each packet after it, up to
-        3.7 m/s^2), unless :data:`LATE_IN_A_ROW` late ones in a row, each a quarter period or more after the one
-        before, say the timeline is late (then they are the host's)."""
+        3.7 m/s^2). :data:`LATE_IN_A_ROW` late ones in a row, each a quarter period or more after the one before and
+        all late by the same within a period, say the host's timeline is late (a route that got longer; a controller
+        catching up after a stall reads its backlog ever less late): it is placed on the earliest of them at once and
+        the played line rejoins it (``_replaced``; learned slowly instead, a route 80 ms longer held the setpoint at
+        its dead reckoning's end for seconds, stepping at each packet: 315 m/s^2)."""
         n = frame if not self._frames else self._frames[-1] + (frame - self.last_frame) % self.frame_range
         self._frames = [*self._frames[-(MOST_KEPT - 1):], n]
         previous, self._arrived = self._arrived, t
@@ -261,18 +270,26 @@ class OperatingModes:
         t0, n0 = self._first
         if self.host_period is None:
             self.host_period = (t - t0) / (n - n0)
-            self._offset = t0 - n0 * self.host_period
+            self._offset = t0
             return
         if t - previous < 0.25 * self.host_period:  # queued behind the one before
             return
-        if t - n * self.host_period - self._offset >= self.host_period:
-            self._stalled += 1
-            if self._stalled <= LATE_IN_A_ROW:
+        late = t - self._on_timeline(n)
+        if late >= self.host_period:
+            self._late = [*self._late[-(LATE_IN_A_ROW - 1):], late]
+            if len(self._late) < LATE_IN_A_ROW:
+                return
+            if max(self._late) - min(self._late) < self.host_period:
+                # the host's timeline is late by the least of them (a route that got longer): placed there at
+                # once, the first packet with it (the period's estimate is not biased by the step), the line rejoined
+                jump, self._late, self._replaced = min(self._late), [], True
+                self._offset += jump
+                self._first = (t0 + jump, n0)
                 return
         else:
-            self._stalled = 0
-        self.host_period += LEARN * ((t - t0) / (n - n0) - self.host_period)
-        late = (t - n * self.host_period) - self._offset
+            self._late = []
+        self.host_period += max(LEARN, 1.0 / (n - n0)) * ((t - t0) / (n - n0) - self.host_period)
+        late = t - self._on_timeline(n)
         self._offset += (LEARN_LATE if late > 0 else LEARN) * late
 
     def host_setpoint(self, t: float) -> np.ndarray:
@@ -308,7 +325,13 @@ class OperatingModes:
         timeline puts there; None before the host period is learned."""
         if self.host_period is None or self.host_period <= 0:
             return None
-        return (t - self._offset) / self.host_period - self.settings.delay_frames
+        return self._first[1] + (t - self._offset) / self.host_period - self.settings.delay_frames
+
+    def _on_timeline(self, n: float) -> float:
+        """Where the host's timeline puts its (unwrapped) frame ``n`` on our clock [s]: a line through the first
+        packet's frame, so that the period's learning turns it about there (anchored at frame 0, a host whose
+        counter stood at 60000 when it began, its arrivals jittering by 3 ms, was played 50 mm off its line)."""
+        return self._offset + (n - self._first[1]) * self.host_period
 
     def _forget(self, t: float) -> None:
         """Drop the packets the host's line has passed at the tick ``t`` [s], keeping the one it is on (and two at
@@ -321,19 +344,21 @@ class OperatingModes:
             del self._frames[:k], self._legs[:k]
 
     def _played_host(self, t: float) -> np.ndarray:
-        """The host's line at ``t`` [s] as the engaged platform plays it: :meth:`host_setpoint`, and where the
-        line was held at the last tick and is not now (its packets came again), the quintic correction that
-        rejoins it from the last value played, its velocity and no acceleration (module doc)."""
+        """The host's line at ``t`` [s] as the engaged platform plays it: :meth:`host_setpoint`, except that where
+        the line is held (past its dead reckoning) the setpoint stops on a quintic from the last value played and
+        its velocity (:meth:`_stop`), and where it was held and is not now (its packets came again) or the
+        timeline was re-placed, a quintic correction rejoins it from the last value played, its velocity and no
+        acceleration (:meth:`_rejoin_line`; module doc)."""
         line, velocity, held = self._line(t)
-        if self._held and not held and self._played is not None:
-            last, last_velocity, t_last = self._played
-            gap = last + last_velocity * (t - t_last) - line
-            T = max(REJOIN_FLOOR_S, QUINTIC_PEAK_SPEED * float(np.max(np.abs(gap))) / self.settings.move_speed)
-            self._rejoin = _Move(t, T, gap, last_velocity - velocity, np.zeros_like(gap), np.zeros_like(gap),
-                                 self.status)
-        self._held = held
+        if held and not self._held and self._played is not None:
+            self._stopping, self._rejoin = self._stop(), None
+        if self._played is not None and ((self._held and not held) or self._replaced):
+            self._rejoin, self._stopping = self._rejoin_line(t, line, velocity), None
+        self._held, self._replaced = held, False
         y = line
-        if self._rejoin is not None:
+        if self._stopping is not None:
+            y = np.clip(self._stopping.at(t), self.lo, self.hi)
+        elif self._rejoin is not None:
             y = np.clip(line + self._rejoin.at(t), self.lo, self.hi)
             if self._rejoin.done(t):
                 self._rejoin = None
@@ -342,6 +367,25 @@ class OperatingModes:
         elif self._played is None:
             self._played = (y, velocity, t)
         return y
+
+    def _stop(self) -> _Move:
+        """The stop when the host's line is held: from the last value played and its velocity at that tick, no
+        acceleration, to rest over :data:`REJOIN_FLOOR_S` (the quintic's braking is then monotone: it ends half
+        that time times the velocity further on, its largest deceleration 1.5 v / T). Held at once, the setpoint's
+        velocity stepped to nothing in a tick: 42.6 m/s^2 of setpoint acceleration, a host's 0.5 Hz, 40 mm sine
+        held at its full speed."""
+        last, velocity, t_last = self._played
+        return _Move(t_last, REJOIN_FLOOR_S, last, velocity, np.zeros_like(last),
+                     last + 0.5 * REJOIN_FLOOR_S * velocity, self.status)
+
+    def _rejoin_line(self, t: float, line: np.ndarray, velocity: np.ndarray) -> _Move:
+        """The correction (added to the host's ``line`` (n,) [m] with its ``velocity`` [m/s] at ``t`` [s]) from the
+        last value played, its velocity and no acceleration to the line, over :data:`REJOIN_FLOOR_S` at least and
+        at most ``move_speed`` faster than the line (:data:`QUINTIC_PEAK_SPEED`)."""
+        last, last_velocity, t_last = self._played
+        gap = last + last_velocity * (t - t_last) - line
+        T = max(REJOIN_FLOOR_S, QUINTIC_PEAK_SPEED * float(np.max(np.abs(gap))) / self.settings.move_speed)
+        return _Move(t, T, gap, last_velocity - velocity, np.zeros_like(gap), np.zeros_like(gap), self.status)
 
     # ------------------------------------------------------------------ ticks
     def _start_move(self, target: np.ndarray, then: Status, status: Status, floor: float) -> None:
@@ -400,7 +444,7 @@ class OperatingModes:
         elif self.status == Status.ENGAGING:
             y = self.neutral + quintic((t - self._fade_t0) / s.engage_s) * (self._played_host(t) - self.neutral)
         else:
-            self._held, self._rejoin, self._played = False, None, None  # a new line when it follows again
+            self._held, self._rejoin, self._stopping, self._played = False, None, None, None  # a new line to follow
             if self._move is not None:
                 y = self._move.at(t)
             else:
