@@ -44,16 +44,20 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from hexsim.control.vestibular import (
+from hexsim.control.vestibular import (  # noqa: F401 (named here too)
+    AXES,
     THRESHOLD_STIMULUS_S,
     VESTIBULAR_THRESHOLDS,
     canal,
     otolith,
+    sensed_level,
+    threshold_stimulus,
+    vestibular_model,
 )
 from hexsim.signals import LinearModel, fit_fundamental, polynomial_product
 
-#: the head's and the seat's axes, in the order of :class:`PointMotion` (translations, then rotations)
-AXES = ("x", "y", "z", "roll", "pitch", "yaw")
+#: the head's and the seat's axes are AXES, in the order of :class:`PointMotion` (translations, then rotations);
+#: they, the threshold stimulus and the organs are :mod:`hexsim.control.vestibular`'s, named here too
 #: how long after a reversal the sensed peak is looked for [s] (before: the metrics' 0.1 s window)
 SENSED_TAIL = 0.25
 
@@ -136,29 +140,11 @@ class Thresholds:
 DEFAULT_THRESHOLDS = Thresholds()
 
 
-def threshold_stimulus(axis: str, amplitude: float, fs: float, duration: float = THRESHOLD_STIMULUS_S) -> np.ndarray:
-    """The threshold experiments' stimulus on ``axis`` with peak ``amplitude`` sampled at ``fs`` [Hz] and
-    followed by as long at rest: for a translation the specific force of one cycle of a sinusoidal
-    acceleration of ``duration`` [s]; for a rotation the angular velocity of that profile (a raised cosine,
-    its peak the threshold's rate)."""
-    t = np.arange(int(round(2 * duration * fs))) / fs
-    phase = 2 * np.pi * np.clip(t / duration, 0, 1)
-    if AXES.index(axis) < 3:
-        return amplitude * np.sin(phase)
-    return amplitude * 0.5 * (1 - np.cos(phase))
-
-
-def vestibular_model(axis: str) -> LinearModel:
-    """The organ that senses ``axis``: the otolith for x, y, z, the canal for roll, pitch, yaw."""
-    return otolith() if AXES.index(axis) < 3 else canal()
-
-
 def sensed_threshold(axis: str, fs: float = 1000.0, thresholds: Thresholds = DEFAULT_THRESHOLDS) -> float:
-    """The vestibular model's peak output to the threshold stimulus of ``axis`` (:func:`threshold_stimulus`
-    at the ``thresholds``' level), in the stimulus' unit: the level the model's output must exceed to be
-    perceived (module doc)."""
-    x = threshold_stimulus(axis, thresholds.stimulus(axis), fs, thresholds.stimulus_s)
-    return float(np.max(np.abs(vestibular_model(axis).apply(x, fs))))
+    """The vestibular model's peak output to the threshold stimulus of ``axis``
+    (:func:`hexsim.control.vestibular.threshold_stimulus` at the ``thresholds``' level), in the stimulus' unit:
+    the level the model's output must exceed to be perceived (module doc)."""
+    return sensed_level(axis, thresholds.stimulus(axis), fs, thresholds.stimulus_s)
 
 
 # --------------------------------------------------------------------------------------------- kinematics
