@@ -28,13 +28,28 @@ velocity within what the flow curve passes at full valve opening against the res
 force (the legs' effective inertia times their accelerations) within what the supply and tank pressures
 can add or take away, each a ``margin`` of the limit.
 
+**No false cue** (soft constraints, DAQP's: kept where they can be, given up at a cost where the hard ones leave
+no room): at every step of the horizon each axis' sensed cue stays within ``threshold_share`` (0.9) of the level
+the organ must pass to be perceived (:data:`SENSED_THRESHOLDS`, what the cue report counts false cues against)
+wherever the vehicle's own sensed motion is below that level, or on the vehicle's side where it is above it. A
+quadratic cost alone trades a false cue for a smaller error elsewhere (a tilt unwound by a pitch rotation the
+canals sense, a roll beyond the vehicle's).
+
+The defaults were chosen on the manoeuvre library of ``examples/vehicle_cueing.py`` cued on the ideal platform
+(docs/motion-cueing.md gives the table): ``scale_specific_force`` 0.3, because the Micro Motion System's 8 deg of
+tilt sustain 1.37 m/s^2 where a car brakes and corners at 3-4 m/s^2 (at full scale the programme spends the
+envelope on magnitude it cannot reach); ``horizon_s`` 2.5, because a tilt of 8 deg takes 5 s to unwind below the
+canals' threshold and the programme must see a sustained cue's end coming. The library's false cues, summed over
+its axes: 21.0 s with full scale, a 1.5 s horizon and no constraints (the defaults before), 5.7 s at 0.3 and
+2.5 s without the constraints, 0.3 s with them.
+
 The vehicle's future is known over the horizon (``preview=True``: a recorded or simulated drive, offline)
-or held at its present value (``preview=False``: what an online cueing knows). The programme (112 variables at
-the default step, a few hundred constraints, dense) is solved to optimality by DAQP (Arnström, Bemporad &
+or held at its present value (``preview=False``: what an online cueing knows). The programme (144 variables at
+the default step and horizon, 2136 constraint rows, dense) is solved to optimality by DAQP (Arnström, Bemporad &
 Axehill, "A dual active-set solver for embedded quadratic programming using recursive LDLᵀ updates", IEEE TAC
-67(8), 2022), a solver made for MPC's small dense programmes: on the docs' stop about 3 ms a programme, 5 ms at
-most (OSQP, used first, took 8.5 ms on average and 130 ms at most at a tolerance of 1e-4, at a 50 ms step, and
-its answers left the constraints violated by up to 0.125).
+67(8), 2022), a solver made for MPC's small dense programmes (docs/motion-cueing.md gives its times; OSQP, used
+first, took 8.5 ms on average and 130 ms at most at a tolerance of 1e-4, at a 50 ms step and a 1.5 s horizon
+without the false-cue rows, and its answers left the constraints violated by up to 0.125).
 
 The step: the accelerations are held for a step, so a vehicle's motion faster than the step's Nyquist
 frequency is not cued. At 50 ms (80 variables, 1 ms a programme) the road bumps of examples/vehicle_cueing.py
@@ -55,14 +70,25 @@ import numpy as np
 from scipy.linalg import block_diag
 from scipy.signal import cont2discrete, tf2ss
 
-from hexsim.control.vestibular import VESTIBULAR_THRESHOLDS, canal, otolith
+from hexsim.control.vestibular import (
+    AXES,
+    VESTIBULAR_THRESHOLDS,
+    canal,
+    otolith,
+    sensed_level,
+)
 from hexsim.errors import InputError
 from hexsim.tables import read_settings
 
 G = 9.81  # [m/s^2] the vehicle's 1 g, as the classical washout's
 
 #: the sensed error's units per axis (x, y, z, roll, pitch, yaw): Benson's detection thresholds
-SENSED_SCALE = np.array([VESTIBULAR_THRESHOLDS[axis] for axis in ("x", "y", "z", "roll", "pitch", "yaw")])
+SENSED_SCALE = np.array([VESTIBULAR_THRESHOLDS[axis] for axis in AXES])
+#: the level each organ's output must exceed to be perceived (its peak output to Benson's threshold stimulus,
+#: :func:`hexsim.control.vestibular.sensed_level`): what the cue report counts a false cue against
+SENSED_THRESHOLDS = np.array([sensed_level(axis, VESTIBULAR_THRESHOLDS[axis]) for axis in AXES])
+#: DAQP's sense of a soft constraint (allowed to be violated where it must, at a cost)
+DAQP_SOFT = 8
 
 
 @dataclass(frozen=True)
@@ -115,12 +141,14 @@ class MPCParams:
     ``weight_angle`` [1/rad^2], ``weight_acceleration`` [s^4/m^2]: the pull back to neutral and the effort;
     ``tilt_rate_limit_degps``, ``tilt_acceleration_limit_degps2``, ``tilt_limit_deg``: the tilt channel's
     bounds; ``margin`` (0, 1]: the share of each leg's stroke, speed and force the cueing may use;
+    ``threshold_share`` [0, 1]: the share of each axis' perception threshold the platform's sensed cue may reach
+    where the vehicle's is below it or of the other sign (soft constraints, module doc; 0: none);
     ``head_m`` (3,) [m, platform frame]: the driver's head (None: the machine's); ``preview``: the vehicle's
     future over the horizon known (offline) or held (online)."""
 
     step_s: float = 0.03
-    horizon_s: float = 1.5
-    scale_specific_force: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    horizon_s: float = 2.5
+    scale_specific_force: tuple[float, float, float] = (0.3, 0.3, 0.3)
     scale_angular_velocity: tuple[float, float, float] = (1.0, 1.0, 1.0)
     weight_sensed: tuple[float, ...] = (1.0, 1.0, 1.0, 10.0, 10.0, 10.0)
     weight_position: float = 2000.0
@@ -131,6 +159,7 @@ class MPCParams:
     tilt_acceleration_limit_degps2: float = 4.0
     tilt_limit_deg: float = 8.0
     margin: float = 0.8
+    threshold_share: float = 0.9
     head_m: tuple[float, float, float] | None = None
     preview: bool = True
     source: str = field(default="defaults", compare=False)
@@ -148,6 +177,10 @@ class MPCParams:
                 if f.name != "head_m" and any(v < 0 for v in value):
                     raise InputError(f"mpc cueing {f.name}: expected non-negative numbers, got {list(value)!r}")
                 object.__setattr__(self, f.name, tuple(float(v) for v in value))
+            elif f.name == "threshold_share":
+                if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+                    raise InputError(f"mpc cueing threshold_share: expected a number from 0 (no constraint) to 1, "
+                                     f"got {value!r}")
             elif not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise InputError(f"mpc cueing {f.name}: expected a positive number, got {value!r}")
         if not isinstance(self.preview, bool):
@@ -348,7 +381,13 @@ class MPCCueing:
         acc = math.radians(params.tilt_acceleration_limit_degps2)
         self.lo_in = np.tile(np.concatenate([-share * lim.force_down, [-acc, -acc]]), len(self.blocks))
         self.hi_in = np.tile(np.concatenate([share * lim.force_up, [acc, acc]]), len(self.blocks))
-        return np.vstack([h_state @ hold, block_diag(*[per_input] * len(self.blocks))])
+        rows = [h_state @ hold, block_diag(*[per_input] * len(self.blocks))]
+        self.hard = sum(r.shape[0] for r in rows)
+        if params.threshold_share > 0:  # the sensed cue at every step, held to the thresholds by :meth:`step`
+            self.f_cue, h_cue = pred.of(self.c, params.steps)
+            rows.append(h_cue @ hold)
+            self.threshold = np.tile(SENSED_THRESHOLDS, params.steps)
+        return np.vstack(rows)
 
     def step(self, x0: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """The accelerations (8,) to apply over the next MPC step from state ``x0`` (n,) for the vehicle's
@@ -361,14 +400,34 @@ class MPCCueing:
         e_sensed = self.f_sensed @ x0 - target
         grad = self.h_sensed.T @ e_sensed + self.h_pull.T @ (self.f_pull @ x0)
         free = self.f_state @ x0
-        lower = np.maximum(np.concatenate([self.lo_state - free, self.lo_in]), -DAQP_INFINITY)
-        upper = np.minimum(np.concatenate([self.hi_state - free, self.hi_in]), DAQP_INFINITY)
-        x, _, flag, _ = daqp.solve(self.hessian, grad, self.constraint, upper, lower)
+        lower, upper = [self.lo_state - free, self.lo_in], [self.hi_state - free, self.hi_in]
+        if self.params.threshold_share > 0:
+            lo, hi = self._false_cue_bounds(reference)
+            free = self.f_cue @ x0
+            lower.append(lo - free)
+            upper.append(hi - free)
+        lower = np.maximum(np.concatenate(lower), -DAQP_INFINITY)
+        upper = np.minimum(np.concatenate(upper), DAQP_INFINITY)
+        sense = np.zeros(len(lower), dtype=np.int32)
+        sense[self.hard:] = DAQP_SOFT
+        x, _, flag, _ = daqp.solve(self.hessian, grad, self.constraint, upper, lower, sense)
         x = np.asarray(x, dtype=float)
         if flag < 1 or not np.all(np.isfinite(x)):  # 1: optimal, 2: optimal with soft constraints
             self.infeasible += 1
             return np.zeros(N_INPUT)
         return x[:N_INPUT]
+
+
+    def _false_cue_bounds(self, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) (N 6,) of the platform's sensed cue over the horizon for the vehicle's ``reference``
+        (N, 6): within ``threshold_share`` of each axis' perception threshold (:data:`SENSED_THRESHOLDS`), except
+        on the vehicle's side where its own cue passes the threshold (there any size: a cue smaller than the
+        vehicle's is no false cue, and a larger one of the same sign is weighed by the cost)."""
+        vehicle, threshold = reference.ravel(), self.threshold
+        allowed = self.params.threshold_share * threshold
+        lower = np.where(vehicle <= -threshold, -DAQP_INFINITY, -allowed)
+        upper = np.where(vehicle >= threshold, DAQP_INFINITY, allowed)
+        return lower, upper
 
 
 def vehicle_reference(vehicle, params: MPCParams, t: np.ndarray, rate_hz: float) -> np.ndarray:

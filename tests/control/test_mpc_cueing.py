@@ -28,7 +28,7 @@ from hexsim.plant.geometry import MICRO_MOTION_SYSTEM
 from hexsim.plant.model import load_model
 from hexsim.studies.acceptance import platform_limits
 from hexsim.studies.cueing import pose_motion, sensed
-from hexsim.studies.perception import canal, otolith
+from hexsim.studies.perception import AXES, canal, otolith, sensed_threshold
 
 HEAD = MICRO_MOTION_SYSTEM.head_point
 RATE = 500.0
@@ -112,18 +112,39 @@ def test_mpc_cues_follow_the_vehicle_within_the_stroke_and_the_tilt_threshold(li
 
 def test_without_preview_the_cues_come_later_and_follow_less(limits):
     """Online (the vehicle's sensed motion held over the horizon) the surge cue starts later than with the
-    drive's future known and follows less (measured: correlation 0.58 against 0.95; the first sensed
-    0.3 m/s^2 at 2.09 s against 0.40 s, the vehicle's at 1.17 s: with preview the platform moves before the
-    car does, which docs/motion-cueing.md states as the offline MPC's anticipation)."""
+    drive's future known and follows less (measured: correlation 0.47 against 0.97; the first sensed 0.1 m/s^2
+    at 2.00 s against 1.27 s, the vehicle's at 1.10 s)."""
     vehicle = _vehicle("stop")
     onsets, corr = {}, {}
     for preview in (True, False):
         out = mpc_washout(vehicle, limits, MPCParams(preview=preview), HEAD, RATE)
         s_p, s_v = _sensed_pair(out, vehicle)
         corr[preview] = np.corrcoef(s_p[:, 0], s_v[:, 0])[0, 1]
-        onsets[preview] = out.t[np.argmax(np.abs(s_p[:, 0]) > 0.3)]
-    assert 0.5 < corr[False] < corr[True]
+        onsets[preview] = out.t[np.argmax(np.abs(s_p[:, 0]) > 0.1)]
+    assert 0.4 < corr[False] < corr[True]
     assert onsets[False] > onsets[True]
+
+
+def _false_cues(out, vehicle) -> float:
+    """Seconds of the drive whose platform, on some axis, is sensed beyond that axis' perception threshold where
+    the vehicle's sensed motion is below it or of the other sign (the cue report's false cues)."""
+    s_p, s_v = _sensed_pair(out, vehicle)
+    thr = np.array([sensed_threshold(a, RATE) for a in AXES])
+    false = (np.abs(s_p) > thr) & ((np.abs(s_v) < thr) | (np.sign(s_p) != np.sign(s_v)))
+    return float(np.sum(np.any(false, axis=1))) / RATE
+
+
+@pytest.mark.parametrize("kind", ["stop", "lane"])
+def test_the_platform_is_not_sensed_beyond_a_threshold_the_vehicle_is_not(limits, kind):
+    """The MPC holds the platform's sensed cue within 0.9 of each axis' perception threshold wherever the
+    vehicle's is below it or of the other sign (soft constraints): on the stop and the lane change no false cue
+    at all (measured 0 s, the cue correlating 0.97 and 0.99), where without them 1.8 and 1.5 s of the drives have
+    one (the same scale and horizon; correlating 0.99 and 0.99)."""
+    vehicle = _vehicle(kind)
+    with_them = mpc_washout(vehicle, limits, MPCParams(), HEAD, RATE)
+    without = mpc_washout(vehicle, limits, MPCParams(threshold_share=0.0), HEAD, RATE)
+    assert _false_cues(with_them, vehicle) < 0.05 and _false_cues(without, vehicle) > 1.0
+    assert with_them.solver["unsolved"] == 0
 
 
 def test_bad_parameters_and_limits_are_refused_by_name(tmp_path):
@@ -136,6 +157,8 @@ def test_bad_parameters_and_limits_are_refused_by_name(tmp_path):
         MPCParams.from_file(path)
     with pytest.raises(InputError, match="horizon_s: 0.05 s is shorter than two steps"):
         MPCParams(horizon_s=0.05)
+    with pytest.raises(InputError, match="threshold_share: expected a number from 0 .* to 1, got 1.5"):
+        MPCParams(threshold_share=1.5)
     good = dict(jacobian=np.eye(6), stroke_lo=-np.ones(6), stroke_hi=np.ones(6), velocity_extend=np.ones(6),
                 velocity_retract=np.ones(6), force_map=np.eye(6), force_up=np.ones(6), force_down=np.ones(6))
     PlatformLimits(**good)
