@@ -211,7 +211,7 @@ def _valve_parameters(machine: Machine, doc: dict, dynamics: bool) -> list[Param
         params = [Parameter("valve.edge_gain_PA", 0.7 * eff.edge_gain_pa, 1.3 * eff.edge_gain_pa,
                             "an unknown valve's flow gain within ±30 % of the guess (data sheets state ±10 %)", big)]
     x_max = hyd.x_v_max
-    if dynamics and hyd.flow_area in ("smooth", "port"):  # the shape: where (3.11) meets the port
+    if dynamics and hyd.flow_area in ("smooth", "port", "rounded"):  # the shape: where (3.11) meets the port
         params.append(_relative(doc, "valve.smooth_area_gain", 0.7, 1.3, "the flow curve's gain at small openings "
                                 "(3.11) within ±30 % of the port's (data sheets state ±10 % flow tolerance)",
                                 f"reversals and commands beyond 1 V ({_TRANSIENTS})"))
@@ -219,7 +219,8 @@ def _valve_parameters(machine: Machine, doc: dict, dynamics: bool) -> list[Param
         params.append(Parameter("valve.overlap_m", -0.03 * x_max, 0.10 * x_max,
                                 "−3 % (underlap) to +10 % of the spool stroke (servo valves ±0.5 %, proportional "
                                 "valves up to 10 %)", small))
-    elif dynamics and hyd.flow_area == "port":  # its dead band; the smooth area must still meet the port
+    elif dynamics and hyd.flow_area in ("port", "rounded"):  # its dead band (port) or where the port's line
+        # lies (rounded: its corner); the smooth area must still meet the port
         limit = math.pi * hyd.spool_diameter / (4.0 * hyd.smooth_area_gain * 1.3)
         params.append(Parameter("valve.overlap_m", 0.0, min(0.10 * x_max, 0.9 * limit),
                                 "0 to 10 % of the spool stroke (proportional valves up to 10 %), below where (3.11) "

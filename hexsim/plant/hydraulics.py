@@ -114,7 +114,11 @@ def flow_areas(x_v, p: HydraulicParams):
     (:attr:`~hexsim.plant.params.HydraulicParams.smooth_blend`). ``p.flow_area == "quadratic"``: (3.11) at every
     opening, as the seed simulated. ``p.flow_area == "port"``: the smaller of (3.11) and the port's opening
     (3.3), a kink where they cross (0.90 V with the seed's values) and the overlap
-    a dead band (a real spool). ``p.flow_area == "table"``: the opening table's fraction of pi d x_v,max,
+    a dead band (a real spool). ``p.flow_area == "rounded"``: (3.11) from null, no dead band (a rounded metering
+    edge passes flow as soon as the spool moves), up to where it meets the port's opening (3.3), the port
+    beyond: the same kink, the overlap only placing the port's line
+    (:attr:`~hexsim.plant.params.HydraulicParams.rounded_corner`). ``p.flow_area == "table"``: the opening
+    table's fraction of pi d x_v,max,
     a1 at the command u = x_v u_v,max / x_v,max and a2 at -u (both open around null where the table starts
     below it: an underlap).
 

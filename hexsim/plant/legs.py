@@ -63,7 +63,8 @@ class LegParams(NamedTuple):
     smooth_gain: float  # area gain of eq. 3.11 [m^2/m^2]
     blend_start: float  # x_a [m]: the smooth area holds up to here (HydraulicParams.smooth_blend; inf: "quadratic")
     blend_end: float  # x_b [m]: the port's sharp-edged opening from here on
-    sharp: float  # 1.0: sharp-edged area (eq. 3.3); 2.0: port, min of (3.11) and (3.3); 0.0: smooth (eq. 3.11)
+    sharp: float  # 1.0: sharp-edged area (eq. 3.3); 2.0: port, min of (3.11) and (3.3); 3.0: rounded, (3.11) up to
+    # its corner (blend_end), (3.3) beyond; 0.0: smooth (eq. 3.11)
     arctan_gain: float  # k of eq. 3.9 [s/m]
     arctan_scale: float  # 2/pi if the arctan is normalised to ±1, else 1
     sigma_neg: float  # viscous friction for ydot < 0 [N s/m]
@@ -136,7 +137,7 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
         hyd.supply_pressure, hyd.tank_pressure, hyd.orifice_constant, hyd.area_bottom, hyd.area_rod,
         hyd.bulk_modulus, hyd.pipeline_volume, hyd.u_v_max, hyd.x_v_max, hyd.overlap, hyd.null_offset,
         math.pi * hyd.spool_diameter, hyd.smooth_area_gain,
-        *_blend(hyd), {"sharp": 1.0, "port": 2.0}.get(hyd.flow_area, 0.0), hyd.arctan_gain,
+        *_blend(hyd), {"sharp": 1.0, "port": 2.0, "rounded": 3.0}.get(hyd.flow_area, 0.0), hyd.arctan_gain,
         2.0 / math.pi if hyd.arctan_normalised else 1.0, *map(float, neg), *map(float, pos),
         eff.supply_resistance, eff.supply_time_constant, eff.spool_frequency, eff.spool_damping, eff.spool_play,
         eff.leakage, eff.edge_gain_pa, eff.edge_gain_at, eff.air_fraction, eff.air_exponent, hyd.cavitation_pressure,
@@ -145,8 +146,11 @@ def leg_params(hyd: HydraulicParams, eff: Effects = NOMINAL) -> LegParams:
 
 
 def _blend(hyd: HydraulicParams) -> tuple[float, float]:
-    """(blend_start, blend_end) of :class:`LegParams`: the smooth area's C^1 blend onto the port, or
-    infinity ((3.11) at every opening; unused by the sharp, port and table areas)."""
+    """(blend_start, blend_end) of :class:`LegParams`: the smooth area's C^1 blend onto the port, the rounded
+    edge's corner twice (:attr:`~hexsim.plant.params.HydraulicParams.rounded_corner`), or infinity ((3.11) at
+    every opening; unused by the sharp, port and table areas)."""
+    if hyd.flow_area == "rounded":
+        return hyd.rounded_corner, hyd.rounded_corner
     return hyd.smooth_blend if hyd.flow_area == "smooth" else (math.inf, math.inf)
 
 
@@ -246,7 +250,8 @@ def flow_areas(x_v, P):
     the sharp-edged port's pi d (|x_v| - O_l) at x_b and that line beyond, the geometric limit
     (:attr:`hexsim.plant.params.HydraulicParams.smooth_blend`; x_a = inf for ``flow_area="quadratic"``); or the
     smaller of (3.11) and the port's opening, a kink where they cross (``flow_area="port"``: a real spool, its
-    overlap a dead band); or
+    overlap a dead band); or (3.11) from null up to where it meets the port's opening, the port beyond
+    (``flow_area="rounded"``: a rounded metering edge, no dead band); or
     the opening table's fraction of the full opening pi d x_v,max, each edge at the command that opens it
     (P→A at u = x_v u_v,max / x_v,max, A→T at -u: both open around null where the table starts below it,
     an underlap; :func:`table_opening`); or each edge's flow curve, a monotone cubic through its points
@@ -260,6 +265,11 @@ def flow_areas(x_v, P):
         full = P.port_width * P.x_v_max
         return (full * curve_opening(u, P.cn_pa, P.cu_pa, P.cf_pa, P.cm_pa),
                 full * curve_opening(-u, P.cn_at, P.cu_at, P.cf_at, P.cm_at))
+    if P.sharp > 2.5:  # rounded: (3.11) from null (no dead band) up to its corner, the port's opening (3.3) beyond
+        x = abs(x_v)
+        a = P.smooth_gain * x * x if x <= P.blend_end else P.port_width * (x - P.overlap)
+        a1 = a if x_v > 0.0 else 0.0
+        return a1, a - a1
     if P.sharp > 1.5:  # port: the smaller of (3.11) and the port's opening (3.3), a kink where they cross
         a = min(P.smooth_gain * x_v * x_v, P.port_width * max(abs(x_v) - P.overlap, 0.0))
         a1 = a if x_v > 0.0 else 0.0

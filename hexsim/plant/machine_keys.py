@@ -41,7 +41,8 @@ KEYS: tuple[Key, ...] = (
        "fed by the valve)", "seed Fig. 3.1 (3-way)", kind="text", choices=("3-way", "4-way")),
     _k("valve.flow_area", "hydraulics.flow_area", "-", "opening against spool position: smooth (3.11 blended onto "
        "the port), quadratic (3.11 everywhere), port ((3.11) until the port's opening is smaller, the port beyond: a kink, a real spool), "
-       "sharp (3.3, linear with overlap/underlap), table (opening_table), curve (flow_curve_PA/_AT: each edge's "
+       "sharp (3.3, linear with overlap/underlap), rounded ((3.11) from null, no dead band, until it meets the port, "
+       "the port beyond: a rounded metering edge), table (opening_table), curve (flow_curve_PA/_AT: each edge's "
        "curve read from the machine's flows)",
        "seed eq. 3.3, 3.11", kind="text", choices=FLOW_AREAS),
     _k("valve.opening_table", "hydraulics.opening_table", "V, -", "flow_area table: [[u_v V, opening as a fraction "

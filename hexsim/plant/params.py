@@ -19,7 +19,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 
-FlowArea = Literal["smooth", "port", "quadratic", "sharp", "table", "curve"]
+FlowArea = Literal["smooth", "port", "quadratic", "sharp", "rounded", "table", "curve"]
 #: The valve's flow-area forms (:func:`hexsim.plant.hydraulics.flow_areas`), declared once: the machine
 #: file's ``valve.flow_area`` choices, the command line's, and (all but the table) the forms a calibration
 #: from transients tries (:data:`hexsim.measured.calibration.SEED_FORMS`). A new form is a name here, its
@@ -119,7 +119,9 @@ class HydraulicParams:
     # "smooth": seed eq. (3.11) blended C^1 onto the port's opening (3.3) above 0.78 V (smooth_blend);
     # "quadratic": (3.11) at every opening, as the seed simulated (§3.3 on); "port": the smaller of (3.11) and
     # the port's opening (3.3), a kink where they cross (0.90 V) and the overlap a dead band (a real spool, no
-    # blend); "sharp": (3.3); "table": the opening against the command as a data sheet or a
+    # blend); "sharp": (3.3); "rounded": (3.11) from null, no dead band (a rounded metering edge that passes
+    # flow as soon as the spool moves), until it meets the port's opening (3.3), the port beyond: a kink where
+    # they cross (rounded_corner); "table": the opening against the command as a data sheet or a
     # measurement gives it (opening_table); "curve": each edge's opening against the command as a monotone
     # cubic (PCHIP) through points read from a machine's own flows (flow_curve_pa, flow_curve_at)
     flow_area: FlowArea = "smooth"
@@ -231,11 +233,11 @@ class HydraulicParams:
                 f"({self.x_v_max} m)"
             )
         limit = math.pi * self.spool_diameter / (4.0 * self.smooth_area_gain)
-        if self.flow_area in ("smooth", "port") and self.overlap >= limit:
+        if self.flow_area in ("smooth", "port", "rounded") and self.overlap >= limit:
             raise InputError(
                 f"HydraulicParams.overlap ({self.overlap} m) must be below pi d / (4 k_a) = {limit:.3g} m for the "
-                f"smooth flow area: above it k_a x_v^2 (eq. 3.11, k_a = smooth_area_gain) never meets the port's "
-                f"opening pi d (x_v - O_l) (eq. 3.3) and cannot be blended onto it")
+                f"{self.flow_area} flow area: above it k_a x_v^2 (eq. 3.11, k_a = smooth_area_gain) never meets the "
+                f"port's opening pi d (x_v - O_l) (eq. 3.3)")
 
     def _check_table(self) -> None:
         """InputError unless the opening table suits the flow area (module doc of the field)."""
@@ -333,6 +335,15 @@ class HydraulicParams:
         x_t = w / (2.0 * k)
         x_a = (2.0 * w + math.sqrt(max(4.0 * w * w - 8.0 * k * (k * x_t * x_t + w * self.overlap), 0.0))) / (4.0 * k)
         return x_a, 2.0 * x_a - x_t
+
+    @functools.cached_property
+    def rounded_corner(self) -> float:
+        """x_c [m]: where the rounded edge's opening k_a x_v^2 (seed eq. 3.11) meets the port's pi d (x_v - O_l)
+        (eq. 3.3) from below, the larger root of k_a x^2 - pi d x + pi d O_l = 0 (flow area "rounded": (3.11)
+        up to it, the port beyond). The seed's values: 99.5 µm (0.90 V); with O_l at its limit pi d / (4 k_a)
+        the two meet tangentially, at pi d / (2 k_a)."""
+        w, k = math.pi * self.spool_diameter, self.smooth_area_gain
+        return (w + math.sqrt(max(w * w - 4.0 * k * w * self.overlap, 0.0))) / (2.0 * k)
 
     @functools.cached_property
     def area_bottom(self) -> float:

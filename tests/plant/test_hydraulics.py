@@ -175,6 +175,29 @@ def test_smooth_flow_area_never_exceeds_the_ports_opening():
     assert phi == pytest.approx(math.pi / (math.pi + 2) * math.pi * d * (1.1e-3 - o) * math.sqrt(2 * 7e6 / 860), rel=1e-5)
 
 
+def test_a_rounded_edge_opens_from_null_and_meets_the_port_with_a_kink():
+    """Flow area "rounded": k_a x_v^2 (3.11) from null, no dead band, until it meets the port's pi d (x_v - O_l)
+    (3.3) from below, the port beyond (the shape of the reference plant R1's spool: the flow gain halves at the
+    corner). Checked against the formulas typed in: the corner is the larger root of k_a x^2 = pi d (x - O_l),
+    0.89 V with R1's published values (k_a 280, d 9.5 mm, O_l 8 µm); the opening is continuous there, its slope
+    drops from 2 k_a x_c to pi d; the edge passes flow at any opening (no dead band) and the other edge nothing."""
+    d, k, o = 0.0095, 280.0, 8e-6
+    hyd = HydraulicParams(flow_area="rounded", spool_diameter=d, smooth_area_gain=k, overlap=o)
+    w = math.pi * d
+    corner = (w + math.sqrt(w * w - 4 * k * w * o)) / (2 * k)
+    assert hyd.rounded_corner == pytest.approx(corner, rel=1e-12)
+    assert corner / hyd.x_v_max * hyd.u_v_max == pytest.approx(0.89, abs=0.001)
+    x = np.linspace(-1.1e-3, 1.1e-3, 220_001)
+    a1, a2 = hydraulics.flow_areas(x, hyd)
+    expected = np.where(np.abs(x) <= corner, k * x**2, w * (np.abs(x) - o))
+    np.testing.assert_allclose(a1 + a2, expected, rtol=1e-13, atol=1e-20)
+    assert np.all(a1[x > 0] > 0) and np.all(a1[x <= 0] == 0) and np.all(a2[x >= 0] == 0)
+    assert k * corner**2 == pytest.approx(w * (corner - o), rel=1e-12)  # continuous at the corner
+    assert 2 * k * corner / w == pytest.approx(2.0, rel=0.2)  # the flow gain about halves there
+    with pytest.raises(InputError, match="never meets the port"):
+        HydraulicParams(flow_area="rounded", spool_diameter=d, smooth_area_gain=k, overlap=w / (4 * k) * 1.01)
+
+
 def test_cavitation_floor_keeps_the_oil_volume():
     # A closed valve (x_v = 0: no opening) and the piston pulled out 10 mm and pushed back: the oil cannot
     # stretch below the cavitation pressure, a cavity opens instead, and it closes again on the way back,
