@@ -8,7 +8,9 @@ times a period), and every log of the machine running them measures the valve's 
 is run, log, learn, run again: each edge's curve is read again from the flows of the commissioning logs and of
 the calibration's own logs (the calibrated file names them; :func:`hexsim.measured.flow_curve.fit_flow_curves`,
 held to the calibrated machine's openings where the flows say little: near null, which a compensated run jumps),
-the machine file takes the curves (flow area ``curve``: :func:`hexsim.measured.curves.curve_machine`), and the
+the machine file takes the curves (flow area ``curve``: :func:`hexsim.measured.curves.curve_machine`) — unless
+the calibrated flow-area form, its few parameters refitted to the same flows, predicts their held-out windows as
+well (:mod:`hexsim.measured.form_refit`: a knot grid rounds a corner the form has sharp) — and the
 tuned file's leg model (:class:`compensation.model_based.LegModel`) is built again from that machine, its
 compensator and settings kept; the predicted figures are those of the new model. A user runs it on the machine
 at most three times (docs/compensation.md: measured on machines hexsim did not write).
@@ -23,7 +25,8 @@ from dataclasses import dataclass
 from compensation.model_based import LegModel
 from hexsim.errors import InputError
 from hexsim.measured.curves import curve_machine, curve_report
-from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves
+from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves, held_out_ms
+from hexsim.measured.form_refit import REFITTED_FORMS, RefitForm, refit_form
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.plant.machine import Machine
 
@@ -31,18 +34,32 @@ from hexsim.plant.machine import Machine
 @dataclass(frozen=True)
 class Commissioning:
     """What :func:`commission` learned: the ``machine`` with each edge's curve read from the ``logs`` (the
-    commissioning logs, then the calibration's own that were found), the :class:`FlowCurves`, and the leg
-    ``model`` a model-based compensator inverts on it."""
+    commissioning logs, then the calibration's own that were found), or with its flow-area form's parameters
+    refitted where that predicts them as well (``form``, the refit, kept or not; None for a machine whose valve is
+    a curve or a table), the :class:`FlowCurves`, and the leg ``model`` a model-based compensator inverts on it."""
 
     machine: Machine
     curves: FlowCurves
     logs: tuple[str, ...]
     model: LegModel
+    form: RefitForm | None = None
+
+    @property
+    def kept_form(self) -> bool:
+        """Whether the machine kept its flow-area form (refitted) rather than the curves."""
+        return self.form is not None and self.machine.hydraulics.flow_area != "curve"
 
     def report(self) -> dict:
-        """The tuned file's ``commissioning`` entry: the logs read and the curves (:func:`hexsim.measured.curves.
-        curve_report`)."""
-        return {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", self.machine)}
+        """The tuned file's ``commissioning`` entry: the logs read, the curves (:func:`hexsim.measured.curves.
+        curve_report`, the points as the curve's machine would hold them) and the form's refit: its parameters and
+        both readings' held-out flow error (rms [m^3] over 10 ms intervals)."""
+        out = {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", self.machine)}
+        if self.form is not None:
+            ms, _ = held_out_ms(self.curves)
+            out["form"] = {"flow_area": self.form.machine.hydraulics.flow_area, "kept": self.kept_form,
+                           "refitted": self.form.keys, "held_out_flow_rms_m3": self.form.held_out ** 0.5,
+                           "curves_held_out_flow_rms_m3": ms ** 0.5}
+        return out
 
 
 def calibration_logs(machine: Machine) -> list[pathlib.Path]:
@@ -76,6 +93,9 @@ def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = 
             raise InputError(f"{log.path}: commissioning reads single-actuator logs (this is {log.system})")
     curves = fit_flow_curves(logs, machine, toward_machine=True)
     new = curve_machine(machine, curves)
+    form = refit_form(logs, machine) if machine.hydraulics.flow_area in REFITTED_FORMS else None
+    if form is not None and form.held_out <= sum(held_out_ms(curves)):  # the form unless the curves predict the
+        new = form.machine  # held-out windows better by one standard error
     new = dataclasses.replace(new, description=(machine.description + " Commissioned by hexsim tune --from-logs.").strip())
     model = leg_model_of(RunConfig.from_machine(new, "actuator"))
-    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model)
+    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model, form)

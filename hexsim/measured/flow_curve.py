@@ -89,7 +89,7 @@ REACH_QUANTILE, MIN_REACH_V = 0.998, 0.1
 #: A knot is a corner of a fitted curve where its slope changes by more than this share (:func:`_refined`).
 CORNER_SHARE = 0.15
 #: Bounds of 1/E [1/Pa]: a bulk modulus within 0.1 … 3 GPa (aerated oil … stiff mineral oil in steel).
-_BETA = (1.0 / 3.0e9, 1.0 / 1.0e8)
+BETA_BOUNDS = (1.0 / 3.0e9, 1.0 / 1.0e8)
 #: Strengths tried for holding a commissioning's curves to the machine's openings (:func:`_machine_openings`),
 #: as a share of the flows' weighted sum of squares per knot: none, then from faint to as much as the flows.
 STRENGTHS = (0.0, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
@@ -282,7 +282,7 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
 
     Raises InputError (naming the log) for a log without p1_Pa or of a hexapod, or if fewer than 100 intervals
     away from the stops remain."""
-    samples, reach, u_all = _balance(logs, _unit_gains(machine), machine.sensors.sample_skew)
+    samples, reach, u_all = balance_samples(logs, unit_gains(machine), machine.sensors.sample_skew)
     grids = (edge_grid(reach[0]), edge_grid(reach[1]))
     strength = None if hold_within is None else HOLD_WITHIN_STRENGTH
     if like is not None:
@@ -297,9 +297,9 @@ def fit_flow_curves(logs: list[MeasurementLog], machine: Machine, toward_machine
         # the simpler shut edges unless the underlap predicts the held-out windows better by one standard error; in
         # a commissioning, the machine's own edges (shut or opening before null) unless the other predicts them better
         if toward_machine and _opens_before_null(machine):
-            first = opened if _held_out_ms(opened)[0] <= sum(_held_out_ms(shut)) else shut
+            first = opened if held_out_ms(opened)[0] <= sum(held_out_ms(shut)) else shut
         else:
-            first = shut if _held_out_ms(shut)[0] <= sum(_held_out_ms(opened)) else opened
+            first = shut if held_out_ms(shut)[0] <= sum(held_out_ms(opened)) else opened
     second = _fit_on(samples, reach, _refined(first.pa), _refined(first.at), machine, first.weight,
                      toward_machine, first.prior_strength, hold_within)
     return dataclasses.replace(second, held_out=first.held_out, held_out_se=first.held_out_se,
@@ -326,11 +326,11 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
     (the underlapped independent actuator: 2.7 bar for a true 0, and its A→T curve read under it 17 % wide at
     10 V); the flows alone do not (their rms 6.0e-9 m^3 at 0 bar, 1.5e-8 at 2 bar). Returns (P_t, {P_t tried,
     the machine's among them: rms [m^3]}). Raises InputError as :func:`fit_flow_curves`."""
-    unit = _unit_gains(machine)
+    unit = unit_gains(machine)
 
     def read(tank: float, weight: float | None) -> FlowCurves:
         m = with_keys(unit, {"supply.tank_pressure_Pa": tank})
-        samples, reach, _ = _balance(logs, m, machine.sensors.sample_skew)
+        samples, reach, _ = balance_samples(logs, m, machine.sensors.sample_skew)
         return _fit_on(samples, reach, edge_grid(reach[0]), edge_grid(reach[1]), m, weight)
 
     own = float(np.clip(machine.hydraulics.tank_pressure, lower, upper))
@@ -348,7 +348,7 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
     return float(tanks[best]), tried
 
 
-def _unit_gains(machine: Machine) -> Machine:
+def unit_gains(machine: Machine) -> Machine:
     """``machine`` with unit P→A and A→T gains (the curves carry them), a 4-way valve's rod-side gains relative."""
     eff = machine.effects
     return dataclasses.replace(machine, effects=eff.replace(
@@ -356,7 +356,7 @@ def _unit_gains(machine: Machine) -> Machine:
         edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
 
 
-def _balance(logs: list[MeasurementLog], machine: Machine, skew: float
+def balance_samples(logs: list[MeasurementLog], machine: Machine, skew: float
              ) -> tuple[list[FlowSamples], list[float], np.ndarray]:
     """The logs' flow balance on ``machine`` (:func:`hexsim.measured.flow_balance.flow_samples`), each edge's
     reach [V] (P→A, A→T: :data:`REACH_QUANTILE` of the commands that open it, at least :data:`MIN_REACH_V`) and
@@ -379,7 +379,7 @@ def _opens_before_null(machine: Machine) -> bool:
     return bool(hydraulics.flow_areas(-x, hyd)[0] > 0.0 or hydraulics.flow_areas(x, hyd)[1] > 0.0)
 
 
-def _held_out_ms(curves: FlowCurves) -> tuple[float, float]:
+def held_out_ms(curves: FlowCurves) -> tuple[float, float]:
     """The held-out windows' mean square flow error at the weight they chose best, and its standard error."""
     best = min(curves.held_out, key=curves.held_out.get)
     return curves.held_out[best] ** 2, curves.held_out_se[best]
@@ -402,7 +402,8 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     D = _penalty(pa, at)
     x = _prior_unknowns(machine, pa, at)
     m = len(x)
-    bounds = (np.concatenate([np.zeros(m - 2), [_BETA[0], 0.0]]), np.concatenate([np.full(m - 2, np.inf), [_BETA[1], np.inf]]))
+    bounds = (np.concatenate([np.zeros(m - 2), [BETA_BOUNDS[0], 0.0]]),
+              np.concatenate([np.full(m - 2, np.inf), [BETA_BOUNDS[1], np.inf]]))
     # 1/E and V_pl/E held weakly at the machine's (half their value as a standard deviation): where the logs' pressure
     # changes hardly tell the swept from the dead volume, the two do not wander apart
     prior_gram = np.zeros((m, m))

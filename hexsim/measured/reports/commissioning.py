@@ -30,8 +30,17 @@ def learned_lines(learned) -> list[str]:
     """What ``--from-logs`` read (``learned``: :class:`hexsim.measured.commissioning.Commissioning`): how far each
     valve edge's curve reaches, from which logs."""
     curves = learned.curves
-    return [f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
-            f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs)]
+    lines = [f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
+             f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs)]
+    form = learned.report().get("form")
+    if form is not None:
+        refitted = ", ".join(f"{key} {value:.4g}" for key, value in form["refitted"].items())
+        ratio = form["held_out_flow_rms_m3"] / form["curves_held_out_flow_rms_m3"]
+        verb = "kept" if form["kept"] else "replaced"
+        lines.append(f"{verb} the {form['flow_area']} flow area, refitted to the same flows ({refitted}): it "
+                     f"predicts their held-out windows at {ratio:.3f} of the curves' error "
+                     f"({'within' if form['kept'] else 'beyond'} their standard error)")
+    return lines
 
 
 def predicted_lines(predicted: dict) -> list[str]:
