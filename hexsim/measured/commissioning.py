@@ -9,8 +9,8 @@ is run, log, learn, run again: each edge's curve is read again from the flows of
 the calibration's own logs (the calibrated file names them; :func:`hexsim.measured.flow_curve.fit_flow_curves`,
 held to the calibrated machine's openings where the flows say little: near null, which a compensated run jumps),
 the machine file takes the curves (flow area ``curve``: :func:`hexsim.measured.curves.curve_machine`) — unless
-the calibrated flow-area form, its few parameters refitted to the same flows, predicts their held-out windows as
-well (:mod:`hexsim.measured.form_refit`: a knot grid rounds a corner the form has sharp) — and the
+the calibrated valve is a rounded edge whose few parameters, refitted to the same flows, predict their held-out
+windows as well (:mod:`hexsim.measured.form_refit`: a knot grid rounds the corner the form has sharp) — and the
 tuned file's leg model (:class:`compensation.model_based.LegModel`) is built again from that machine, its
 compensator and settings kept; the predicted figures are those of the new model. A user runs it on the machine
 at most three times (docs/compensation.md: measured on machines hexsim did not write).
