@@ -122,29 +122,42 @@ def _drive(modes: OperatingModes, duration: float, packet, rate_hz: float = 100.
     return np.array(out)
 
 
+def _sine_host(duration: float, arrivals, first_frame: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Leg 1's setpoint less neutral and the ticks' times (each (N,), 500 Hz over ``duration`` [s]) of modes engaged
+    (0.5 s) on a host's 0.5 Hz, 40 mm sine sent at 100 Hz from 0 s; ``arrivals(sends)`` -> when each packet
+    arrives [s] (read in that order, at the first tick at or after it), its frames counting up from
+    ``first_frame`` (16-bit)."""
+    modes = _modes(engage_s=0.5)
+    sends = np.arange(0.0, duration, 0.01)
+    arriving = arrivals(sends)
+    order = np.argsort(arriving, kind="stable")
+    out, k = [], 0
+    for n in range(int(round(duration / TICK))):
+        t = n * TICK
+        while k < len(order) and arriving[order[k]] <= t + 1e-9:
+            i = order[k]
+            setpoint = np.r_[0.04 * np.sin(np.pi * sends[i]), np.zeros(5)]
+            modes.receive(t, {"frame": (first_frame + i) % (1 << 16), "mode": "engage", "setpoint": setpoint})
+            k += 1
+        out.append(modes.setpoint(t)[0])
+    return np.array(out) - NEUTRAL[0], np.arange(len(out)) * TICK
+
+
 def test_late_packets_neither_stop_nor_step_back_the_setpoint():
     """Engaged on a host's 0.5 Hz, 40 mm sine at 100 Hz whose packets arrive 0-3 ms late, and three of them
     30 ms late at once (a burst, as a host's or the network's hiccup gives): the setpoint goes on along the
     host's line (bridged past the newest packet) and its step per tick stays near the host's own
     velocity's at every tick: within half of it (measured 0.28; held, a tick stood still and the next doubled, 1.0;
     with the timeline following late arrivals as early ones, 0.53)."""
-    modes = _modes(engage_s=0.5)
-    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
     rng = np.random.default_rng(5)
-    sends = np.arange(0.0, 6.0, 0.01)
-    arrivals = sends + rng.uniform(0.0, 0.003, sends.size)
-    burst = (sends >= 4.0) & (sends < 4.03)
-    arrivals[burst] = 4.03 + rng.uniform(0.0, 0.001, burst.sum())
-    order = np.argsort(arrivals, kind="stable")
-    out, k = [], 0
-    for n in range(int(round(6.0 / TICK))):
-        t = n * TICK
-        while k < len(order) and arrivals[order[k]] <= t:
-            i = order[k]
-            modes.receive(t, {"frame": i + 1, "mode": "engage", "setpoint": sine(sends[i])})
-            k += 1
-        out.append(modes.setpoint(t)[0])
-    y, t = np.array(out), np.arange(len(out)) * TICK
+
+    def arrivals(sends):
+        late = sends + rng.uniform(0.0, 0.003, sends.size)
+        burst = (sends >= 4.0) & (sends < 4.03)
+        late[burst] = 4.03 + rng.uniform(0.0, 0.001, burst.sum())
+        return late
+
+    y, t = _sine_host(6.0, arrivals)
     step = np.diff(y)
     host = 0.04 * np.pi * np.cos(np.pi * (t[1:] - 0.015)) * TICK  # the host's line, played 1.5 frames behind
     engaged = (t[1:] > 1.0) & (np.abs(host) > 0.3 * 0.04 * np.pi * TICK)  # away from the sine's turns
@@ -158,18 +171,7 @@ def test_a_host_that_stalls_is_rejoined_on_a_quintic_not_a_jump():
     bend the host's timeline: the setpoint's acceleration after the resume at most 1.32 m/s^2 where the line's own
     kinks at its packets are 0.99, and 0.99 again from 4 s; back on the line by 3.83 s. Before: one tick jumped
     10.3 mm (2568 m/s^2), and at 4-5 s the disturbed timeline still kinked it at 17 m/s^2."""
-    modes = _modes(engage_s=0.5)
-    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
-    sends = np.arange(0.0, 5.0, 0.01)
-    arrivals = np.where((sends >= 2.5) & (sends < 2.8), 2.8, sends)
-    out, k = [], 0
-    for n in range(int(round(5.0 / TICK))):
-        t = n * TICK
-        while k < len(sends) and arrivals[k] <= t + 1e-9:
-            modes.receive(t, {"frame": k + 1, "mode": "engage", "setpoint": sine(sends[k])})
-            k += 1
-        out.append(modes.setpoint(t)[0])
-    y, t = np.array(out) - NEUTRAL[0], np.arange(len(out)) * TICK
+    y, t = _sine_host(5.0, lambda sends: np.where((sends >= 2.5) & (sends < 2.8), 2.8, sends))
     assert np.ptp(y[(t > 2.77) & (t < 2.8)]) == 0.0  # held (stopped on a quintic from 2.565 s: test below)
     acc, mid = np.abs(np.diff(y, 2)) / TICK**2, t[1:-1]
     own = acc[(mid > 1.0) & (mid < 2.5)].max()  # the line's kinks at its packets
@@ -193,22 +195,11 @@ def test_a_line_held_at_speed_stops_on_a_quintic_and_a_longer_route_is_rejoined(
     and 43 times: the velocity stepped to nothing at the hold, and a timeline learned slowly from late packets
     held the setpoint at its dead reckoning's end, stepping at each packet), the line's own from 4.5 s, and on
     the host's line as it now arrives (sent + the route's delay, played 1.5 frames behind) from 5 s."""
-    modes = _modes(engage_s=0.5)
-    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
-    sends = np.arange(0.0, 6.0, 0.01)
-    arrivals = delay(sends)
-    out, k = [], 0
-    for n in range(int(round(6.0 / TICK))):
-        t = n * TICK
-        while k < len(sends) and arrivals[k] <= t + 1e-9:
-            modes.receive(t, {"frame": k + 1, "mode": "engage", "setpoint": sine(sends[k])})
-            k += 1
-        out.append(modes.setpoint(t)[0])
-    y, t = np.array(out) - NEUTRAL[0], np.arange(len(out)) * TICK
+    y, t = _sine_host(6.0, delay)
     acc, mid = np.abs(np.diff(y, 2)) / TICK**2, t[1:-1]
     own = acc[(mid > 1.0) & (mid < 2.5)].max()
     assert acc[mid > 2.9].max() < bound * own and acc[mid > 4.5].max() < 1.05 * own
-    late = arrivals[-1] - sends[-1]
+    late = float(delay(np.array([5.99]))[0]) - 5.99  # the route's delay at the end
     line = 0.04 * np.sin(np.pi * (t - late - 0.015))
     assert np.abs(y - line)[t > 5.0].max() < 1e-4
 
@@ -221,20 +212,9 @@ def test_a_hosts_jittering_timeline_is_learned_from_its_first_packets_whatever_i
     0.34 mm at most over twelve seeds, either counter). Before, the timeline turned about frame 0 as its period was
     learned, and its first period was two packets' (their arrivals read at 2 ms ticks: 8.1 ms for 10): from
     frame 1, 27 m/s^2 on one seed; from 65500, 319-1366 m/s^2 and 8-95 mm off the line."""
-    sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
-    sends = np.arange(0.0, 4.0, 0.01)
     for seed in range(6):
-        modes = _modes(engage_s=0.5)
-        arrivals = sends + np.random.default_rng(seed).uniform(0.0, 0.003, sends.size)
-        out, k = [], 0
-        for n in range(int(round(4.0 / TICK))):
-            t = n * TICK
-            while k < len(sends) and arrivals[k] <= t + 1e-9:
-                frame = (first_frame + k) % (1 << 16)
-                modes.receive(t, {"frame": frame, "mode": "engage", "setpoint": sine(sends[k])})
-                k += 1
-            out.append(modes.setpoint(t)[0])
-        y, t = np.array(out) - NEUTRAL[0], np.arange(len(out)) * TICK
+        rng = np.random.default_rng(seed)
+        y, t = _sine_host(4.0, lambda sends: sends + rng.uniform(0.0, 0.003, sends.size), first_frame)
         acc = np.abs(np.diff(y, 2)) / TICK**2
         assert acc[t[1:-1] > 1.0].max() < 5.0, seed
         assert np.abs(y - 0.04 * np.sin(np.pi * (t - 0.015)))[t > 2.0].max() < 5e-4, seed
