@@ -417,10 +417,10 @@ class MPCCueing:
             return np.zeros(N_INPUT)
         return x[:N_INPUT]
 
-
     def _false_cue_bounds(self, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) (N 6,) of the platform's sensed cue over the horizon for the vehicle's ``reference``
-        (N, 6): within ``threshold_share`` of each axis' perception threshold (:data:`SENSED_THRESHOLDS`), except
+        (N, 6; scaled as the programme is given it, so a cue the scale takes below its threshold is held below it
+        too): within ``threshold_share`` of each axis' perception threshold (:data:`SENSED_THRESHOLDS`), except
         on the vehicle's side where its own cue passes the threshold (there any size: a cue smaller than the
         vehicle's is no false cue, and a larger one of the same sign is weighed by the cost)."""
         vehicle, threshold = reference.ravel(), self.threshold

@@ -330,7 +330,7 @@ class OperatingModes:
     def _on_timeline(self, n: float) -> float:
         """Where the host's timeline puts its (unwrapped) frame ``n`` on our clock [s]: a line through the first
         packet's frame, so that the period's learning turns it about there (anchored at frame 0, a host whose
-        counter stood at 60000 when it began, its arrivals jittering by 3 ms, was played 50 mm off its line)."""
+        counter stood at 60000 when it began, its arrivals jittering by 3 ms, was played 8-95 mm off its line)."""
         return self._offset + (n - self._first[1]) * self.host_period
 
     def _forget(self, t: float) -> None:
@@ -372,7 +372,7 @@ class OperatingModes:
         """The stop when the host's line is held: from the last value played and its velocity at that tick, no
         acceleration, to rest over :data:`REJOIN_FLOOR_S` (the quintic's braking is then monotone: it ends half
         that time times the velocity further on, its largest deceleration 1.5 v / T). Held at once, the setpoint's
-        velocity stepped to nothing in a tick: 42.6 m/s^2 of setpoint acceleration, a host's 0.5 Hz, 40 mm sine
+        velocity stepped to nothing in a tick: 31 m/s^2 of setpoint acceleration, a host's 0.5 Hz, 40 mm sine
         held at its full speed."""
         last, velocity, t_last = self._played
         return _Move(t_last, REJOIN_FLOOR_S, last, velocity, np.zeros_like(last),
