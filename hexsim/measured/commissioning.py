@@ -53,7 +53,8 @@ class Commissioning:
         """The tuned file's ``commissioning`` entry: the logs read, the curves (:func:`hexsim.measured.curves.
         curve_report`, the points as the curve's machine would hold them) and the form's refit: its parameters and
         both readings' held-out flow error (rms [m^3] over 10 ms intervals)."""
-        out = {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", self.machine)}
+        curved = curve_machine(self.machine, self.curves) if self.kept_form else self.machine
+        out = {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", curved)}
         if self.form is not None:
             ms, _ = held_out_ms(self.curves)
             out["form"] = {"flow_area": self.form.machine.hydraulics.flow_area, "kept": self.kept_form,

@@ -50,7 +50,7 @@ def test_a_commissioning_keeps_a_rounded_edge_and_refits_it_where_a_knot_grid_wo
     to the flows place the corner within 3 mV of R1's (measured 0.890 V; from the calibration logs alone, which
     cross it in milliseconds, 0.883) and predict the held-out windows at least as well as the curves read from
     the same flows (measured 0.98 of their error), so the commissioned file keeps the form; the report says so
-    with both errors."""
+    with both errors, beside the curves it did not take."""
     from hexsim.measured.commissioning import commission
     from hexsim.plant.machine import with_keys
 
@@ -63,5 +63,7 @@ def test_a_commissioning_keeps_a_rounded_edge_and_refits_it_where_a_knot_grid_wo
     hyd = learned.machine.hydraulics
     assert learned.kept_form and hyd.flow_area == "rounded"
     assert hyd.rounded_corner / hyd.x_v_max * hyd.u_v_max == pytest.approx(0.89, abs=0.003)
-    form = learned.report()["form"]
+    report = learned.report()
+    form = report["form"]
     assert form["kept"] and form["held_out_flow_rms_m3"] <= 1.05 * form["curves_held_out_flow_rms_m3"]
+    assert len(report["curves"]["flow_curve_PA"]) > 5  # the curves it did not take, as their file would hold them
