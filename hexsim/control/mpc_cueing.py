@@ -403,9 +403,9 @@ class MPCCueing:
         lower, upper = [self.lo_state - free, self.lo_in], [self.hi_state - free, self.hi_in]
         if self.params.threshold_share > 0:
             lo, hi = self._false_cue_bounds(reference)
-            free = self.f_cue @ x0
-            lower.append(lo - free)
-            upper.append(hi - free)
+            free_cue = self.f_cue @ x0  # the sensed cue's free response over the horizon
+            lower.append(lo - free_cue)
+            upper.append(hi - free_cue)
         lower = np.maximum(np.concatenate(lower), -DAQP_INFINITY)
         upper = np.minimum(np.concatenate(upper), DAQP_INFINITY)
         sense = np.zeros(len(lower), dtype=np.int32)

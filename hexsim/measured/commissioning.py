@@ -36,30 +36,37 @@ class Commissioning:
     """What :func:`commission` learned: the ``machine`` with each edge's curve read from the ``logs`` (the
     commissioning logs, then the calibration's own that were found), or with its flow-area form's parameters
     refitted where that predicts them as well (``form``, the refit, kept or not; None for a machine whose valve is
-    a curve or a table), the :class:`FlowCurves`, and the leg ``model`` a model-based compensator inverts on it."""
+    a curve or a table), the :class:`FlowCurves`, the leg ``model`` a model-based compensator inverts on it, and
+    ``curved``: the machine with the curves, taken or not (None: ``machine`` is it)."""
 
     machine: Machine
     curves: FlowCurves
     logs: tuple[str, ...]
     model: LegModel
     form: RefitForm | None = None
+    curved: Machine | None = None
 
     @property
     def kept_form(self) -> bool:
         """Whether the machine kept its flow-area form (refitted) rather than the curves."""
         return self.form is not None and self.machine.hydraulics.flow_area != "curve"
 
+    def form_summary(self) -> dict | None:
+        """The form's refit as the report gives it (:meth:`report`'s ``form``); None without one."""
+        if self.form is None:
+            return None
+        ms, _ = held_out_ms(self.curves)
+        return {"flow_area": self.form.machine.hydraulics.flow_area, "kept": self.kept_form,
+                "refitted": self.form.keys, "held_out_flow_rms_m3": self.form.held_out ** 0.5,
+                "curves_held_out_flow_rms_m3": ms ** 0.5}
+
     def report(self) -> dict:
         """The tuned file's ``commissioning`` entry: the logs read, the curves (:func:`hexsim.measured.curves.
         curve_report`, the points as the curve's machine would hold them) and the form's refit: its parameters and
         both readings' held-out flow error (rms [m^3] over 10 ms intervals)."""
-        curved = curve_machine(self.machine, self.curves) if self.kept_form else self.machine
-        out = {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", curved)}
+        out = {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", self.curved or self.machine)}
         if self.form is not None:
-            ms, _ = held_out_ms(self.curves)
-            out["form"] = {"flow_area": self.form.machine.hydraulics.flow_area, "kept": self.kept_form,
-                           "refitted": self.form.keys, "held_out_flow_rms_m3": self.form.held_out ** 0.5,
-                           "curves_held_out_flow_rms_m3": ms ** 0.5}
+            out["form"] = self.form_summary()
         return out
 
 
@@ -93,10 +100,10 @@ def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = 
         if log.system != "single-actuator":
             raise InputError(f"{log.path}: commissioning reads single-actuator logs (this is {log.system})")
     curves = fit_flow_curves(logs, machine, toward_machine=True)
-    new = curve_machine(machine, curves)
+    curved = curve_machine(machine, curves)
     form = refit_form(logs, machine) if machine.hydraulics.flow_area in REFITTED_FORMS else None
-    if form is not None and form.held_out <= sum(held_out_ms(curves)):  # the form unless the curves predict the
-        new = form.machine  # held-out windows better by one standard error
+    # the form unless the curves predict the held-out windows better by one standard error
+    new = form.machine if form is not None and form.held_out <= sum(held_out_ms(curves)) else curved
     new = dataclasses.replace(new, description=(machine.description + " Commissioned by hexsim tune --from-logs.").strip())
     model = leg_model_of(RunConfig.from_machine(new, "actuator"))
-    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model, form)
+    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model, form, curved)

@@ -213,6 +213,39 @@ class FlowCurves:
         return out[0], out[1]
 
 
+#: The prior on 1/E and V_pl/E: held weakly at the machine's, this share of their value a standard deviation.
+BETA_PRIOR_SHARE = 0.5
+
+
+def intervals(s: FlowSamples) -> tuple[np.ndarray, np.ndarray]:
+    """(starts (k,), reach (k, 2)) of ``s``'s intervals: where each begins among its samples, and its largest
+    command on each edge (P→A at u, A→T at -u) [V]."""
+    starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
+    return starts, np.column_stack([np.maximum.reduceat(s.u, starts), np.maximum.reduceat(-s.u, starts)])
+
+
+def within_reach(most: np.ndarray, reach: list[float]) -> np.ndarray:
+    """(k,) bool: the intervals whose largest commands ``most`` (k, 2) are within each edge's ``reach`` [V] (an
+    interval beyond an edge's reach is not its curve's to read)."""
+    return (most[:, 0] <= reach[0]) & (most[:, 1] <= reach[1])
+
+
+def robust_scale(b: np.ndarray) -> float:
+    """The flows' scale [m^3] the soft-L1 weights are read on: a twentieth of their robust spread (MAD)."""
+    return max(0.05 * float(median_abs_deviation(b, scale="normal")), 1e-9)
+
+
+def soft_l1(e: np.ndarray) -> np.ndarray:
+    """The soft-L1 loss's weights of the residuals ``e`` in units of :func:`robust_scale` (reweighted least
+    squares)."""
+    return 1.0 / np.sqrt(1.0 + e * e)
+
+
+def fold_mean(errors: list[float]) -> tuple[float, float]:
+    """The blocked held-out windows' mean error over the :data:`FOLDS` windows, and its standard error."""
+    return float(np.mean(errors)), float(np.std(errors) / math.sqrt(FOLDS))
+
+
 def _edge_rows(samples: list[FlowSamples], pa: np.ndarray, at: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The linear system of the unknowns (the P→A rises, the A→T rises, 1/E, V_pl/E): (A (k, m), b (k,), block
@@ -228,11 +261,11 @@ def _edge_rows(samples: list[FlowSamples], pa: np.ndarray, at: np.ndarray
             per = np.column_stack([on_pa * s.ret[:, None], on_at * s.supply[:, None]])
         else:
             per = np.column_stack([on_pa * s.supply[:, None], on_at * s.ret[:, None]])
-        starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
+        starts, most = intervals(s)
         rows.append(np.column_stack([np.add.reduceat(per, starts, axis=0), -s.swept_dp, -s.dead_dp]))
         rhs.append(s.displaced)
         blocks.append(s.block)
-        reach.append(np.column_stack([np.maximum.reduceat(s.u, starts), np.maximum.reduceat(-s.u, starts)]))
+        reach.append(most)
     return np.vstack(rows), np.concatenate(rhs), np.concatenate(blocks), np.vstack(reach)
 
 
@@ -397,7 +430,7 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     where it is not given (:func:`_machine_openings`; the strongest within one standard error of the best), only
     those at knots within the commands ``hold_within`` where it is given."""
     A, b, block, most = _edge_rows(samples, pa, at)
-    keep = (most[:, 0] <= reach[0]) & (most[:, 1] <= reach[1])  # an interval beyond an edge's reach is not its
+    keep = within_reach(most, reach)
     A, b, block = A[keep], b[keep], block[keep]
     D = _penalty(pa, at)
     x = _prior_unknowns(machine, pa, at)
@@ -407,16 +440,16 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     # 1/E and V_pl/E held weakly at the machine's (half their value as a standard deviation): where the logs' pressure
     # changes hardly tell the swept from the dead volume, the two do not wander apart
     prior_gram = np.zeros((m, m))
-    prior_gram[m - 2:, m - 2:] = np.diag(1.0 / (0.5 * x[m - 2:] + 1e-30) ** 2)
+    prior_gram[m - 2:, m - 2:] = np.diag(1.0 / (BETA_PRIOR_SHARE * x[m - 2:] + 1e-30) ** 2)
     prior_rhs = prior_gram @ x
-    c = max(0.05 * float(median_abs_deviation(b, scale="normal")), 1e-9)
+    c = robust_scale(b)
     unit_penalty = float(np.sum(b * b)) / max(float(np.sum(np.abs(D @ x))), 1e-12) / c**2  # weight 1: data ~ penalty
     w = np.ones(len(b))
     for _ in range(3):
         x = _solve((A.T * (w / c**2)) @ A + prior_gram, (A.T * (w / c**2)) @ b + prior_rhs, D,
                    (weight or WEIGHTS[2]) * unit_penalty, x, bounds)
         e = (A @ x - b) / c
-        w = 1.0 / np.sqrt(1.0 + e * e)
+        w = soft_l1(e)
     grams = [((A[block == k].T * (w[block == k] / c**2)) @ A[block == k],
               (A[block == k].T * (w[block == k] / c**2)) @ b[block == k]) for k in range(FOLDS)]
     gram, rhs = sum(g for g, _ in grams) + prior_gram, sum(r for _, r in grams) + prior_rhs
@@ -469,7 +502,7 @@ class _Folds:
             xk = _solve(gram - gk, rhs - rk, self.D, penalty, self.x, self.bounds)
             sel = self.block == k
             errors.append(float(np.sum(self.w[sel] * (self.A[sel] @ xk - self.b[sel]) ** 2) / np.sum(self.w[sel])))
-        return float(np.mean(errors)), float(np.std(errors) / math.sqrt(FOLDS))
+        return fold_mean(errors)
 
 
 def _within_one_se(scores: dict, margin: float = 0.0) -> float:

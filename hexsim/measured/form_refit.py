@@ -23,14 +23,19 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import median_abs_deviation
 
 from hexsim.measured.flow_balance import FOLDS, FlowSamples
 from hexsim.measured.flow_curve import (
     BETA_BOUNDS,
+    BETA_PRIOR_SHARE,
     balance_samples,
     edge_opening,
+    fold_mean,
+    intervals,
+    robust_scale,
+    soft_l1,
     unit_gains,
+    within_reach,
 )
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant.machine import Machine, with_keys
@@ -78,9 +83,8 @@ class _Balance:
     def __init__(self, samples: list[FlowSamples], reach: list[float]) -> None:
         self.parts = []
         for s in samples:
-            starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
-            keep = (np.maximum.reduceat(s.u, starts) <= reach[0]) & (np.maximum.reduceat(-s.u, starts) <= reach[1])
-            self.parts.append((s, starts, keep))
+            starts, most = intervals(s)
+            self.parts.append((s, starts, within_reach(most, reach)))
         self.b = np.concatenate([s.displaced[k] for s, _, k in self.parts])
         self.beta_rows = np.concatenate([np.column_stack([-s.swept_dp[k], -s.dead_dp[k]]) for s, _, k in self.parts])
         self.block = np.concatenate([s.block[k] for s, _, k in self.parts])
@@ -111,7 +115,7 @@ def refit_form(logs: list[MeasurementLog], machine: Machine) -> RefitForm:
     def machine_at(x: np.ndarray) -> Machine:
         return with_keys(machine, {k: float(v) for (k, *_), v in zip(keys, x)})
 
-    c = max(0.05 * float(median_abs_deviation(balance.b, scale="normal")), 1e-9)
+    c = robust_scale(balance.b)
     beta_prior = np.array([1.0 / machine.hydraulics.bulk_modulus,
                            machine.hydraulics.pipeline_volume / machine.hydraulics.bulk_modulus])
     weights = np.ones_like(balance.b)
@@ -130,7 +134,7 @@ def refit_form(logs: list[MeasurementLog], machine: Machine) -> RefitForm:
     for _ in range(3):  # the robust weights (soft L1), as the curve's fit has them
         x, beta = fit(everything, x)
         e = (balance.swept(machine_at(x)) + balance.beta_rows @ beta - balance.b) / c
-        weights = 1.0 / np.sqrt(1.0 + e * e)
+        weights = soft_l1(e)
     errors = []
     for k in range(FOLDS):
         out = balance.block == k
@@ -138,19 +142,20 @@ def refit_form(logs: list[MeasurementLog], machine: Machine) -> RefitForm:
         r = balance.swept(machine_at(xk)) + balance.beta_rows @ beta - balance.b
         errors.append(float(np.sum(weights[out] * r[out] ** 2) / np.sum(weights[out])))
     fitted = {key: float(v) for (key, *_), v in zip(keys, x)}
-    return RefitForm(machine_at(x), fitted, float(np.mean(errors)), float(np.std(errors) / math.sqrt(FOLDS)))
+    return RefitForm(machine_at(x), fitted, *fold_mean(errors))
 
 
 def _with_beta(balance: _Balance, machine: Machine, rows: np.ndarray, weights: np.ndarray, prior: np.ndarray,
                c: float) -> tuple[np.ndarray, np.ndarray]:
     """The weighted residuals [in units of ``c``] of the intervals ``rows`` with the form's openings on
-    ``machine`` and (1/E, V_pl/E) solved for them (linear, held weakly at ``prior``, half its value a standard
-    deviation, within the bulk modulus' bracket), and those two."""
+    ``machine`` and (1/E, V_pl/E) solved for them (linear, held weakly at ``prior``, a share of its value a
+    standard deviation: :data:`~hexsim.measured.flow_curve.BETA_PRIOR_SHARE`; within the bulk modulus' bracket),
+    and those two."""
     swept = balance.swept(machine)
     w = np.sqrt(weights[rows]) / c
     a = balance.beta_rows[rows] * w[:, None]
     t = (balance.b[rows] - swept[rows]) * w
-    p = 1.0 / (0.5 * prior + 1e-30)
+    p = 1.0 / (BETA_PRIOR_SHARE * prior + 1e-30)
     beta = np.linalg.lstsq(np.vstack([a, np.diag(p)]), np.concatenate([t, p * prior]), rcond=None)[0]
     beta[0] = min(max(beta[0], BETA_BOUNDS[0]), BETA_BOUNDS[1])
     beta[1] = max(beta[1], 0.0)

@@ -56,8 +56,9 @@ from hexsim.control.vestibular import (  # noqa: F401 (named here too)
 )
 from hexsim.signals import LinearModel, fit_fundamental, polynomial_product
 
-#: the head's and the seat's axes are AXES, in the order of :class:`PointMotion` (translations, then rotations);
-#: they, the threshold stimulus and the organs are :mod:`hexsim.control.vestibular`'s, named here too
+# the head's and the seat's axes are AXES, in the order of :class:`PointMotion` (translations, then rotations);
+# they, the threshold stimulus and the organs are hexsim.control.vestibular's, named here too
+
 #: how long after a reversal the sensed peak is looked for [s] (before: the metrics' 0.1 s window)
 SENSED_TAIL = 0.25
 

@@ -32,7 +32,7 @@ def learned_lines(learned) -> list[str]:
     curves = learned.curves
     lines = [f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
              f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs)]
-    form = learned.report().get("form")
+    form = learned.form_summary()
     if form is not None:
         refitted = ", ".join(f"{key} {value:.4g}" for key, value in form["refitted"].items())
         ratio = form["held_out_flow_rms_m3"] / form["curves_held_out_flow_rms_m3"]
