@@ -330,7 +330,10 @@ class AdaptiveFeedforward(FeedforwardCompensator):
       learner's band (:data:`compensation.curve_learning.BAND_MPS`), near the reversals, where a null shift
       matters most; learned at every speed, it took up the curve's own error (a corner's) within each period and
       carried it into the next reversal (on the reference plant R1 the mean reversal peak 0.078 m/s² with it,
-      0.047 without). The seed's safety principles (§5.5): no learning below the velocity band k, e clipped to
+      0.047 without). What it learns there flips with the direction (the loop's work at a reversal), so beyond
+      the band the inverse moves by the mean of the shifts the two sides last held (:meth:`shift`): a drift
+      moves the whole curve, a flip would move a corner of it. The seed's safety principles (§5.5): no
+      learning below the velocity band k, e clipped to
       ±0.25 V per sample, steps bounded to ``adapt_rate`` [V/s], c to ±``adapt_limit``, faded in over
       ``fade_time``.
 
@@ -356,6 +359,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         super().__init__(*args, **kwargs)
         st, n, m = self.settings, self.n_legs, self.model
         self.null = np.zeros(n)  # c [V]
+        self._held = np.full((n, 2), np.nan)  # c as each side (retracting, extending) last left the band [V]
         self.learner = CurveLearner(m.u, m.velocity, self.rate_hz, st.buffer_time, kp=m.kp)
         self._v_target = None  # the curve the inverse is fading to (_set_curve)
         self.good = (self.null.copy(), self.learner.state())
@@ -408,7 +412,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
             self._guard(loop, self.reference.r_dot)
             self._buffer(u_v, y_measured, u_p, promised, velocity, p1)
         self._applied += self._fade * (1.0 - self._applied)
-        u_v = u_v + self._applied * self.null
+        u_v = u_v + self._applied * self.shift(velocity)
         self._scale += self._fade * (np.where(self.off, 0.0, 1.0) - self._scale)
         self.feedforward = self._scale * (u_v - u_p)
         return self.feedforward
@@ -458,6 +462,20 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         if np.max(np.abs(self._v_target - self._v)) < 1e-9:
             self._v, self._v_target = self._v_target, None
 
+    def shift(self, v: np.ndarray) -> np.ndarray:
+        """The null shift [V] (n_legs,) the inverse is moved by at the demanded velocity v [m/s] (n_legs,): c within
+        the band it is learned in (below :data:`~compensation.curve_learning.BAND_MPS`), and beyond twice that band
+        the mean of the c each side held as it last left the band (linearly between; c itself until both sides
+        have): a null that drifts moves the whole curve, but what the loop adds near a reversal flips with the
+        direction and belongs to the reversal alone. Applied at every speed, that flip (±1.7 mV on the
+        independent actuator ``corner``, the tuned file on its calibrated model) moved the valve curve's corner at
+        0.9 V by as much at every crossing, and each was felt at the seat (1.39x the ISO 2631-1 threshold where
+        the fixed feedforward gave 0.79x; docs/compensation.md)."""
+        both = ~np.isnan(self._held).any(axis=1)
+        mean = np.where(both, self._held.mean(axis=1), self.null)
+        near = np.clip(2.0 - np.abs(v) / BAND_MPS, 0.0, 1.0)
+        return mean + near * (self.null - mean)
+
     def _learn(self, error: np.ndarray, v: np.ndarray) -> None:
         """One normalised LMS step of the null shift c towards the loop's volts ``error`` (n_legs,) at velocity v
         [m/s] (n_legs,)."""
@@ -466,6 +484,8 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         legs = np.flatnonzero(slow & (self._pause == 0) & ~self.off)
         step = np.clip(self.dt / st.adapt_time * error[legs], -st.adapt_rate * self.dt, st.adapt_rate * self.dt)
         self.null[legs] = np.clip(self.null[legs] + step, -st.adapt_limit, st.adapt_limit)
+        out = np.flatnonzero(np.abs(v) >= BAND_MPS)
+        self._held[out, (v[out] > 0).astype(int)] = self.null[out]
 
     def _guard(self, loop: np.ndarray, r_dot: np.ndarray) -> None:
         ring = self._ring
