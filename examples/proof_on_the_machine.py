@@ -15,8 +15,10 @@ Machines (their own equations, no hexsim import in the physics):
 For each: ``hexsim calibrate`` on the two logs (defaults), ``hexsim tune`` on the calibrated file (defaults:
 the ``actuator`` motion), then the tuned file in the machine's loop on the seed's 50 mm 0.5 Hz sine
 (``--duration`` s, judged on the second half: the passenger's view, :func:`hexsim.measured.proof.passenger_view`),
-beside hexsim's prediction of the same run; then up to ``--runs`` commissioning runs (each run's log read back
-into the model by ``hexsim tune --from-logs``, the improved file run again).
+beside hexsim's prediction of the same run (the mean over the calibrated file and the eight machines its
+calibration's uncertainty allows, as ``hexsim tune --check`` predicts, their range beside it); then up to
+``--runs`` commissioning runs (each run's log read back into the model by ``hexsim tune --from-logs``, the
+improved file run again).
 
     python examples/proof_on_the_machine.py [--machines R1,corner,underlap,drift] [--runs 3] [--duration 60] [--floor]
 
@@ -50,6 +52,7 @@ from hexsim.measured.calibration import calibrate
 from hexsim.measured.commissioning import commission
 from hexsim.measured.measurement import read_log
 from hexsim.measured.proof import passenger_view
+from hexsim.measured.records import CalibrationRecord
 from hexsim.plant.machine import dump, load_machine
 from hexsim.studies.tuning import read_tuned, retuned, tune, write_tuned
 
@@ -134,15 +137,22 @@ def judged(t, ref, acc, velocity, instantaneous, duration):
                                                                    velocity)
 
 
-def predicted(machine, tuned: pathlib.Path | None, duration: float):
-    """hexsim's prediction of the same run: the calibrated machine with the tuned file (None: uncompensated)."""
+def predicted(machine, tuned: pathlib.Path | None, duration: float) -> dict:
+    """hexsim's prediction of the same run: the calibrated machine with the tuned file (None: uncompensated), and the
+    same on the machines drawn from what its calibration leaves uncertain (``CalibrationRecord.plausible``, as
+    ``hexsim tune --check`` predicts): {"view": the calibrated file's passenger view, "models": every model's mean
+    reversal peak [m/s^2], the calibrated file's first}."""
     options = {}
     if tuned is not None:
         name, settings, model = read_tuned(tuned)
         options = {"compensator": name, "compensator_settings": settings, "compensator_model": model}
-    result = simulate(RunConfig.from_machine(machine, make_scenario("actuator", duration=duration), **options))
-    setpoint = result.config.scenario.axis_setpoint(result.t)
-    return passenger_view(result.t, result.acc[:, 2], setpoint, FREQUENCY, duration / 2, result.ydot[:, 0])
+    record = CalibrationRecord.of(machine.calibration)
+    views = []
+    for m in [machine, *(record.plausible(machine) if record is not None else [])]:
+        result = simulate(RunConfig.from_machine(m, make_scenario("actuator", duration=duration), **options))
+        setpoint = result.config.scenario.axis_setpoint(result.t)
+        views.append(passenger_view(result.t, result.acc[:, 2], setpoint, FREQUENCY, duration / 2, result.ydot[:, 0]))
+    return {"view": views[0], "models": [v.mean for v in views]}
 
 
 def prove(name: str, runs: int, duration: float, folder: pathlib.Path) -> list[dict]:
@@ -282,7 +292,8 @@ def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) ->
 def table(rows: list[dict]) -> str:
     """Measured (1 ms means, as hexsim records) beside predicted; the instantaneous samples' reduction where the
     machine gives them."""
-    head = ("| machine | compensator | mean reversal peak, measured [m/s²] | predicted | reduction | instantaneous "
+    head = ("| machine | compensator | mean reversal peak, measured [m/s²] | predicted (its models' range) | "
+            "reduction | instantaneous "
             "reduction | worst reversal / none's | seat W_k peak / threshold, measured | predicted |")
     out = [head, "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -291,7 +302,8 @@ def table(rows: list[dict]) -> str:
         now, none_now = r.get("instantaneous"), r.get("none_instantaneous")
         red_now = f"{100 * (1 - now.mean / none_now.mean):.1f} %" if now is not None and none_now is not None else "–"
         worst = f"{m.worst_against(none):.2f}" if none else "–"
-        p_mean, p_seat = (f"{p.mean:.4f}", f"{p.seat_ratio:.2f}") if p else ("–", "–")
+        p_mean, p_seat = ((f"{np.mean(p['models']):.4f} ({min(p['models']):.4f}–{max(p['models']):.4f})",
+                           f"{p['view'].seat_ratio:.2f}") if p else ("–", "–"))
         out.append(f"| {r['machine']} | {r['run']} | {m.mean:.4f} | {p_mean} | {red} | {red_now} | {worst} | "
                    f"{m.seat_ratio:.2f} | {p_seat} |")
     return "\n".join(out)

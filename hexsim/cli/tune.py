@@ -43,6 +43,9 @@ def add_tune(sub) -> None:
     tu.add_argument("--check", type=pathlib.Path, nargs="+", metavar="LOG.csv",
                     help="proof instead of tuning: logs of the machine running with --compensator, beside the machine "
                          "simulated with it on each log's setpoints (measured and predicted smoothness)")
+    tu.add_argument("--draws", type=int, default=None, metavar="N",
+                    help="--check: also predict on N machines drawn from what the calibration leaves uncertain, and "
+                         "judge against the spread they give (default 8; 0: the machine file alone)")
     tu.add_argument("--from-logs", nargs="+", type=pathlib.Path, metavar="LOG.csv",
                     help="commissioning instead of tuning: logs of the machine running with --compensator (a tuned "
                     "file) read back into the model (each valve edge's curve from their flows and the calibration's "
@@ -145,6 +148,8 @@ def _tune_check(args: argparse.Namespace) -> int:
     for path in args.check:
         if not path.exists():
             raise InputError(f"--check {path}: no such file")
+    if args.draws is not None and args.draws < 0:
+        raise InputError(f"tune --check: --draws must be 0 or more, got {args.draws}")
     from hexsim.engine.config import RunConfig
     from hexsim.measured.proof import proof
     from hexsim.measured.reports.commissioning import check_lines
@@ -154,7 +159,8 @@ def _tune_check(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     scenario = "heave" if machine.system == "hexapod" else "actuator"
     base = RunConfig.from_machine(machine, scenario, **compensator_options(args.compensator))
-    rows = [proof(path, base) for path in args.check]
+    draws = {} if args.draws is None else {"draws": args.draws}
+    rows = [proof(path, base, **draws) for path in args.check]
     print("\n".join(check_lines(rows, base.machine_label, base.compensator_name)))
     if args.json:
         write_json(args.json, {"machine": base.machine_label, "proofs": rows})

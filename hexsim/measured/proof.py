@@ -10,12 +10,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal, stats
 
+from compensation import MODEL_BASED
 from hexsim.control.scenario import Scenario
 from hexsim.engine.config import RunConfig
-from hexsim.engine.runner import simulate
+from hexsim.engine.runner import Simulator, simulate
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog, read_log
-from hexsim.measured.records import CalibrationRecord
+from hexsim.measured.records import PLAUSIBLE_DRAWS, CalibrationRecord
 from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency, fit_fundamental
 from hexsim.studies.metrics import REVERSAL_WINDOW, Smoothness, smoothness
@@ -27,6 +28,10 @@ PROOF_SKIP_PERIODS = 2.0
 #: and a feedforward answers the stop.
 PROOF_END_S = 0.1
 
+
+#: The physics step of hexsim's models when a run names none [s] (``models/*.xml``, RunConfig.timestep): an
+#: instantaneous accelerometer is read from records at this rate.
+MODEL_STEP_S = 1e-4
 
 #: Confidence of the interval a prediction must hold the measured ratio in to be "within its uncertainty".
 CONFIDENCE = 0.95
@@ -40,9 +45,8 @@ CORNER_SPREAD_V = 0.15
 @dataclass(frozen=True)
 class Ratio:
     """Measured over predicted of one kind of event (``what``: "reversals", "between reversals"): the ratio of the
-    events' geometric means and its ``CONFIDENCE`` interval (Welch's t on their logarithms, scipy.stats.ttest_ind:
-    the uncertainty the event-to-event scatter of both runs gives), from ``n_measured`` and ``n_predicted``
-    events; ``within`` when the interval holds 1."""
+    events' geometric means and its ``CONFIDENCE`` interval, from ``n_measured`` and ``n_predicted`` events over
+    ``models`` predictions (:func:`ratio`); ``within`` when the interval holds 1."""
 
     what: str
     ratio: float
@@ -50,26 +54,47 @@ class Ratio:
     high: float
     n_measured: int
     n_predicted: int
+    models: int = 1
 
     @property
     def within(self) -> bool:
         return self.low <= 1.0 <= self.high
 
     def text(self) -> str:
-        return f"{self.ratio:.2f}× the prediction ({CONFIDENCE:.0%} interval {self.low:.2f}–{self.high:.2f})"
+        over = f", over {self.models} plausible models" if self.models > 1 else ""
+        return f"{self.ratio:.2f}× the prediction ({CONFIDENCE:.0%} interval {self.low:.2f}–{self.high:.2f}{over})"
 
 
-def ratio(what: str, measured: np.ndarray, predicted: np.ndarray) -> Ratio | None:
-    """The :class:`Ratio` of ``measured`` (n,) to ``predicted`` (m,) peaks [m/s^2] (positive); None with fewer than
-    ``MIN_EVENTS`` on a side."""
-    a, b = np.asarray(measured, float), np.asarray(predicted, float)
-    a, b = a[a > 0], b[b > 0]
-    if min(a.size, b.size) < MIN_EVENTS:
+def ratio(what: str, measured: np.ndarray, predicted: np.ndarray | list[np.ndarray]) -> Ratio | None:
+    """The :class:`Ratio` of ``measured`` (n,) to ``predicted`` peaks [m/s^2] (positive): one run's (m,), or a list
+    of runs', one per plausible model (:meth:`~hexsim.measured.records.CalibrationRecord.plausible`); None with
+    fewer than ``MIN_EVENTS`` on a side. One run: Welch's t on the peaks' logarithms (scipy.stats.ttest_ind,
+    the uncertainty the event-to-event scatter of both runs gives). Several: the prediction is the mean over the
+    models of their mean log peak, and its uncertainty adds to the scatter's the spread between the models (the
+    machine is one of them, not their mean: a prediction interval, variance s_b^2 (1 + 1/K) over K models);
+    t quantile on the measured events' n - 1 degrees of freedom."""
+    a = np.asarray(measured, float)
+    a = a[a > 0]
+    runs = [np.asarray(r, float) for r in (predicted if isinstance(predicted, list) else [predicted])]
+    runs = [r[r > 0] for r in runs]
+    runs = [r for r in runs if r.size]
+    n_pred = sum(r.size for r in runs)
+    if a.size < MIN_EVENTS or n_pred < MIN_EVENTS:
         return None
-    la, lb = np.log(a), np.log(b)
-    ci = stats.ttest_ind(la, lb, equal_var=False).confidence_interval(CONFIDENCE)
-    return Ratio(what, float(np.exp(la.mean() - lb.mean())), float(np.exp(ci.low)), float(np.exp(ci.high)),
-                 int(a.size), int(b.size))
+    la = np.log(a)
+    if len(runs) == 1:
+        lb = np.log(runs[0])
+        ci = stats.ttest_ind(la, lb, equal_var=False).confidence_interval(CONFIDENCE)
+        return Ratio(what, float(np.exp(la.mean() - lb.mean())), float(np.exp(ci.low)), float(np.exp(ci.high)),
+                     int(a.size), int(lb.size))
+    logs = [np.log(r) for r in runs]
+    means = np.array([lr.mean() for lr in logs])
+    within = float(np.mean(np.concatenate([lr - lr.mean() for lr in logs]) ** 2))  # pooled scatter about each
+    k = len(logs)
+    se = np.sqrt(la.var(ddof=1) / la.size + within / n_pred + means.var(ddof=1) * (1.0 + 1.0 / k))
+    d = la.mean() - means.mean()
+    half = stats.t.ppf(0.5 + CONFIDENCE / 2, la.size - 1) * se
+    return Ratio(what, float(np.exp(d)), float(np.exp(d - half)), float(np.exp(d + half)), int(a.size), n_pred, k)
 
 
 def between_peaks(sm: Smoothness) -> tuple[np.ndarray, np.ndarray]:
@@ -133,21 +158,21 @@ class ProofVerdict:
         return "not within its uncertainty: " + "; ".join(parts)
 
 
-def verdict(measured: Smoothness, predicted: Smoothness, valve_cmd: np.ndarray | None = None,
+def verdict(measured: Smoothness, predicted: Smoothness | list[Smoothness], valve_cmd: np.ndarray | None = None,
             t: np.ndarray | None = None, measured_V: tuple[float, float] | None = None) -> ProofVerdict:
-    """A log's ``measured`` smoothness against the ``predicted`` (same window) as a :class:`ProofVerdict`; the
-    log's ``valve_cmd`` (N,) [V] at its times ``t`` (N,) [s], where it has one, places the peaks between
-    reversals on the valve's curve, and ``measured_V`` (the commands the calibration measured) says whether the
-    calibration saw it there."""
+    """A log's ``measured`` smoothness against the ``predicted`` (same window; or a list, one per plausible model,
+    :func:`ratio`) as a :class:`ProofVerdict`; the log's ``valve_cmd`` (N,) [V] at its times ``t`` (N,) [s], where
+    it has one, places the peaks between reversals on the valve's curve, and ``measured_V`` (the commands the
+    calibration measured) says whether the calibration saw it there."""
+    runs = predicted if isinstance(predicted, list) else [predicted]
     bm, tm = between_peaks(measured)
-    bp, _ = between_peaks(predicted)
     corner = None
     if valve_cmd is not None and t is not None and tm.size >= MIN_EVENTS:
         u = np.abs(np.interp(tm, t, valve_cmd))
         q1, q3 = np.percentile(u, [25, 75])
         corner = float(np.median(u)) if q3 - q1 < CORNER_SPREAD_V else None
-    return ProofVerdict(ratio("reversals", measured.reversal_peaks, predicted.reversal_peaks),
-                        ratio("between reversals", bm, bp), corner, measured_V)
+    return ProofVerdict(ratio("reversals", measured.reversal_peaks, [r.reversal_peaks for r in runs]),
+                        ratio("between reversals", bm, [between_peaks(r)[0] for r in runs]), corner, measured_V)
 
 
 def accelerometer_noise(t: np.ndarray, acc: np.ndarray) -> float:
@@ -184,7 +209,7 @@ def _proof_columns(log: MeasurementLog) -> tuple[np.ndarray, np.ndarray, int, np
     return cols["ref_m"][:, None], cols["pos_m"][:, None], -1, cols["ref_m"], cols["acc_mps2"]
 
 
-def proof(path: pathlib.Path, base: RunConfig) -> dict:
+def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> dict:
     """A log of the machine running with a compensator beside the machine simulated with it on the log's own
     setpoints: the smoothness (mean and max reversal peak, noise ratio) of both, from the third period on.
 
@@ -193,12 +218,15 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
     ``leg{i}_ref_m`` and the platform accelerometer on the axis whose setpoint moves most (a translation:
     ``dof_ref_{x,y,z}_m`` needed). The simulation starts at the log's first positions and follows its
     setpoints held sample by sample; the prediction is read as the log's accelerometer would read it, on the log's
-    samples with the white noise the log shows (:func:`accelerometer_noise`). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the
-    peaks between reversals, against the predicted, within the uncertainty their scatter gives or by how much
-    not and where. Raises InputError naming the log and what it lacks."""
+    samples with the white noise the log shows (:func:`accelerometer_noise`). On a calibrated machine it is made
+    again on ``draws`` machines drawn from what the calibration leaves uncertain
+    (:meth:`~hexsim.measured.records.CalibrationRecord.plausible`), the compensator's leg model the nominal's:
+    ``predicted`` is then the mean over the nominal and the draws (``predicted_models``: each one's mean reversal
+    peak). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the peaks between reversals,
+    against the predicted, within the uncertainty their scatter and the models' spread give or by how much not
+    and where. Raises InputError naming the log and what it lacks."""
     log = read_log(path, base.machine, needs=("pos_m",))
     t = log.time - log.time[0]
-    cols = log.columns
     ref, pos, axis, setpoint, acc = _proof_columns(log)
     try:
         frequency = dominant_frequency(t, setpoint)
@@ -209,35 +237,53 @@ def proof(path: pathlib.Path, base: RunConfig) -> dict:
         raise InputError(f"{path}: {t[-1]:.1f} s hold less than three periods of its {frequency:.3g} Hz motion")
     scenario = Scenario(f"log:{path.name}", log.system if log.system == "hexapod" else "actuator", float(t[-1]),
                         axis, frequency, 0.0, legs=(t, ref), start=pos[0].copy())
-    result = simulate(dataclasses.replace(base, scenario=scenario, progress=False))
-    # the reversals where the piston turns (single actuator); a hexapod's, where its setpoint does
-    if axis < 0:
-        sim_acc, sim_vel = result.acc[:, 2], result.ydot[:, 0]
-        measured_vel = measured_velocity(log, pos[:, 0])
-    else:
-        sim_acc, sim_vel, measured_vel = result.acc[:, axis], None, None
-    # the prediction as the log's accelerometer would read it: on the log's samples, with the noise it shows
     sigma = accelerometer_noise(t, acc)
-    sim_acc = np.interp(t, result.t, sim_acc) + np.random.default_rng(0).normal(0.0, sigma, t.size)
-    sim_vel = None if sim_vel is None else np.interp(t, result.t, sim_vel)
-    rows, judged = {}, {}
-    for name, (tt, a, v) in {"measured": (t, acc, measured_vel), "predicted": (t, sim_acc, sim_vel)}.items():
-        keep = tt <= t[-1] - PROOF_END_S  # where the log's setpoints end, the held reference stops at once
-        sm = smoothness(tt[keep], a[keep], frequency, t0, np.interp(tt[keep], t, setpoint), name=name, unit="m/s^2",
-                        velocity=None if v is None else v[keep])
-        judged[name] = sm
-        rows[name] = {"mean_reversal_peak": sm.mean_reversal_peak, "reversals": int(sm.reversal_peaks.size),
-                      "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
-                      "noise_ratio": sm.noise_ratio}
-    valve = cols.get("valve_cmd_V") if axis < 0 else None
+    keep = t <= t[-1] - PROOF_END_S  # where the log's setpoints end, the held reference stops at once
+
+    def judged(name: str, a: np.ndarray, v: np.ndarray | None) -> Smoothness:
+        return smoothness(t[keep], a[keep], frequency, t0, setpoint[keep], name=name, unit="m/s^2",
+                          velocity=None if v is None else v[keep])
+
+    measured = judged("measured", acc, measured_velocity(log, pos[:, 0]) if axis < 0 else None)
     record = CalibrationRecord.of(base.machine.calibration, f"{base.machine.label}: calibration")
-    judgement = verdict(judged["measured"], judged["predicted"], valve, t,
-                        None if record is None else record.commands_measured_V)
+    runs = [judged("predicted", *run) for run in _predicted(dataclasses.replace(base, scenario=scenario), t, axis,
+                                                             sigma, draws if record is not None else 0)]
+    rows = {name: {"mean_reversal_peak": sm.mean_reversal_peak, "reversals": int(sm.reversal_peaks.size),
+                   "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
+                   "noise_ratio": sm.noise_ratio} for name, sm in (("measured", measured), ("predicted", runs[0]))}
+    models = [sm.mean_reversal_peak for sm in runs]
+    rows["predicted"]["mean_reversal_peak"] = float(np.mean(models))
+    valve = log.columns.get("valve_cmd_V") if axis < 0 else None
+    judgement = verdict(measured, runs, valve, t, None if record is None else record.commands_measured_V)
     return {"log": str(path), "frequency_hz": frequency, "compensator": base.compensator_name,
-            "accelerometer_noise_mps2": sigma, **rows,
+            "accelerometer_noise_mps2": sigma, **rows, "predicted_models": models,
             "verdict": {"within": judgement.within, "sentence": judgement.sentence(),
                         **{r.what: dataclasses.asdict(r) for r in (judgement.reversals, judgement.between) if r},
                         "corner_V": judgement.corner_V}}
+
+
+def _predicted(config: RunConfig, t: np.ndarray, axis: int, sigma: float, draws: int):
+    """(acceleration (N,) [m/s^2] as the log's accelerometer reads it — on the log's samples t (N,) [s], each the mean
+    over the millisecond before it or, where the machine file's ``sensors.acceleration_sampling`` is "instant", its
+    value at that instant (plus the file's ``acceleration_skew``), with the log's white noise ``sigma`` —, and the
+    piston's velocity (N,) [m/s], or None on a hexapod, whose reversals are its setpoint's) of ``config`` and of
+    ``draws`` plausible machines (:meth:`CalibrationRecord.plausible`), each with the nominal's compensator (a
+    model-based one keeps the nominal's leg model)."""
+    machine = config.machine
+    if config.compensator_model is None and config.compensator in MODEL_BASED:
+        nominal = dataclasses.replace(config, compensator="feedforward", progress=False)
+        config = dataclasses.replace(config, compensator_model=Simulator(nominal).compensator.model)
+    record = CalibrationRecord.of(machine.calibration, f"{machine.label}: calibration")
+    machines = [machine, *(record.plausible(machine, draws) if record is not None and draws else [])]
+    noise = np.random.default_rng(0).normal(0.0, sigma, t.size)
+    spec = machine.sensors
+    if spec.acceleration_sampling == "instant":  # the log's accelerometer read at an instant: every physics step's
+        config = dataclasses.replace(config, record_rate_hz=1.0 / (config.timestep or MODEL_STEP_S))
+    at = t + (spec.acceleration_skew if spec.acceleration_sampling == "instant" else 0.0)
+    for m in machines:
+        result = simulate(dataclasses.replace(config, machine=m, progress=False))
+        a = result.acc[:, 2] if axis < 0 else result.acc[:, axis]
+        yield np.interp(at, result.t, a) + noise, np.interp(t, result.t, result.ydot[:, 0]) if axis < 0 else None
 
 
 @dataclass(frozen=True)

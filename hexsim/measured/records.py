@@ -19,6 +19,10 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.estimates import Estimate
+from hexsim.plant.machine import Machine, get_key, with_keys
+
+#: Models drawn from a calibration's uncertainty for a prediction (:meth:`CalibrationRecord.plausible`).
+PLAUSIBLE_DRAWS = 8
 
 #: What a log says of the model: ``none`` (the nominal reproduces every channel within its budget),
 #: ``explained`` (the accepted effects bring every channel within it), ``partial`` (effects accepted,
@@ -314,3 +318,45 @@ class CalibrationRecord:
         """The correlated keys whose estimates are identified (:attr:`Estimate.identified`), in order: those
         whose uncertainty a replay propagates."""
         return [k for k in self.correlated if k in self.estimates and self.estimates[k].identified]
+
+    @property
+    def misfit(self) -> float:
+        """The largest held-out RMS in budgets of the calibrated model on its own logs, over their channels (at least
+        1): how much more than its noise the model misses the logs it was fitted to."""
+        return max([1.0, *(r for fit in self.own_fits for r in fit.held_out_rms_in_budgets.values())])
+
+    def plausible(self, machine: Machine, n: int = PLAUSIBLE_DRAWS, seed: int = 0) -> list[Machine]:
+        """``n`` machines drawn from what the calibration leaves uncertain of ``machine`` (whose ``calibration``
+        this record is): its identified parameters (:meth:`identified`) about their values in ``machine`` (a
+        commissioning may have moved them, :func:`value_in`), normal with the standard errors and correlation
+        of the fit, the errors scaled by :attr:`misfit` (a fit that misses its own logs by r budgets has
+        standard errors at least r too small: the Birge ratio, R. T. Birge, Phys. Rev. 40, 1932; the Particle
+        Data Group's scale factor) and clipped to the ranges they were fitted in; with ``seed`` the same draws
+        every time. Empty when nothing is identified. What a compensator tuned on the nominal leaves of the
+        reversal bump is the model's error, which the nominal cannot show: the draws can (docs/compensation.md,
+        "What hexsim predicts")."""
+        keys = self.identified()
+        if not keys or n < 1:
+            return []
+        doc = machine.document()
+        at = [self.correlated.index(k) for k in keys]
+        est = [self.estimates[k] for k in keys]
+        centre = np.array([value_in(doc, k, e.value) for k, e in zip(keys, est)])
+        se = self.misfit * np.array([e.std_error for e in est])
+        # the report rounds the correlations: the nearest positive semi-definite matrix (eigenvalues clipped at 0)
+        w, v = np.linalg.eigh(self.correlation[np.ix_(at, at)])
+        root = v * np.sqrt(np.clip(w, 0.0, None))
+        z = np.random.default_rng(seed).standard_normal((n, len(keys))) @ root.T
+        lower, upper = np.array([e.lower for e in est]), np.array([e.upper for e in est])
+        draws = np.clip(centre + z * se, lower, upper)
+        return [with_keys(machine, dict(zip(keys, map(float, row)))) for row in draws]
+
+
+def value_in(doc: dict, key: str, calibrated: float) -> float:
+    """``key``'s value in the machine file ``doc`` (it may have moved on from the calibration: a commissioning's curve
+    carries the edge gains, so they read 1 where the calibration fitted 0.95), else the ``calibrated`` value."""
+    try:
+        value = get_key(doc, key)
+    except (KeyError, IndexError, TypeError):
+        return calibrated
+    return float(value) if isinstance(value, (int, float)) else calibrated

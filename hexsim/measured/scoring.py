@@ -29,7 +29,7 @@ import numpy as np
 
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog
-from hexsim.measured.records import CalibrationRecord
+from hexsim.measured.records import CalibrationRecord, value_in
 from hexsim.measured.replay import (
     CHANNELS,
     PlantModel,
@@ -41,7 +41,7 @@ from hexsim.measured.replay import (
     replay,
 )
 from hexsim.measured.residuals import clipped, noise_of
-from hexsim.plant.machine import get_key, with_keys
+from hexsim.plant.machine import with_keys
 from hexsim.signals import near_reversals
 from hexsim.studies.metrics import STANDARD_GRAVITY
 
@@ -286,7 +286,7 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
     doc = machine.document()
     for key in moved:
         est = record.estimates[key]
-        shifted = with_keys(machine, {key: _value(doc, key, est.value) + est.std_error})
+        shifted = with_keys(machine, {key: value_in(doc, key, est.value) + est.std_error})
         sim = problem.simulate(nominal_plant(dataclasses.replace(problem.log, machine=shifted)))
         after = calibrate_sensors(problem, sim, problem.fit_rows)[0]
         deltas.append({ch: (after[ch] - base[ch])[:, s:] for ch in problem.channels})
@@ -296,16 +296,6 @@ def calibration_uncertainty(problem: ReplayProblem, nominal_sim: dict[str, np.nd
         var = np.einsum("is,ij,js->s", d, corr, d)
         out[ch] = float(math.hypot(np.sqrt(max(float(np.mean(var)), 0.0)), floor.get(ch, 0.0)))
     return out
-
-
-def _value(doc: dict, key: str, calibrated: float) -> float:
-    """``key``'s value in the machine file ``doc`` (it may have moved on from the calibration: a commissioning's curve
-    carries the edge gains, so they read 1 where the calibration fitted 0.95), else the ``calibrated`` value."""
-    try:
-        value = get_key(doc, key)
-    except (KeyError, IndexError, TypeError):
-        return calibrated
-    return float(value) if isinstance(value, (int, float)) else calibrated
 
 
 def model_floor(record: CalibrationRecord, channels) -> dict[str, float]:

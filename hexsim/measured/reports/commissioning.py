@@ -21,6 +21,12 @@ def check_lines(rows: list[dict], machine_label: str, compensator_name: str) -> 
     lines.append(f"predicted: {machine_label} with {compensator_name} on each log's setpoints, read with the "
                  "log's accelerometer noise (m/s², from the third period)")
     for r in rows:
+        models = r.get("predicted_models", [])
+        if len(models) > 1:
+            lines.append(f"{pathlib.Path(r['log']).name}: predicted over the calibrated file and {len(models) - 1} "
+                         f"machines drawn from its uncertainty, mean reversal peak {min(models):.4f}–"
+                         f"{max(models):.4f} (their mean {r['predicted']['mean_reversal_peak']:.4f} above)")
+    for r in rows:
         lines.append(f"{pathlib.Path(r['log']).name} (accelerometer noise {r['accelerometer_noise_mps2']:.3f} m/s²): "
                      f"{r['verdict']['sentence']}")
     return lines
