@@ -246,8 +246,9 @@ def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> 
 
     measured = judged("measured", acc, measured_velocity(log, pos[:, 0]) if axis < 0 else None)
     record = CalibrationRecord.of(base.machine.calibration, f"{base.machine.label}: calibration")
-    runs = [judged("predicted", *run) for run in _predicted(dataclasses.replace(base, scenario=scenario), t, axis,
-                                                             sigma, draws if record is not None else 0)]
+    plausible = record.plausible(base.machine, draws) if record is not None and draws else []
+    runs = [judged("predicted", *run) for run in _predicted(dataclasses.replace(base, scenario=scenario), plausible,
+                                                             t, axis, sigma)]
     rows = {name: {"mean_reversal_peak": sm.mean_reversal_peak, "reversals": int(sm.reversal_peaks.size),
                    "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
                    "noise_ratio": sm.noise_ratio} for name, sm in (("measured", measured), ("predicted", runs[0]))}
@@ -262,19 +263,18 @@ def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> 
                         "corner_V": judgement.corner_V}}
 
 
-def _predicted(config: RunConfig, t: np.ndarray, axis: int, sigma: float, draws: int):
+def _predicted(config: RunConfig, plausible: list, t: np.ndarray, axis: int, sigma: float):
     """(acceleration (N,) [m/s^2] as the log's accelerometer reads it — on the log's samples t (N,) [s], each the mean
     over the millisecond before it or, where the machine file's ``sensors.acceleration_sampling`` is "instant", its
     value at that instant (plus the file's ``acceleration_skew``), with the log's white noise ``sigma`` —, and the
     piston's velocity (N,) [m/s], or None on a hexapod, whose reversals are its setpoint's) of ``config`` and of
-    ``draws`` plausible machines (:meth:`CalibrationRecord.plausible`), each with the nominal's compensator (a
+    the ``plausible`` machines (:meth:`CalibrationRecord.plausible`), each with the nominal's compensator (a
     model-based one keeps the nominal's leg model)."""
     machine = config.machine
     if config.compensator_model is None and config.compensator in MODEL_BASED:
         nominal = dataclasses.replace(config, compensator="feedforward", progress=False)
         config = dataclasses.replace(config, compensator_model=Simulator(nominal).compensator.model)
-    record = CalibrationRecord.of(machine.calibration, f"{machine.label}: calibration")
-    machines = [machine, *(record.plausible(machine, draws) if record is not None and draws else [])]
+    machines = [machine, *plausible]
     noise = np.random.default_rng(0).normal(0.0, sigma, t.size)
     spec = machine.sensors
     if spec.acceleration_sampling == "instant":  # the log's accelerometer read at an instant: every physics step's
