@@ -13,7 +13,7 @@ from scipy import signal, stats
 from compensation import MODEL_BASED
 from hexsim.control.scenario import Scenario
 from hexsim.engine.config import RunConfig
-from hexsim.engine.runner import Simulator, simulate
+from hexsim.engine.runner import simulate
 from hexsim.errors import InputError
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.records import PLAUSIBLE_DRAWS, CalibrationRecord
@@ -21,6 +21,7 @@ from hexsim.measured.replay import measured_velocity
 from hexsim.signals import dominant_frequency, fit_fundamental
 from hexsim.studies.metrics import REVERSAL_WINDOW, Smoothness, smoothness
 from hexsim.studies.perception import ISO_PERCEPTION_THRESHOLD, iso2631
+from hexsim.studies.tuning import leg_model_of
 
 #: Periods at the start of a log left out of its smoothness (the fade-in and the compensator's start).
 PROOF_SKIP_PERIODS = 2.0
@@ -272,8 +273,7 @@ def _predicted(config: RunConfig, plausible: list, t: np.ndarray, axis: int, sig
     model-based one keeps the nominal's leg model)."""
     machine = config.machine
     if config.compensator_model is None and config.compensator in MODEL_BASED:
-        nominal = dataclasses.replace(config, compensator="feedforward", progress=False)
-        config = dataclasses.replace(config, compensator_model=Simulator(nominal).compensator.model)
+        config = dataclasses.replace(config, compensator_model=leg_model_of(config))
     machines = [machine, *plausible]
     noise = np.random.default_rng(0).normal(0.0, sigma, t.size)
     spec = machine.sensors
