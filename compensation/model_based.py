@@ -94,7 +94,12 @@ class LegModel:
     slope: s_i, the linear curve's slope [m/(s V)], (n,): the machine's chord at ±u_ref;
     kp: K_p [V/m], the P gain the compensator runs beside (the machine file's controller; 0: unknown, the
         adaptive one reads it off the P output and the tracking error);
-    source: where the model came from (machine file, tuned file).
+    source: where the model came from (machine file, tuned file);
+    velocity_at: the return edge's (A→T) share of ``velocity`` [m/s], (n, G), >= 0, where the valve's two
+        edges pass flow together (an underlapped or rounded 3-way spool: the curve at rest is the supply
+        edge's flow less the return edge's, velocity = v_PA - v_AT); None (the default, and an overlapped
+        spool's) where only one edge is open at a time. With it the inverse scales each edge by its own
+        pressure drop (seed eq. 3.4 per edge), where without it the edge the target's sign opens is scaled.
     """
 
     u: np.ndarray
@@ -112,6 +117,7 @@ class LegModel:
     pressure_scaling: bool = True
     kp: float = 0.0
     source: str = ""
+    velocity_at: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         check_model(self)
@@ -195,6 +201,33 @@ def check_model(m: LegModel) -> None:
         raise SettingsError("friction table: friction_v must increase and match friction_f")
     if np.any(ff * fv < 0):
         raise SettingsError("friction table: friction must oppose the motion (F_f(v) v >= 0)")
+    if m.velocity_at is not None:
+        at = np.asarray(m.velocity_at, dtype=float)
+        if at.shape != v.shape or not np.all(np.isfinite(at)) or np.any(at < 0):
+            raise SettingsError(f"velocity_at (the return edge's share of the flow curve) must be finite, >= 0, "
+                                f"shape {v.shape}, got shape {at.shape}")
+        if not m.pressure_scaling:
+            raise SettingsError("velocity_at is a 3-way valve's return edge; this model has no pressure scaling")
+
+
+#: Share of the flow curve's largest speed above which an edge counts as open (:func:`_both_open`).
+OPEN_FRACTION = 1e-4
+
+
+def _both_open(model: LegModel, i: int) -> tuple[int, int, np.ndarray, np.ndarray] | None:
+    """Leg ``i``'s band of the grid where both edges of its 3-way valve pass flow at rest (each above
+    :data:`OPEN_FRACTION` of the curve's largest speed), widened by a point either side: (first index, one past
+    the last, v_PA and v_AT there [m/s]); None for a model without ``velocity_at`` or whose edges never open
+    together (an overlapped spool)."""
+    if model.velocity_at is None:
+        return None
+    v, at = model.velocity[i], model.velocity_at[i]
+    pa = v + at
+    both = np.flatnonzero(np.minimum(pa, at) > OPEN_FRACTION * np.max(np.abs(v)))
+    if both.size == 0:
+        return None
+    lo, hi = max(int(both[0]) - 1, 0), min(int(both[-1]) + 2, len(v))
+    return lo, hi, pa[lo:hi] + 1e-12 * model.u[lo:hi], at[lo:hi]
 
 
 class FeedforwardCompensator(Compensator):
@@ -227,6 +260,7 @@ class FeedforwardCompensator(Compensator):
         self._v = v + 1e-12 * u[None, :]
         self._u = u
         self._null = np.array([_null(u, v[i]) for i in range(self.n_legs)])
+        self._edges = [_both_open(model, i) for i in range(self.n_legs)]
         self.feedforward = np.zeros(self.n_legs)
         nyquist = self.rate_hz / 2
         if self.settings.loop_filter_hz >= nyquist:
@@ -258,22 +292,41 @@ class FeedforwardCompensator(Compensator):
 
     def inverse(self, velocity: np.ndarray, p1: np.ndarray) -> np.ndarray:
         """u_v [V] (n_legs,) giving the static ``velocity`` [m/s] at bottom pressure ``p1`` [Pa]: the flow
-        curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted; the
+        curve at rest scaled by sqrt(Δp / Δp_rest) of the edge that opens (seed eq. 3.4), inverted; where the
+        model has both edges open together (``velocity_at``), each edge scaled by its own drop there; each
         scale held within 0.5…2 (a chamber near supply or tank pressure would otherwise ask for the whole
         valve). With ``settings.dead_band_margin`` m > 0 the curve is read as opening m earlier on each edge:
         u_v moved m towards the curve's null (the middle of its overlap, or where it crosses zero), never past it."""
         m = self.model
         target = np.asarray(velocity, dtype=float)
         if m.pressure_scaling:
-            up = (m.supply_pressure - p1) / self._rest_drop[0]
-            down = (p1 - m.tank_pressure) / self._rest_drop[1]
-            target = target / np.sqrt(np.clip(np.where(target >= 0, up, down), 0.25, 4.0))
-        u = np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
+            up = np.sqrt(np.clip((m.supply_pressure - p1) / self._rest_drop[0], 0.25, 4.0))
+            down = np.sqrt(np.clip((p1 - m.tank_pressure) / self._rest_drop[1], 0.25, 4.0))
+            u = np.array([self._edge_inverse(i, target[i], up[i], down[i]) for i in range(self.n_legs)])
+        else:
+            u = np.array([np.interp(target[i], self._v[i], self._u) for i in range(self.n_legs)])
         margin = self.settings.dead_band_margin
         if not margin:
             return u
         return np.where(target > 0, np.maximum(u - margin, self._null), np.where(
             target < 0, np.minimum(u + margin, self._null), u))
+
+    def _edge_inverse(self, i: int, target: float, up: float, down: float) -> float:
+        """u_v [V] of leg ``i`` giving ``target`` [m/s] with the supply edge's flow scaled by ``up`` and the return
+        edge's by ``down`` (each sqrt(Δp / Δp_rest), seed eq. 3.4): outside the band where both edges are open
+        (:func:`_both_open`) the curve scaled by the edge the target's sign opens; within it
+        v_PA up - v_AT down, plus what the adaptive learner added (scaled by the side's edge)."""
+        edges = self._edges[i]
+        if edges is None:
+            return float(np.interp(target / (up if target >= 0 else down), self._v[i], self._u))
+        lo, hi, v_pa, v_at = edges
+        learned = self._v[i, lo:hi] - self.model.velocity[i, lo:hi]
+        net = v_pa * up - v_at * down + learned * np.where(self._u[lo:hi] >= self._null[i], up, down)
+        if target > net[-1]:
+            return float(np.interp(target / up, self._v[i], self._u))
+        if target < net[0]:
+            return float(np.interp(target / down, self._v[i], self._u))
+        return float(np.interp(target, np.maximum.accumulate(net), self._u[lo:hi]))
 
     def pressure_filter(self, p1: np.ndarray) -> np.ndarray:
         """The measured p1's departure from P1_ref [Pa] (n_legs,) low-passed at :data:`PRESSURE_FILTER_HZ`

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compensation.model_based import LegModel
+from compensation.model_based import OPEN_FRACTION, LegModel
 from compensation.settings import SettingsError
 from hexsim.plant import hydraulics
 from hexsim.plant.effects import NOMINAL, Effects
@@ -63,6 +63,7 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
     else:
         u = np.linspace(-u_max, u_max, GRID_POINTS)
     velocity = static_flow_curve(u, p_rest, hyd, eff, load)
+    at = None if hyd.four_way else return_edge_share(u, p_rest, velocity, hyd, eff)
     ends = np.stack([np.interp([-u_ref, u_ref], u, row) for row in velocity])
     slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)
     v_max = 1.2 * float(np.max(np.abs(velocity[:, [0, -1]])))
@@ -72,7 +73,32 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
                     area_bottom=float(hyd.area_bottom), bulk_modulus=float(hyd.bulk_modulus),
                     pipeline_volume=float(hyd.pipeline_volume), mass=np.atleast_2d(np.asarray(inertia, dtype=float)),
                     friction_v=friction_v, friction_f=np.asarray(hydraulics.friction_force(friction_v, hyd)),
-                    slope=slope, pressure_scaling=not hyd.four_way, kp=float(kp), source=source)
+                    slope=slope, pressure_scaling=not hyd.four_way, kp=float(kp), source=source, velocity_at=at)
+
+
+#: The second pressure, as a share of the supply edge's drop at rest, at which
+#: :func:`return_edge_share` reads the flow curve again.
+SPLIT_STEP = 0.05
+
+
+def return_edge_share(u: np.ndarray, p_rest: np.ndarray, velocity: np.ndarray, hyd: HydraulicParams,
+                      eff: Effects = NOMINAL) -> np.ndarray | None:
+    """The return edge's (A→T) share v_AT [m/s], (n_legs, len(u)), of a 3-way valve's flow curve ``velocity``
+    (:func:`static_flow_curve` at ``p_rest``): the curve read again at p_rest + dp, and the two readings split
+    by the orifice law of each edge (seed eq. 3.4: v = v_PA sqrt((P_s - P1) / (P_s - P_rest)) - v_AT
+    sqrt((P1 - P_t) / (P_rest - P_t)), two equations in v_PA and v_AT at each u), whatever the machine's flow
+    area (a form, curves or a table) and effects. None where the two edges never pass flow together (an
+    overlapped or zero-lapped spool: v_AT is -velocity below null and nil above it, which the curve says)."""
+    p_rest = np.asarray(p_rest, dtype=float)
+    drop_s, drop_t = hyd.supply_pressure - p_rest, p_rest - hyd.tank_pressure
+    dp = SPLIT_STEP * drop_s
+    again = static_flow_curve(u, p_rest + dp, hyd, eff)
+    g_s, g_t = np.sqrt((drop_s - dp) / drop_s)[:, None], np.sqrt((drop_t + dp) / drop_t)[:, None]
+    at = np.maximum((velocity * g_s - again) / (g_t - g_s), 0.0)
+    pa = velocity + at
+    if not np.any(np.minimum(pa, at) > OPEN_FRACTION * np.max(np.abs(velocity), axis=1, keepdims=True)):
+        return None
+    return at
 
 
 #: Largest K_p s / f_c of the P loop through the inverse: the discrete loop's pole 1 - K_p s / f_c stays
