@@ -98,13 +98,13 @@ MEASURED_FLOORS = (
     {"parameters", "records", "replay", "acceptance_logs"},
     {"fitting", "hexapod_replay", "proof", "flow_balance"},
     {"scoring", "flow_curve", "friction_id", "steady"},
-    {"calibration", "acquisition", "curves", "dynamics", "envelope", "form_refit", "candidates", "discovery", "identify",
-     "effect_fit"},
+    {"calibration", "acquisition", "curves", "dynamics", "envelope", "form_refit", "null_drift", "candidates",
+     "discovery", "identify", "effect_fit"},
     {"reports.calibration", "reports.commissioning", "reports.friction", "reports.validation", "advice", "curve_read"},
     {"validation", "commissioning"},
 )
 #: The two sides of the floor above scoring: a machine's nominal, and the effects the nominal lacks.
-SIDES = ({"calibration", "acquisition", "curves", "dynamics", "envelope", "form_refit"},
+SIDES = ({"calibration", "acquisition", "curves", "dynamics", "envelope", "form_refit", "null_drift"},
          {"candidates", "discovery", "identify", "effect_fit"})
 
 

@@ -28,6 +28,7 @@ from hexsim.measured.curves import curve_machine, curve_report
 from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves, held_out_ms
 from hexsim.measured.form_refit import REFITTED_FORMS, RefitForm, refit_form
 from hexsim.measured.measurement import MeasurementLog, read_log
+from hexsim.measured.null_drift import NullDrift, drifts_taken_out
 from hexsim.plant.machine import Machine
 
 
@@ -36,8 +37,10 @@ class Commissioning:
     """What :func:`commission` learned: the ``machine`` with each edge's curve read from the ``logs`` (the
     commissioning logs, then the calibration's own that were found), or with its flow-area form's parameters
     refitted where that predicts them as well (``form``, the refit, kept or not; None for a machine whose valve is
-    a curve or a table), the :class:`FlowCurves`, the leg ``model`` a model-based compensator inverts on it, and
-    ``curved``: the machine with the curves, taken or not (None: ``machine`` is it)."""
+    a curve or a table), the :class:`FlowCurves`, the leg ``model`` a model-based compensator inverts on it,
+    ``curved``: the machine with the curves, taken or not (None: ``machine`` is it), and each commissioning log's
+    null ``drifts`` (:class:`hexsim.measured.null_drift.NullDrift`: taken out of its commands before the curves
+    were read where one was found)."""
 
     machine: Machine
     curves: FlowCurves
@@ -45,6 +48,7 @@ class Commissioning:
     model: LegModel
     form: RefitForm | None = None
     curved: Machine | None = None
+    drifts: tuple[NullDrift, ...] = ()
 
     @property
     def kept_form(self) -> bool:
@@ -67,6 +71,8 @@ class Commissioning:
         out = {"logs": list(self.logs), "curves": curve_report(self.curves, "calibrated", self.curved or self.machine)}
         if self.form is not None:
             out["form"] = self.form_summary()
+        if self.drifts:
+            out["null_drift"] = [d.record() for d in self.drifts]
         return out
 
 
@@ -86,8 +92,10 @@ def calibration_logs(machine: Machine) -> list[pathlib.Path]:
 def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = True) -> Commissioning:
     """Read the valve's curves from the logs ``paths`` (single-actuator logs of ``machine`` running, the tuned
     compensator among them) and, with ``own_logs``, the calibration's own (:func:`calibration_logs`), on
-    ``machine``; the machine with them and its leg model. Raises InputError naming the log for a hexapod log,
-    one without the valve command, position or ``p1_Pa``, or too few samples away from the stroke's ends."""
+    ``machine``; the machine with them and its leg model. A run whose valve null drifted during it (the oil warming)
+    is read with the drift taken out of its commands (:func:`hexsim.measured.null_drift.drifts_taken_out`). Raises
+    InputError naming the log for a hexapod log, one without the valve command, position or ``p1_Pa``, or too few
+    samples away from the stroke's ends."""
     from hexsim.engine.config import RunConfig
     from hexsim.studies.tuning import leg_model_of
 
@@ -99,11 +107,14 @@ def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = 
     for log in logs:
         if log.system != "single-actuator":
             raise InputError(f"{log.path}: commissioning reads single-actuator logs (this is {log.system})")
-    curves = fit_flow_curves(logs, machine, toward_machine=True)
+    runs, drifts, curves = drifts_taken_out(logs[:len(paths)], logs[len(paths):], machine)
+    if any(d.taken for d in drifts):  # the runs' commands less their null's drift, read again
+        logs = [*runs, *logs[len(paths):]]
+        curves = fit_flow_curves(logs, machine, toward_machine=True)
     curved = curve_machine(machine, curves)
     form = refit_form(logs, machine) if machine.hydraulics.flow_area in REFITTED_FORMS else None
     # the form unless the curves predict the held-out windows better by one standard error
     new = form.machine if form is not None and form.held_out <= sum(held_out_ms(curves)) else curved
     new = dataclasses.replace(new, description=(machine.description + " Commissioned by hexsim tune --from-logs.").strip())
     model = leg_model_of(RunConfig.from_machine(new, "actuator"))
-    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model, form, curved)
+    return Commissioning(new, curves, tuple(str(log.path) for log in logs), model, form, curved, tuple(drifts))

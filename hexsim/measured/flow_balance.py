@@ -48,7 +48,8 @@ class FlowSamples:
     dead volume's, cap side; the rod side's dead volume is the machine's, in ``swept_dp``), so that the volume that
     entered is displaced + swept_dp / E + dead_dp V_pl / E, ``block`` its cross-validation window (0 …
     :data:`FOLDS` - 1);
-    ``mirror`` True for the rod side (its supply edge opens at -u)."""
+    ``mirror`` True for the rod side (its supply edge opens at -u); ``time`` (n,) [s] each sample's time in the log
+    (None where a caller built the samples without it)."""
 
     u: np.ndarray
     supply: np.ndarray
@@ -59,6 +60,7 @@ class FlowSamples:
     dead_dp: np.ndarray
     block: np.ndarray
     mirror: bool
+    time: np.ndarray | None = None
 
 
 def _smooth(x: np.ndarray, rate: float) -> np.ndarray:
@@ -134,7 +136,7 @@ def flow_samples(log: MeasurementLog, machine: Machine, skew: float = 0.0) -> li
             starts = np.flatnonzero(np.r_[True, np.diff(interval) != 0])
             displaced -= eff.leakage * np.add.reduceat((across - p)[samples] * dt * weight, starts)
         return FlowSamples(u[samples], supply, ret, interval, displaced, volume_at(0.5 * (y[a] + y[b])) * dp,
-                           np.zeros_like(dp) if mirror else dp, block[keep], mirror)
+                           np.zeros_like(dp) if mirror else dp, block[keep], mirror, log.time[samples])
 
     out = [side("p1_Pa", hyd.area_bottom, lambda ym: np.maximum(ym, 0.0) * hyd.area_bottom,
                 eff.edge_gain_pa, eff.edge_gain_at, False)]

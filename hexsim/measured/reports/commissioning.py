@@ -33,11 +33,15 @@ def check_lines(rows: list[dict], machine_label: str, compensator_name: str) -> 
 
 
 def learned_lines(learned) -> list[str]:
-    """What ``--from-logs`` read (``learned``: :class:`hexsim.measured.commissioning.Commissioning`): how far each
-    valve edge's curve reaches, from which logs."""
+    """What ``--from-logs`` read (``learned``: :class:`hexsim.measured.commissioning.Commissioning`): each log's
+    null drift where one was taken out, how far each valve edge's curve reaches, from which logs."""
     curves = learned.curves
-    lines = [f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
-             f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs)]
+    lines = [f"{pathlib.Path(d.log).name}: the valve's null drifted {d.rate * 1e3:+.3f} ± {d.rate_se * 1e3:.3f} mV/s "
+             f"from {d.offset * 1e3:+.1f} mV at its start ({d.rate * d.duration * 1e3:+.1f} mV over its "
+             f"{d.duration:.0f} s); taken out of its commands before its flows were read"
+             for d in learned.drifts if d.taken]
+    lines.append(f"read the valve's curves from {len(learned.logs)} log(s) (P→A to {curves.pa.reach:.3g} V, A→T to "
+                 f"{curves.at.reach:.3g} V): " + ", ".join(pathlib.Path(p).name for p in learned.logs))
     form = learned.form_summary()
     if form is not None:
         refitted = ", ".join(f"{key} {value:.4g}" for key, value in form["refitted"].items())

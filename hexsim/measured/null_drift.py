@@ -1,0 +1,175 @@
+"""A valve's null that moved during a run, read from the run's own flows (commissioning, ``hexsim tune
+--from-logs``; docs/compensation.md, "Proven on the machine").
+
+A proportional valve's zero point drifts with the oil's temperature and the spool's wear (seed §5.5's warm-up; a
+data sheet gives about 1 % of the rated signal over tens of kelvin). A compensated run on a warming machine then
+crosses the valve's curve at commands that move with it: a corner at 0.9 V is met at 0.9 V + d(t), d the null's
+drift, and a curve read from the run as if the null stood still smears the corner over the drift and moves it by
+its mean. On an independent actuator whose null drifts 1 mV/s (60 mV over a minute's run; the proof's ``drift``
+machine) the file commissioned from the run as it came left the reversals 18 % above the tuned one's (0.0748 against
+0.0631 m/s^2); read with the drift taken out (found at 0.988 mV/s from +0.8 mV), 29 % below (0.0448; with the true
+drift taken out, 0.0462).
+
+Each run's drift is read from its flow balance (:func:`hexsim.measured.flow_balance.flow_samples`, seed eq. 3.6,
+3.7 integrated) against the curves read from the runs (:func:`hexsim.measured.flow_curve.fit_flow_curves`): a
+null moved by d passes, at command u, the flow the curve has at u - d, so the balance's residual is, to first
+order, -d(t) times the curve's slope at the commands. d(t) = d_0 + r t (an offset from the calibration's null at
+the log's start, a rate), one line per log: the rate by robust linear least squares on that residual (soft L1,
+``scipy.optimize.least_squares``) with its standard error, the offset as the one at which the curves read again
+fit the flows best (:func:`drifts_taken_out`). A log's drift is taken out where its rate moves the null by more
+than :data:`MIN_DRIFT_V` within the log and the rate is more than :data:`SIGNIFICANCE` standard errors; otherwise
+the log is read as it is (on the proof's machines whose null stands still, R1, ``corner`` and ``underlap``, the rates
+read were 0.3–1.1 µV/s, within their standard errors).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares, minimize_scalar
+from scipy.stats import median_abs_deviation
+
+from hexsim.measured.flow_balance import FlowSamples, flow_samples
+from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves, unit_gains
+from hexsim.measured.measurement import MeasurementLog
+from hexsim.plant.machine import Machine
+
+#: [V] The smallest move of the null within a log that is taken out: 2 mV, a tenth of
+#: the curve's 20 mV knots near 1 V (a corner is placed to within a knot) and twice the null shift the adaptive
+#: compensator's own work at a reversal shows (docs/compensation.md: ±1.7 mV on a model with no error).
+MIN_DRIFT_V = 0.002
+#: The drift's rate must also exceed this many standard errors.
+SIGNIFICANCE = 3.0
+#: [V] The offsets tried reach this far beyond the drift's move within the log either way.
+OFFSET_MARGIN_V = 0.02
+#: [V] The offset's tolerance in its search.
+OFFSET_TOLERANCE_V = 0.0005
+#: [V] Half the step of the central difference that gives the curves' slope at a command.
+SLOPE_STEP_V = 0.0025
+
+
+@dataclass(frozen=True)
+class NullDrift:
+    """One log's null, d(t) = ``offset`` + ``rate`` t [V, V/s] (t from the log's first sample), relative to the
+    machine's; their standard errors ``offset_se``, ``rate_se`` (the offset's NaN where it was searched for, not
+    regressed); ``duration`` [s] of the log; ``taken``: whether
+    the commissioning took it out of the log's commands (:data:`MIN_DRIFT_V`, :data:`SIGNIFICANCE`)."""
+
+    log: str
+    offset: float
+    rate: float
+    offset_se: float
+    rate_se: float
+    duration: float
+    taken: bool
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """d(t) [V] at the log's times ``t`` [s] (from its first sample)."""
+        return self.offset + self.rate * np.asarray(t, dtype=float)
+
+    def record(self) -> dict:
+        """The drift as the commissioning report gives it."""
+        def finite(x: float) -> float | None:
+            return x if math.isfinite(x) else None
+
+        return {"log": self.log, "offset_V": self.offset, "rate_V_per_s": self.rate,
+                "offset_se_V": finite(self.offset_se), "rate_se_V_per_s": finite(self.rate_se),
+                "duration_s": self.duration, "taken_out": self.taken}
+
+
+def _volumes(s: FlowSamples, curves: FlowCurves, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the volume the curves pass over each interval [m^3], its derivative in the command [m^3/V]), (k,) each: the
+    supply and return edges' openings at ``u`` times their unit volumes (:func:`hexsim.measured.flow_curve.
+    _edge_rows`' sum), summed over each interval's samples."""
+    def volume(x: np.ndarray) -> np.ndarray:
+        on_pa, on_at = curves.pa.opening(x), curves.at.opening(-x)
+        return on_pa * s.ret + on_at * s.supply if s.mirror else on_pa * s.supply + on_at * s.ret
+
+    h = SLOPE_STEP_V
+    starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
+    return (np.add.reduceat(volume(u), starts),
+            np.add.reduceat((volume(u + h) - volume(u - h)) / (2 * h), starts))
+
+
+def read_drift(log: MeasurementLog, machine: Machine, curves: FlowCurves) -> NullDrift:
+    """The null's drift in ``log`` (:class:`NullDrift`, not yet judged: ``taken`` False) against ``curves`` read on
+    ``machine``: the flow balance's residual per interval, displaced less what the curves pass at the commands
+    (less the compressed volume, with the curves' bulk modulus and dead volume), regressed on minus the curves'
+    slope times (1, t) by soft-L1 least squares; standard errors from the Jacobian, scaled by the residuals'
+    robust spread."""
+    rows, rhs = [], []
+    t0 = float(log.time[0])
+    for s in flow_samples(log, unit_gains(machine), machine.sensors.sample_skew):
+        passed, slope = _volumes(s, curves, s.u)
+        starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
+        t = np.add.reduceat(s.time - t0, starts) / np.diff(np.r_[starts, len(s.u)])
+        entered = passed - s.swept_dp / curves.bulk_modulus - s.dead_dp * curves.pipeline_volume / curves.bulk_modulus
+        rows.append(-slope[:, None] * np.column_stack([np.ones_like(t), t]))
+        rhs.append(s.displaced - entered)
+    a, b = np.vstack(rows), np.concatenate(rhs)
+    scale = max(float(median_abs_deviation(b, scale="normal")), 1e-15)
+    fit = least_squares(lambda x: (a @ x - b) / scale, np.zeros(2), loss="soft_l1", x_scale=np.array([1e-3, 1e-4]))
+    jac = a / scale
+    dof = max(len(b) - 2, 1)
+    cov = np.linalg.pinv(jac.T @ jac) * float(np.sum(fit.fun**2)) / dof
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return NullDrift(str(log.path), float(fit.x[0]), float(fit.x[1]), float(se[0]), float(se[1]),
+                     float(log.time[-1] - t0), False)
+
+
+def judged(drift: NullDrift) -> NullDrift:
+    """``drift`` with ``taken`` set: its rate moves the null by more than :data:`MIN_DRIFT_V` within the log, and the
+    rate is more than :data:`SIGNIFICANCE` standard errors."""
+    moved = abs(drift.rate) * drift.duration
+    return dataclasses.replace(drift, taken=bool(moved > MIN_DRIFT_V and abs(drift.rate) > SIGNIFICANCE * drift.rate_se))
+
+
+def without_drift(log: MeasurementLog, drift: NullDrift) -> MeasurementLog:
+    """``log`` with the valve command less ``drift``'s null, d(t) (the command the valve's curve saw at the
+    machine's null)."""
+    cols = dict(log.columns)
+    cols["valve_cmd_V"] = cols["valve_cmd_V"] - drift.at(log.time - log.time[0])
+    return dataclasses.replace(log, columns=cols)
+
+
+def drifts_taken_out(runs: list[MeasurementLog], others: list[MeasurementLog], machine: Machine
+                     ) -> tuple[list[MeasurementLog], list[NullDrift], FlowCurves]:
+    """The ``runs`` (a commissioning's logs) with each one's null drift taken out where one is found, each run's
+    drift, and the curves read from the runs as they came and ``others`` (the calibration's own logs, whose null is
+    the machine's), as a commissioning reads them (held to ``machine``).
+
+    The rate is read against those curves (:func:`read_drift`) and judged (:func:`judged`). The offset is not: the
+    curves, read from the drifting runs, have moved with the drift's mean (on the ``drift`` machine the regression
+    put the offset at -17 mV; rounds of reading again crept towards 0 by a few mV a round). It is the one at which
+    the curves read again from all the logs fit their flows best, the fit's rms flow error being sharply least at
+    the true offset (there 5.8e-9 m^3 at 0 mV, 6.4e-9 and 6.9e-9 at ±5 mV, 1.1e-8 at ±15 mV), found by a bounded
+    scalar minimisation (``scipy.optimize.minimize_scalar``), one run at a time, each trial a whole reading (with
+    the first reading's penalty weight and edges kept, ``like``, the least moved to -15…-21 mV). About 100 s for a
+    60 s run."""
+    curves = fit_flow_curves([*runs, *others], machine, toward_machine=True)
+    drifts = [judged(read_drift(run, machine, curves)) for run in runs]
+    if not any(d.taken for d in drifts):
+        return list(runs), drifts, curves
+    shifted = [without_drift(run, d) if d.taken else run for run, d in zip(runs, drifts)]
+    for i, run in enumerate(runs):
+        drift = drifts[i]
+        if not drift.taken:
+            continue
+        moved = abs(drift.rate) * drift.duration
+
+        def misfit(offset: float) -> float:
+            trial = [*shifted[:i], without_drift(run, dataclasses.replace(drift, offset=offset)), *shifted[i + 1:]]
+            return fit_flow_curves([*trial, *others], machine, toward_machine=True).rms
+
+        best = minimize_scalar(misfit, bounds=(-moved - OFFSET_MARGIN_V, moved + OFFSET_MARGIN_V), method="bounded",
+                               options={"xatol": OFFSET_TOLERANCE_V})
+        drifts[i] = dataclasses.replace(drift, offset=float(best.x), offset_se=math.nan)
+        shifted[i] = without_drift(run, drifts[i])
+    return shifted, drifts, curves
+
+
+__all__ = ["MIN_DRIFT_V", "SIGNIFICANCE", "NullDrift", "drifts_taken_out", "judged", "read_drift",
+           "without_drift"]
