@@ -51,6 +51,7 @@ from hexsim.engine.runner import simulate
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.commissioning import commission
 from hexsim.measured.measurement import read_log
+from hexsim.measured.null_drift import last_drift, with_drift
 from hexsim.measured.proof import passenger_view
 from hexsim.measured.records import CalibrationRecord
 from hexsim.plant.machine import dump, load_machine
@@ -141,15 +142,18 @@ def predicted(machine, tuned: pathlib.Path | None, duration: float) -> dict:
     """hexsim's prediction of the same run: the calibrated machine with the tuned file (None: uncompensated), and the
     same on the machines drawn from what its calibration leaves uncertain (``CalibrationRecord.plausible``, as
     ``hexsim tune --check`` predicts): {"view": the calibrated file's passenger view, "models": every model's mean
-    reversal peak [m/s^2], the calibrated file's first}."""
-    options = {}
+    reversal peak [m/s^2], the calibrated file's first}. A tuned file whose last commissioning found the valve's null
+    drifting in the run before is predicted with that drift (``hexsim tune --check`` does the same)."""
+    options, drift = {}, None
     if tuned is not None:
         name, settings, model = read_tuned(tuned)
         options = {"compensator": name, "compensator_settings": settings, "compensator_model": model}
+        drift = last_drift(json.loads(tuned.read_text()))
     record = CalibrationRecord.of(machine.calibration)
     views = []
     for m in [machine, *(record.plausible(machine) if record is not None else [])]:
-        result = simulate(RunConfig.from_machine(m, make_scenario("actuator", duration=duration), **options))
+        config = RunConfig.from_machine(m, make_scenario("actuator", duration=duration), **options)
+        result = simulate(config if drift is None else with_drift(config, drift, drift.duration))
         setpoint = result.config.scenario.axis_setpoint(result.t)
         views.append(passenger_view(result.t, result.acc[:, 2], setpoint, FREQUENCY, duration / 2, result.ydot[:, 0]))
     return {"view": views[0], "models": [v.mean for v in views]}

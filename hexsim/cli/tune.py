@@ -16,7 +16,7 @@ from hexsim.cli.options import (
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.workers import worker_count
 from hexsim.errors import InputError
-from hexsim.tables import write_json
+from hexsim.tables import read_json_object, write_json
 
 
 def add_tune(sub) -> None:
@@ -151,6 +151,7 @@ def _tune_check(args: argparse.Namespace) -> int:
     if args.draws is not None and args.draws < 0:
         raise InputError(f"tune --check: --draws must be 0 or more, got {args.draws}")
     from hexsim.engine.config import RunConfig
+    from hexsim.measured.null_drift import last_drift, with_drift
     from hexsim.measured.proof import proof
     from hexsim.measured.reports.commissioning import check_lines
     from hexsim.plant.machine import load_machine
@@ -159,6 +160,12 @@ def _tune_check(args: argparse.Namespace) -> int:
     machine = load_machine(args.machine)
     scenario = "heave" if machine.system == "hexapod" else "actuator"
     base = RunConfig.from_machine(machine, scenario, **compensator_options(args.compensator))
+    drift = last_drift(read_json_object(args.compensator, "a tuned compensator")) if args.compensator.endswith(
+        ".json") else None
+    if drift is not None:  # the machine drifts as the run its last commissioning read did
+        base = with_drift(base, drift, drift.duration)
+        print(f"predicted with the valve's null drifting {drift.rate * 1e3:+.3f} mV/s from {drift.offset * 1e3:+.1f} "
+              f"mV, as the tuned file's last commissioning read it ({pathlib.Path(drift.log).name})")
     draws = {} if args.draws is None else {"draws": args.draws}
     rows = [proof(path, base, **draws) for path in args.check]
     print("\n".join(check_lines(rows, base.machine_label, base.compensator_name)))
