@@ -314,3 +314,31 @@ def test_a_commissioning_reads_the_null_drift_of_a_warming_valve_and_takes_it_ou
     assert drifting.taken and drifting.rate == pytest.approx(0.001, rel=0.08)
     assert abs(drifting.offset) < 0.003
     assert not still.taken and abs(still.rate) < 3 * still.rate_se + 1e-5
+
+
+def test_a_drift_a_commissioning_read_is_carried_into_the_prediction_of_the_next_run():
+    """The null drift of a tuned file's last commissioning (its ``commissioning`` entries' ``null_drift``, the last
+    log's) is what ``tune --check`` predicts the next run with: the null at the run's start moved by the offset, then
+    at the rate over the run's length (a warm-up of 0.1 K whose null drift gives it), then held. A file whose last
+    commissioning took no drift out predicts with none."""
+    import math
+
+    from hexsim.engine.config import RunConfig
+    from hexsim.measured.null_drift import last_drift, with_drift
+
+    entry = {"null_drift": [{"log": "run0.csv", "offset_V": 0.0, "rate_V_per_s": 5e-4, "duration_s": 60.0,
+                             "taken_out": True},
+                            {"log": "run1.csv", "offset_V": 0.004, "rate_V_per_s": 1e-3, "rate_se_V_per_s": 1e-5,
+                             "duration_s": 60.0, "taken_out": True}]}
+    drift = last_drift({"commissioning": [{"logs": []}, entry]})
+    assert (drift.log, drift.offset, drift.rate, drift.duration) == ("run1.csv", 0.004, 1e-3, 60.0)
+    assert last_drift({"commissioning": [entry, {"null_drift": [{**entry["null_drift"][1], "taken_out": False}]}]}) \
+        is None
+    assert last_drift({}) is None
+    base = RunConfig.from_machine(load_machine(None), "actuator")
+    config = with_drift(base, drift, drift.duration)
+    null = base.hydraulics.null_offset
+    for t, expected in ((0.0, 0.004), (30.0, 0.034), (60.0, 0.064), (90.0, 0.064)):
+        hyd = config.warm_up.params_at(config.hydraulics, float(config.warm_up.temperature(t)))
+        assert math.isclose(hyd.null_offset - null, expected, abs_tol=1e-9), (t, hyd.null_offset - null)
+        assert hyd.density == pytest.approx(base.hydraulics.density, rel=1e-3)
