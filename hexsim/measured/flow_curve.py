@@ -246,7 +246,7 @@ def fold_mean(errors: list[float]) -> tuple[float, float]:
     return float(np.mean(errors)), float(np.std(errors) / math.sqrt(FOLDS))
 
 
-def _edge_rows(samples: list[FlowSamples], pa: np.ndarray, at: np.ndarray
+def edge_rows(samples: list[FlowSamples], pa: np.ndarray, at: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The linear system of the unknowns (the P→A rises, the A→T rises, 1/E, V_pl/E): (A (k, m), b (k,), block
     (k,), reach (k, 2)) over the intervals, with A x = b the flow balance of every interval (:class:`FlowSamples`):
@@ -429,7 +429,7 @@ def _fit_on(samples: list[FlowSamples], reach: list[float], pa: np.ndarray, at: 
     ``toward_machine``, the openings held to ``machine``'s with the ``strength`` the held-out windows choose
     where it is not given (:func:`_machine_openings`; the strongest within one standard error of the best), only
     those at knots within the commands ``hold_within`` where it is given."""
-    A, b, block, most = _edge_rows(samples, pa, at)
+    A, b, block, most = edge_rows(samples, pa, at)
     keep = within_reach(most, reach)
     A, b, block = A[keep], b[keep], block[keep]
     D = _penalty(pa, at)

@@ -34,8 +34,13 @@ from scipy.stats import median_abs_deviation
 
 from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
-from hexsim.measured.flow_balance import FlowSamples, flow_samples
-from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves, unit_gains
+from hexsim.measured.flow_balance import flow_samples
+from hexsim.measured.flow_curve import (
+    FlowCurves,
+    edge_rows,
+    fit_flow_curves,
+    unit_gains,
+)
 from hexsim.measured.measurement import MeasurementLog
 from hexsim.plant.machine import Machine
 from hexsim.plant.temperature import WarmUp
@@ -83,38 +88,30 @@ class NullDrift:
                 "duration_s": self.duration, "taken_out": self.taken}
 
 
-def _volumes(s: FlowSamples, curves: FlowCurves, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(the volume the curves pass over each interval [m^3], its derivative in the command [m^3/V]), (k,) each: the
-    supply and return edges' openings at ``u`` times their unit volumes (:func:`hexsim.measured.flow_curve.
-    _edge_rows`' sum), summed over each interval's samples."""
-    def volume(x: np.ndarray) -> np.ndarray:
-        on_pa, on_at = curves.pa.opening(x), curves.at.opening(-x)
-        return on_pa * s.ret + on_at * s.supply if s.mirror else on_pa * s.supply + on_at * s.ret
-
-    h = SLOPE_STEP_V
-    starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
-    return (np.add.reduceat(volume(u), starts),
-            np.add.reduceat((volume(u + h) - volume(u - h)) / (2 * h), starts))
-
-
 def read_drift(log: MeasurementLog, machine: Machine, curves: FlowCurves) -> NullDrift:
     """The null's drift in ``log`` (:class:`NullDrift`, not yet judged: ``taken`` False) against ``curves`` read on
-    ``machine``: the flow balance's residual per interval, displaced less what the curves pass at the commands
-    (less the compressed volume, with the curves' bulk modulus and dead volume), regressed on minus the curves'
-    slope times (1, t) by soft-L1 least squares; standard errors from the Jacobian, scaled by the residuals'
-    robust spread."""
-    rows, rhs = [], []
+    ``machine``: the flow balance's residual per interval (:func:`hexsim.measured.flow_curve.edge_rows` with the
+    curves' rises, bulk modulus and dead volume as its unknowns: displaced less what the curves pass at the commands
+    less the compressed volume), regressed on minus the curves' slope at the commands (a central difference over
+    :data:`SLOPE_STEP_V`) times (1, t) by soft-L1 least squares; standard errors from the Jacobian, scaled by the
+    residuals' robust spread."""
+    x = np.concatenate([np.diff(curves.pa.openings), np.diff(curves.at.openings),
+                        [1.0 / curves.bulk_modulus, curves.pipeline_volume / curves.bulk_modulus]])
+    samples = flow_samples(log, unit_gains(machine), machine.sensors.sample_skew)
+
+    def rows(shift: float) -> tuple[np.ndarray, np.ndarray]:
+        moved = [dataclasses.replace(s, u=s.u + shift) for s in samples]
+        a, displaced, _, _ = edge_rows(moved, curves.pa.knots, curves.at.knots)
+        return a @ x, displaced
+
+    entered, displaced = rows(0.0)
+    slope = (rows(SLOPE_STEP_V)[0] - rows(-SLOPE_STEP_V)[0]) / (2 * SLOPE_STEP_V)
     t0 = float(log.time[0])
-    for s in flow_samples(log, unit_gains(machine), machine.sensors.sample_skew):
-        passed, slope = _volumes(s, curves, s.u)
-        starts = np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])
-        t = np.add.reduceat(s.time - t0, starts) / np.diff(np.r_[starts, len(s.u)])
-        entered = passed - s.swept_dp / curves.bulk_modulus - s.dead_dp * curves.pipeline_volume / curves.bulk_modulus
-        rows.append(-slope[:, None] * np.column_stack([np.ones_like(t), t]))
-        rhs.append(s.displaced - entered)
-    a, b = np.vstack(rows), np.concatenate(rhs)
+    t = np.concatenate([np.add.reduceat(s.time - t0, starts) / np.diff(np.r_[starts, len(s.u)])
+                        for s in samples for starts in [np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])]])
+    a, b = -slope[:, None] * np.column_stack([np.ones_like(t), t]), displaced - entered
     scale = max(float(median_abs_deviation(b, scale="normal")), 1e-15)
-    fit = least_squares(lambda x: (a @ x - b) / scale, np.zeros(2), loss="soft_l1", x_scale=np.array([1e-3, 1e-4]))
+    fit = least_squares(lambda z: (a @ z - b) / scale, np.zeros(2), loss="soft_l1", x_scale=np.array([1e-3, 1e-4]))
     jac = a / scale
     dof = max(len(b) - 2, 1)
     cov = np.linalg.pinv(jac.T @ jac) * float(np.sum(fit.fun**2)) / dof
