@@ -210,8 +210,16 @@ def check_model(m: LegModel) -> None:
             raise SettingsError("velocity_at is a 3-way valve's return edge; this model has no pressure scaling")
 
 
-#: Share of the flow curve's largest speed above which an edge counts as open (:func:`_both_open`).
+#: Share of the flow curve's largest speed above which an edge counts as open (:func:`open_together`).
 OPEN_FRACTION = 1e-4
+
+
+def open_together(velocity: np.ndarray, velocity_at: np.ndarray) -> np.ndarray:
+    """Where both edges of a 3-way valve pass flow at rest, (n, G) bool: the supply edge's share (``velocity`` +
+    ``velocity_at``) and the return edge's (``velocity_at``), each (n, G) [m/s], both above :data:`OPEN_FRACTION`
+    of the leg's largest speed."""
+    v = np.atleast_2d(velocity)
+    return np.minimum(v + velocity_at, velocity_at) > OPEN_FRACTION * np.max(np.abs(v), axis=1, keepdims=True)
 
 
 def _both_open(model: LegModel, i: int) -> tuple[int, int, np.ndarray, np.ndarray] | None:
@@ -223,7 +231,7 @@ def _both_open(model: LegModel, i: int) -> tuple[int, int, np.ndarray, np.ndarra
         return None
     v, at = model.velocity[i], model.velocity_at[i]
     pa = v + at
-    both = np.flatnonzero(np.minimum(pa, at) > OPEN_FRACTION * np.max(np.abs(v)))
+    both = np.flatnonzero(open_together(v, at)[0])
     if both.size == 0:
         return None
     lo, hi = max(int(both[0]) - 1, 0), min(int(both[-1]) + 2, len(v))
@@ -598,4 +606,5 @@ def _dead_band(u: np.ndarray, velocity: np.ndarray) -> float:
     return float(flat[-1] - flat[0]) if flat.size else 0.0
 
 
-__all__ = ["FILE_FORMAT", "AdaptiveFeedforward", "FeedforwardCompensator", "LegModel", "Reference", "check_model"]
+__all__ = ["FILE_FORMAT", "OPEN_FRACTION", "AdaptiveFeedforward", "FeedforwardCompensator", "LegModel", "Reference",
+           "check_model", "open_together"]

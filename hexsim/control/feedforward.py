@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compensation.model_based import OPEN_FRACTION, LegModel
+from compensation.model_based import LegModel, open_together
 from compensation.settings import SettingsError
 from hexsim.plant import hydraulics
 from hexsim.plant.effects import NOMINAL, Effects
@@ -95,10 +95,7 @@ def return_edge_share(u: np.ndarray, p_rest: np.ndarray, velocity: np.ndarray, h
     again = static_flow_curve(u, p_rest + dp, hyd, eff)
     g_s, g_t = np.sqrt((drop_s - dp) / drop_s)[:, None], np.sqrt((drop_t + dp) / drop_t)[:, None]
     at = np.maximum((velocity * g_s - again) / (g_t - g_s), 0.0)
-    pa = velocity + at
-    if not np.any(np.minimum(pa, at) > OPEN_FRACTION * np.max(np.abs(velocity), axis=1, keepdims=True)):
-        return None
-    return at
+    return at if np.any(open_together(velocity, at)) else None
 
 
 #: Largest K_p s / f_c of the P loop through the inverse: the discrete loop's pole 1 - K_p s / f_c stays

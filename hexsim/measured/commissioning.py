@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from compensation.model_based import LegModel
 from hexsim.errors import InputError
 from hexsim.measured.curves import curve_machine, curve_report
-from hexsim.measured.flow_curve import FlowCurves, fit_flow_curves, held_out_ms
+from hexsim.measured.flow_curve import FlowCurves, held_out_ms
 from hexsim.measured.form_refit import REFITTED_FORMS, RefitForm, refit_form
 from hexsim.measured.measurement import MeasurementLog, read_log
 from hexsim.measured.null_drift import NullDrift, drifts_taken_out
@@ -108,9 +108,7 @@ def commission(paths: list[pathlib.Path], machine: Machine, *, own_logs: bool = 
         if log.system != "single-actuator":
             raise InputError(f"{log.path}: commissioning reads single-actuator logs (this is {log.system})")
     runs, drifts, curves = drifts_taken_out(logs[:len(paths)], logs[len(paths):], machine)
-    if any(d.taken for d in drifts):  # the runs' commands less their null's drift, read again
-        logs = [*runs, *logs[len(paths):]]
-        curves = fit_flow_curves(logs, machine, toward_machine=True)
+    logs = [*runs, *logs[len(paths):]]  # the runs' commands less their null's drift where one was found
     curved = curve_machine(machine, curves)
     form = refit_form(logs, machine) if machine.hydraulics.flow_area in REFITTED_FORMS else None
     # the form unless the curves predict the held-out windows better by one standard error

@@ -138,7 +138,7 @@ def without_drift(log: MeasurementLog, drift: NullDrift) -> MeasurementLog:
 def drifts_taken_out(runs: list[MeasurementLog], others: list[MeasurementLog], machine: Machine
                      ) -> tuple[list[MeasurementLog], list[NullDrift], FlowCurves]:
     """The ``runs`` (a commissioning's logs) with each one's null drift taken out where one is found, each run's
-    drift, and the curves read from the runs as they came and ``others`` (the calibration's own logs, whose null is
+    drift, and the curves read from the runs so returned and ``others`` (the calibration's own logs, whose null is
     the machine's), as a commissioning reads them (held to ``machine``).
 
     The rate is read against those curves (:func:`read_drift`) and judged (:func:`judged`). The offset is not: the
@@ -161,14 +161,19 @@ def drifts_taken_out(runs: list[MeasurementLog], others: list[MeasurementLog], m
     def moved_by(shift: float) -> list[NullDrift]:
         return [dataclasses.replace(d, offset=d.offset + shift, offset_se=math.nan) if d.taken else d for d in drifts]
 
+    read = {}  # shift -> (the runs so shifted, the curves read from them and the others)
+
     def misfit(shift: float) -> float:
         trial = [without_drift(run, d) if d.taken else run for run, d in zip(runs, moved_by(shift))]
-        return fit_flow_curves([*trial, *others], machine, toward_machine=True).rms
+        read[shift] = trial, fit_flow_curves([*trial, *others], machine, toward_machine=True)
+        return read[shift][1].rms
 
-    best = minimize_scalar(misfit, bounds=(-reach, reach), method="bounded", options={"xatol": OFFSET_TOLERANCE_V})
-    drifts = moved_by(float(best.x))
-    shifted = [without_drift(run, d) if d.taken else run for run, d in zip(runs, drifts)]
-    return shifted, drifts, curves
+    best = float(minimize_scalar(misfit, bounds=(-reach, reach), method="bounded",
+                                 options={"xatol": OFFSET_TOLERANCE_V}).x)
+    if best not in read:  # the minimiser returns a point it evaluated; read it should it not
+        misfit(best)
+    shifted, curves = read[best]
+    return shifted, moved_by(best), curves
 
 
 #: [K] The warm-up that carries a drift into a prediction (:func:`with_drift`): small, so that the oil's viscosity
