@@ -162,6 +162,16 @@ class _Evidence:
         replays = self.replays if replays is None else replays
         return lambda m: np.concatenate([steady_of(m), *(ev.residual(m) for ev in replays)])
 
+    def clusters(self) -> np.ndarray:
+        """Each entry of :meth:`residual`'s independent group: a steady feature its own, each replay's fit
+        windows theirs (:attr:`hexsim.measured.dynamics.ReplayEvidence.clusters`)."""
+        out, start = [np.arange(len(self.feats))], len(self.feats)
+        for ev in self.replays:
+            ids = ev.clusters
+            out.append(start + ids)
+            start += int(ids.max()) + 1 if ids.size else 0
+        return np.concatenate(out)
+
     def independent_share(self, m: Machine) -> float:
         """Independent samples per residual entry at machine ``m`` (features: each; replays: their own)."""
         sizes = [len(self.feats)] + [ev.residual_size for ev in self.replays]
@@ -217,7 +227,8 @@ def _choose_form(ev: _Evidence, machine: Machine, params: ParameterSet | None, f
     forms = _forms(machine, flow_areas) if ev.replays else (machine.hydraulics.flow_area,)
     curve = _wants_curve(ev, machine, flow_areas)  # refused before any fit where it cannot be read
     options = FitOptions(diff_step=1e-3, x_scale="jac", warm=True, correlated_se=0.01, xtol=XTOL, ftol=FTOL,
-                         max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV, jobs=jobs) if ev.replays else FitOptions()
+                         max_nfev=HEXAPOD_NFEV if ev.hexapod else FIT_NFEV, jobs=jobs,
+                         clusters=ev.clusters()) if ev.replays else FitOptions()
     share = ev.independent_share if ev.replays else None
     screen = len(forms) > 1
     judged = ([r.prefix(HEXAPOD_SCREEN_SEGMENTS) for r in ev.replays] if ev.hexapod else ev.replays) if screen \

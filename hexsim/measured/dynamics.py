@@ -40,6 +40,7 @@ from hexsim.measured.scoring import (
     WITHIN,
     Budget,
     Problem,
+    budget_clusters,
     calibrate_sensors,
     measure_budget,
     residual_vector,
@@ -127,6 +128,12 @@ class ReplayEvidence:
         log."""
         p = self.fitted
         return residual_vector(p, p.simulate(plant or self.model(machine)), self.budget, p.fit_rows)
+
+    @property
+    def clusters(self) -> np.ndarray:
+        """The fit window of each entry of :meth:`residual` (:func:`hexsim.measured.scoring.budget_clusters`)."""
+        p = self.fitted
+        return budget_clusters(p, p.fit_rows)
 
     @property
     def residual_size(self) -> int:

@@ -26,7 +26,7 @@ otherwise), and the fit before it is the answer, the parameter free with its sta
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -65,7 +65,10 @@ class FitOptions:
     parameters correlated beyond :data:`MAX_CORRELATION` are both kept while the worse known has a standard
     error within this share of its bracket (thousands of replayed samples separate two parameters correlated at
     0.997 to 1e-4 of their brackets). ``jobs``: processes that evaluate a Jacobian's columns
-    (:func:`hexsim.engine.workers.forked_map`; the same result as one)."""
+    (:func:`hexsim.engine.workers.forked_map`; the same result as one). ``clusters``: each residual's
+    independent group (a replay window, :meth:`hexsim.measured.calibration._Evidence.clusters`): the standard
+    errors and correlations a fit records are then cluster-robust (:mod:`hexsim.measured.statistics`); the
+    held-at-prior rule keeps judging on s² (JᵀJ)⁻¹, the data's own resolution of each parameter."""
 
     diff_step: float = 1e-4
     x_scale: float | str = 1.0
@@ -76,6 +79,7 @@ class FitOptions:
     xtol: float = 1e-8
     ftol: float = 1e-8
     jobs: int = 1
+    clusters: np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass
@@ -190,6 +194,9 @@ def _judged(sol, residual: Callable[[np.ndarray], np.ndarray], params: Parameter
     x[free] = lo[free] + sol.x * span[free]  # the residual's closure wrote its trial values there
     if worst is None:
         worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
+    if options.clusters is not None and len(options.clusters) == len(sol.fun):
+        robust = fit_statistics(sol.jac, sol.fun, free=_inside(sol), clusters=options.clusters)
+        se_z, corr = robust.std_errors, robust.correlation
     se = np.zeros(len(params))
     se[free] = se_z * span[free]
     full = np.eye(len(params))

@@ -499,6 +499,13 @@ def budget_vector(problem: ReplayProblem, res: dict[str, np.ndarray], budget: Bu
     return np.concatenate([(res[ch][rows, problem.settle:] / b[ch]).ravel() for ch in problem.channels])
 
 
+def budget_clusters(problem: ReplayProblem, rows: np.ndarray) -> np.ndarray:
+    """The window (0 … len(rows) − 1) of each entry of :func:`budget_vector` over ``rows``, shaped like it: a
+    window is replayed from its own measured start, so its residuals are one independent group
+    (:mod:`hexsim.measured.statistics`)."""
+    return np.concatenate([np.repeat(np.arange(len(rows)), window_samples(problem, ch)) for ch in problem.channels])
+
+
 def window_samples(problem: ReplayProblem, channel: str) -> int:
     """Scored samples of one window of ``channel``, all its signals together."""
     return problem.measured[channel][0, problem.settle:].size
