@@ -122,3 +122,17 @@ def test_the_flow_balance_with_r1s_skew_is_closer_to_r1s_own_curve(r1_timing):
         return float(np.sqrt(np.mean(res ** 2)))
 
     assert error(1e-4) < 0.99 * error(0.0) and error(-1e-4) > error(0.0)
+
+
+def test_r1s_own_values_replay_its_null_logs_within_their_noise(r1_timing):
+    """A replay window starts from the state the log holds skew later (row j: the state at t_j + sample_skew) and
+    from the position's cubic fit, not one noisy sample: on R1's own values with the timing read, its two null logs
+    (a sine and a two-tone run to 1.25 V, beyond the calibration logs) replay within sqrt(2) budgets on every
+    channel. Started at the sample's time and position, every window began v x 0.2 ms off (20 µm at 0.1 m/s) and
+    the sine's position stood at 1.86 budgets."""
+    machine, _, timing, _, _ = r1_timing
+    timed = with_keys(machine, timing.keys())
+    for name in ("r1_f", "r1_g"):
+        log = read_log(REFERENCE / "r1" / f"{name}.csv", timed)
+        rms = ReplayEvidence.of(log, timed).errors(timed).held_out_rms_in_budgets
+        assert max(rms.values()) < math.sqrt(2.0), (name, rms)
