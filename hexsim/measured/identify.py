@@ -465,7 +465,8 @@ def _discover_partial(problem: ReplayProblem, nominal: "Scored", model: PlantMod
 
 
 def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, jobs: int = 2,
-             progress: bool = False, notify=None, model: str = "platform") -> Identification:
+             progress: bool = False, notify=None, model: str = "platform",
+             budget: Budget | None = None) -> Identification:
     """Replay the log with the nominal model, measure the budget, and if the nominal is not within it
     select effects forward (see the module doc).
 
@@ -473,6 +474,8 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     alone for the legs that stand out). ``jobs`` worker processes fit candidates in parallel (1: in this
     process). ``progress``: a progress bar (terminals); ``notify``: called with one line of text per
     step (logs, pipes). ``model``: the hexapod formulation the log is replayed on (:func:`make_problem`).
+    ``budget``: the budget to judge against, where another model of the same log measured it (default: measured
+    here, :func:`~hexsim.measured.scoring.measure_budget`).
     Raises InputError for a log the replay cannot use or an unknown ``model``.
     """
     notify = notify or (lambda text: None)
@@ -483,7 +486,7 @@ def identify(log: MeasurementLog, *, candidates: tuple[str, ...] | None = None, 
     nominal_sim = problem.simulate(problem.nominal)
     if not problem.windowed:
         problem.position_offset_limit = static_offset_limit(problem, nominal_sim)
-    budget = nominal_budget = measure_budget(problem, nominal_sim)
+    budget = nominal_budget = budget or measure_budget(problem, nominal_sim)
     nominal = score(problem, nominal_sim, budget)
     notify("noise budget measured; held-out RMS / budget: " + ", ".join(
         f"{ch} {math.sqrt(v):.3g}" for ch, v in within_budget(nominal, budget).items()))

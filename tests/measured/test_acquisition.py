@@ -19,8 +19,10 @@ import pytest
 from hexsim.measured.acquisition import fit_timing
 from hexsim.measured.dynamics import ReplayEvidence
 from hexsim.measured.flow_balance import flow_samples
+from hexsim.measured.identify import identify
 from hexsim.measured.measurement import read_log
 from hexsim.measured.replay import sampled
+from hexsim.measured.scoring import Budget
 from hexsim.plant.machine import load_machine, with_keys, with_valve
 from hexsim.plant.params import SensorSpec, thin_curve
 
@@ -136,3 +138,19 @@ def test_r1s_own_values_replay_its_null_logs_within_their_noise(r1_timing):
         log = read_log(REFERENCE / "r1" / f"{name}.csv", timed)
         rms = ReplayEvidence.of(log, timed).errors(timed).held_out_rms_in_budgets
         assert max(rms.values()) < math.sqrt(2.0), (name, rms)
+
+
+def test_an_identification_judges_against_the_budget_it_is_handed(r1_timing):
+    """``identify(budget=…)`` judges against that budget, not one measured on its own model: validate hands a
+    machine with the valve's curve read from the log the calibrated file's budget (the curve machine carries no
+    calibration record of its curve; measured on it, R1's null sine read within 1.35 budgets stood at 2.18). On
+    R1's own values its null sine is `none` on its measured budget and `unexplained` on one a fifth as wide."""
+    machine, _, timing, _, _ = r1_timing
+    timed = with_keys(machine, timing.keys())
+    log = read_log(REFERENCE / "r1" / "r1_f.csv", timed)
+    own = identify(log, jobs=1)
+    assert own.verdict == "none"
+    narrow = Budget({ch: v / 5 for ch, v in own.nominal_budget.noise.items()},
+                    {ch: v / 5 for ch, v in own.nominal_budget.tolerance.items()})
+    judged = identify(log, jobs=1, budget=narrow, candidates=())
+    assert judged.nominal_budget is narrow and judged.verdict != "none"
