@@ -129,13 +129,12 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
                                                                             capsys):
     """Proof on logs: a log of the truth running with hexsim's compensator (written by the truth's own loop)
     beside the calibrated machine simulated with the same compensator on the log's setpoints. Both show the
-    bump removed (measured 0.09, predicted 0.07 m/s² with the log's accelerometer noise, none 0.75); the JSON
-    carries both. On the calibrated file alone (``--draws 0``) the verdict is not within its uncertainty (at the
-    reversals 1.33×, 95 % interval 1.19–1.50, with numpy 2.4, scipy 1.17 and mujoco 4.0), the peaks between the
-    reversals placed at the truth's corner (0.88 V) and above the prediction there (1.19×; its interval 1.00–1.42
-    on these 7 peaks, so the test does not ask that it exclude 1). Over the machines the calibration's
-    uncertainty allows (the default 8 draws; their mean reversal peaks 0.065–0.091, the measured 0.095) it is
-    within, 1.28× (0.94–1.75): two 8 s logs leave the compensated bump that uncertain. An uncompensated log is
+    bump removed (measured 0.084, predicted 0.067 m/s² with the log's accelerometer noise, none 0.75); the JSON
+    carries both. On the calibrated file alone (``--draws 0``) the verdict is not within its uncertainty, the peaks
+    between the reversals placed at the truth's corner (0.88 V) and above the prediction there (1.21×, 95 % interval
+    1.02–1.43, with numpy 2.4, scipy 1.17 and mujoco 4.0). Over the machines the calibration's (cluster-robust)
+    uncertainty allows (the default 8 draws; their mean reversal peaks 0.064–0.076, the measured 0.084) it is
+    within, 1.24× (0.94–1.63): two 8 s logs leave the compensated bump that uncertain. An uncompensated log is
     within it (0.99×)."""
     doc = {"format": "hexsim-tuned/1", "compensator": "feedforward", "settings": {}, "model": model.to_dict()}
     tuned = tmp_path / "tuned.json"
