@@ -376,7 +376,8 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
     # skew earlier (a skew of 0.2 ms put every window's start v 0.2 ms off: 20 µm at 0.1 m/s, kept all window)
     skew = (model.sensors or log.machine.sensors).sample_skew
     # the position from the same cubic fit as the velocity (21 samples: a third of the sensor's noise), not one
-    # noisy sample: the window integrates from it, so its error stays all window (sqrt(2) times the noise)
+    # noisy sample: the window integrates from it, so its error stays all window (sqrt(2) times the noise); with a
+    # sensor delay, the true position is what the delayed sensor shows tau later
     y0 = np.interp(t[s0] + tau - skew, t, savgol(pos, log.sample_rate_hz, VELOCITY_SPAN_S))
     d.qpos[idx.qpos_adr] = y0
     d.qvel[idx.dof_adr] = np.interp(t[s0] + tau - skew, t, vel)

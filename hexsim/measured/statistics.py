@@ -22,7 +22,9 @@ from its own measured start), the covariance is the cluster-robust sandwich inst
 (Liang & Zeger 1986; Cameron & Miller, *J. Human Resources* 50, 2015, the CR1 form), which holds whatever the
 residuals' correlation within a group and their misfit's structure: on the reference plant R1's calibration
 its standard errors are 2–7 times the s² (JᵀJ)⁻¹ ones for the flow gains, the tank pressure, the mass and the
-Coulomb levels, whose errors against R1's truth were 15–40 of those. It needs more groups than parameters.
+Coulomb levels, whose errors against R1's truth were 8–43 of those (1–6 of the robust ones; the retracting
+viscous level, whose error hardly widens, stays 14 off).
+It needs more groups than parameters (with fewer, s² (JᵀJ)⁻¹).
 """
 
 from __future__ import annotations
