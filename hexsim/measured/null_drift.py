@@ -39,6 +39,7 @@ from hexsim.measured.flow_curve import (
     FlowCurves,
     edge_rows,
     fit_flow_curves,
+    intervals,
     unit_gains,
 )
 from hexsim.measured.measurement import MeasurementLog
@@ -107,8 +108,12 @@ def read_drift(log: MeasurementLog, machine: Machine, curves: FlowCurves) -> Nul
     entered, displaced = rows(0.0)
     slope = (rows(SLOPE_STEP_V)[0] - rows(-SLOPE_STEP_V)[0]) / (2 * SLOPE_STEP_V)
     t0 = float(log.time[0])
-    t = np.concatenate([np.add.reduceat(s.time - t0, starts) / np.diff(np.r_[starts, len(s.u)])
-                        for s in samples for starts in [np.flatnonzero(np.r_[True, np.diff(s.interval) != 0])]])
+
+    def mean_time(s) -> np.ndarray:  # each interval's mean time since the log's start [s]
+        starts = intervals(s)[0]
+        return np.add.reduceat(s.time - t0, starts) / np.diff(np.r_[starts, len(s.u)])
+
+    t = np.concatenate([mean_time(s) for s in samples])
     a, b = -slope[:, None] * np.column_stack([np.ones_like(t), t]), displaced - entered
     scale = max(float(median_abs_deviation(b, scale="normal")), 1e-15)
     fit = least_squares(lambda z: (a @ z - b) / scale, np.zeros(2), loss="soft_l1", x_scale=np.array([1e-3, 1e-4]))

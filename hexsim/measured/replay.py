@@ -331,11 +331,11 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     m.opt.timestep = dt
     d = mujoco.MjData(m)
     idx = PlantIndex.from_model(m)
-    state, y0 = _window_start(log, model, windows, m, d, idx)
+    spec = model.sensors or log.machine.sensors
+    state, y0 = _window_start(log, model, windows, m, d, idx, spec.sample_skew)
     u_log = log.columns["valve_cmd_V"]
     acc_adr = np.array([idx.sensor[f"leg{i + 1}_acc"].start + 2 for i in range(k)])
     u_sched = windows.take(u_log)
-    spec = model.sensors or log.machine.sensors
     # every step recorded where the sensors' timing asks for it (else the kernel records the rows, as hexsim's logs)
     every_step = fine or not native or spec.sample_skew != 0.0 or spec.acceleration_sampling != "mean"
     steps = {name: np.empty((k, n * sub if every_step else n)) for name in FINE_CHANNELS}
@@ -363,9 +363,11 @@ def replay(log: MeasurementLog, model: PlantModel, windows: Windows, *, dt: floa
     return out
 
 
-def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d, idx) -> tuple[PlantState, np.ndarray]:
-    """Set the batch model ``m``/``d`` to the measured state at each window's start (position and velocity
-    the delayed sensor shows tau_y later) and return the legs' state there (P1 measured or from the
+def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d, idx,
+                  skew: float) -> tuple[PlantState, np.ndarray]:
+    """Set the batch model ``m``/``d`` to the measured state at each window's start (position and velocity the
+    delayed sensor shows tau_y later), read ``skew`` [s] before the window's first row (the log holds the state at
+    t_j + sample_skew, :func:`sampled`), and return the legs' state there (P1 measured or from the
     statics, P_s measured with a supply model, the spool history) and the start positions y0 (k,) [m]."""
     hyd, eff, c, t = model.hydraulics, model.effects, log.columns, log.time
     s0, k = windows.starts, len(windows.starts)
@@ -374,7 +376,6 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
     tau = eff.sensor_delay
     # row j of the log holds the state at t_j + sample_skew: the state at a window's start t_j is the log's
     # skew earlier (a skew of 0.2 ms put every window's start v 0.2 ms off: 20 µm at 0.1 m/s, kept all window)
-    skew = (model.sensors or log.machine.sensors).sample_skew
     # the position from the same cubic fit as the velocity (21 samples: a third of the sensor's noise), not one
     # noisy sample: the window integrates from it, so its error stays all window (sqrt(2) times the noise); with a
     # sensor delay, the true position is what the delayed sensor shows tau later

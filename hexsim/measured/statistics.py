@@ -71,10 +71,9 @@ def fit_statistics(jac: np.ndarray, fun: np.ndarray, *, free: np.ndarray | None 
     s2 = float(fun @ fun) / max(n - (k if n_parameters is None else n_parameters), 1.0)
     jf = jac[:, free]
     cov = np.linalg.pinv(jf.T @ jf) * s2 if free.any() else np.zeros((0, 0))
-    groups = np.unique(clusters) if clusters is not None else np.zeros(0)
+    groups, where = np.unique(clusters, return_inverse=True) if clusters is not None else (np.zeros(0), None)
     if free.any() and len(groups) > jf.shape[1]:
         bread = np.linalg.pinv(jf.T @ jf)
-        _, where = np.unique(clusters, return_inverse=True)
         scores = np.zeros((len(groups), jf.shape[1]))
         np.add.at(scores, where, jf * fun[:, None])  # each group's J_g^T r_g
         correction = len(groups) / (len(groups) - 1) * (len(fun) - 1) / max(len(fun) - jf.shape[1], 1)
