@@ -13,7 +13,7 @@ Machines (their own equations, no hexsim import in the physics):
 - ``drift``: ``corner`` whose null drifts 0.001 V/s while its oil warms 15 K over the run (calibrated cold).
 
 For each: ``hexsim calibrate`` on the two logs (defaults), ``hexsim tune`` on the calibrated file (defaults:
-the ``actuator`` motion), then the tuned file in the machine's loop on the seed's 50 mm 0.5 Hz sine
+the ``actuator`` motion, the neighbours with two machines drawn from the calibration's uncertainty), then the tuned file in the machine's loop on the seed's 50 mm 0.5 Hz sine
 (``--duration`` s, judged on the second half: the passenger's view, :func:`hexsim.measured.proof.passenger_view`),
 beside hexsim's prediction of the same run (the mean over the calibrated file and the eight machines its
 calibration's uncertainty allows, as ``hexsim tune --check`` predicts, their range beside it); then up to
@@ -53,9 +53,16 @@ from hexsim.measured.commissioning import commission
 from hexsim.measured.measurement import read_log
 from hexsim.measured.null_drift import last_drift, with_drift
 from hexsim.measured.proof import passenger_view
-from hexsim.measured.records import CalibrationRecord
+from hexsim.measured.records import plausible_machines
 from hexsim.plant.machine import dump, load_machine
-from hexsim.studies.tuning import read_tuned, retuned, tune, write_tuned
+from hexsim.studies.tuning import (
+    TUNE_DRAWS,
+    neighbours,
+    read_tuned,
+    retuned,
+    tune,
+    write_tuned,
+)
 
 HERE = pathlib.Path(__file__).resolve().parent
 REFERENCE = HERE.parent.parent / "shared" / "reference-plants"
@@ -140,7 +147,7 @@ def judged(t, ref, acc, velocity, instantaneous, duration):
 
 def predicted(machine, tuned: pathlib.Path | None, duration: float) -> dict:
     """hexsim's prediction of the same run: the calibrated machine with the tuned file (None: uncompensated), and the
-    same on the machines drawn from what its calibration leaves uncertain (``CalibrationRecord.plausible``, as
+    same on the machines drawn from what its calibration leaves uncertain (``plausible_machines``, as
     ``hexsim tune --check`` predicts): {"view": the calibrated file's passenger view, "models": every model's mean
     reversal peak [m/s^2], the calibrated file's first}. A tuned file whose last commissioning found the valve's null
     drifting in the run before is predicted with that drift (``hexsim tune --check`` does the same)."""
@@ -149,9 +156,8 @@ def predicted(machine, tuned: pathlib.Path | None, duration: float) -> dict:
         name, settings, model = read_tuned(tuned)
         options = {"compensator": name, "compensator_settings": settings, "compensator_model": model}
         drift = last_drift(json.loads(tuned.read_text()))
-    record = CalibrationRecord.of(machine.calibration)
     views = []
-    for m in [machine, *(record.plausible(machine) if record is not None else [])]:
+    for m in [machine, *plausible_machines(machine)]:
         config = RunConfig.from_machine(m, make_scenario("actuator", duration=duration), **options)
         result = simulate(config if drift is None else with_drift(config, drift, drift.duration))
         setpoint = result.config.scenario.axis_setpoint(result.t)
@@ -171,7 +177,7 @@ def prove(name: str, runs: int, duration: float, folder: pathlib.Path) -> list[d
     cal = load_machine(cal_path)
     form = report.get("flow_area", {}).get("chosen")
     base = RunConfig.from_machine(cal, make_scenario("actuator", duration=20.0))
-    result = tune(base, ("actuator",))
+    result = tune(base, ("actuator",), neighbours=neighbours(drawn=plausible_machines(cal, TUNE_DRAWS)))
     tuned = folder / f"{name}_tuned_0.json"
     write_tuned(tuned, result, base, ("actuator",))
     print(f"{name}: calibrated ({form}; own logs {report['own_budget']['held_out_rms_in_budgets']}) and tuned "

@@ -44,8 +44,9 @@ def add_tune(sub) -> None:
                     help="proof instead of tuning: logs of the machine running with --compensator, beside the machine "
                          "simulated with it on each log's setpoints (measured and predicted smoothness)")
     tu.add_argument("--draws", type=int, default=None, metavar="N",
-                    help="--check: also predict on N machines drawn from what the calibration leaves uncertain, and "
-                         "judge against the spread they give (default 8; 0: the machine file alone)")
+                    help="machines drawn from what a calibrated file's calibration leaves uncertain: tuning judges "
+                         "every candidate on N of them too (default 2); --check predicts on N and judges against "
+                         "the spread they give (default 8); 0: the machine file alone")
     tu.add_argument("--from-logs", nargs="+", type=pathlib.Path, metavar="LOG.csv",
                     help="commissioning instead of tuning: logs of the machine running with --compensator (a tuned "
                     "file) read back into the model (each valve edge's curve from their flows and the calibration's "
@@ -69,6 +70,8 @@ def cmd_tune(args: argparse.Namespace) -> int:
         raise InputError("tune: --out FILE.json is needed (or --check LOG.csv … --compensator FILE.json)")
     if args.jobs < 1:
         raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    if args.draws is not None and args.draws < 0:
+        raise InputError(f"tune: --draws must be 0 or more, got {args.draws}")
     if args.out.suffix != ".json":
         raise InputError(f"--out {args.out}: the tuned file is JSON (.json)")
     if not args.out.parent.exists():
@@ -80,9 +83,11 @@ def cmd_tune(args: argparse.Namespace) -> int:
     for m in motions:
         check_machine_scenario(machine, make_scenario(m, duration=args.duration))
     from hexsim.engine.config import RunConfig
+    from hexsim.measured.records import plausible_machines
     from hexsim.studies.tuning import (
         CANDIDATES,
         DEAD_BAND_TOLERANCE_V,
+        TUNE_DRAWS,
         neighbours,
         tune,
         tune_lines,
@@ -90,7 +95,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     )
 
     tolerance = DEAD_BAND_TOLERANCE_V if args.dead_band_tolerance is None else args.dead_band_tolerance
-    around = neighbours(tolerance)
+    around = neighbours(tolerance, plausible_machines(machine, TUNE_DRAWS if args.draws is None else args.draws))
     base = RunConfig.from_machine(machine, make_scenario(motions[0], duration=args.duration))
     print(f"tuning on {', '.join(motions)} ({args.duration:g} s each, machine {base.machine_label} and "
           f"{len(around) - 1} neighbours): {len(CANDIDATES)} candidates with {worker_count(args.jobs)} worker(s)…",

@@ -352,6 +352,14 @@ class CalibrationRecord:
         return [with_keys(machine, dict(zip(keys, map(float, row)))) for row in draws]
 
 
+def plausible_machines(machine: Machine, n: int = PLAUSIBLE_DRAWS, seed: int = 0) -> list[Machine]:
+    """``n`` machines drawn from what ``machine``'s calibration leaves uncertain
+    (:meth:`CalibrationRecord.plausible`); none for a machine without a calibration (a built-in, a hand-written
+    file) or for ``n`` = 0. Raises InputError as :meth:`CalibrationRecord.of` for a malformed calibration block."""
+    record = CalibrationRecord.of(machine.calibration, f"{machine.label}: calibration")
+    return record.plausible(machine, n, seed) if record is not None else []
+
+
 def value_in(doc: dict, key: str, calibrated: float) -> float:
     """``key``'s value in the machine file ``doc`` (it may have moved on from the calibration: a commissioning's curve
     carries the edge gains, so they read 1 where the calibration fitted 0.95), else the ``calibrated`` value."""

@@ -6,7 +6,8 @@ feedforward at three loop filters, the adaptive feedforward at two adaptation ti
 through the sweep path (:func:`hexsim.studies.sweeps.run_sweep`: worker processes, or Dask with a
 scheduler), judged on the final window of each run (the last quarter, where the adaptive ones have
 settled), on the machine as calibrated and on its :func:`neighbours` (a drifting null, the valve's edges a
-tolerance off the file's), the compensator keeping the calibrated machine's leg model. The tuned compensator
+tolerance off the file's, machines drawn from what the calibration leaves uncertain), the compensator keeping
+the calibrated machine's leg model. The tuned compensator
 is the one whose worst case (motion and neighbour) has the smallest mean reversal peak relative to the
 uncompensated machine (ties within :data:`ROBUST_TIE` go to the best on the machine as calibrated); a
 candidate that makes a single reversal worse than none's anywhere, or refused by its model check, is never
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import pathlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +34,7 @@ from compensation import MODEL_BASED, NAMES, CompensatorSettings, SettingsError
 from compensation.model_based import LegModel
 from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
+from hexsim.plant.machine import Machine
 from hexsim.studies.comparison import final_window_start
 from hexsim.studies.metrics import run_smoothness
 from hexsim.studies.sweeps import Point, evaluate_point, run_sweep
@@ -101,21 +104,26 @@ def evaluate_tuning(config: RunConfig) -> dict:
 @dataclass(frozen=True)
 class Neighbour:
     """A machine near the calibrated one that a tuned compensator must not fail on (module doc): ``name``,
-    ``why`` (for the table), the valve's edges opening ``open_earlier_V`` [V] earlier than the file's (a dead
-    band the calibration got wrong: :func:`hexsim.plant.hydraulics.as_curve`), the valve's null drifting
-    ``null_rate`` [V/s] while the oil warms ``warm_k`` [K] over the run (:class:`hexsim.plant.temperature.WarmUp`).
-    The compensator keeps the calibrated machine's leg model: only the machine moves."""
+    ``why`` (for the table), ``machine`` in place of the file's (one drawn from what its calibration leaves
+    uncertain: :meth:`hexsim.measured.records.CalibrationRecord.plausible`), the valve's edges opening
+    ``open_earlier_V`` [V] earlier than the file's (a dead band the calibration got wrong:
+    :func:`hexsim.plant.hydraulics.as_curve`), the valve's null drifting ``null_rate`` [V/s] while the oil warms
+    ``warm_k`` [K] over the run (:class:`hexsim.plant.temperature.WarmUp`). The compensator keeps the calibrated
+    machine's leg model: only the machine moves."""
 
     name: str
     why: str
     open_earlier_V: float = 0.0
     null_rate: float = 0.0
     warm_k: float = 0.0
+    machine: Machine | None = dataclasses.field(default=None, repr=False, compare=False)
 
     def apply(self, config: RunConfig) -> RunConfig:
         from hexsim.plant import hydraulics
         from hexsim.plant.temperature import WarmUp
 
+        if self.machine is not None:
+            config = dataclasses.replace(config, machine=self.machine)
         changes = {}
         if self.open_earlier_V:
             config = config.with_machine(hydraulics=hydraulics.as_curve(config.hydraulics, self.open_earlier_V))
@@ -134,12 +142,14 @@ class Neighbour:
 DEAD_BAND_TOLERANCE_V = 0.01
 
 
-def neighbours(dead_band_V: float = DEAD_BAND_TOLERANCE_V) -> tuple[Neighbour, ...]:
+def neighbours(dead_band_V: float = DEAD_BAND_TOLERANCE_V, drawn: Sequence[Machine] = ()) -> tuple[Neighbour, ...]:
     """The machines :func:`tune` judges a candidate on (issue 53's "plausible neighbours"): the machine as
     calibrated; its valve's null drifting 1 mV/s while the oil warms 15 K over the run (seed §5.5's warm-up;
-    proportional valves' zero point drifts about 1 % of the rated signal over tens of kelvin); and, for
+    proportional valves' zero point drifts about 1 % of the rated signal over tens of kelvin); for
     ``dead_band_V`` > 0 [V], each valve edge opening that much earlier (an underlap the calibration took for
-    overlap) and later. Raises InputError for a negative or non-finite tolerance, or one above 0.1 V."""
+    overlap) and later; and each of the ``drawn`` machines (the calibrated parameters moved by their standard
+    errors: :meth:`hexsim.measured.records.CalibrationRecord.plausible`, the draws ``hexsim tune --check``
+    predicts on). Raises InputError for a negative or non-finite tolerance, or one above 0.1 V."""
     if not (np.isfinite(dead_band_V) and 0.0 <= dead_band_V <= 0.1):
         raise InputError(f"tune: the dead-band tolerance must be between 0 and 0.1 V, got {dead_band_V!r}")
     out = [Neighbour("calibrated", "the machine file as calibrated"),
@@ -148,10 +158,16 @@ def neighbours(dead_band_V: float = DEAD_BAND_TOLERANCE_V) -> tuple[Neighbour, .
         mv = f"{1e3 * dead_band_V:g} mV"
         out += [Neighbour("underlap", f"each valve edge opening {mv} earlier than the file's", open_earlier_V=dead_band_V),
                 Neighbour("overlap", f"each valve edge opening {mv} later than the file's", open_earlier_V=-dead_band_V)]
+    out += [Neighbour(f"drawn{i}", "the calibrated parameters drawn from their standard errors and correlation",
+                      machine=m) for i, m in enumerate(drawn, start=1)]
     return tuple(out)
 
 
 NEIGHBOURS = neighbours()
+
+#: Machines drawn from a calibrated file's uncertainty that ``hexsim tune`` judges every candidate on besides
+#: :data:`NEIGHBOURS` (``--draws``): each adds a run per candidate and motion.
+TUNE_DRAWS = 2
 
 #: Candidates whose worst case is within this factor of the best one's are as robust as it (the neighbours'
 #: figures are a few reversals each); among them the one best on the machine as calibrated is chosen.

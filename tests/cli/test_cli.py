@@ -69,6 +69,7 @@ def test_log_follows_the_measurement_log_format(heave_outputs):
         (["run", "heave", "--duration", "8", "--plot", "out.jpg"], "expected a .png or .pdf or .svg"),
         (["run", "heave", "--duration", "8", "--json", "c.json", "--log", "c.csv"], "overwritten by the sidecar"),
         (["tune", "--check", __file__, "--compensator", "none", "--draws", "-1"], "--draws must be 0 or more, got -1"),
+        (["tune", "--out", "tuned.json", "--draws", "-2"], "tune: --draws must be 0 or more, got -2"),
     ],
 )
 def test_bad_input_gives_one_line_and_exit_2(argv, message, capsys):

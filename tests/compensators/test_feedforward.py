@@ -100,11 +100,13 @@ def test_the_guard_turns_a_leg_off_rather_than_keep_a_compensation_worse_than_no
 def test_a_tuned_file_round_trips_and_runs(machine, model, tmp_path, capsys):
     """``hexsim tune`` on the calibrated machine chooses a model-based compensator, prints none / buffered /
     tuned, and writes a file that ``hexsim run --compensator FILE`` loads: the loaded compensator gives the
-    same U_c as one built from the machine for the same inputs."""
+    same U_c as one built from the machine for the same inputs. Every candidate was also judged on a machine
+    drawn from what the calibration leaves uncertain (``--draws 1``), which ran as a machine of its own."""
     out = tmp_path / "tuned.json"
-    assert main(["tune", "actuator", "--machine", str(machine), "--duration", "6", "--out", str(out), "--jobs", "1"]) == 0
+    assert main(["tune", "actuator", "--machine", str(machine), "--duration", "6", "--out", str(out), "--jobs", "1",
+                 "--draws", "1"]) == 0
     text = capsys.readouterr().out
-    assert "buffered" in text and "tuned:" in text
+    assert "buffered" in text and "tuned:" in text and "drawn1" in text.splitlines()[-2]
     name, settings, model = read_tuned(out)
     assert name in ("feedforward", "adaptive") and model is not None
     built = model
@@ -120,6 +122,9 @@ def test_a_tuned_file_round_trips_and_runs(machine, model, tmp_path, capsys):
         assert a.update(u_p, y) == pytest.approx(b.update(u_p, y), abs=1e-12)
     doc = json.loads(out.read_text())
     assert set(doc["predicted"]) >= {"none", "buffered"}
+    assert list(doc["neighbours"]) == ["calibrated", "drift", "underlap", "overlap", "drawn1"]
+    none = {row["neighbour"]: row["final_mean_reversal_peak"] for row in doc["predicted"]["none"]}
+    assert none["drawn1"] != none["calibrated"]  # the drawn machine, not the file, ran
     assert main(["run", "actuator", "--machine", str(machine), "--duration", "6", "--compensator", str(out),
                  "--quiet"]) == 0
     assert f"compensator {name}" in capsys.readouterr().out
