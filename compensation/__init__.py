@@ -24,7 +24,7 @@ from compensation.settings import CompensatorSettings, SettingsError
 #: Names of the built-in compensators, in league order (``hexsim run --compensator NAME``).
 NAMES = ("none", "iterative-1", "iterative-2", "buffered", "directional", "feedforward", "adaptive", "oracle")
 
-#: The compensators built on the machine's leg model (:class:`compensation.model_based.LegModel`).
+#: The compensators built on the machine's leg model (:class:`compensation.leg_model.LegModel`).
 MODEL_BASED = ("feedforward", "adaptive")
 
 #: public name -> module; the compensators (numba, scipy) load on first use
@@ -34,7 +34,7 @@ _LAZY = {"Compensator": "compensation.base", "FlowCurveObserver": "compensation.
          "Iterative1": "compensation.iterative", "Iterative2": "compensation.iterative",
          "OracleCompensator": "compensation.oracle", "FeedforwardCompensator": "compensation.model_based",
          "AdaptiveFeedforward": "compensation.model_based",
-         "LegModel": "compensation.model_based", "Reference": "compensation.model_based"}
+         "LegModel": "compensation.leg_model", "Reference": "compensation.leg_model"}
 
 
 def __getattr__(name: str):
@@ -56,7 +56,7 @@ def make_compensator(name: str, n_legs: int, rate_hz: float, *, u_v_max: float =
     """A compensator by name for ``n_legs`` legs driven at ``rate_hz`` [Hz].
 
     ``plant`` (:class:`~compensation.base.PlantTruth`) is passed to the oracle only, ``model`` (the
-    machine's :class:`~compensation.model_based.LegModel`) to the model-based ones (:data:`MODEL_BASED`).
+    machine's :class:`~compensation.leg_model.LegModel`) to the model-based ones (:data:`MODEL_BASED`).
     Raises SettingsError (a ValueError) naming the choices for an unknown name or a bad setting.
     """
     if name not in NAMES:

@@ -47,7 +47,7 @@ class Compensator(abc.ABC):
 
     def observe(self, reference) -> None:
         """What the motion computer knows before this sample's :meth:`update`: a
-        :class:`compensation.model_based.Reference` (the piston setpoints and their derivatives, the
+        :class:`compensation.leg_model.Reference` (the piston setpoints and their derivatives, the
         measured pressures where fitted). The seed's compensators do not use it (default: ignored)."""
 
     @abc.abstractmethod

@@ -125,7 +125,7 @@ class Truth:
             return rows[:, 0], rows[:, 1], extra["acc_mean"], extra["v"], extra["acc"]
         hook = None
         if compensator is not None:
-            from compensation.model_based import Reference
+            from compensation.leg_model import Reference
 
             def hook(u_p, y, r, r_dot, r_ddot, r_dddot, p1):
                 compensator.observe(Reference(*(np.array([x]) for x in (r, r_dot, r_ddot, r_dddot, p1))))
@@ -208,13 +208,13 @@ def prove(name: str, runs: int, duration: float, folder: pathlib.Path) -> list[d
 
 
 def r1_own_model():
-    """R1's leg as the feedforward sees a leg (:class:`compensation.model_based.LegModel`), from the reference plant's
+    """R1's leg as the feedforward sees a leg (:class:`compensation.leg_model.LegModel`), from the reference plant's
     own equations and R1's values (``plant.SEED`` with ``r1.R1``): the flow curve at the rest pressure on a 10 mV
     grid, the friction curve, A1, E, V_pl, M. What no calibration can beat: the floor of a static inverse."""
     import plant
     import r1
 
-    from compensation.model_based import LegModel
+    from compensation.leg_model import LegModel
 
     p = {**plant.SEED, **r1.R1}
     a1, a2, g = p["A1"], p["A2"], p["g"]

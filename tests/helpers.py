@@ -8,7 +8,7 @@ import numpy as np
 from independent_actuator import Actuator, motion
 
 from compensation import CompensatorSettings, make_compensator
-from compensation.model_based import LegModel, Reference
+from compensation.leg_model import LegModel, Reference
 from hexsim.studies.metrics import smoothness
 
 

@@ -43,7 +43,7 @@ class PController:
 
     def sample(self, r: np.ndarray, y_measured: np.ndarray, reference=None) -> tuple[np.ndarray, np.ndarray]:
         """(u_v, U_c), each (n_legs,) [V], from setpoints r and measured positions y_measured (n_legs,) [m];
-        ``reference`` (a :class:`compensation.model_based.Reference`) is handed to the compensator's
+        ``reference`` (a :class:`compensation.leg_model.Reference`) is handed to the compensator's
         ``observe`` first."""
         u_p = p_output.py_func(self.params.kp, r, y_measured)
         if reference is not None:

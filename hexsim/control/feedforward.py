@@ -2,7 +2,7 @@
 
 :func:`leg_model` evaluates the machine's static flow curve (seed eq. 5.1, with the machine's flow area,
 overlap, null offset, edge gains and leakage), its friction curve (seed eq. 3.9) and its chamber
-(seed eq. 3.7) into a :class:`compensation.model_based.LegModel`, the record a tuned compensator file
+(seed eq. 3.7) into a :class:`compensation.leg_model.LegModel`, the record a tuned compensator file
 holds and :class:`~compensation.model_based.FeedforwardCompensator` inverts.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from compensation.model_based import LegModel, open_together
+from compensation.leg_model import LegModel, open_together
 from compensation.settings import SettingsError
 from hexsim.plant import hydraulics
 from hexsim.plant.effects import NOMINAL, Effects
@@ -49,13 +49,13 @@ def static_flow_curve(u: np.ndarray, p_rest: np.ndarray, hyd: HydraulicParams, e
 
 def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, eff: Effects = NOMINAL,
               load: np.ndarray | None = None, u_ref: float = 1.0, kp: float = 0.0, source: str = "") -> LegModel:
-    """The :class:`~compensation.model_based.LegModel` of a machine: ``hyd`` and ``eff`` its hydraulics and
+    """The :class:`~compensation.leg_model.LegModel` of a machine: ``hyd`` and ``eff`` its hydraulics and
     effects (a machine file's), ``p_rest`` (n,) [Pa] each leg's bottom-chamber pressure at rest,
     ``inertia`` (n, n) [kg] the legs' inertia matrix (leg forces = inertia @ leg accelerations; the
     inverse of :func:`hexsim.engine.config.leg_mobility`'s A), ``load`` (n,) [N] the rest loads (4-way
     valves), ``u_ref`` [V] where the linear curve meets the flow curve (its slope is the mean chord at
     ±u_ref, as the oracle's), ``kp`` [V/m] the P gain the compensator runs beside (0: unknown). Raises
-    SettingsError (a ValueError) for a model whose inverse :func:`compensation.model_based.check_model` refuses."""
+    SettingsError (a ValueError) for a model whose inverse :func:`compensation.leg_model.check_model` refuses."""
     u_max = hyd.u_v_max
     if hyd.four_way:
         s = np.linspace(-1.0, 1.0, GRID_POINTS_4WAY)

@@ -18,7 +18,7 @@ import numpy as np
 
 from compensation import CompensatorSettings, PlantTruth
 from compensation.base import Compensator
-from compensation.model_based import LegModel, Reference
+from compensation.leg_model import LegModel, Reference
 from hexsim.control.controller import PController
 from hexsim.control.feedforward import LiveDerivatives, setpoint_derivatives
 from hexsim.control.kinematics import HexapodGeometry

@@ -11,7 +11,7 @@ held to the calibrated machine's openings where the flows say little: near null,
 the machine file takes the curves (flow area ``curve``: :func:`hexsim.measured.curves.curve_machine`) — unless
 the calibrated valve is a rounded edge whose few parameters, refitted to the same flows, predict their held-out
 windows as well (:mod:`hexsim.measured.form_refit`: a knot grid rounds the corner the form has sharp) — and the
-tuned file's leg model (:class:`compensation.model_based.LegModel`) is built again from that machine, its
+tuned file's leg model (:class:`compensation.leg_model.LegModel`) is built again from that machine, its
 compensator and settings kept; the predicted figures are those of the new model. A user runs it on the machine
 at most three times (docs/compensation.md: measured on machines hexsim did not write).
 """
@@ -22,7 +22,7 @@ import dataclasses
 import pathlib
 from dataclasses import dataclass
 
-from compensation.model_based import LegModel
+from compensation.leg_model import LegModel
 from hexsim.errors import InputError
 from hexsim.measured.curves import curve_machine, curve_report
 from hexsim.measured.flow_curve import FlowCurves, held_out_ms

@@ -15,7 +15,7 @@ chosen. Where no candidate is left, a second round runs the model-based ones aga
 dead-band tolerance short of each valve edge (``dead_band_margin``, :class:`compensation.CompensatorSettings`).
 
 The tuned file (JSON, :data:`FORMAT`) holds the compensator's name and settings and, for the model-based
-ones, the leg model it inverts (:class:`compensation.model_based.LegModel`: per leg the flow curve table
+ones, the leg model it inverts (:class:`compensation.leg_model.LegModel`: per leg the flow curve table
 u_v -> ẏ at the rest pressure, the friction table, the chamber's constants, the legs' inertia), plus the
 predicted figures; ``hexsim run --compensator FILE`` loads it (the same U_c for the same inputs), and a
 real motion computer can read the same tables (``docs/compensation.md``).
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from compensation import MODEL_BASED, NAMES, CompensatorSettings, SettingsError
-from compensation.model_based import LegModel
+from compensation.leg_model import LegModel
 from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
 from hexsim.plant.machine import Machine

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 import compensation.curve_learning as cl
-from compensation.model_based import AdaptiveFeedforward, Reference
+from compensation.leg_model import Reference
+from compensation.model_based import AdaptiveFeedforward
 from compensation.settings import CompensatorSettings
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig

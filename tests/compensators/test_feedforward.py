@@ -17,7 +17,7 @@ from helpers import in_the_loop, reversal_peaks
 from independent_actuator import Actuator, motion, write
 
 from compensation import CompensatorSettings, SettingsError, make_compensator
-from compensation.model_based import LegModel, Reference
+from compensation.leg_model import LegModel, Reference
 from hexsim.cli import main
 from hexsim.engine.config import RunConfig
 from hexsim.measured.calibration import calibrate
