@@ -22,8 +22,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
+from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.flow_balance import FOLDS, FlowSamples
 from hexsim.measured.flow_curve import (
     BETA_BOUNDS,
@@ -125,8 +125,8 @@ def refit_form(logs: list[MeasurementLog], machine: Machine) -> RefitForm:
             r, _ = _with_beta(balance, machine_at(z * scale), rows, weights, beta_prior, c)
             return r
 
-        z = least_squares(residual, x_start / scale, bounds=(lower / scale, upper / scale), x_scale=1.0,
-                          diff_step=1e-4, xtol=1e-8, ftol=1e-10, max_nfev=60).x
+        z = bounded_fit(residual, [x_start / scale], lower / scale, upper / scale, x_scale=1.0, diff_step=1e-4,
+                        xtol=1e-8, ftol=1e-10, max_nfev=60).x
         return z * scale, _with_beta(balance, machine_at(z * scale), rows, weights, beta_prior, c)[1]
 
     everything = np.ones_like(balance.b, dtype=bool)

@@ -29,11 +29,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares, minimize_scalar
+from scipy.optimize import minimize_scalar
 from scipy.stats import median_abs_deviation
 
 from hexsim.engine.config import RunConfig
 from hexsim.errors import InputError
+from hexsim.measured.fitting import bounded_fit
 from hexsim.measured.flow_balance import flow_samples
 from hexsim.measured.flow_curve import (
     FlowCurves,
@@ -116,7 +117,8 @@ def read_drift(log: MeasurementLog, machine: Machine, curves: FlowCurves) -> Nul
     t = np.concatenate([mean_time(s) for s in samples])
     a, b = -slope[:, None] * np.column_stack([np.ones_like(t), t]), displaced - entered
     scale = max(float(median_abs_deviation(b, scale="normal")), 1e-15)
-    fit = least_squares(lambda z: (a @ z - b) / scale, np.zeros(2), loss="soft_l1", x_scale=np.array([1e-3, 1e-4]))
+    fit = bounded_fit(lambda z: (a @ z - b) / scale, [np.zeros(2)], -np.inf, np.inf, loss="soft_l1",
+                      x_scale=np.array([1e-3, 1e-4]))
     jac = a / scale
     dof = max(len(b) - 2, 1)
     cov = np.linalg.pinv(jac.T @ jac) * float(np.sum(fit.fun**2)) / dof
