@@ -80,7 +80,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     import csv
     import io
 
-    from hexsim.studies.sweeps import METRICS, expand, run_sweep
+    from hexsim.studies.sweeps import METRICS, expand, run_sweep, sweep_lines
 
     check_outputs(args)
     if args.jobs < 1:
@@ -102,14 +102,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     rows, wall = run_sweep(points, jobs=args.jobs, progress=not args.quiet and sys.stderr.isatty(),
                            start_method=args.start_method)
     columns = ["point", *grid, *METRICS]
-    shown = ["point", *grid, "noise_ratio", "peak_noise_g", "mean_reversal_peak", "final_mean_reversal_peak",
-             "max_tracking_error_mm"]
-    print("  ".join(f"{c:>12.12s}" for c in shown))
-    for row in rows:
-        print("  ".join(f"{row[c]:>12.5g}" if isinstance(row[c], float) else f"{str(row[c]):>12.12s}" for c in shown))
-    sim_s = sum(p.config.scenario.duration for p in points)
-    print(f"{len(points)} runs, {sim_s:g} simulated s in {wall:.1f} s wall: {len(points) / wall * 60:.1f} runs/min, "
-          f"{sim_s / wall:.1f}× real time over {worker_count(args.jobs)} worker(s)")
+    print("\n".join(sweep_lines(rows, tuple(grid), sum(p.config.scenario.duration for p in points), wall,
+                                 worker_count(args.jobs))))
     if args.csv:
         buf = io.StringIO()
         writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")

@@ -105,6 +105,23 @@ def run_sweep(points: list[Point], jobs: int = 2, progress: bool = True,
     return rows, time.perf_counter() - start
 
 
+#: The figures :func:`sweep_lines` shows of each point (all of :data:`METRICS` are in the CSV and JSON).
+SHOWN = ("noise_ratio", "peak_noise_g", "mean_reversal_peak", "final_mean_reversal_peak", "max_tracking_error_mm")
+
+
+def sweep_lines(rows: list[dict], grid: tuple[str, ...], simulated_s: float, wall_s: float, workers: int) -> list[str]:
+    """What ``hexsim sweep`` prints of its ``rows`` (:func:`run_sweep`'s): one line per point (its number, the
+    ``grid``'s settings and :data:`SHOWN`'s figures, 12 characters each) and the throughput: runs per minute and
+    ``simulated_s`` [s] over ``wall_s`` [s] on ``workers`` worker(s)."""
+    shown = ["point", *grid, *SHOWN]
+    lines = ["  ".join(f"{c:>12.12s}" for c in shown)]
+    lines += ["  ".join(f"{row[c]:>12.5g}" if isinstance(row[c], float) else f"{str(row[c]):>12.12s}" for c in shown)
+              for row in rows]
+    lines.append(f"{len(rows)} runs, {simulated_s:g} simulated s in {wall_s:.1f} s wall: {len(rows) / wall_s * 60:.1f} "
+                 f"runs/min, {simulated_s / wall_s:.1f}× real time over {workers} worker(s)")
+    return lines
+
+
 def _finite_or_none(value):
     """NaN (a metric that does not exist, e.g. no reversal in the window) as None: empty in CSV, null in JSON."""
     return None if isinstance(value, float) and not np.isfinite(value) else value
