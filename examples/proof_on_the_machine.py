@@ -145,15 +145,17 @@ def judged(t, ref, acc, velocity, instantaneous, duration):
                                                                    velocity)
 
 
-def predicted(machine, tuned: pathlib.Path | None, duration: float) -> dict:
+def predicted(machine, tuned: pathlib.Path | None, duration: float, candidate: tuple | None = None) -> dict:
     """hexsim's prediction of the same run: the calibrated machine with the tuned file (None: uncompensated), and the
     same on the machines drawn from what its calibration leaves uncertain (``plausible_machines``, as
     ``hexsim tune --check`` predicts): {"view": the calibrated file's passenger view, "models": every model's mean
     reversal peak [m/s^2], the calibrated file's first}. A tuned file whose last commissioning found the valve's null
-    drifting in the run before is predicted with that drift (``hexsim tune --check`` does the same)."""
+    drifting in the run before is predicted with that drift (``hexsim tune --check`` does the same). ``candidate``
+    (compensator, settings): that compensator on the tuned file's leg model instead of the file's own."""
     options, drift = {}, None
     if tuned is not None:
         name, settings, model = read_tuned(tuned)
+        name, settings = candidate or (name, settings)
         options = {"compensator": name, "compensator_settings": settings, "compensator_model": model}
         drift = last_drift(json.loads(tuned.read_text()))
     views = []
@@ -299,6 +301,29 @@ def own_parts(truth: Truth, duration: float, none: dict, tuned: pathlib.Path) ->
     return rows
 
 
+def candidate_rows(truth: Truth, duration: float, none: dict, tuned: pathlib.Path, specs: list[str]) -> list[dict]:
+    """The rows of ``--candidate``: each compensator ``NAME[:KEY=VALUE,…]`` (its settings changed from the defaults) on
+    the ``tuned`` file's leg model, in the machine's loop (the run the tuned file had, same seed) and predicted on the
+    calibrated file and its draws (``none``: the uncompensated row). What ``hexsim tune``'s choice weighs: on a
+    machine whose null stays, a compensator the drifting neighbour refused may leave less at the seat."""
+    from compensation import CompensatorSettings
+
+    machine = load_machine(tuned.parent / f"{truth.name}_cal.json")
+    model = read_tuned(tuned)[2]
+    rows = []
+    for spec in specs:
+        name, _, rest = spec.partition(":")
+        changes = {k: float(v) for k, v in (kv.split("=") for kv in rest.split(",") if kv)}
+        settings = CompensatorSettings(**changes)
+        comp = make_compensator(name, 1, 500.0, settings=settings, model=model)
+        view, now = judged(*truth.run(comp, duration, 20), duration)
+        rows.append({"machine": truth.name, "run": f"{name} {rest.replace(',', ' ')} on the tuned file's model".strip(),
+                     "measured": view, "instantaneous": now, "none": none["measured"],
+                     "none_instantaneous": none["instantaneous"],
+                     "predicted": predicted(machine, tuned, duration, (name, settings))})
+    return rows
+
+
 def table(rows: list[dict]) -> str:
     """Measured (1 ms means, as hexsim records) beside predicted; the instantaneous samples' reduction where the
     machine gives them."""
@@ -327,6 +352,9 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", type=pathlib.Path, help="keep the logs and files in this folder")
     ap.add_argument("--floor", action="store_true", help="on R1, add the floor: the feedforward on R1's own model; "
                     "on the others, the feedforward on the tuned model with the machine's own curve and friction")
+    ap.add_argument("--candidate", action="append", default=[], metavar="NAME[:KEY=VALUE,...]",
+                    help="also run this compensator (its settings changed from the defaults) on the tuned file's leg "
+                    "model in the machine's loop and on hexsim's model (repeatable)")
     args = ap.parse_args(argv)
     names = [m for m in args.machines.split(",") if m]
     unknown = [m for m in names if m not in MACHINES]
@@ -337,12 +365,15 @@ def main(argv=None) -> int:
         folder = args.keep or pathlib.Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
         for name in names:
-            rows += prove(name, args.runs, args.duration, folder)
+            mine = prove(name, args.runs, args.duration, folder)
+            rows += mine
             if args.floor and name == "R1":
-                rows += floor(args.duration, rows[-args.runs - 2], folder / "R1_tuned_0.json")
+                rows += floor(args.duration, mine[0], folder / "R1_tuned_0.json")
             elif args.floor:
-                rows += own_parts(Truth(name, folder), args.duration, rows[-args.runs - 2],
-                                  folder / f"{name}_tuned_0.json")
+                rows += own_parts(Truth(name, folder), args.duration, mine[0], folder / f"{name}_tuned_0.json")
+            if args.candidate:
+                rows += candidate_rows(Truth(name, folder), args.duration, mine[0], folder / f"{name}_tuned_0.json",
+                                       args.candidate)
             print(table([r for r in rows if r["machine"] == name]), flush=True)
     print("\n" + table(rows))
     return 0
