@@ -62,8 +62,9 @@ class Compensator(abc.ABC):
 
 #: Units of the compensators' logged parameters (seed §5.3, :mod:`compensation.functions`): a the
 #: largest U_c, b the inverse of the valve range covered, c the shift (b times the null setpoint), s the
-#: slope of the desired linear flow curve s u_v.
-STATE_UNITS = {"a": "V", "a_neg": "V", "b": "1/V", "c": "-", "s": "m/(s V)", "null_shift": "V", "guard": "-"}
+#: slope of the desired linear flow curve s u_v; the adaptive feedforward's null shift, its drift rate and its guard.
+STATE_UNITS = {"a": "V", "a_neg": "V", "b": "1/V", "c": "-", "s": "m/(s V)", "null_shift": "V", "null_drift": "V/s",
+               "guard": "-"}
 
 
 class NoCompensator(Compensator):
