@@ -2,7 +2,8 @@
 
 Given a machine (calibrated or built in) and the motions of interest, every candidate (the seed's
 buffered and directional compensators at their defaults and at other buffer lengths, the model-based
-feedforward at three loop filters, the adaptive feedforward at two adaptation times) runs each motion
+feedforward at three loop filters, the adaptive feedforward at two adaptation times and the slower one with
+the 10 Hz loop filter) runs each motion
 through the sweep path (:func:`hexsim.studies.sweeps.run_sweep`: worker processes, or Dask with a
 scheduler), judged on the final window of each run (the last quarter, where the adaptive ones have
 settled), on the machine as calibrated and on its :func:`neighbours` (a drifting null, the valve's edges a
@@ -55,6 +56,7 @@ CANDIDATES = (
     ("feedforward", {"loop_filter_hz": 40.0}),
     ("adaptive", {}),
     ("adaptive", {"adapt_time": 1.0}),
+    ("adaptive", {"adapt_time": 1.0, "loop_filter_hz": 10.0}),
 )
 
 
