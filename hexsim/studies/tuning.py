@@ -401,15 +401,17 @@ def tune_table(result: TuneResult) -> str:
     """none / the seed's buffered / the tuned compensator per motion and neighbour: mean and max reversal peak
     of the final window, the reduction against none, the worst single reversal's ratio to none's, and the bumps
     felt where the perception model applies."""
-    head = f"{'compensator':<34} {'motion':<9} {'neighbour':<10} {'mean rev. peak':>14} {'max rev. peak':>13} " \
+    shown = [k for k in dict.fromkeys(("none", "buffered", result.chosen.label)) if k in result.rows]
+    w = max(34, *map(len, shown))
+    head = f"{'compensator':<{w}} {'motion':<9} {'neighbour':<10} {'mean rev. peak':>14} {'max rev. peak':>13} " \
            f"{'reduction':>9} {'worst rev.':>10} {'felt':>7}"
     lines = [head, "-" * len(head)]
     none = result.rows["none"]
-    for label in (k for k in dict.fromkeys(("none", "buffered", result.chosen.label)) if k in result.rows):
+    for label in shown:
         for row, base in zip(result.rows[label], none):
             felt = f"{row['felt']}/{row['reversals']}" if "felt" in row else "—"
             red = 100.0 * (1.0 - _ratio(row, base))
-            lines.append(f"{label:<34} {row['motion']:<9} {row.get('neighbour', ''):<10} "
+            lines.append(f"{label:<{w}} {row['motion']:<9} {row.get('neighbour', ''):<10} "
                          f"{row['final_mean_reversal_peak']:>14.4f} {row['final_max_reversal_peak']:>13.4f} "
                          f"{red:>8.0f}% {_worst_reversal(row, base):>10.2f} {felt:>7}")
     return "\n".join(lines)
