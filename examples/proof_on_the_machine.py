@@ -13,7 +13,8 @@ Machines (their own equations, no hexsim import in the physics):
 - ``drift``: ``corner`` whose null drifts 0.001 V/s while its oil warms 15 K over the run (calibrated cold).
 
 For each: ``hexsim calibrate`` on the two logs (defaults), ``hexsim tune`` on the calibrated file (defaults:
-the ``actuator`` motion, the neighbours with two machines drawn from the calibration's uncertainty), then the tuned file in the machine's loop on the seed's 50 mm 0.5 Hz sine
+the ``actuator`` motion, the neighbours with two machines drawn from the calibration's uncertainty), then the tuned file
+in the machine's loop on the seed's 50 mm 0.5 Hz sine
 (``--duration`` s, judged on the second half: the passenger's view, :func:`hexsim.measured.proof.passenger_view`),
 beside hexsim's prediction of the same run (the mean over the calibrated file and the eight machines its
 calibration's uncertainty allows, as ``hexsim tune --check`` predicts, their range beside it); then up to
