@@ -58,6 +58,7 @@ from hexsim.measured.records import plausible_machines
 from hexsim.plant.machine import dump, load_machine
 from hexsim.studies.tuning import (
     TUNE_DRAWS,
+    Candidate,
     neighbours,
     read_tuned,
     retuned,
@@ -318,7 +319,7 @@ def candidate_rows(truth: Truth, duration: float, none: dict, tuned: pathlib.Pat
         settings = CompensatorSettings(**changes)
         comp = make_compensator(name, 1, 500.0, settings=settings, model=model)
         view, now = judged(*truth.run(comp, duration, 20), duration)
-        rows.append({"machine": truth.name, "run": f"{name} {rest.replace(',', ' ')} on the tuned file's model".strip(),
+        rows.append({"machine": truth.name, "run": f"{Candidate(name, settings).label} on the tuned file's model",
                      "measured": view, "instantaneous": now, "none": none["measured"],
                      "none_instantaneous": none["instantaneous"],
                      "predicted": predicted(machine, tuned, duration, (name, settings))})
