@@ -222,17 +222,21 @@ class AdaptiveFeedforward(FeedforwardCompensator):
       sensor nonlinearities*, Wiley 1996, ch. 3): a drifting null is followed in a fraction of a second, where
       a buffer takes seconds. (One c for both sides: learned per side, the two breakpoints split on the
       asymmetry of the P loop's lag and the jump between them at every reversal was itself a bump. A slope
-      correction per side beside it, as the curve's learning began, fought the curve on a drifting machine:
-      the curve now carries the flow gain.) The null is learned where the curve is not: below the curve
-      learner's band (:data:`compensation.curve_learning.BAND_MPS`), near the reversals, where a null shift
-      matters most; learned at every speed, it took up the curve's own error (a corner's) within each period and
-      carried it into the next reversal (on the reference plant R1 the mean reversal peak 0.078 m/s² with it,
-      0.047 without). What it learns there flips with the direction (the loop's work at a reversal), so beyond
-      the band the inverse moves by the mean of the shifts the two sides last held (:meth:`shift`): a drift
-      moves the whole curve, a flip would move a corner of it. The seed's safety principles (§5.5): no
-      learning below the velocity band k, e clipped to
-      ±0.25 V per sample, steps bounded to ``adapt_rate`` [V/s], c to ±``adapt_limit``, faded in over
-      ``fade_time``.
+      correction per side beside it, as the curve's learning began, fought the curve on a drifting machine.)
+      The null is learned where the curve is not: below the curve learner's band
+      (:data:`compensation.curve_learning.BAND_MPS`), near the reversals, where a null shift matters most;
+      learned at every speed, it took up the curve's own error (a corner's) within each period and carried it
+      into the next reversal (on the reference plant R1 the mean reversal peak 0.078 m/s² with it, 0.047
+      without). The flow gain's error the curve's learner measures (g per side,
+      :meth:`~compensation.curve_learning.CurveLearner.gain_error`; the curve learns its shape and leaves the
+      gain to the P loop) is not the null's either: the loop's volts are read against F^-1(w + g v), what the
+      loop adds for the gain taken out (at the band's edge a gain 1 % off is 0.5 mm/s, some 3 mV on a valve of
+      0.16 m/s per volt, and c flipped by it at every reversal; ``tests/compensators/test_feedforward.py``).
+      What it learns there flips with the direction (the loop's work at a reversal), so beyond the band the
+      inverse moves by the mean of the shifts the two sides last held (:meth:`shift`): a drift moves the whole
+      curve, a flip would move a corner of it. The seed's safety principles (§5.5): no learning below the
+      velocity band k, e clipped to ±0.25 V per sample, steps bounded to ``adapt_rate`` [V/s], c to
+      ±``adapt_limit``, faded in over ``fade_time``.
     - **the null's drift rate**: c also moves at a learned rate ċ [V/s] at every sample, and each step the loop
       teaches c teaches ċ 1 / (:data:`DRIFT_RATIO` ``adapt_time``) of it (a second integrator: the type-2 loop of
       a tracking filter, which follows a ramp without lag, where c alone lags a drift r by r times its time
@@ -309,7 +313,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         if executor is not None:
             learner = self.learner
             empty = Taken({k: np.ones_like(v) if k == "scale" else np.zeros_like(v) for k, v in learner.buffer.items()},
-                          list(learner.gram), learner.rhs.copy())
+                          list(learner.gram), learner.rhs.copy(), learner.gain_evidence.copy())
             executor.submit(learner.teacher.teach, empty).result()
 
     def update(self, u_p: np.ndarray, y_measured: np.ndarray) -> np.ndarray:
@@ -325,7 +329,10 @@ class AdaptiveFeedforward(FeedforwardCompensator):
         u_v = self.inverse(promised, p1)
         if self.reference is not None:
             self._drift()
-            self._learn(np.clip(u_v - static, -0.25, 0.25), velocity)
+            g = self.learner.gain_error()
+            explained = self.inverse(promised + np.where(velocity > 0, g[:, 1], g[:, 0]) * velocity, p1) \
+                if g.any() else u_v
+            self._learn(np.clip(explained - static, -0.25, 0.25), velocity)
             self._guard(loop, self.reference.r_dot)
             self._buffer(u_v, y_measured, u_p, promised, velocity, p1)
         self._applied += self._fade * (1.0 - self._applied)

@@ -16,6 +16,7 @@ import pytest
 from helpers import in_the_loop, reversal_peaks
 from independent_actuator import Actuator, motion, write
 
+import compensation.curve_learning as cl
 from compensation import CompensatorSettings, SettingsError, make_compensator
 from compensation.leg_model import LegModel, Reference
 from compensation.model_based import AdaptiveFeedforward
@@ -23,6 +24,7 @@ from hexsim.cli import main
 from hexsim.engine.config import RunConfig
 from hexsim.measured.calibration import calibrate
 from hexsim.measured.measurement import read_log
+from hexsim.measured.proof import passenger_view
 from hexsim.plant.machine import dump, load_machine
 from hexsim.studies.tuning import leg_model_of, read_tuned
 
@@ -105,6 +107,33 @@ def test_the_adaptive_version_learns_the_rate_a_null_drifts_at_and_leaves_less_t
           f"against {alone[half:].mean():.4f} m/s^2 with the null alone")
     assert abs(loop.compensator.drift[0] - 1e-3) < 0.25e-3
     assert tracked[half:].mean() < 0.6 * alone[half:].mean()
+
+
+def test_a_flow_gain_off_is_measured_and_left_to_the_loop_not_learned_into_the_curve(model, monkeypatch):
+    """The truth's valve 3 % more open than TRUTH (some 4 % against the calibrated file): the curve's learner
+    measures the gain's error on each side (compensation.curve_learning.CurveLearner.gain_error; measured 4.2 and
+    3.9 %) and learns the curve's shape without it, the null's learning told of it. Learned into the curve (as
+    before: the tuned settings, 40 s, the second half), the corrections fell to zero within the reversals' band
+    and the gain stepped at its edge either side of every reversal: the seat's ISO 2631-1 peak 16.4x the threshold
+    and the mean reversal peak 0.072 m/s²; left to the P loop, 1.15x and 0.060."""
+    wide = TRUTH.replace(flow_gain=TRUTH.flow_gain * 1.03)
+    settings = CompensatorSettings(adapt_time=1.0, loop_filter_hz=10.0)
+
+    def view(loop):
+        cols = motion(wide, 40.0, 0.5, 0.05, np.random.default_rng(3), noise=(5e-6, 2e3, 0.0), compensate=loop)
+        t = cols["time_s"]
+        return passenger_view(t, cols["acc_mps2"], cols["ref_m"], 0.5, 20.0, np.gradient(cols["pos_m"], t))
+
+    loop = in_the_loop("adaptive", model, settings)
+    shape = view(loop)
+    measured = loop.compensator.learner.gain_error()[0]
+    monkeypatch.setattr(cl.CurveTeacher, "_without_gain", lambda self, u, w, target, evidence: (0.0 * evidence, target))
+    learned = view(in_the_loop("adaptive", model, settings))
+    print(f"gain error {measured}; seat {shape.seat_ratio:.2f}x against {learned.seat_ratio:.2f}x, mean "
+          f"{shape.mean:.4f} against {learned.mean:.4f} m/s^2 with the gain learned into the curve")
+    assert np.all((measured > 0.03) & (measured < 0.05))
+    assert shape.seat_ratio < 0.25 * learned.seat_ratio
+    assert shape.mean < learned.mean
 
 
 def test_the_guard_turns_a_leg_off_rather_than_keep_a_compensation_worse_than_none(model, none_peaks):
