@@ -23,18 +23,18 @@ F <- F + κ mean_bin(δ). The corrected curve is kept non-decreasing (its invers
 calibration missed is learned where the motion crosses it; a dead band the valve lacks closes from its edges
 inwards as the commands there show the flow the model denied.
 
-What is learned is the curve's *shape*: per side, the least-squares share of δ proportional to the model's own
-curve, δ ≈ g F(u) (a flow gain g off, within a valve's tolerance), is measured
-(:meth:`CurveLearner.gain_error`) and taken out of the evidence before the bins are fitted, and left to the P
-loop, which takes it up at every speed alike, reversals included. Learned, it could not be applied where it
-is not measured: within the reversals' band (:data:`BAND_MPS`) the corrections fall to null's zero, and the
-curve's gain stepped by g at the band's edge, 0.1 s either side of every reversal (the null's learning is told of
-g too: :class:`compensation.model_based.AdaptiveFeedforward`). On the independent actuators of
-``examples/proof_on_the_machine.py`` (the tuned files, 60 s sine in their own loops, second half, seeds 20-22;
-their calibrated gains some 1 % off) the seat's ISO 2631-1 peak was at those edges. With the gain learned, then
-without: ``corner`` 1.05-1.26x the threshold, 0.70-0.76x (its mean reversal peak 0.032-0.033 m/s², 0.032-0.038);
-``drift`` 1.32-1.47x, 0.70-0.91x (0.038-0.044, 0.026-0.029); the reference plant R1 (its corner at 0.89 V, which
-is kept) 0.92-0.95x, 0.68-0.89x (0.022-0.023, 0.0175-0.0182).
+What is learned is the curve's *shape*: per side, the share of δ proportional to the model's own curve, δ ≈
+g F(u) + b (a flow gain g off, within a valve's tolerance; the offset b, an edge opening early or late, is shape),
+is measured by least squares (:meth:`CurveLearner.gain_error`), g F taken out of the evidence before the bins are
+fitted and left to the P loop, which takes it up at every speed alike, reversals included. Learned, it could not
+be applied where it is not measured: within the reversals' band (:data:`BAND_MPS`) the corrections fall to null's
+zero, and the curve's gain stepped by g at the band's edge, 0.1 s either side of every reversal (the null's
+learning is told of g too: :class:`compensation.model_based.AdaptiveFeedforward`). On the independent actuators
+of ``examples/proof_on_the_machine.py`` (the twenty-fourth stop's tuned files, 60 s sine in their own loops,
+second half, seeds 20-22; their calibrated gains some 1 % off) the seat's ISO 2631-1 peak was at those edges.
+With the gain learned, then without: ``corner`` 1.05-1.26x the threshold, 0.70-0.75x (its mean reversal peak
+0.032-0.033 m/s², 0.031-0.036); ``drift`` 1.32-1.47x, 0.73-0.84x (0.038-0.044, 0.021-0.025); the reference plant
+R1 (its corner at 0.89 V, which is kept) 0.92-0.95x, 0.65-0.85x (0.022-0.023, 0.018).
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def seed_weights(n: int) -> np.ndarray:
 class Taken(NamedTuple):
     """A full buffer and the evidence before it (:meth:`CurveLearner.take`): the buffer's arrays (size, n) by
     name, the per-leg normal equations (bins, bins) and their right-hand sides (n, bins), and the flow gain's
-    evidence (n, 2, 2) (per leg and side, retracting then extending: the sums Σ w F δ and Σ w F², module doc)."""
+    evidence (n, 2, 5) (per leg and side, retracting then extending: :func:`gain_error`)."""
 
     buffer: dict[str, np.ndarray]
     gram: list
@@ -213,17 +213,21 @@ class CurveTeacher:
 
     def _without_gain(self, u: np.ndarray, w: np.ndarray, target: np.ndarray,
                       evidence: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The flow gain's evidence (n, 2, 2) with this buffer's (``evidence``: the earlier buffers', faded) and
+        """The flow gain's evidence (n, 2, 5) with this buffer's (``evidence``: the earlier buffers', faded) and
         the ``target`` (size, n) [m/s] less the gain's share (module doc): per side of the curve the least-squares
-        factor g of the model's velocity F(u) at each command ``u`` (size, n) [V] (seen through the time filter,
-        as δ is) in the target, with the seed's weights ``w`` (size, n)."""
+        fit δ ≈ g F(u) + b of the model's velocity F(u) at each command ``u`` (size, n) [V] (seen through the time
+        filter, as δ is) and an offset b, with the seed's weights ``w`` (size, n); g F is taken out. (The offset
+        is a valve edge opening early or late, F(u + Δ) - F(u) ≈ F' Δ: shape, not gain; fitted by g alone, it
+        passed for one.)"""
         evidence = evidence.copy()
         flow = np.stack([np.interp(u[:, leg], self.u, self.base[leg]) for leg in range(self.n_legs)], axis=1)
         seen = self.filter @ flow
         extending = flow > 0
         for side, mask in enumerate((~extending, extending)):
-            evidence[:, side, 0] += np.sum(w * mask * seen * target, axis=0)
-            evidence[:, side, 1] += np.sum(w * mask * seen * seen, axis=0)
+            wm = w * mask
+            evidence[:, side] += np.stack([np.sum(wm * seen * seen, axis=0), np.sum(wm * seen, axis=0),
+                                           np.sum(wm, axis=0), np.sum(wm * seen * target, axis=0),
+                                           np.sum(wm * target, axis=0)], axis=1)
         g = gain_error(evidence)
         return evidence, target - seen * np.where(extending, g[None, :, 1], g[None, :, 0])
 
@@ -253,7 +257,7 @@ class CurveLearner:
         self.gram = [sparse.csr_array((bins, bins)) for _ in range(self.n_legs)]
         self.rhs = np.zeros((self.n_legs, bins))
         self.teacher = CurveTeacher(self.centres, self.knee, 1.0 / rate_hz, self.size, kp, self.u, self.base)
-        self.gain_evidence = np.zeros((self.n_legs, 2, 2))  # the flow gain's evidence (:class:`Taken`)
+        self.gain_evidence = np.zeros((self.n_legs, 2, 5))  # the flow gain's evidence (:class:`Taken`)
         names = ("u", "tracking", "u_p", "promised", "ref_rate", "compression", "scale", "p1", "volume", "held")
         self.buffer = {k: np.zeros((self.size, self.n_legs)) for k in names}
         self.filled = 0
@@ -345,10 +349,13 @@ class CurveLearner:
 
 
 def gain_error(evidence: np.ndarray) -> np.ndarray:
-    """The flow gain's relative error (n, 2) from its evidence (n, 2, 2) (:class:`Taken`): Σ w F δ / Σ w F² per
-    leg and side, 0 where a side has none."""
-    num, den = evidence[..., 0], evidence[..., 1]
-    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    """The flow gain's relative error g (n, 2) from its evidence (n, 2, 5) (:class:`Taken`: per leg and side the
+    weighted sums Σ F², Σ F, Σ 1, Σ F δ, Σ δ of the fit δ ≈ g F + b, :meth:`CurveTeacher._without_gain`): the
+    least-squares g, 0 where a side's evidence cannot tell it from the offset b."""
+    ff, f1, n1, fy, y1 = np.moveaxis(evidence, -1, 0)
+    det = ff * n1 - f1 * f1
+    ok = det > 1e-9 * np.maximum(ff * n1, 1e-300)
+    return np.where(ok, (n1 * fy - f1 * y1) / np.where(ok, det, 1.0), 0.0)
 
 
 def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
