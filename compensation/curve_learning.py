@@ -80,6 +80,10 @@ SHRINK = 0.1
 KINK = 0.01
 #: See :data:`KINK`: a kink stands out of the side's second differences by at least this factor.
 KINK_MEDIAN = 3.0
+#: Largest flow-gain error [share of the model's flow] :func:`gain_error` reports: twice a proportional valve's
+#: usual ±10 % flow tolerance; beyond it the calibration, not the loop, is what needs mending (a buffer's first
+#: few samples on a side cannot move the null's learning by more).
+GAIN_LIMIT = 0.2
 #: Reweighted solves of the Huber penalty (:func:`_smoothed`; from the squared penalty's solution).
 KINK_ITERATIONS = 6
 
@@ -351,11 +355,11 @@ class CurveLearner:
 def gain_error(evidence: np.ndarray) -> np.ndarray:
     """The flow gain's relative error g (n, 2) from its evidence (n, 2, 5) (:class:`Taken`: per leg and side the
     weighted sums Σ F², Σ F, Σ 1, Σ F δ, Σ δ of the fit δ ≈ g F + b, :meth:`CurveTeacher._without_gain`): the
-    least-squares g, 0 where a side's evidence cannot tell it from the offset b."""
+    least-squares g, 0 where a side's evidence cannot tell it from the offset b, within ±:data:`GAIN_LIMIT`."""
     ff, f1, n1, fy, y1 = np.moveaxis(evidence, -1, 0)
     det = ff * n1 - f1 * f1
     ok = det > 1e-9 * np.maximum(ff * n1, 1e-300)
-    return np.where(ok, (n1 * fy - f1 * y1) / np.where(ok, det, 1.0), 0.0)
+    return np.clip(np.where(ok, (n1 * fy - f1 * y1) / np.where(ok, det, 1.0), 0.0), -GAIN_LIMIT, GAIN_LIMIT)
 
 
 def _smoothed(gram: np.ndarray, rhs: np.ndarray, knee: np.ndarray | float = 0.0,
