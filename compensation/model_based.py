@@ -248,8 +248,10 @@ class AdaptiveFeedforward(FeedforwardCompensator):
       drift) and the reference plant R1 the same either way (0.040 and 0.0294 m/s²). ċ is bounded to
       ±:data:`DRIFT_LIMIT`.
 
-    Guard: at each reversal of the reference (per leg), the largest |LP(u_p)| within ±0.1 s is the
-    bump's footprint in the loop (a leg that stalls in the dead band makes the P output climb across it).
+    Guard: at each reversal of the reference (per leg), the largest |LP(u_p)| within ±0.1 s, less the volts the
+    loop adds for the flow gain's measured error (as the null reads them; on the 4-way axis of
+    ``examples/four_way_axis.py`` the gain's volts alone took its footprint over the floor below), is the bump's
+    footprint in the loop (a leg that stalls in the dead band makes the P output climb across it).
     A footprint more than twice its running level (an exponential mean over the last reversals, which
     follows a slow drift) on two reversals running restores the last null and curve that did not, and learning
     pauses for four reversals. A footprint as large as the P output an uncompensated reversal needs — the
@@ -333,7 +335,7 @@ class AdaptiveFeedforward(FeedforwardCompensator):
             explained = self.inverse(promised + np.where(velocity > 0, g[:, 1], g[:, 0]) * velocity, p1) \
                 if g.any() else u_v
             self._learn(np.clip(explained - static, -0.25, 0.25), velocity)
-            self._guard(loop, self.reference.r_dot)
+            self._guard(loop + (explained - u_v), self.reference.r_dot)
             self._buffer(u_v, y_measured, u_p, promised, velocity, p1)
         self._applied += self._fade * (1.0 - self._applied)
         u_v = u_v + self._applied * self.shift(velocity)
