@@ -262,6 +262,7 @@ class CurveLearner:
         self.rhs = np.zeros((self.n_legs, bins))
         self.teacher = CurveTeacher(self.centres, self.knee, 1.0 / rate_hz, self.size, kp, self.u, self.base)
         self.gain_evidence = np.zeros((self.n_legs, 2, 5))  # the flow gain's evidence (:class:`Taken`)
+        self._gain = np.zeros((self.n_legs, 2))  # gain_error(gain_evidence), kept as the evidence changes
         names = ("u", "tracking", "u_p", "promised", "ref_rate", "compression", "scale", "p1", "volume", "held")
         self.buffer = {k: np.zeros((self.size, self.n_legs)) for k in names}
         self.filled = 0
@@ -309,6 +310,7 @@ class CurveLearner:
                 self.gain_evidence[leg] = taught.gain_evidence[leg]
                 self.gram[leg], self.rhs[leg], self.correction[leg] = taught.gram[leg], taught.rhs[leg], \
                     taught.correction[leg]
+        self._gain = gain_error(self.gain_evidence)
         return self.curve()
 
     def teach(self, taken: Taken) -> Taught:
@@ -321,8 +323,9 @@ class CurveLearner:
 
     def gain_error(self) -> np.ndarray:
         """The flow gain's relative error (n, 2) (retracting, extending) measured so far (:func:`gain_error`):
-        left to the P loop, not in :meth:`curve` (module doc)."""
-        return gain_error(self.gain_evidence)
+        left to the P loop, not in :meth:`curve` (module doc). Kept as the evidence changes (:meth:`accept`,
+        :meth:`restore`), not solved at each call: the compensator reads it every tick."""
+        return self._gain.copy()
 
     def errors(self) -> np.ndarray:
         """(size, n) [m/s]: δ at each tick of the buffer filling (:meth:`CurveTeacher.errors`)."""
@@ -344,6 +347,7 @@ class CurveLearner:
         self.gram[leg] = sparse.csr_array(self.gram[leg].shape)
         self.rhs[leg] = 0.0
         self.gain_evidence[leg] = 0.0
+        self._gain[leg] = 0.0
         self._restored.add(leg)
         return self.curve()
 
