@@ -50,18 +50,18 @@ from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
 from hexsim.measured.calibration import calibrate
-from hexsim.measured.commissioning import commission
+from hexsim.measured.commissioning import commissioning_step
 from hexsim.measured.measurement import read_log
 from hexsim.measured.null_drift import last_drift, with_drift
 from hexsim.measured.proof import passenger_view
 from hexsim.measured.records import plausible_machines
+from hexsim.measured.reports.commissioning import step_lines
 from hexsim.plant.machine import dump, load_machine
 from hexsim.studies.tuning import (
     TUNE_DRAWS,
     Candidate,
     neighbours,
     read_tuned,
-    retuned,
     tune,
     write_tuned,
 )
@@ -189,24 +189,25 @@ def prove(name: str, runs: int, duration: float, folder: pathlib.Path) -> list[d
     none, none_now = judged(*truth.run(None, duration, 11), duration)
     rows = [{"machine": name, "run": "none", "measured": none, "instantaneous": none_now,
              "predicted": predicted(cal, None, duration)}]
-    machine = cal
+    machine, kept = cal, None
     for k in range(runs + 1):
         name_, settings, model = read_tuned(tuned)
         comp = make_compensator(name_, 1, 500.0, settings=settings, model=model)
         log = folder / f"{name}_run{k}.csv"
         view, now = judged(*truth.run(comp, duration, 20 + k, log), duration)
-        rows.append({"machine": name, "run": f"{name_} {'tuned' if k == 0 else f'commissioned {k}'}",
+        label = "tuned" if k == 0 else f"commissioned {k}" + (f" (kept {kept})" if kept else "")
+        rows.append({"machine": name, "run": f"{name_} {label}",
                      "measured": view, "instantaneous": now, "predicted": predicted(machine, tuned, duration),
                      "none": none, "none_instantaneous": none_now})
         if k == runs:
             break
-        learned = commission([folder / f"{name}_run{j}.csv" for j in range(k + 1)], cal)
-        machine = learned.machine
+        step = commissioning_step([folder / f"{name}_run{j}.csv" for j in range(k + 1)], tuned, cal)
+        machine = step.learned.machine
         (folder / f"{name}_cal_{k + 1}.json").write_text(dump(machine.document()))
         nxt = folder / f"{name}_tuned_{k + 1}.json"
-        doc = retuned(tuned, RunConfig.from_machine(machine, make_scenario("actuator", duration=20.0)), learned.model,
-                      learned.report())
-        nxt.write_text(json.dumps(doc))
+        nxt.write_text(json.dumps(step.doc))
+        kept = None if step.kept is None else pathlib.Path(step.kept["file"]).name
+        print("\n".join(f"{name}: {line}" for line in step_lines(step, str(tuned))), flush=True)
         tuned = nxt
     return rows
 

@@ -126,18 +126,17 @@ def _tune_from_logs(args: argparse.Namespace) -> int:
     for out in (args.out, args.machine_out):
         if out is not None and out.resolve() == pathlib.Path(args.compensator).resolve():
             raise InputError(f"{out}: would overwrite the tuned file the logs ran with; write the improved one elsewhere")
-    from hexsim.engine.config import RunConfig
-    from hexsim.measured.commissioning import commission
-    from hexsim.measured.reports.commissioning import learned_lines, predicted_lines
+    from hexsim.measured.commissioning import commissioning_step
+    from hexsim.measured.reports import commissioning as report
     from hexsim.plant.machine import dump, load_machine
-    from hexsim.studies.tuning import retuned
 
     machine = load_machine(args.machine)
-    learned = commission(list(args.from_logs), machine)
-    print("\n".join(learned_lines(learned)))
-    base = RunConfig.from_machine(learned.machine, "actuator")
-    doc = retuned(args.compensator, base, learned.model, learned.report(), jobs=args.jobs)
-    print("\n".join(predicted_lines(doc["predicted"])))
+    step = commissioning_step(list(args.from_logs), pathlib.Path(args.compensator), machine, jobs=args.jobs)
+    learned, doc = step.learned, step.doc
+    print("\n".join(report.learned_lines(learned)))
+    print("\n".join(report.step_lines(step, args.compensator)))
+    if step.kept is None:
+        print("\n".join(report.predicted_lines(doc["predicted"])))
     write_json(args.out, doc)
     print(f"wrote {args.out}")
     if args.machine_out:

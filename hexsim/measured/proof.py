@@ -332,3 +332,99 @@ def passenger_view(t: np.ndarray, acc: np.ndarray, setpoint: np.ndarray, frequen
     weighted = iso2631("Wk").apply(cue, 1.0 / float(np.median(np.diff(t))))
     seat = float(np.max(np.abs(weighted[t[lead] >= t_start])))
     return PassengerView(sm.reversal_peaks, seat, sm.noise_ratio)
+
+
+#: Band [Hz] the period average's reversal peaks are read in (:func:`run_figures`).
+RUN_BAND_HZ = 50.0
+#: Share of a setpoint's variance its fundamental holds for the log to be judged as a periodic run.
+RUN_PERIODIC = 0.9
+
+
+@dataclass(frozen=True)
+class RunFigures:
+    """A periodic run of the machine as its log measures it, with the accelerometer's noise averaged out
+    (:func:`run_figures`): the motion (``frequency_hz`` [Hz], ``amplitude_m`` [m], the setpoint's fundamental),
+    the ``periods`` averaged, the bump of the period average (``reversal_peak`` [m/s^2]: the mean over its two
+    reversals of the largest departure from the fundamental within ``REVERSAL_WINDOW`` of each), its ISO 2631-1
+    W_k ``seat_peak`` [m/s^2] (every reversal and every corner crossing of the period), and the ``noise`` [m/s^2]
+    left in the average (the accelerometer's scatter about it, a sample, over the square root of the periods)."""
+
+    log: str
+    frequency_hz: float
+    amplitude_m: float
+    periods: int
+    reversal_peak: float
+    seat_peak: float
+    noise: float
+
+    @property
+    def seat_ratio(self) -> float:
+        return self.seat_peak / ISO_PERCEPTION_THRESHOLD
+
+    def same_motion(self, other: RunFigures) -> bool:
+        """Whether ``other`` ran the same motion (frequency within 2 %, amplitude within 5 %): only then do their
+        figures compare."""
+        return (abs(self.frequency_hz / other.frequency_hz - 1.0) <= 0.02
+                and abs(self.amplitude_m / other.amplitude_m - 1.0) <= 0.05)
+
+    def record(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def run_figures(path: pathlib.Path, machine) -> RunFigures:
+    """The :class:`RunFigures` of a single actuator's log at ``path`` running a periodic motion (``ref_m``,
+    ``pos_m``, ``acc_mps2``), judged on ``machine``, over its second half (where an adaptive compensator has
+    learned; the log's last ``PROOF_END_S`` left out), in whole periods of the setpoint's fundamental.
+
+    A real accelerometer's noise (R1's: 0.05 m/s^2 a sample at 1 kHz) is larger than the bump a compensator
+    leaves (0.02 m/s^2), so one run's reversal peaks measure the noise. The bump is the same at every period and
+    the noise is not: the acceleration less its fundamental is averaged over the periods at the same phase of the
+    setpoint (time-synchronous averaging, as rotating machinery's vibration is read), which leaves the noise over
+    the square root of the periods (5.5 times less over a 60 s log's last 30 s at 0.5 Hz). The reversals are the
+    period average position's highest and lowest points, their peaks read below ``RUN_BAND_HZ`` (zero-phase
+    Butterworth, scipy.signal.sosfiltfilt), where the noise falls by the square root of the band's share again;
+    the seat's W_k weighting is applied to the average as it is. Raises InputError naming the log for one without
+    those columns, without a periodic setpoint (:data:`RUN_PERIODIC`), or with less than two periods in its second
+    half."""
+    log = read_log(path, machine, needs=("pos_m",))
+    cols = log.columns
+    if log.system != "single-actuator" or "acc_mps2" not in cols or "ref_m" not in cols:
+        raise InputError(f"{path}: a run is judged on a single actuator's ref_m, pos_m and acc_mps2")
+    t = log.time - log.time[0]
+    ref, pos, acc = cols["ref_m"], cols["pos_m"], cols["acc_mps2"]
+    try:
+        frequency = dominant_frequency(t, ref)
+    except ValueError:
+        raise InputError(f"{path}: the setpoint does not move; a run is judged on a periodic motion") from None
+    end = t[-1] - PROOF_END_S
+    periods = int(np.floor((end - t[-1] / 2) * frequency))
+    if periods < 2:
+        raise InputError(f"{path}: its second half holds {periods} period(s) of its {frequency:.3g} Hz motion; "
+                         "a run is judged on two or more")
+    window = (t > end - periods / frequency) & (t <= end)
+    tw = t[window]
+    _, amplitude, phase, fit = fit_fundamental(tw, ref[window], frequency)
+    if np.var(ref[window] - fit) > (1.0 - RUN_PERIODIC) * np.var(ref[window]):
+        raise InputError(f"{path}: its setpoint is not a periodic motion (its {frequency:.3g} Hz fundamental holds "
+                         f"less than {RUN_PERIODIC:.0%} of its variance in its second half)")
+    residual = acc[window] - fit_fundamental(tw, acc[window], frequency)[3]
+    bins = max(8, int(round(log.sample_rate_hz / frequency)))
+    at = np.floor(((tw * frequency + phase / (2 * np.pi)) % 1.0) * bins).astype(int) % bins
+    count = np.bincount(at, minlength=bins)
+    if np.any(count == 0):
+        raise InputError(f"{path}: its samples do not cover every phase of its {frequency:.3g} Hz motion")
+    average = np.bincount(at, residual, bins) / count
+    place = np.bincount(at, pos[window], bins) / count
+    rate = bins * frequency
+    # the reversals read below the oil spring's and the sensor's band, as a 1 kHz accelerometer's 1 ms means are
+    # read at the seat: zero phase, over the period repeated (cyclic)
+    sos = signal.butter(4, min(RUN_BAND_HZ, 0.45 * rate), fs=rate, output="sos")
+    smooth = signal.sosfiltfilt(sos, np.tile(average, 3))[bins:2 * bins]
+    noise = float(np.std(residual - average[at]) / np.sqrt(periods) * np.sqrt(2 * min(RUN_BAND_HZ, 0.45 * rate) / rate))
+    turns = (int(np.argmax(place)), int(np.argmin(place)))  # the period average position's two turns
+    half = max(1, int(round(REVERSAL_WINDOW * frequency * bins)))
+    idx = np.arange(-half, half + 1)
+    peaks = [float(np.max(np.abs(smooth[(k + idx) % bins]))) for k in turns]
+    weighted = iso2631("Wk").apply(np.tile(average, 4), rate)[3 * bins:]  # settled over three periods
+    return RunFigures(str(path), float(frequency), float(amplitude), periods, float(np.mean(peaks)),
+                      float(np.max(np.abs(weighted))), noise)

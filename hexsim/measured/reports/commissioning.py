@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import pathlib
 
+from hexsim.measured.proof import RUN_BAND_HZ
+
 
 def check_lines(rows: list[dict], machine_label: str, compensator_name: str) -> list[str]:
     """The ``--check`` table and verdicts: ``rows`` as :func:`hexsim.measured.proof.proof` returns them (each log's
@@ -57,3 +59,20 @@ def predicted_lines(predicted: dict) -> list[str]:
     """The improved tuned file's predictions (its document's ``predicted``: label -> rows per motion)."""
     return [f"predicted {label:<30} {row['motion']:<9} mean rev. peak {row['final_mean_reversal_peak']:.4f}"
             for label, rows in predicted.items() for row in rows]
+
+
+def step_lines(step, tuned: str) -> list[str]:
+    """How the tuned file ran on the machine and what the improved file holds (``step``:
+    :class:`hexsim.measured.commissioning.CommissioningStep`; ``tuned``: the file the runs ran)."""
+    name = pathlib.Path(tuned).name
+    lines = [f"{pathlib.Path(r.log).name}: {name} on the machine, {r.periods} periods of {r.frequency_hz:.3g} Hz, "
+             f"{1e3 * r.amplitude_m:.3g} mm averaged: reversal peak {r.reversal_peak:.4f} ± {r.noise:.4f} m/s² "
+             f"(below {RUN_BAND_HZ:g} Hz), seat peak {r.seat_ratio:.2f}× the perception threshold" for r in step.runs]
+    lines += [f"{pathlib.Path(log).name}: not judged as a run ({why})" for log, why in step.unjudged]
+    if step.kept is None:
+        lines.append(f"the improved file holds the leg model learned from the logs (its compensator and settings "
+                     f"{name}'s)")
+    else:
+        lines.append(f"the improved file keeps {pathlib.Path(step.kept['file']).name}'s compensator and leg model: "
+                     f"{step.kept['because']}; the machine file with what the logs taught is --machine-out's")
+    return lines
