@@ -50,7 +50,9 @@ def add_tune(sub) -> None:
     tu.add_argument("--from-logs", nargs="+", type=pathlib.Path, metavar="LOG.csv",
                     help="commissioning instead of tuning: logs of the machine running with --compensator (a tuned "
                     "file) read back into the model (each valve edge's curve from their flows and the calibration's "
-                    "own logs'); writes the improved tuned file to --out (docs/compensation.md)")
+                    "own logs'); writes the improved tuned file to --out, or the file run before it where the "
+                    "logs measured --compensator worse on the machine (give all the runs so far; "
+                    "docs/compensation.md)")
     tu.add_argument("--machine-out", type=pathlib.Path, metavar="FILE.json",
                     help="--from-logs: also write the machine file with the curves read from the logs")
     tu.add_argument("--compensator", type=parse_compensator, metavar="NAME|FILE.json",

@@ -41,16 +41,16 @@ def _plant():
     return plant, r1
 
 
-def run_on_r1(tuned: pathlib.Path, seed: int, log: pathlib.Path | None = None):
-    """R1 on the seed's sine with ``tuned`` in its loop: the passenger's view of its (noise-free) acceleration
-    from the second half on; the log written to ``log``."""
+def run_on_r1(tuned: pathlib.Path, seed: int, log: pathlib.Path | None = None, duration: float = DURATION):
+    """R1 on the seed's sine for ``duration`` [s] with ``tuned`` in its loop: the passenger's view of its
+    (noise-free) acceleration from the second half on; the log written to ``log``."""
     plant, r1 = _plant()
     name, settings, model = read_tuned(tuned)
     comp = make_compensator(name, 1, 500.0, settings=settings, model=model)
-    rows, extra = plant.simulate(effects=r1.effects("r1_f"), ref="sine", T=DURATION, seed=seed, compensator=comp)
+    rows, extra = plant.simulate(effects=r1.effects("r1_f"), ref="sine", T=duration, seed=seed, compensator=comp)
     if log is not None:
         plant.write(log.stem, rows, r1.META, log.parent)
-    return passenger_view(rows[:, 0], extra["acc"], rows[:, 1], 0.5, DURATION / 2, extra["v"])
+    return passenger_view(rows[:, 0], extra["acc"], rows[:, 1], 0.5, duration / 2, extra["v"])
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +93,11 @@ def test_the_commissioned_files_say_what_they_learned(commissioned):
     learned = doc["commissioning"][-1]
     assert any(pathlib.Path(p).name == "run0.csv" for p in learned["logs"])
     assert learned["curves"]["reach_V"]["PA"] > 1.0
+    # the run it learned from, measured through R1's accelerometer noise, recorded with the file that ran it
+    (run,) = learned["runs"]
+    assert pathlib.Path(run["log"]).name == "run0.csv" and run["seat_peak"] / 0.015 > 5.0, run
+    assert learned["ran"]["model"] == json.loads((folder / "tuned.json").read_text())["model"]
+    assert "kept" not in learned
     machine = load_machine(folder / "machine_1.json")
     assert machine.hydraulics.flow_area == "curve" and len(machine.hydraulics.flow_curve_pa) > 5
 
@@ -122,3 +127,29 @@ def test_near_null_the_commissioned_curve_keeps_the_shape_a_compensated_run_cann
     truth = shape(lambda u: plant.port_area(u * p["xvmax"] / p["uvmax"], **p["area_kw"]))
     ours = shape(lambda u: float(hydraulics.flow_areas(np.array([u * hyd.x_v_max / hyd.u_v_max]), hyd)[0][0]))
     assert np.all(np.abs(ours / truth - 1.0) < 0.25), (ours, truth)
+
+
+def test_a_commissioned_file_the_machine_runs_worse_than_the_one_before_is_not_kept(commissioned, tmp_path, capsys):
+    """A model learned from logs is better on average, not on every machine (docs/compensation.md: on two of the
+    proof's machines the commissioned files were felt at twice the tuned file's seat peak). Here the commissioned
+    file is spoilt as a commissioning that read the valve's null 0.1 V off would spoil it; on R1 it is felt at
+    several times the file before it. Its log, measured through R1's 0.05 m/s² accelerometer noise, says so, and
+    the next step writes back the file before it (its compensator and model), naming why."""
+    _, _, second, folder = commissioned
+    doc = json.loads(second.read_text())
+    doc["model"]["u"] = (np.asarray(doc["model"]["u"]) + 0.1).tolist()
+    spoilt = tmp_path / "tuned_spoilt.json"
+    spoilt.write_text(json.dumps(doc))
+    view = run_on_r1(spoilt, 23, tmp_path / "run_spoilt.csv", duration=12.0)
+    out = tmp_path / "tuned_2.json"
+    assert main(["tune", "--from-logs", str(folder / "run0.csv"), str(tmp_path / "run_spoilt.csv"), "--compensator",
+                 str(spoilt), "--machine", str(folder / "machine.json"), "--out", str(out), "--jobs", "1"]) == 0
+    said = capsys.readouterr().out
+    kept = json.loads(out.read_text())
+    assert kept["model"] == json.loads((folder / "tuned.json").read_text())["model"]
+    entry = kept["commissioning"][-1]
+    assert pathlib.Path(entry["kept"]["file"]).name == "tuned.json" and "ran worse on the machine" in said, said
+    (run,) = entry["runs"]  # run0 was read by the commissioning before: only the spoilt file's own run is its
+    assert pathlib.Path(run["log"]).name == "run_spoilt.csv"
+    before = kept["commissioning"][0]["runs"][0]  # run0's, as the first step measured it
+    assert run["seat_peak"] > 1.5 * before["seat_peak"], (run, before, view.seat_ratio)

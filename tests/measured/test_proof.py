@@ -14,11 +14,14 @@ from independent_actuator import write
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
+from hexsim.errors import InputError
 from hexsim.measured.proof import (
+    RUN_BAND_HZ,
     accelerometer_noise,
     between_peaks,
     proof,
     ratio,
+    run_figures,
     verdict,
 )
 from hexsim.measured.records import CalibrationRecord
@@ -165,3 +168,32 @@ def test_an_accelerometer_read_at_an_instant_is_predicted_at_an_instant(tmp_path
         judged[sampling] = proof(log, base)["verdict"]
     assert judged["instant"]["within"] is True
     assert judged["mean"]["within"] is False and judged["mean"]["reversals"]["low"] > 1.3
+
+
+def test_a_runs_bump_is_read_through_an_accelerometers_noise_by_averaging_its_periods(tmp_path):
+    """A 40 s log of a 0.5 Hz sine with a bump at every reversal and at a corner crossing (10 ms pulses, ±20 %
+    scatter, :func:`run`), read through 0.05 m/s² of white accelerometer noise a sample (R1's), which alone puts
+    each reversal's largest sample near 0.15 m/s². Averaged over the second half's ten periods at the same phase,
+    the reversal peak and the seat peak are those of the noise-free log within four times the noise the average
+    states, and that noise is the accelerometer's over the root of the periods and of the band's share; a step
+    log is not a run."""
+    t, acc, setpoint, _ = run(0.08, 0.04, duration=40.0)
+    pos = 0.1 + 0.05 * np.sin(2 * np.pi * F * (t - 0.004))  # about mid-stroke, lagging its setpoint by 4 ms
+    noisy = acc + np.random.default_rng(3).normal(0.0, 0.05, t.size)
+    figures = {}
+    for name, a in (("clean", acc), ("noisy", noisy)):
+        columns = {"time_s": t, "ref_m": 0.1 + setpoint, "pos_m": pos, "acc_mps2": a}
+        path = write(columns, tmp_path / f"{name}.csv", name)
+        figures[name] = run_figures(path, load_machine("servo_cylinder"))
+    clean, noisy_ = figures["clean"], figures["noisy"]
+    assert clean.periods == noisy_.periods == 9 and abs(clean.amplitude_m - 0.05) < 1e-4
+    expected_noise = 0.05 / math.sqrt(noisy_.periods) * math.sqrt(2 * RUN_BAND_HZ / 1000.0)
+    assert abs(noisy_.noise / expected_noise - 1.0) < 0.1, (noisy_.noise, expected_noise)
+    assert abs(noisy_.reversal_peak - clean.reversal_peak) < 4 * noisy_.noise, (noisy_, clean)
+    assert abs(noisy_.seat_peak - clean.seat_peak) < 0.15 * clean.seat_peak, (noisy_, clean)
+    sm = smoothness(t, noisy, F, 20.0, setpoint, name="a", unit="m/s^2")
+    assert np.mean(sm.reversal_peaks) > 1.5 * clean.reversal_peak  # one run's peaks are the noise's
+    steps = np.where((t // 2) % 2 == 0, 0.12, 0.08)
+    path = write({"time_s": t, "ref_m": steps, "pos_m": steps, "acc_mps2": acc}, tmp_path / "steps.csv", "steps")
+    with pytest.raises(InputError, match="steps.csv: its setpoint is not a periodic motion"):
+        run_figures(path, load_machine("servo_cylinder"))
