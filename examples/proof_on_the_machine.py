@@ -18,8 +18,9 @@ in the machine's loop on the seed's 50 mm 0.5 Hz sine
 (``--duration`` s, judged on the second half: the passenger's view, :func:`hexsim.measured.proof.passenger_view`),
 beside hexsim's prediction of the same run (the mean over the calibrated file and the eight machines its
 calibration's uncertainty allows, as ``hexsim tune --check`` predicts, their range beside it); then up to
-``--runs`` commissioning runs (each run's log read back into the model by ``hexsim tune --from-logs``, the
-improved file run again).
+``--runs`` commissioning runs (the runs' logs read back into the model by ``hexsim tune --from-logs``, the
+improved file run again; where a run's log shows its file worse than the one before, the step writes that one
+back, and the row says "kept").
 
     python examples/proof_on_the_machine.py [--machines R1,corner,underlap,drift] [--runs 3] [--duration 60] [--floor]
 
