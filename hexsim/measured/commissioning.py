@@ -252,7 +252,7 @@ def commissioning_step(paths: list[pathlib.Path], tuned: pathlib.Path, machine: 
     why = worse(runs, best.runs) if best is not None and runs else None
     if why is not None:
         kept = {"file": best.name, "because": f"{pathlib.Path(str(tuned)).name} ran worse on the machine: {why}"}
-        new = {**doc, **best.keys}
+        new = {**{k: v for k, v in doc.items() if k not in FILE_KEYS}, **best.keys}  # nothing of the worse file's
     elif any(e.get("kept") for e in entries):
         kept = {"file": str(tuned), "because": "an earlier step found a commissioned file worse than the one before "
                                                "it: commissioning has converged on the file the machine ran best"}

@@ -347,7 +347,8 @@ class RunFigures:
     the ``periods`` averaged, the bump of the period average (``reversal_peak`` [m/s^2]: the mean over its two
     reversals of the largest departure from the fundamental within ``REVERSAL_WINDOW`` of each), its ISO 2631-1
     W_k ``seat_peak`` [m/s^2] (every reversal and every corner crossing of the period), and the ``noise`` [m/s^2]
-    left in the average (the accelerometer's scatter about it, a sample, over the square root of the periods)."""
+    left in the average below ``RUN_BAND_HZ``, where the reversal peaks are read (the scatter about the average, a
+    sample, over the square root of the periods and of the band's share of the samples' bandwidth)."""
 
     log: str
     frequency_hz: float
@@ -416,8 +417,8 @@ def run_figures(path: pathlib.Path, machine) -> RunFigures:
     average = np.bincount(at, residual, bins) / count
     place = np.bincount(at, pos[window], bins) / count
     rate = bins * frequency
-    # the reversals read below the oil spring's and the sensor's band, as a 1 kHz accelerometer's 1 ms means are
-    # read at the seat: zero phase, over the period repeated (cyclic)
+    # the reversal peaks read below RUN_BAND_HZ, where the noise is less again: zero phase, over the period
+    # repeated (the average is cyclic)
     sos = signal.butter(4, min(RUN_BAND_HZ, 0.45 * rate), fs=rate, output="sos")
     smooth = signal.sosfiltfilt(sos, np.tile(average, 3))[bins:2 * bins]
     noise = float(np.std(residual - average[at]) / np.sqrt(periods) * np.sqrt(2 * min(RUN_BAND_HZ, 0.45 * rate) / rate))
