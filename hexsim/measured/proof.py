@@ -205,8 +205,9 @@ def _proof_columns(log: MeasurementLog) -> tuple[np.ndarray, np.ndarray, int, np
                              "(dof_ref_{x,y,z}_m and platform_acc_{x,y,z}_mps2)")
         k = max(dofs, key=lambda d: np.ptp(cols[f"dof_ref_{d}_m"]))
         return ref, pos, "xyz".index(k), cols[f"dof_ref_{k}_m"], cols[f"platform_acc_{k}_mps2"]
-    if "acc_mps2" not in cols:
-        raise InputError(f"{log.path}: a proof needs the accelerometer (acc_mps2)")
+    for name, what in (("acc_mps2", "the accelerometer"), ("ref_m", "the setpoint")):
+        if name not in cols:
+            raise InputError(f"{log.path}: a proof needs {what} ({name})")
     return cols["ref_m"][:, None], cols["pos_m"][:, None], -1, cols["ref_m"], cols["acc_mps2"]
 
 
@@ -388,11 +389,11 @@ def run_figures(path: pathlib.Path, machine) -> RunFigures:
     those columns, without a periodic setpoint (:data:`RUN_PERIODIC`), or with less than two periods in its second
     half."""
     log = read_log(path, machine, needs=("pos_m",))
-    cols = log.columns
-    if log.system != "single-actuator" or "acc_mps2" not in cols or "ref_m" not in cols:
-        raise InputError(f"{path}: a run is judged on a single actuator's ref_m, pos_m and acc_mps2")
+    if log.system != "single-actuator":
+        raise InputError(f"{path}: a run is judged on a single actuator's log (this is {log.system})")
+    _, pos, _, ref, acc = _proof_columns(log)  # raises for a log without the accelerometer or the setpoint
+    pos = pos[:, 0]
     t = log.time - log.time[0]
-    ref, pos, acc = cols["ref_m"], cols["pos_m"], cols["acc_mps2"]
     try:
         frequency = dominant_frequency(t, ref)
     except ValueError:
