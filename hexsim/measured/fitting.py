@@ -196,7 +196,7 @@ def _judged(sol, residual: Callable[[np.ndarray], np.ndarray], params: Parameter
         worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
     if options.clusters is not None and len(options.clusters) == len(sol.fun):
         robust = fit_statistics(sol.jac, sol.fun, free=_inside(sol), n_independent=share * len(sol.fun),
-                                clusters=options.clusters)  # (too few windows: the s² (JᵀJ)⁻¹ above)
+                                clusters=options.clusters)  # (too few effective windows: the s² (JᵀJ)⁻¹ above)
         se_z, corr = robust.std_errors, robust.correlation
     se = np.zeros(len(params))
     se[free] = se_z * span[free]

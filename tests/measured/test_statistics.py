@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import optimize, stats
 
-from hexsim.measured.statistics import fit_statistics
+from hexsim.measured.statistics import effective_groups, fit_statistics
 
 
 def test_a_straight_line_gets_linregress_standard_errors():
@@ -86,7 +86,27 @@ def test_residuals_sharing_a_group_error_get_cluster_robust_errors_the_plain_one
     spread = np.std(estimates, axis=0)
     np.testing.assert_allclose(np.mean(robust, axis=0), spread, rtol=0.15)
     assert np.mean(plain, axis=0)[0] < 0.5 * spread[0]
+    assert fit_statistics(design, fun, clusters=ids).clustered
     few = fit_statistics(design, fun, clusters=np.minimum(ids, 1))
     np.testing.assert_allclose(few.std_errors, fit_statistics(design, fun).std_errors, rtol=1e-12)
     with pytest.raises(ValueError, match="clusters"):
         fit_statistics(design, fun, clusters=ids[:-1])
+
+
+def test_a_sandwich_that_one_group_carries_is_not_used():
+    """40 groups, one of which the model misses by 50 times the others' scatter (as a replay window the model
+    cannot follow): the sandwich would be that group's alone, a rank-one covariance with the slope's and the
+    intercept's errors locked together; the groups count as about one, fewer than the two parameters, and the
+    covariance is s² (JᵀJ)⁻¹. Equal shares count as every group (Kish's effective number)."""
+    rng = np.random.default_rng(3)
+    ids = np.repeat(np.arange(40), 25)
+    x = rng.uniform(-1.0, 1.0, ids.size)
+    design = np.column_stack([np.ones_like(x), x])
+    fun = rng.normal(0.0, 0.05, x.size)
+    fun[ids == 7] += 2.5 * (1.0 + x[ids == 7])
+    fun -= design @ np.linalg.lstsq(design, fun, rcond=None)[0]  # residuals at the least-squares optimum
+    s = fit_statistics(design, fun, clusters=ids)
+    assert s.effective_groups < 2 and not s.clustered
+    np.testing.assert_allclose(s.std_errors, fit_statistics(design, fun).std_errors, rtol=1e-12)
+    assert effective_groups(np.eye(5), np.eye(5)) == pytest.approx(5.0)
+    assert effective_groups(np.diag([1.0, 0, 0]), np.eye(3)) == pytest.approx(1.0)
