@@ -442,6 +442,7 @@ def _report(ev: _Evidence, machine: Machine, best: dict, tried: list[dict], logs
               "method": "bounded least squares of " + " and ".join(methods) + " (hexsim.measured.calibration)",
               "weights": {"speed": f"{SPEED_SIGMA_REL:.0%} + {SPEED_SIGMA_ABS * 1e3:g} mm/s",
                           "pressure_Pa": PRESSURE_SIGMA, "transients": "each channel's noise budget"},
+              "covariance": fit.covariance,
               "parameters": _parameter_rows(fit),
               "correlation": {"keys": [fit.params[i].key for i in fit.free],
                               "matrix": _free_block(fit).round(4).tolist()}}

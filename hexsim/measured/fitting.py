@@ -86,7 +86,8 @@ class FitOptions:
 class Fit:
     """The outcome of one fit: values (k,) in the keys' units, standard errors (k,) (0 for a parameter held
     or at a bound), correlation matrix (k, k) (the identity outside the fitted block), the weighted residuals
-    at the optimum, and the parameters held at their prior with the reason."""
+    at the optimum, and the parameters held at their prior with the reason; ``covariance``: which covariance
+    the errors and correlations are (:mod:`hexsim.measured.statistics`), in words."""
 
     params: ParameterSet
     values: np.ndarray
@@ -94,6 +95,7 @@ class Fit:
     correlation: np.ndarray
     residuals: np.ndarray
     held: dict[str, str]
+    covariance: str = "s² (JᵀJ)⁻¹"
 
     @property
     def free(self) -> list[int]:
@@ -194,15 +196,21 @@ def _judged(sol, residual: Callable[[np.ndarray], np.ndarray], params: Parameter
     x[free] = lo[free] + sol.x * span[free]  # the residual's closure wrote its trial values there
     if worst is None:
         worst, why = _unidentified(sol, se_z, corr, [params[i].key for i in free], options.correlated_se)
+    covariance = "s² (JᵀJ)⁻¹"
     if options.clusters is not None and len(options.clusters) == len(sol.fun):
         robust = fit_statistics(sol.jac, sol.fun, free=_inside(sol), n_independent=share * len(sol.fun),
                                 clusters=options.clusters)  # (too few effective windows: the s² (JᵀJ)⁻¹ above)
         se_z, corr = robust.std_errors, robust.correlation
+        windows, used = len(np.unique(options.clusters)), int(np.count_nonzero(robust.free))
+        covariance = (f"cluster-robust over {windows} replay windows ({robust.effective_groups:.1f} in effect)"
+                      if robust.clustered else
+                      f"s² (JᵀJ)⁻¹: the {windows} replay windows count as {robust.effective_groups:.1f} in effect, "
+                      f"not more than the {used} free parameters a cluster-robust covariance needs")
     se = np.zeros(len(params))
     se[free] = se_z * span[free]
     full = np.eye(len(params))
     full[np.ix_(free, free)] = corr
-    return Fit(params, x.copy(), se, full, sol.fun, dict(held)), worst, why
+    return Fit(params, x.copy(), se, full, sol.fun, dict(held), covariance), worst, why
 
 
 def _blind(safe: Callable[[np.ndarray], np.ndarray], params: ParameterSet, prior: np.ndarray,

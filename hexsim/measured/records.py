@@ -118,6 +118,7 @@ class CalibrationReport(TypedDict, total=False):
     logs: list[str]
     method: str
     weights: dict
+    covariance: str  # which covariance the standard errors and correlation are (hexsim.measured.statistics)
     parameters: list[ParameterRow]
     correlation: dict  # "keys" of the fitted parameters, their "matrix"
     flow_area: dict  # the form chosen, each tried with its held-out cost, the curves read from the flows

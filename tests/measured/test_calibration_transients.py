@@ -48,9 +48,11 @@ def calibrated(tmp_path_factory):
 def test_the_calibration_recovers_the_machine_and_chooses_its_valve(calibrated):
     """Each parameter the transients identify comes back within what a data sheet would call known; the
     port-limited flow area is chosen over the file's smooth one by the held-out windows; the supply, which
-    the log carries (ps_Pa), is the log's level, said as such."""
+    the log carries (ps_Pa), is the log's level, said as such. The report says which covariance its errors are
+    (the replay windows counted by their influence, :mod:`hexsim.measured.statistics`)."""
     _, report, _ = calibrated
     assert report["flow_area"]["chosen"] == "port"
+    assert re.search(r"replay windows .*\d+\.\d in effect", report["covariance"]), report["covariance"]
     costs = {t["flow_area"]: t["held_out_cost"] for t in report["flow_area"]["tried"]}
     assert costs["port"] < costs["smooth"]  # after the screening; the full fit of the chosen form goes as far or
     # further, and far below the file's form (with the supply no longer a parameter the screening reaches

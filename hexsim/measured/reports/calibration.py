@@ -89,7 +89,8 @@ def markdown(report: dict, figure: str | None = None) -> str:
     """report.md of a calibration: the machine and logs, the parameters (prior, value, standard error,
     bounds and their source, status and why), the errors before and after, held out and left out."""
     lines = [f"# Calibration of {report['machine']}", "", f"Method: {report['method']}; weights: speed "
-             f"{report['weights']['speed']}, pressure {report['weights']['pressure_Pa'] / 1e5:g} bar.", "",
+             f"{report['weights']['speed']}, pressure {report['weights']['pressure_Pa'] / 1e5:g} bar."
+             + (f" Standard errors and correlations: {report['covariance']}." if "covariance" in report else ""), "",
              "Logs fitted: " + ", ".join(f"`{pathlib.Path(p).name}`" for p in report["logs"]), ""]
     if "held_out" in report:
         lines += ["Logs held out: " + ", ".join(f"`{pathlib.Path(p).name}`" for p in report["held_out"]["logs"]), ""]
