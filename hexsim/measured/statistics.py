@@ -30,10 +30,11 @@ rank one, with all of its variance along that window's direction and none across
 calibration of 2026-11-29: 32 windows, the largest carrying 56–63 % of the meat, 1.9–2.1 effective windows for 14–17
 free parameters, the covariance's second eigenvalue under 1 % of its first; its draws then moved the machine along
 one direction only, by 15–22 times the s² (JᵀJ)⁻¹ errors). The effective number of groups (:func:`effective_groups`:
-Kish's effective sample size, L. Kish, *Survey Sampling*, 1965, §11.7, of the groups' shares w_g = r_gᵀ J_g (JᵀJ)⁻¹
-J_gᵀ r_g of the sandwich's trace, invariant to how the parameters are scaled; the heterogeneity of clusters that
-shrinks their effective number is Carter, Schnepel & Steigerwald, *Rev. Econ. Stat.* 99, 2017) must therefore exceed
-the free parameters; else C is s² (JᵀJ)⁻¹ and :attr:`FitStatistics.effective_groups` says why.
+Kish's effective sample size, L. Kish, *Survey Sampling*, 1965, of the groups' shares w_g = r_gᵀ J_g (JᵀJ)⁻¹ J_gᵀ
+r_g of tr(C JᵀJ), the sandwich in the data's own metric, invariant to how the parameters are scaled; the
+heterogeneity of clusters that shrinks their effective number is Carter, Schnepel & Steigerwald, *Rev. Econ. Stat.*
+99, 2017) must therefore exceed the free parameters; else C is s² (JᵀJ)⁻¹ and :attr:`FitStatistics.effective_groups`
+says why.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ class FitStatistics:
 
 def effective_groups(scores: np.ndarray, bread: np.ndarray) -> float:
     """Kish's effective number (Σ w_g)² / Σ w_g² of the groups whose scores J_gᵀ r_g are the rows of ``scores``
-    (G, f), with w_g = s_gᵀ ``bread`` s_g each group's share of the sandwich's trace (``bread`` (f, f): (JᵀJ)⁻¹);
+    (G, f), with w_g = s_gᵀ ``bread`` s_g each group's share of tr(C JᵀJ), the sandwich C in the data's own
+    metric (``bread`` (f, f): (JᵀJ)⁻¹; invariant to how the parameters are scaled);
     G when every group carries the same share, 1 when one carries it all, 0 without any."""
     w = np.einsum("gi,ij,gj->g", scores, bread, scores)
     return float(w.sum() ** 2 / (w @ w)) if np.any(w > 0) else 0.0
