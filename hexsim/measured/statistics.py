@@ -95,11 +95,11 @@ def fit_statistics(jac: np.ndarray, fun: np.ndarray, *, free: np.ndarray | None 
     n = len(fun) if n_independent is None else n_independent
     s2 = float(fun @ fun) / max(n - (k if n_parameters is None else n_parameters), 1.0)
     jf = jac[:, free]
-    cov = np.linalg.pinv(jf.T @ jf) * s2 if free.any() else np.zeros((0, 0))
+    bread = np.linalg.pinv(jf.T @ jf) if free.any() else np.zeros((0, 0))
+    cov = bread * s2
     g_eff, clustered = float("nan"), False
     if clusters is not None and free.any():
         groups, where = np.unique(clusters, return_inverse=True)
-        bread = np.linalg.pinv(jf.T @ jf)
         scores = np.zeros((len(groups), jf.shape[1]))
         np.add.at(scores, where.ravel(), jf * fun[:, None])  # each group's J_g^T r_g
         g_eff = effective_groups(scores, bread)
