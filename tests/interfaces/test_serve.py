@@ -24,6 +24,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
+from hexsim.engine.runner import Simulator
 from hexsim.errors import InputError
 from hexsim.interfaces.host import HostClient, client_lines, motion_script
 from hexsim.interfaces.operating_modes import (
@@ -498,7 +499,13 @@ def test_bad_packets_are_counted_by_reason_and_the_platform_is_undisturbed(sessi
     assert any(s["faults"] & 2 for _, s in record.states)  # the rejection flagged to the host
 
 
-def test_the_session_reports_its_timing_and_records_what_the_legs_did(session):
+def test_the_session_reports_its_timing_and_its_legs_are_the_batch_loops_on_the_setpoints_it_played(session):
+    """The served loop is ``hexsim run``'s: the batch Simulator of the session's configuration, handed the piston
+    setpoints the session played tick by tick, moves the legs and pressures as served (measured: bit for bit),
+    whatever the host's packets' timing made of those setpoints. On a loaded machine the host's packets come late
+    and the played setpoints rejoin its line faster than it (operating_modes), so the P loops' following is held
+    to their velocity lag at the played setpoints' top speed (1/K = 38 ms measured at kp 200 V/m: 4.0 mm at
+    0.10 m/s on an idle machine; 4.6 mm at 0.16 m/s with two busy processes beside it), not to a fixed 5 mm."""
     vms = session.vms
     timing = vms.report().timing
     assert timing["ticks"] == round(11.0 / 0.002)
@@ -506,8 +513,16 @@ def test_the_session_reports_its_timing_and_records_what_the_legs_did(session):
     assert 0 <= timing["jitter_p50_ms"] <= timing["jitter_p99_ms"] <= timing["jitter_max_ms"]
     result = vms.result()
     assert result.t[-1] == pytest.approx(11.0, abs=0.005)
+    batch = Simulator(vms.config)
+    for setpoint in result.y_ref:
+        batch.coupling.setpoints[batch.k // batch.ctrl_div] = setpoint
+        batch.step(vms.period)
+    replayed = batch.result()
+    np.testing.assert_allclose(replayed.y, result.y, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(replayed.p1, result.p1, rtol=0, atol=1e-3)
     engaged = (result.t > 4.0) & (result.t < 7.0)
-    assert np.abs(result.y[engaged] - result.y_ref[engaged]).max() < 0.005  # the P loops followed
+    top_speed = np.abs(np.gradient(result.y_ref, result.t, axis=0))[engaged].max()
+    assert 0.05 < top_speed and np.abs(result.y[engaged] - result.y_ref[engaged]).max() < 0.045 * top_speed + 5e-4
 
 
 def test_the_session_is_written_while_it_runs_and_whole_when_it_ends(session):
