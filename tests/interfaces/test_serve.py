@@ -296,9 +296,9 @@ def test_a_moving_host_asking_for_neutral_is_met_at_its_velocity_and_acceleratio
     """Engaged on a 0.5 Hz, 40 mm sine, the host asks for neutral at 3.0 s, as the sine passes neutral at its
     fastest (0.126 m/s, no acceleration): the return starts on the host's line with its velocity and
     acceleration, so over the 50 ms after the switch the setpoint's velocity changes per tick by under 0.2 % of
-    v0 (measured 0.1 %: the host's acceleration where the switch finds it, then the quintic's jerk). Started from the last tick's setpoint at this
-    tick, it stood still for a tick (a change of 100 %); a cubic from the setpoint and its velocity stepped the
-    acceleration by 4 v0 / T (0.4 % a tick)."""
+    v0 (measured 0.1 %: the host's acceleration where the switch finds it, then the quintic's jerk). Started
+    from the last tick's setpoint at this tick, it stood still for a tick (a change of 100 %); a cubic from the
+    setpoint and its velocity stepped the acceleration by 4 v0 / T (0.4 % a tick)."""
     modes = _modes(engage_s=0.5, return_s=2.0)
     sine = lambda t: np.r_[0.04 * np.sin(np.pi * t), np.zeros(5)]  # noqa: E731
     y = _drive(modes, 6.0, lambda t: ("engage" if t < 3.0 else "neutral", sine(t)))
@@ -555,7 +555,8 @@ def test_the_session_is_written_while_it_runs_and_whole_when_it_ends(session):
 def test_a_log_the_writer_cannot_write_is_one_clear_error_at_the_end(tmp_path):
     """The writer runs beside the loop, so a file it cannot write stops neither the session nor the loop: the
     session ends, and closing it says what went wrong, naming the file (one line, no traceback)."""
-    vms = VirtualMotionSystem(RunConfig.from_machine(load_machine(None), "heave"), ServeSettings(port=0, duration_s=1.0))
+    vms = VirtualMotionSystem(RunConfig.from_machine(load_machine(None), "heave"),
+                              ServeSettings(port=0, duration_s=1.0))
     vms.log_to(tmp_path / "gone" / "session.csv")
     vms.run(duration_s=0.8)  # served without a host: neutral held, two stretches handed over
     with pytest.raises(InputError, match=r"the session's log: .*gone.* does not exist") as exc:
