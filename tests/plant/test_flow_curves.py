@@ -51,6 +51,23 @@ def test_a_curve_that_is_no_valve_is_refused_naming_the_point(points, match):
         HydraulicParams(flow_area="curve", flow_curve_pa=points)
 
 
+def test_warming_oil_moves_the_parameters_not_the_curves_cubics():
+    """Warming oil makes a new parameter set every controller tick (:mod:`hexsim.plant.temperature`): the
+    curves' cubics are built once and shared, read-only, by every set with the same curves (lists read from a
+    machine file as well as tuples), and a set with other curves gets its own."""
+    from hexsim.plant.temperature import WarmUp
+
+    hyd = HydraulicParams(flow_area="curve", flow_curve_pa=PA, flow_curve_at=AT)
+    warm = WarmUp(15.0, 10.0).params_at(hyd, 45.0)
+    listed = HydraulicParams(flow_area="curve", flow_curve_pa=[list(p) for p in PA], flow_curve_at=AT)
+    assert warm.density < hyd.density
+    for other in (warm, listed):
+        assert all(a is b for ea, eb in zip(hyd.edge_curves, other.edge_curves) for a, b in zip(ea, eb))
+    assert not hyd.edge_curves[0][2].flags.writeable
+    moved = hyd.replace(flow_curve_at=tuple((u + 0.01, f) for u, f in AT[:-1]) + (AT[-1],))
+    assert moved.edge_curves[1][0][0] == pytest.approx(0.03) and hyd.edge_curves[1][0][0] == pytest.approx(0.02)
+
+
 def test_a_machine_file_with_curves_reads_back_the_same():
     machine = with_valve(load_machine(None), flow_area="curve", flow_curve_PA=[list(p) for p in PA],
                          flow_curve_AT=[list(p) for p in AT])
