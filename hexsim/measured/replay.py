@@ -184,8 +184,31 @@ JUMP_SHARE = 0.02
 
 def measured_velocity(log: MeasurementLog, pos: np.ndarray) -> np.ndarray:
     """Piston velocity [m/s] from the measured position (N,) by a Savitzky–Golay derivative (cubic,
-    :data:`VELOCITY_SPAN_S`, 21 samples at 1 kHz: noise of a few µm gives < 1 mm/s)."""
-    return savgol(pos, log.sample_rate_hz, VELOCITY_SPAN_S, deriv=1)
+    :data:`VELOCITY_SPAN_S`, 21 samples at 1 kHz: noise of a few µm gives < 1 mm/s). Read-only: the same
+    array for the same position array (:func:`_smoothed_position`)."""
+    return _smoothed_position(pos, log.sample_rate_hz, 1)
+
+
+#: The position's smoothing and derivative by the position array they were taken from (:func:`_smoothed_position`)
+_SMOOTHED: dict[tuple[int, float, int], tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _smoothed_position(pos: np.ndarray, fs: float, deriv: int) -> np.ndarray:
+    """:func:`~hexsim.signals.savgol` of ``pos`` (N,) over :data:`VELOCITY_SPAN_S` (``deriv`` 0: the position
+    [m], 1: the velocity [m/s]), read-only, taken once per array: a calibration replays the same log's windows
+    some 900 times a form, each replay starting its windows from the smoothed position and velocity (the two
+    filters of the whole log were a tenth of its time). The last few arrays are kept, each with the array it came
+    from (the key's id is then never another array's); the logs' columns are not changed in place."""
+    key = (id(pos), float(fs), deriv)
+    hit = _SMOOTHED.get(key)
+    if hit is not None and hit[0] is pos:
+        return hit[1]
+    out = savgol(pos, fs, VELOCITY_SPAN_S, deriv=deriv)
+    out.setflags(write=False)
+    while len(_SMOOTHED) >= 8:
+        del _SMOOTHED[next(iter(_SMOOTHED))]
+    _SMOOTHED[key] = (pos, out)
+    return out
 
 
 def command_jumps(log: MeasurementLog) -> np.ndarray:
@@ -379,7 +402,7 @@ def _window_start(log: MeasurementLog, model: PlantModel, windows: Windows, m, d
     # the position from the same cubic fit as the velocity (21 samples: a third of the sensor's noise), not one
     # noisy sample: the window integrates from it, so its error stays all window (sqrt(2) times the noise); with a
     # sensor delay, the true position is what the delayed sensor shows tau later
-    y0 = np.interp(t[s0] + tau - skew, t, savgol(pos, log.sample_rate_hz, VELOCITY_SPAN_S))
+    y0 = np.interp(t[s0] + tau - skew, t, _smoothed_position(pos, log.sample_rate_hz, 0))
     d.qpos[idx.qpos_adr] = y0
     d.qvel[idx.dof_adr] = np.interp(t[s0] + tau - skew, t, vel)
     mujoco.mj_forward(m, d)
