@@ -142,7 +142,8 @@ class ProofVerdict:
                 "calibration's extrapolation until commissioning reads it, tune --from-logs")
 
     def sentence(self) -> str:
-        """One line: within its uncertainty, or by how much not and where."""
+        """One line: within its uncertainty, or by how much not and where, then the parts that are within (a
+        reversal ratio of 2.3 held by a wide interval is news beside the 1.2 between reversals that was not)."""
         if self.within is None:
             return f"too few reversals to judge (at least {MIN_EVENTS} a side)"
         if self.within:
@@ -156,7 +157,8 @@ class ProofVerdict:
                 where += (f", at a valve command of {self.corner_V:.2f} V each time ({self._corner_words()})"
                           if self.corner_V is not None else ", at no one valve command")
             parts.append(f"{where}: measured {r.text()}")
-        return "not within its uncertainty: " + "; ".join(parts)
+        held = [f"{r.what} within: {r.text()}" for r in (self.reversals, self.between) if r is not None and r.within]
+        return "not within its uncertainty: " + "; ".join(parts + held)
 
 
 def verdict(measured: Smoothness, predicted: Smoothness | list[Smoothness], valve_cmd: np.ndarray | None = None,

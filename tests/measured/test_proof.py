@@ -83,7 +83,10 @@ def test_a_bump_at_a_corner_between_reversals_is_placed_at_its_valve_command():
     assert v.reversals.within and not v.between.within and not v.within
     assert v.between.low > 10.0
     assert v.corner_V == pytest.approx(2 * math.sin(0.4 * math.pi), abs=0.01)
-    assert "between reversals, at a valve command of 1.90 V" in v.sentence()
+    said = v.sentence()
+    assert "between reversals, at a valve command of 1.90 V" in said
+    assert said.index("between reversals, at") < said.index("; reversals within: ")  # the part off first, then
+    assert v.reversals.text() in said.split("; reversals within: ")[1]  # the part within, its figures with it
     # where the calibration's logs dwelt (the file's calibration.commands_measured_V) says whether it saw 1.90 V
     beyond = verdict(measured, predicted, valve, t, (-0.74, 0.73)).sentence()
     assert "beyond the -0.74…0.73 V the calibration's logs measured" in beyond and "tune --from-logs" in beyond
