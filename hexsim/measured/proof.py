@@ -225,8 +225,8 @@ def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> 
     samples with the white noise the log shows (:func:`accelerometer_noise`). On a calibrated machine it is made
     again on ``draws`` machines drawn from what the calibration leaves uncertain
     (:meth:`~hexsim.measured.records.CalibrationRecord.plausible`), the compensator's leg model the nominal's:
-    ``predicted`` is then the mean over the nominal and the draws (``predicted_models``: each one's mean reversal
-    peak). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the peaks between reversals,
+    ``predicted`` is then the mean over the nominal and the draws in each of its figures (``predicted_models``:
+    each one's mean reversal peak). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the peaks between reversals,
     against the predicted, within the uncertainty their scatter and the models' spread give or by how much not
     and where. Raises InputError naming the log and what it lacks."""
     log = read_log(path, base.machine, needs=("pos_m",))
@@ -257,7 +257,12 @@ def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> 
                    "max_reversal_peak": float(sm.reversal_peaks.max()) if sm.reversal_peaks.size else None,
                    "noise_ratio": sm.noise_ratio} for name, sm in (("measured", measured), ("predicted", runs[0]))}
     models = [sm.mean_reversal_peak for sm in runs]
+    # the predicted row is the models' mean in every column (the nominal's max beside the models' mean once read
+    # 0.0201 against a mean of 0.0274)
     rows["predicted"]["mean_reversal_peak"] = float(np.mean(models))
+    peaks = [float(sm.reversal_peaks.max()) for sm in runs if sm.reversal_peaks.size]
+    rows["predicted"]["max_reversal_peak"] = float(np.mean(peaks)) if peaks else None
+    rows["predicted"]["noise_ratio"] = float(np.mean([sm.noise_ratio for sm in runs]))
     valve = log.columns.get("valve_cmd_V") if axis < 0 else None
     judgement = verdict(measured, runs, valve, t, None if record is None else record.commands_measured_V)
     return {"log": str(path), "frequency_hz": frequency, "compensator": base.compensator_name,

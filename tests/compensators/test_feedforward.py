@@ -202,6 +202,9 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
                  "--json", str(tmp_path / "plausible.json")]) == 0
     plausible = json.loads((tmp_path / "plausible.json").read_text())["proofs"][0]
     assert len(plausible["predicted_models"]) == 9 and plausible["verdict"]["reversals"]["models"] == 9
+    predicted = plausible["predicted"]  # the models' means in every column: a mean of maxima is above the mean
+    assert predicted["mean_reversal_peak"] == pytest.approx(np.mean(plausible["predicted_models"]))
+    assert predicted["max_reversal_peak"] >= predicted["mean_reversal_peak"]
     assert plausible["verdict"]["within"] is False and plausible["verdict"]["between reversals"]["ratio"] > 1.0
     assert plausible["verdict"]["corner_V"] == pytest.approx(0.9, abs=0.05)
     assert "machines drawn from its uncertainty" in capsys.readouterr().out

@@ -27,7 +27,7 @@ def check_lines(rows: list[dict], machine_label: str, compensator_name: str) -> 
         if len(models) > 1:
             lines.append(f"{pathlib.Path(r['log']).name}: predicted over the calibrated file and {len(models) - 1} "
                          f"machines drawn from its uncertainty, mean reversal peak {min(models):.4f}–"
-                         f"{max(models):.4f} (their mean {r['predicted']['mean_reversal_peak']:.4f} above)")
+                         f"{max(models):.4f} (the predicted row above: their means)")
     for r in rows:
         lines.append(f"{pathlib.Path(r['log']).name} (accelerometer noise {r['accelerometer_noise_mps2']:.3f} m/s²): "
                      f"{r['verdict']['sentence']}")
