@@ -29,6 +29,14 @@ def check_lines(rows: list[dict], machine_label: str, compensator_name: str) -> 
                          f"machines drawn from its uncertainty, mean reversal peak {min(models):.4f}–"
                          f"{max(models):.4f} (the predicted row above: their means)")
     for r in rows:
+        measured, predicted = r["measured"].get("band_rms", {}), r["predicted"].get("band_rms", {})
+        if measured:
+            parts = [f"{band} {measured[band]:.4f} / {predicted[band]:.4f}"
+                     + (f" ({measured[band] / predicted[band]:.1f}×)" if predicted[band] > 0 else "")
+                     for band in measured]
+            lines.append(f"{pathlib.Path(r['log']).name}: departure from the fundamental, rms measured / predicted "
+                         f"[m/s²]: {'; '.join(parts)}")
+    for r in rows:
         lines.append(f"{pathlib.Path(r['log']).name} (accelerometer noise {r['accelerometer_noise_mps2']:.3f} m/s²): "
                      f"{r['verdict']['sentence']}")
     return lines
