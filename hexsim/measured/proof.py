@@ -55,10 +55,10 @@ def band_rms(sm: Smoothness) -> dict[str, float]:
     periodogram (scipy.signal.periodogram, no taper, so the bands' squares sum to the departure's mean square:
     Parseval) summed over the band. Welch's tapered segments weigh an event by where it falls in them, and a
     periodic run's reversals fall at the same places in every segment: a pulse each second read 33 % low in 2 s
-    Hann segments. A measured and a predicted run read alike
-    (the prediction carries the log's white noise) tell where in frequency the model leaves out what the machine
-    does: on ``underlap``'s first tuned run (docs/compensation.md) 50-150 Hz read 3.4× the nine models' mean,
-    the oil column's 83 Hz rung at each reversal by what the inverse of the calibrated curve misses near null."""
+    Hann segments. A measured and a predicted run read alike (the prediction carries the log's white noise) tell
+    where in frequency the model leaves out what the machine does: on ``underlap``'s first tuned run
+    (docs/compensation.md) 50-150 Hz read 3.4× the nine models' mean, the oil column's 83 Hz rung at each
+    reversal by what the inverse of the calibrated curve misses near null."""
     x = sm.noise - np.mean(sm.noise)
     fs = 1.0 / float(np.median(np.diff(sm.t)))
     f, psd = signal.periodogram(x, fs=fs, window="boxcar", detrend=False)
@@ -251,9 +251,9 @@ def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> 
     again on ``draws`` machines drawn from what the calibration leaves uncertain
     (:meth:`~hexsim.measured.records.CalibrationRecord.plausible`), the compensator's leg model the nominal's:
     ``predicted`` is then the mean over the nominal and the draws in each of its figures (``predicted_models``:
-    each one's mean reversal peak). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the peaks between reversals,
-    against the predicted, within the uncertainty their scatter and the models' spread give or by how much not
-    and where. Raises InputError naming the log and what it lacks."""
+    each one's mean reversal peak). The ``verdict`` (:func:`verdict`): the measured reversal peaks, and the peaks
+    between reversals, against the predicted, within the uncertainty their scatter and the models' spread give or
+    by how much not and where. Raises InputError naming the log and what it lacks."""
     log = read_log(path, base.machine, needs=("pos_m",))
     t = log.time - log.time[0]
     ref, pos, axis, setpoint, acc = _proof_columns(log)
@@ -290,13 +290,14 @@ def proof(path: pathlib.Path, base: RunConfig, draws: int = PLAUSIBLE_DRAWS) -> 
 
 
 def _figures(runs: list[Smoothness]) -> dict:
-    """A row of :func:`proof`: the mean and max reversal peak, the reversals counted, the noise ratio and
-    :func:`band_rms` of one run, or each the mean over ``runs`` (the plausible models': the nominal's max beside
-    the models' mean once read 0.0201 against a mean of 0.0274)."""
+    """A row of :func:`proof`: the mean and max reversal peak, the noise ratio and :func:`band_rms` of one run, or
+    each the mean over ``runs`` (the plausible models': the nominal's max beside the models' mean once read 0.0201
+    against a mean of 0.0274), and the reversals the first run counted."""
     peaks = [float(sm.reversal_peaks.max()) for sm in runs if sm.reversal_peaks.size]
     bands = [band_rms(sm) for sm in runs]
     return {"mean_reversal_peak": float(np.mean([sm.mean_reversal_peak for sm in runs])),
-            "reversals": int(runs[0].reversal_peaks.size), "max_reversal_peak": float(np.mean(peaks)) if peaks else None,
+            "reversals": int(runs[0].reversal_peaks.size),
+            "max_reversal_peak": float(np.mean(peaks)) if peaks else None,
             "noise_ratio": float(np.mean([sm.noise_ratio for sm in runs])),
             "band_rms": {band: float(np.mean([b[band] for b in bands])) for band in bands[0]}}
 
