@@ -24,7 +24,6 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from compensation import make_compensator
-from compensation.leg_model import Reference
 from hexsim.control.scenario import make_scenario
 from hexsim.engine.config import RunConfig
 from hexsim.engine.runner import simulate
@@ -36,7 +35,7 @@ from hexsim.studies.tuning import neighbours, read_tuned
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parent / "tests"), str(HERE)]
 import independent_actuator as truth_plant  # noqa: E402
-from proof_on_the_machine import AMPLITUDE, FREQUENCY, NOISE, UNDERLAP  # noqa: E402
+from proof_on_the_machine import FREQUENCY, UNDERLAP, Truth  # noqa: E402
 
 DURATION = 20.0  # [s]; the ringing read from 10 s on, the reversal peaks over the second half
 
@@ -48,20 +47,14 @@ def ringing(t: np.ndarray, acc: np.ndarray) -> float:
     return float(np.abs(band[t > 10.0]).max())
 
 
-def runs(machine, name, settings, model) -> None:
+def runs(machine, folder: pathlib.Path, name, settings, model) -> None:
+    truth = Truth("underlap", folder)
     for label, tuned in (("none", False), (f"tuned {name}", True)):
-        hook = None
-        if tuned:
-            comp = make_compensator(name, 1, 500.0, settings=settings, model=model)
-
-            def hook(u_p, y, r, r_dot, r_ddot, r_dddot, p1, comp=comp):
-                comp.observe(Reference(*(np.array([x]) for x in (r, r_dot, r_ddot, r_dddot, p1))))
-                return float(comp.update(np.array([u_p]), np.array([y]))[0])
-        cols = truth_plant.motion(UNDERLAP, DURATION, FREQUENCY, AMPLITUDE, np.random.default_rng(20), noise=NOISE,
-                                  compensate=hook)
+        comp = make_compensator(name, 1, 500.0, settings=settings, model=model) if tuned else None
+        t, _, acc, _, _ = truth.run(comp, DURATION, 20)  # the proof's own loop of the machine, its seed 20
         options = dict(compensator=name, compensator_settings=settings, compensator_model=model) if tuned else {}
         result = simulate(RunConfig.from_machine(machine, make_scenario("actuator", duration=DURATION), **options))
-        print(f"{label:<22} 50-120 Hz ringing, largest: machine {ringing(cols['time_s'], cols['acc_mps2']):.4f}, "
+        print(f"{label:<22} 50-120 Hz ringing, largest: machine {ringing(t, acc):.4f}, "
               f"hexsim {ringing(result.t, result.acc[:, 2]):.4f} m/s^2")
 
 
@@ -76,7 +69,7 @@ def main(argv=None) -> int:
     f_h = [math.sqrt(h.bulk_modulus * h.area_bottom ** 2 / ((h.pipeline_volume + h.area_bottom * y) * e.mass_kg))
            / (2 * math.pi) for y in (0.1, 0.15, 0.2)]
     print(f"oil column's resonance at 0.10 / 0.15 / 0.20 m: {f_h[0]:.0f} / {f_h[1]:.0f} / {f_h[2]:.0f} Hz")
-    runs(machine, name, settings, model)
+    runs(machine, args.folder, name, settings, model)
 
     packed = truth_plant._pack(UNDERLAP)
     print("command [V]  machine P→A, A→T  /  calibrated P→A, A→T  [mm²]")
@@ -90,7 +83,9 @@ def main(argv=None) -> int:
 
     base = RunConfig.from_machine(machine, make_scenario("actuator", duration=30.0), compensator=name,
                                   compensator_settings=settings, compensator_model=model)
-    for n in (*neighbours(0.01)[:1], *neighbours(0.01)[2:4], *neighbours(0.02)[2:4]):
+    shifted = [n for n in neighbours(0.01) if n.name != "drift"] + [
+        n for n in neighbours(0.02) if n.name in ("underlap", "overlap")]
+    for n in shifted:
         result = simulate(n.apply(base))
         setpoint = result.config.scenario.axis_setpoint(result.t)
         view = passenger_view(result.t, result.acc[:, 2], setpoint, FREQUENCY, 15.0, result.ydot[:, 0])
