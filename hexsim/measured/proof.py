@@ -59,9 +59,8 @@ def band_rms(sm: Smoothness) -> dict[str, float]:
     where in frequency the model leaves out what the machine does: on ``underlap``'s first tuned run
     (docs/compensation.md) 50-150 Hz read 3.4× the nine models' mean, the oil column's 83 Hz rung at each
     reversal by what the inverse of the calibrated curve misses near null."""
-    x = sm.noise - np.mean(sm.noise)
     fs = 1.0 / float(np.median(np.diff(sm.t)))
-    f, psd = signal.periodogram(x, fs=fs, window="boxcar", detrend=False)
+    f, psd = signal.periodogram(sm.noise, fs=fs, window="boxcar")  # its mean taken out (detrend "constant")
     df = float(f[1] - f[0])
     return {f"{lo:g}–{hi:g} Hz": float(np.sqrt(np.sum(psd[(f >= lo) & (f < hi)]) * df))
             for lo, hi in BANDS_HZ if hi <= fs / 2}
