@@ -14,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from compensation.base import Compensator, SettingsError
+from compensation.leg_model import refined_grid
 
+#: Points of the grid over ±u_v,max before :func:`~compensation.leg_model.refined_grid` adds them where the curve
+#: bends (an edge opening, a port's corner).
 GRID_POINTS = 4001
 
 
@@ -27,7 +30,6 @@ class OracleCompensator(Compensator):
             raise SettingsError("the oracle compensator needs the plant's true parameters and flow curve (PlantTruth)")
         self.plant = plant
         self._params = None
-        self._grid = np.linspace(-self.u_v_max, self.u_v_max, GRID_POINTS)
 
     def _refresh(self) -> None:
         p = self.plant.params
@@ -36,7 +38,9 @@ class OracleCompensator(Compensator):
         self._params = p
         p1 = np.asarray(self.plant.p1_static, dtype=float)
         # (n_legs, grid) static velocity; a vanishing slope keeps it strictly increasing inside the overlap
-        self._curve = self.plant.flow_curve(self._grid[None, :], p1[:, None], p) + 1e-12 * self._grid[None, :]
+        self._grid, curve = refined_grid(lambda u: self.plant.flow_curve(u[None, :], p1[:, None], p),
+                                         np.linspace(-self.u_v_max, self.u_v_max, GRID_POINTS))
+        self._curve = curve + 1e-12 * self._grid[None, :]
         u_ref = self.settings.oracle_u_ref
         ends = np.stack([np.interp([-u_ref, u_ref], self._grid, row) for row in self._curve])
         self.slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from compensation.leg_model import LegModel, open_together
+from compensation.leg_model import LegModel, open_together, refined_grid
 from compensation.settings import SettingsError
 from hexsim.plant import hydraulics
 from hexsim.plant.effects import NOMINAL, Effects
 from hexsim.plant.params import HydraulicParams
 
-#: Points of the flow curve over ±u_v,max (5 mV apart at ±10 V; the seed's overlap is 45 mV wide).
+#: Points of the flow curve over ±u_v,max (5 mV apart at ±10 V; the seed's overlap is 45 mV wide), before
+#: :func:`compensation.leg_model.refined_grid` adds points where the curve bends (an edge opening, a port's corner).
 GRID_POINTS = 4001
 #: Points of the 4-way valve's steady-state curve (each a root search), denser near null.
 GRID_POINTS_4WAY = 401
@@ -60,9 +61,10 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
     if hyd.four_way:
         s = np.linspace(-1.0, 1.0, GRID_POINTS_4WAY)
         u = u_max * np.sign(s) * s**2  # dense near null, where the overlap is
+        velocity = static_flow_curve(u, p_rest, hyd, eff, load)
     else:
-        u = np.linspace(-u_max, u_max, GRID_POINTS)
-    velocity = static_flow_curve(u, p_rest, hyd, eff, load)
+        u, velocity = refined_grid(lambda x: static_flow_curve(x, p_rest, hyd, eff),
+                                   np.linspace(-u_max, u_max, GRID_POINTS))
     at = None if hyd.four_way else return_edge_share(u, p_rest, velocity, hyd, eff)
     ends = np.stack([np.interp([-u_ref, u_ref], u, row) for row in velocity])
     slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)

@@ -184,15 +184,14 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
                                                                             capsys):
     """Proof on logs: a log of the truth running with hexsim's compensator (written by the truth's own loop)
     beside the calibrated machine simulated with the same compensator on the log's setpoints. Both show the
-    bump removed (measured 0.084, predicted 0.067 m/s² with the log's accelerometer noise, none 0.75); the JSON
-    carries both. On the calibrated file alone (``--draws 0``) the verdict is not within its uncertainty, the peaks
-    between the reversals placed at the truth's corner (0.88 V) and above the prediction there (1.21×, 95 % interval
-    1.02–1.43, with numpy 2.4, scipy 1.17 and mujoco 4.0). Over the machines the calibration's uncertainty allows
-    (the default 8 draws) the verdict is the same, at the same corner: the reversals within (1.26×, 0.99–1.60), the
-    peaks between them not (1.21×, 1.02–1.43). The calibration's 26 replay windows count as 12.7, fewer than its 15
-    free parameters, so its errors are s² (JᵀJ)⁻¹ (:mod:`hexsim.measured.statistics`), and the draws' mean reversal
-    peaks span 0.064–0.067: they no longer cover a corner the model lacks (the cluster-robust draws, 0.064–0.076,
-    had called the run within, 1.24×, 0.94–1.63). An uncompensated log is within it (0.99×)."""
+    bump removed (measured 0.063, predicted 0.063 m/s² with the log's accelerometer noise, none 0.75); the JSON
+    carries both, and the verdict is within its uncertainty, over the machines the calibration's uncertainty allows
+    (the default 8 draws: reversals 1.00×, 95 % interval 0.91–1.09; between them 1.04×, 0.93–1.16) and on the
+    calibrated file alone (``--draws 0``), every band of the departure 1.0× (numpy 2.4, scipy 1.17, mujoco 4.0).
+    Until the leg model's grid was refined where the curve bends (:func:`compensation.leg_model.refined_grid`) the
+    measured run left 0.084 and the verdict was *not within*, the peaks between the reversals placed at the truth's
+    port corner (0.88 V, 1.21×): the inverse's 5 mV chord across the corner, in the machine and in the prediction
+    alike but not alike enough. An uncompensated log is within it (0.99×)."""
     doc = {"format": "hexsim-tuned/1", "compensator": "feedforward", "settings": {}, "model": model.to_dict()}
     tuned = tmp_path / "tuned.json"
     tuned.write_text(json.dumps(doc))
@@ -205,8 +204,6 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
     predicted = plausible["predicted"]  # the models' means in every column: a mean of maxima is above the mean
     assert predicted["mean_reversal_peak"] == pytest.approx(np.mean(plausible["predicted_models"]))
     assert predicted["max_reversal_peak"] >= predicted["mean_reversal_peak"]
-    assert plausible["verdict"]["within"] is False and plausible["verdict"]["between reversals"]["ratio"] > 1.0
-    assert plausible["verdict"]["corner_V"] == pytest.approx(0.9, abs=0.05)
     assert "machines drawn from its uncertainty" in capsys.readouterr().out
     assert main(["tune", "--check", str(log), "--compensator", str(tuned), "--machine", str(machine),
                  "--draws", "0", "--json", str(tmp_path / "proof.json")]) == 0
@@ -216,13 +213,15 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
     for what in ("measured", "predicted"):
         assert proof[what]["mean_reversal_peak"] < 0.2 * none_peaks.mean()
         assert proof[what]["reversals"] >= 6
-    # read with the log's accelerometer noise (the truth's 0.02 m/s^2), the prediction of the uncompensated run is
-    # within its uncertainty; compensated, the verdict is "not within", and the peaks between the reversals sit at
-    # one valve command, the truth's port-limited spool's corner (k_a x^2 meets the port at 0.90 V)
-    verdict = proof["verdict"]
+    # read with the log's accelerometer noise (the truth's 0.02 m/s^2): the prediction holds within 30 % (issue 53's
+    # target) at the reversals and between them, and the verdict says so with no corner to place
     assert proof["accelerometer_noise_mps2"] == pytest.approx(0.02, rel=0.1)
-    assert verdict["within"] is False and verdict["sentence"] in out and verdict["sentence"].startswith("not within")
-    assert verdict["between reversals"]["ratio"] > 1.0 and verdict["corner_V"] == pytest.approx(0.9, abs=0.05)
+    for doc_ in (plausible, proof):
+        verdict = doc_["verdict"]
+        assert verdict["within"] is True and verdict["corner_V"] is None, verdict
+        for part in ("reversals", "between reversals"):
+            assert 0.77 < verdict[part]["ratio"] < 1.3 and verdict[part]["low"] < 1.0 < verdict[part]["high"]
+    assert proof["verdict"]["sentence"] in out and proof["verdict"]["sentence"].startswith("within")
     without = write(motion(TRUTH, 12.0, 0.5, 0.05, np.random.default_rng(6)), tmp_path / "without.csv", "none")
     assert main(["tune", "--check", str(without), "--compensator", "none", "--machine", str(machine),
                  "--json", str(tmp_path / "none.json")]) == 0
@@ -294,6 +293,34 @@ def test_a_dead_band_margin_stops_the_inverse_that_far_short_of_each_valve_edge(
     for bad in (-0.001, 0.2, float("nan")):
         with pytest.raises(SettingsError, match="dead_band_margin"):
             CompensatorSettings(dead_band_margin=bad)
+
+
+def test_the_inverse_reads_the_curve_where_an_overlapped_edge_opens():
+    """A port-limited spool's edge opens steeply out of its 6 µm overlap (0.44 mm/s within 3 mV at 34 bar): on a
+    uniform 5 mV grid the inverse's chord across it missed the flow by 0.15 mm/s, and that tick's flow step rang the
+    oil column at every reversal on one side. The leg model's grid is refined there until its chords hold to
+    CURVE_TOLERANCE: commands across both edges, read back through the curve the model came from, land within it;
+    a smooth curve keeps its grid."""
+    import dataclasses
+
+    from compensation.leg_model import CURVE_TOLERANCE, refined_grid
+    from hexsim.control.feedforward import GRID_POINTS, leg_model, static_flow_curve
+    from hexsim.plant.params import HydraulicParams
+
+    hyd, p1 = HydraulicParams(flow_area="port", overlap=6e-6), np.array([3.4e6])
+    model = leg_model(hyd, p1, np.array([[42.0]]))
+    uniform = np.linspace(-hyd.u_v_max, hyd.u_v_max, GRID_POINTS)
+    coarse = dataclasses.replace(model, u=uniform, velocity=static_flow_curve(uniform, p1, hyd))
+    u = np.r_[np.linspace(-0.2, -0.05, 1500), np.linspace(0.05, 0.2, 1500)]  # through both edges (±55 mV)
+    v = static_flow_curve(u, p1, hyd)[0]
+    missed = {}
+    for label, m in (("refined", model), ("uniform", coarse)):
+        comp = make_compensator("feedforward", 1, 500.0, model=m)
+        back = np.array([static_flow_curve(comp.inverse(np.array([x]), p1), p1, hyd)[0, 0] for x in v])
+        missed[label] = float(np.max(np.abs(back - v)))
+    assert missed["refined"] < CURVE_TOLERANCE < 1e-4 < missed["uniform"], missed
+    smooth, curve = refined_grid(lambda x: np.atleast_2d(0.02 * x + 0.001 * x**3), uniform)
+    assert len(smooth) == len(uniform) and curve.shape == (1, len(uniform))
 
 
 def test_an_underlapped_valve_is_inverted_edge_by_edge_at_the_measured_pressure():
