@@ -188,10 +188,10 @@ def test_a_log_run_with_the_tuned_compensator_is_set_beside_its_prediction(machi
     carries both, and the verdict is within its uncertainty, over the machines the calibration's uncertainty allows
     (the default 8 draws: reversals 1.00×, 95 % interval 0.91–1.09; between them 1.04×, 0.93–1.16) and on the
     calibrated file alone (``--draws 0``), every band of the departure 1.0× (numpy 2.4, scipy 1.17, mujoco 4.0).
-    Until the leg model's grid was refined where the curve bends (:func:`compensation.leg_model.refined_grid`) the
-    measured run left 0.084 and the verdict was *not within*, the peaks between the reversals placed at the truth's
-    port corner (0.88 V, 1.21×): the inverse's 5 mV chord across the corner, in the machine and in the prediction
-    alike but not alike enough. An uncompensated log is within it (0.99×)."""
+    Until the leg model's grid was refined where the curve bends (:func:`compensation.leg_model.refined_grid`, which
+    adds points at the valve's edges and at the port's corner) the measured run left 0.084 and the verdict was *not
+    within*, the peaks between the reversals placed at the truth's port corner (0.88 V, 1.21×); which of the added
+    points moved those peaks was not separated. An uncompensated log is within it (0.99×)."""
     doc = {"format": "hexsim-tuned/1", "compensator": "feedforward", "settings": {}, "model": model.to_dict()}
     tuned = tmp_path / "tuned.json"
     tuned.write_text(json.dumps(doc))
