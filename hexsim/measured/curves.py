@@ -25,6 +25,7 @@ from hexsim.measured.flow_curve import (
     FlowCurves,
     fit_flow_curves,
     tank_pressure_from_flows,
+    unit_gains,
 )
 from hexsim.measured.parameters import ParameterSet
 from hexsim.measured.scoring import WITHIN
@@ -57,10 +58,8 @@ def curve_machine(machine: Machine, curves: FlowCurves, points: tuple[list, list
     carrying the P→A and A→T gains (1 now; a 4-way valve's P→B and B→T relative to them) and any overlap or
     underlap (the file's 0)."""
     pa, at = curves.points(machine) if points is None else points
-    eff = machine.effects
-    return with_valve(machine, flow_area="curve", opening_table=[], flow_curve_PA=pa, flow_curve_AT=at, overlap_m=0.0,
-                      edge_gain_PA=1.0, edge_gain_AT=1.0, edge_gain_PB=eff.edge_gain_pb / eff.edge_gain_at,
-                      edge_gain_BT=eff.edge_gain_bt / eff.edge_gain_pa)
+    return with_valve(unit_gains(machine), flow_area="curve", opening_table=[], flow_curve_PA=pa, flow_curve_AT=at,
+                      overlap_m=0.0)
 
 
 def with_curve(replays: list, residual: Callable[[Machine], np.ndarray], best: dict, tried: list[dict],

@@ -382,11 +382,12 @@ def tank_pressure_from_flows(logs: list[MeasurementLog], machine: Machine, lower
 
 
 def unit_gains(machine: Machine) -> Machine:
-    """``machine`` with unit P→A and A→T gains (the curves carry them), a 4-way valve's rod-side gains relative."""
+    """``machine`` with unit P→A and A→T gains (the curves carry them), a 4-way valve's rod-side gains relative (a
+    3-way valve has no rod-side edges: its P→B and B→T gains stay as they were)."""
     eff = machine.effects
-    return dataclasses.replace(machine, effects=eff.replace(
-        edge_gain_pa=1.0, edge_gain_at=1.0, edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at,
-        edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa))
+    rod = (dict(edge_gain_pb=eff.edge_gain_pb / eff.edge_gain_at, edge_gain_bt=eff.edge_gain_bt / eff.edge_gain_pa)
+           if machine.hydraulics.four_way else {})
+    return dataclasses.replace(machine, effects=eff.replace(edge_gain_pa=1.0, edge_gain_at=1.0, **rod))
 
 
 def balance_samples(logs: list[MeasurementLog], machine: Machine, skew: float

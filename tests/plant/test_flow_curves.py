@@ -359,3 +359,20 @@ def test_a_drift_a_commissioning_read_is_carried_into_the_prediction_of_the_next
         hyd = config.warm_up.params_at(config.hydraulics, float(config.warm_up.temperature(t)))
         assert math.isclose(hyd.null_offset - null, expected, abs_tol=1e-9), (t, hyd.null_offset - null)
         assert hyd.density == pytest.approx(base.hydraulics.density, rel=1e-3)
+
+
+def test_a_curve_machine_carries_the_edge_gains_and_a_3_way_valve_gets_no_rod_side_gains():
+    """The curves read from logs carry the P→A and A→T gains (both 1 in the file afterwards); a 4-way valve's
+    rod-side gains become relative to them (P→B opens with A→T, B→T with P→A), and a 3-way valve, which has no
+    rod side, keeps its P→B and B→T at 1 (its commissioned file had carried 1.04 and 0.97 there)."""
+    from hexsim.measured.curves import curve_machine
+
+    table = [[0.0, 0.0], [0.5, 1e-6], [10.0, 2e-5]]
+    gains = {"valve.edge_gain_PA": 1.03, "valve.edge_gain_AT": 0.96}
+    three = curve_machine(with_keys(load_machine(None), gains), None, (table, table)).effects
+    assert (three.edge_gain_pa, three.edge_gain_at, three.edge_gain_pb, three.edge_gain_bt) == (1.0, 1.0, 1.0, 1.0)
+    four_way = with_keys(load_machine(None), {"valve.type": "4-way", **gains, "valve.edge_gain_PB": 1.02,
+                                              "valve.edge_gain_BT": 0.99})
+    four = curve_machine(four_way, None, (table, table)).effects
+    assert (four.edge_gain_pa, four.edge_gain_at) == (1.0, 1.0)
+    assert four.edge_gain_pb == pytest.approx(1.02 / 0.96) and four.edge_gain_bt == pytest.approx(0.99 / 1.03)
