@@ -30,6 +30,7 @@ class OracleCompensator(Compensator):
             raise SettingsError("the oracle compensator needs the plant's true parameters and flow curve (PlantTruth)")
         self.plant = plant
         self._params = None
+        self._about_null = None  # the refined grid less the null it was refined at [V]
 
     def _refresh(self) -> None:
         p = self.plant.params
@@ -37,10 +38,19 @@ class OracleCompensator(Compensator):
             return
         self._params = p
         p1 = np.asarray(self.plant.p1_static, dtype=float)
+
+        def curve(u):
+            return self.plant.flow_curve(u[None, :], p1[:, None], p)
+
+        # The grid is refined once; warming oil moves the parameters every controller sample, and of what places
+        # the curve's bends on the u_v axis only the null: x_v depends on u_v - u_0 (seed eq. 3.2), so the grid
+        # follows it.
+        if self._about_null is None:
+            grid, _ = refined_grid(curve, np.linspace(-self.u_v_max, self.u_v_max, GRID_POINTS))
+            self._about_null = grid - p.null_offset
+        self._grid = self._about_null + p.null_offset
         # (n_legs, grid) static velocity; a vanishing slope keeps it strictly increasing inside the overlap
-        self._grid, curve = refined_grid(lambda u: self.plant.flow_curve(u[None, :], p1[:, None], p),
-                                         np.linspace(-self.u_v_max, self.u_v_max, GRID_POINTS))
-        self._curve = curve + 1e-12 * self._grid[None, :]
+        self._curve = curve(self._grid) + 1e-12 * self._grid[None, :]
         u_ref = self.settings.oracle_u_ref
         ends = np.stack([np.interp([-u_ref, u_ref], self._grid, row) for row in self._curve])
         self.slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)
