@@ -1,6 +1,6 @@
 """The seed's single actuator written independently of hexsim (no hexsim import): the "real machine" of the
-calibrate-then-validate tests on the 3-way valve. Its own equations, integrated by classical Runge-Kutta
-at 2 µs (numba):
+calibrate-then-validate tests on the 3-way valve. Its own equations, integrated by Dormand-Prince 5(4)
+under an error control (numba; held to RK4 at 1 µs by tests/test_truths.py):
 
 - spool x_v = (u - u_0) / u_max * x_max (ideal, seed eq. 3.2), or following it as a second-order loop,
   behind a backlash of half width ``play`` [V] on the setpoint; the opening of each edge by ``area``:
@@ -114,7 +114,7 @@ def spool_edge(c, x):
 
 @numba.njit(cache=True)
 def _rhs(y, v, p1, xv, vv, ps, u, c):
-    """The state's derivatives (ẏ, v̇, Ṗ1, ẋ_v, v̇_v, Ṗ_s) as a tuple (no array: the RK4 loop allocates nothing)."""
+    """The state's derivatives (ẏ, v̇, Ṗ1, ẋ_v, v̇_v, Ṗ_s) as a tuple (no array)."""
     m = c[19]
     x_set = (u - c[10]) / c[6] * c[5]
     w = c[29]
@@ -171,9 +171,9 @@ def leg_at(c, y, v, p1, x, ps):
 
 
 @numba.njit(cache=True)
-def _advance(z, u, c, h, n):
+def _advance_rk4(z, u, c, h, n):
     """n classical Runge-Kutta steps of h [s] with the valve setpoint u held (the state z (6,) in, a new array
-    out; scalars in between)."""
+    out; scalars in between). The fixed-step reference :func:`_advance` is checked against (tests/plant)."""
     y, v, p1, xv, vv, ps = z[0], z[1], z[2], z[3], z[4], z[5]
     for _ in range(n):
         a1, a2, a3, a4, a5, a6 = _rhs(y, v, p1, xv, vv, ps, u, c)
@@ -189,6 +189,70 @@ def _advance(z, u, c, h, n):
         vv += k * (a5 + 2 * b5 + 2 * c5 + d5)
         ps += k * (a6 + 2 * b6 + 2 * c6 + d6)
     return np.array([y, v, p1, xv, vv, ps])
+
+
+# Dormand & Prince's RK5(4)7M (J. Comput. Appl. Math. 6, 1980; Hairer, Norsett & Wanner, Solving ODEs I, II.5):
+# the nodes' coefficients A (row i: stage i+1 from stages 1..i), the 5th-order weights B, and B minus the embedded
+# 4th-order weights, E (the local error's estimate).
+_DP_A = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                  [1 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
+                  [3 / 40, 9 / 40, 0.0, 0.0, 0.0, 0.0],
+                  [44 / 45, -56 / 15, 32 / 9, 0.0, 0.0, 0.0],
+                  [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0.0, 0.0],
+                  [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0.0],
+                  [35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84]])
+_DP_E = np.array([71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
+#: The absolute tolerances of the state (y [m], v [m/s], P1 [Pa], x_v [m], v_v [m/s], P_s [Pa]): v to 1e-9 m/s, so
+#: the logged acceleration (v's change over a millisecond) is 1e-6 m/s^2 off at most per step, far below the
+#: 0.02 m/s^2 of accelerometer noise and the 1e-3 m/s^2 of the smallest compensated reversal bump; P1 to 1 Pa
+#: (a transducer's noise is 2 kPa). Relative tolerance 1e-8 on top.
+_ATOL = np.array([1e-10, 1e-9, 1.0, 1e-10, 1e-7, 1.0])
+_RTOL = 1e-8
+
+
+@numba.njit(cache=True)
+def _advance(z, u, c, span, h):
+    """Integrate over ``span`` [s] with the valve setpoint u held, by Dormand-Prince 5(4) with local
+    extrapolation and the step controlled to :data:`_ATOL`/:data:`_RTOL` (the step stays small where the
+    chamber is stiff: a wide-open valve near the supply pressure, a short oil column), starting with the step
+    h [s]. Returns (the state (6,), the step to start the next span with); a state that cannot be advanced
+    (the step below 1e-12 s) comes back NaN."""
+    z = z.copy()
+    k = np.empty((7, 6))
+    zt = np.empty(6)
+    t = 0.0
+    k[0, :] = _rhs(z[0], z[1], z[2], z[3], z[4], z[5], u, c)
+    while t < span:
+        step = min(h, span - t)
+        last = step < h
+        for i in range(1, 7):
+            for j in range(6):
+                acc = 0.0
+                for m in range(i):
+                    acc += _DP_A[i, m] * k[m, j]
+                zt[j] = z[j] + step * acc
+            k[i, :] = _rhs(zt[0], zt[1], zt[2], zt[3], zt[4], zt[5], u, c)
+        err = 0.0
+        for j in range(6):  # zt is the 5th-order solution (the last stage's point: B is A's last row)
+            e = 0.0
+            for m in range(7):
+                e += _DP_E[m] * k[m, j]
+            err = max(err, abs(step * e) / (_ATOL[j] + _RTOL * max(abs(z[j]), abs(zt[j]))))
+        if not math.isfinite(err):
+            err = 1e10
+        factor = min(5.0, max(0.2, 0.9 * err ** -0.2)) if err > 0 else 5.0
+        if err <= 1.0:
+            t += step
+            z[:] = zt
+            k[0, :] = k[6, :]  # first same as last
+            if not last:
+                h = min(step * factor, 1e-4)
+        else:
+            h = step * factor
+            if h < 1e-12:
+                z[:] = np.nan
+                return z, h
+    return z, h
 
 
 def _drifted(c0: np.ndarray, s: Actuator, t: float) -> np.ndarray:
@@ -207,7 +271,7 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
     """A closed-loop run of ``duration`` s tracking amplitude sin(2 pi f t) faded in over one period around
     mid-stroke (seed eq. 3.10), or ``reference`` [m] (one setpoint a millisecond: a chirp, steps; frequency and
     amplitude then unused): the log's columns at 1 kHz, noise (position m, pressure Pa, acceleration
-    m/s^2) on the measured channels (the controller sees the noisy position). Integrated by RK4 at 2 µs.
+    m/s^2) on the measured channels (the controller sees the noisy position). Integrated by :func:`_advance`.
     ``compensate(u_p, y, r, r_dot, r_ddot, r_dddot, p1) -> U_c`` [V], called at each controller sample with
     the P output, the measured position, the reference and its derivatives (central differences at the
     controller rate) and the measured cap pressure, adds U_c to the valve setpoint (before saturation);
@@ -233,6 +297,7 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
         derivatives.append(np.gradient(derivatives[-1], 2 * dt))
     u = spool_u = u_c = 0.0
     v_prev = 0.0
+    h = 1e-6
     for j in range(len(t)):
         out["pos"][j] = z[0]
         y_meas[j] += float(np.interp(t[j] - s.sensor_delay, t[:j + 1], out["pos"][:j + 1])) if s.sensor_delay else z[0]
@@ -248,7 +313,7 @@ def motion(s: Actuator, duration: float, frequency: float, amplitude: float, rng
         out["p1"][j], out["u"][j], out["ps"][j], out["uc"][j] = z[2], u, z[5], u_c
         out["acc"][j] = (z[1] - v_prev) / dt + g_axis if j else g_axis
         v_prev = z[1]
-        z = _advance(z, spool_u, c, 2e-6, 500)
+        z, h = _advance(z, spool_u, c, dt, h)
         assert np.all(np.isfinite(z)), f"non-finite state at t = {t[j]:.3f} s"
     p1 = out["p1"] + p1_noise
     acc = out["acc"] + rng.normal(0.0, noise[2], len(t))
