@@ -39,8 +39,11 @@ def pytest_cmdline_main(config):
 #: commissioning 27, the flow curves 4; the tuning on the 4-way axis, added later, 40; the whole suite 20 CPU minutes
 #: on two workers that finish within a minute of each other). Handed out first, the two workers finish together; in
 #: the alphabetical order the validation files came last and one worker ran them alone for minutes. They are also the
-#: files marked ``slow``.
-LONGEST_FIRST = ("test_calibration_hexapod.py", "test_hexapod_validation.py", "test_calibration_transients.py",
+#: files marked ``slow``. The transients' calibration goes before the hexapod's: the other worker starts with
+#: test_serve.py (:data:`REAL_TIME_FIRST`), which compiles the hexapod's kernel (numba, some 20 s on a fresh
+#: install); beside it this one compiles the single actuator's replay, and each then loads the other's from numba's
+#: cache, where both had compiled the hexapod's kernel at once.
+LONGEST_FIRST = ("test_calibration_transients.py", "test_calibration_hexapod.py", "test_hexapod_validation.py",
                  "test_feedforward.py", "test_calibration_curve.py", "test_calibration.py",
                  "test_tuning_on_the_machine.py", "test_validation.py", "test_verdicts.py", "test_cli.py",
                  "test_commissioning.py", "test_flow_curves.py")
