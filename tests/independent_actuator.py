@@ -173,7 +173,7 @@ def leg_at(c, y, v, p1, x, ps):
 @numba.njit(cache=True)
 def _advance_rk4(z, u, c, h, n):
     """n classical Runge-Kutta steps of h [s] with the valve setpoint u held (the state z (6,) in, a new array
-    out; scalars in between). The fixed-step reference :func:`_advance` is checked against (tests/plant)."""
+    out; scalars in between): the fixed-step reference tests/test_truths.py holds :func:`_advance` to."""
     y, v, p1, xv, vv, ps = z[0], z[1], z[2], z[3], z[4], z[5]
     for _ in range(n):
         a1, a2, a3, a4, a5, a6 = _rhs(y, v, p1, xv, vv, ps, u, c)
@@ -192,8 +192,8 @@ def _advance_rk4(z, u, c, h, n):
 
 
 # Dormand & Prince's RK5(4)7M (J. Comput. Appl. Math. 6, 1980; Hairer, Norsett & Wanner, Solving ODEs I, II.5):
-# the nodes' coefficients A (row i: stage i+1 from stages 1..i), the 5th-order weights B, and B minus the embedded
-# 4th-order weights, E (the local error's estimate).
+# the stages' coefficients A (row i: stage i+1 from stages 1..i; its last row the 5th-order weights B, so the last
+# stage is the next step's first) and B minus the embedded 4th-order weights, E (the local error's estimate).
 _DP_A = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
                   [1 / 5, 0.0, 0.0, 0.0, 0.0, 0.0],
                   [3 / 40, 9 / 40, 0.0, 0.0, 0.0, 0.0],

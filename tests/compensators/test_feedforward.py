@@ -1,7 +1,7 @@
 """The model-based feedforward and its adaptive version on a machine that is not hexsim's model.
 
-The truth is ``tests/independent_actuator.py`` (its own equations, Dormand-Prince 5(4) under an error control, no hexsim import) with
-its nominal moved within data-sheet tolerances from appendix A and a port-limited spool, as in
+The truth is ``tests/independent_actuator.py`` (its own equations, error-controlled Dormand-Prince, no hexsim
+import) with its nominal moved within data-sheet tolerances from appendix A and a port-limited spool, as in
 test_calibration_transients. hexsim is told only the built-in file; it calibrates on two closed-loop
 logs, then hexsim's compensators (the thing under test) run inside the independent actuator's own
 500 Hz loop, handed what a motion computer has: the P output, the measured position and pressure, the
