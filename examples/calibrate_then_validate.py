@@ -1,8 +1,8 @@
 """Calibrate, then validate: the measured-data loop on machines that are not their machine file.
 
 Each machine is the seed's single actuator written independently of hexsim (``tests/independent_actuator.py``:
-its own equations, error-controlled Dormand-Prince), with nominal parameters moved from appendix A within what a data sheet
-allows and a valve that is not hexsim's default. hexsim is told nothing but the built-in machine file:
+its own equations, error-controlled Dormand-Prince), with nominal parameters moved from appendix A within what a
+data sheet allows and a valve that is not hexsim's default. hexsim is told nothing but the built-in machine file:
 
 1. two calibration experiments of the machine (closed-loop sines: 8 s at 0.5 Hz and 60 mm, 6 s at 1.5 Hz
    and 30 mm) -> ``hexsim.measured.calibration.calibrate`` -> a calibrated machine file;

@@ -1,8 +1,8 @@
 """Calibration from transients, then validation on top of it, on a machine that is not its file.
 
 The truth is ``tests/independent_actuator.py`` (the seed's single actuator in its own equations, error-
-controlled Dormand-Prince, no hexsim import) with its nominal moved within data-sheet tolerances from appendix A (flow gain
-+7 %, return edge -5 %, overlap 8 µm, bulk modulus 1.2 GPa, twice the pipeline volume, 44 kg, friction
+controlled Dormand-Prince, no hexsim import) with its nominal moved within data-sheet tolerances from appendix A
+(flow gain +7 %, return edge -5 %, overlap 8 µm, bulk modulus 1.2 GPa, twice the pipeline volume, 44 kg, friction
 levels changed per direction) and a port-limited spool (the smaller of eq. 3.11 and the port, with its
 overlap as a dead band): against the built-in file its logs are ``unexplained``. hexsim is told only the
 built-in file; it calibrates on one closed-loop experiment, then judges other logs of the machine: with
