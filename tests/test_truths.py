@@ -20,9 +20,9 @@ SPOOL = Actuator(area="spool", underlap=6e-6, rounding=8e-6, port_width=0.85, fl
 def _both(truth: Actuator, monkeypatch, **kwargs) -> tuple[dict, dict]:
     """The run under the error control, and under RK4 at 1 µs."""
     controlled = motion(truth, noise=(0.0, 0.0, 0.0), rng=np.random.default_rng(1), **kwargs)
-    monkeypatch.setattr(ia, "_advance", lambda z, u, c, span, h: (ia._advance_rk4(z, u, c, 1e-6, 1000), h))
-    fixed = motion(truth, noise=(0.0, 0.0, 0.0), rng=np.random.default_rng(1), **kwargs)
-    monkeypatch.undo()
+    with monkeypatch.context() as patch:  # only this patch undone after the run, not the caller's
+        patch.setattr(ia, "_advance", lambda z, u, c, span, h: (ia._advance_rk4(z, u, c, 1e-6, 1000), h))
+        fixed = motion(truth, noise=(0.0, 0.0, 0.0), rng=np.random.default_rng(1), **kwargs)
     return controlled, fixed
 
 
