@@ -361,6 +361,42 @@ def test_an_underlapped_valve_is_inverted_edge_by_edge_at_the_measured_pressure(
                      ).velocity_at is None
 
 
+def test_a_curve_read_from_flows_is_inverted_without_corners_near_null_where_both_edges_are_open():
+    """Each edge's curve (flow area "curve") opening 0.3 V before null, its slope doubling at -0.06 V as a curve read
+    from the flows had it on the proof's ``underlap`` machine: the leg model inverts it smoothed within 0.5 V of
+    null (``hexsim.control.feedforward.rounded_near_null``, a 20 mV Gaussian), its net velocity's slope changing by at
+    most 5 % of its largest per 5 mV where the curve's own changes by over 20 %, within 0.5 mm/s of the curve, and
+    the curve itself beyond 0.6 V. A curve whose edges open at null (they never pass flow together) is inverted as
+    it is."""
+    from hexsim.control.feedforward import leg_model, static_flow_curve
+    from hexsim.plant.params import HydraulicParams
+
+    def opening(c: float) -> float:  # 0 at -0.3 V, 0.01 per V up to -0.06 V, 0.02 per V from there
+        return 0.01 * (c + 0.3) if c < -0.06 else 0.0024 + 0.02 * (c + 0.06)
+
+    knots = (-0.3, -0.1, -0.08, -0.065, -0.06, -0.055, -0.04, 0.0, 0.2, 0.5)
+    edge = tuple((c, opening(c)) for c in knots)
+    hyd = HydraulicParams(flow_area="curve", flow_curve_pa=(*edge, (10.0, 0.3)), flow_curve_at=(*edge, (10.0, 0.28)))
+    p_rest = np.array([4e6])
+    model = leg_model(hyd, p_rest, np.array([[100.0]]))
+    curve = static_flow_curve(model.u, p_rest, hyd)
+    assert model.velocity_at is not None
+    u = np.arange(-0.3, 0.3001, 0.005)
+
+    def corner(v: np.ndarray) -> float:  # the largest change of slope per 5 mV, as a share of the largest slope
+        slope = np.diff(np.interp(u, model.u, v)) / 0.005
+        return float(np.max(np.abs(np.diff(slope))) / np.max(np.abs(slope)))
+
+    assert corner(curve[0]) > 0.2 and corner(model.velocity[0]) < 0.05, (corner(curve[0]), corner(model.velocity[0]))
+    assert np.max(np.abs(model.velocity - curve)) < 5e-4
+    far = np.abs(model.u) > 0.6
+    np.testing.assert_array_equal(model.velocity[:, far], curve[:, far])
+    at_null = HydraulicParams(flow_area="curve", flow_curve_pa=((0.0, 0.0), (0.5, 0.05), (10.0, 0.3)),
+                              flow_curve_at=((0.0, 0.0), (0.5, 0.05), (10.0, 0.28)))
+    model = leg_model(at_null, p_rest, np.array([[100.0]]))
+    np.testing.assert_array_equal(model.velocity, static_flow_curve(model.u, p_rest, at_null))
+
+
 def test_on_an_underlapped_spool_inverting_edge_by_edge_leaves_less_of_the_bump():
     """In the loop of independent_actuator's underlapped "spool" (both edges open 6 µm before null, rounded over
     8 µm: the proof's ``underlap`` machine), the fixed feedforward on the spool's own curve, friction and rest
