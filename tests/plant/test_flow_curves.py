@@ -194,7 +194,7 @@ def test_an_underlapped_spools_curve_keeps_its_flow_gain_where_its_rounded_edges
     at the rest pressure, P→A in and A→T out: read from a chirp, its gain over every 20 mV from 0.4 V below null to
     0.4 V above is within 8 % of the spool's own. A grid that started 0.2 V below null held the edges shut there, a
     corner the valve lacks: the gain was 10-15 % off either side of it, and the compensator inverting it removed 60 %
-    of the bump where it removes 85-86 % now (``examples/proof_on_the_machine.py``, the ``underlap`` machine)."""
+    of the bump where it removed 85-86 % after it (``examples/proof_on_the_machine.py``, the ``underlap`` machine)."""
     from independent_actuator import _pack, leg_at
 
     spool = Actuator(area="spool", underlap=6e-6, rounding=8e-6, port_width=0.85, flow_gain=1.04, k_at=0.93,
