@@ -71,7 +71,7 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
                                    np.linspace(-u_max, u_max, GRID_POINTS))
     at = None if hyd.four_way else return_edge_share(u, p_rest, velocity, hyd, eff)
     if at is not None and hyd.flow_area == "curve":  # curves read from flows, both edges open around null
-        velocity, at = rounded_near_null(u, velocity), rounded_near_null(u, at)
+        velocity, at = rounded_near_null(u, velocity, increasing=True), rounded_near_null(u, at)
     ends = np.stack([np.interp([-u_ref, u_ref], u, row) for row in velocity])
     slope = (ends[:, 1] - ends[:, 0]) / (2 * u_ref)
     v_max = 1.2 * float(np.max(np.abs(velocity[:, [0, -1]])))
@@ -96,24 +96,28 @@ def leg_model(hyd: HydraulicParams, p_rest: np.ndarray, inertia: np.ndarray, *, 
 #: percentile). A compensator inverting such a corner steps the flow at every crossing of it and the oil column
 #: rings: in the ``underlap`` machine's own loop its tuned feedforward left 0.0725 m/s² at the reversals, 0.0458
 #: with the curve inverted smoothed (89.8 % of the bump removed, from 83.9 %), and hexsim's prediction of that run,
-#: its plant keeping the corners, went from 0.0270 to 0.0589 (``examples/proof_on_the_machine.py``;
+#: its plant keeping the corners, went from 0.0244 to 0.0589 (``examples/proof_on_the_machine.py``;
 #: docs/compensation.md). The machine file keeps the curve as read: a replay and a validation see what the flows
 #: gave.
 ROUNDED_V, ROUNDED_SIGMA_V = 0.5, 0.02
 
 
-def rounded_near_null(u: np.ndarray, curve: np.ndarray) -> np.ndarray:
+def rounded_near_null(u: np.ndarray, curve: np.ndarray, increasing: bool = False) -> np.ndarray:
     """``curve`` (n, G) on the valve setpoints ``u`` (G,) [V], smoothed within :data:`ROUNDED_V` of null by a
     Gaussian of :data:`ROUNDED_SIGMA_V` (scipy.ndimage.gaussian_filter1d on a 1 mV grid, the curve held at its
-    ends beyond the grid) and unchanged beyond it: a new array, shape of ``curve``."""
+    ends beyond the grid), the smoothing faded out over the last 2 sigma before ROUNDED_V and none beyond it;
+    ``increasing``: each row kept non-decreasing (a net velocity curve, whose inverse must be unique, where a kink
+    at the fade would dip it). A new array, shape of ``curve``."""
     step = 1e-3
     margin = 4.0 * ROUNDED_SIGMA_V
     dense = np.arange(-ROUNDED_V - margin, ROUNDED_V + margin + 0.5 * step, step)
-    inside = np.abs(u) <= ROUNDED_V
+    weight = np.clip((ROUNDED_V - np.abs(u)) / (2.0 * ROUNDED_SIGMA_V), 0.0, 1.0)
     out = np.array(curve, dtype=float, copy=True)
     for row in out:
         smooth = gaussian_filter1d(np.interp(dense, u, row), ROUNDED_SIGMA_V / step, mode="nearest")
-        row[inside] = np.interp(u[inside], dense, smooth)
+        row += weight * (np.interp(u, dense, smooth) - row)
+        if increasing:
+            row[:] = np.maximum.accumulate(row)
     return out
 
 

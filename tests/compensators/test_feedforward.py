@@ -366,8 +366,8 @@ def test_a_curve_read_from_flows_is_inverted_without_corners_near_null_where_bot
     from the flows had it on the proof's ``underlap`` machine: the leg model inverts it smoothed within 0.5 V of
     null (``hexsim.control.feedforward.rounded_near_null``, a 20 mV Gaussian), its net velocity's slope changing by at
     most 5 % of its largest per 5 mV where the curve's own changes by over 20 %, within 0.5 mm/s of the curve, and
-    the curve itself beyond 0.6 V. A curve whose edges open at null (they never pass flow together) is inverted as
-    it is."""
+    the curve itself beyond 0.6 V; one that rises steeply where the smoothing ends is still inverted (its velocity
+    kept non-decreasing). A curve whose edges open at null (they never pass flow together) is inverted as it is."""
     from hexsim.control.feedforward import leg_model, static_flow_curve
     from hexsim.plant.params import HydraulicParams
 
@@ -391,6 +391,12 @@ def test_a_curve_read_from_flows_is_inverted_without_corners_near_null_where_bot
     assert np.max(np.abs(model.velocity - curve)) < 5e-4
     far = np.abs(model.u) > 0.6
     np.testing.assert_array_equal(model.velocity[:, far], curve[:, far])
+    # an edge that rises steeply right where the smoothing ends (a read curve's kink at 0.5 V): still a curve whose
+    # inverse is unique (unguarded, the smoothed part dipped below it at -0.495 V and the model was refused)
+    steep = ((-0.3, 0.0), (-0.06, 0.0024), (0.4, 0.0128), (0.499, 0.01281), (0.502, 0.06), (10.0, 0.3))
+    model = leg_model(HydraulicParams(flow_area="curve", flow_curve_pa=steep, flow_curve_at=steep), p_rest,
+                      np.array([[100.0]]))
+    assert np.all(np.diff(model.velocity) >= 0.0)
     at_null = HydraulicParams(flow_area="curve", flow_curve_pa=((0.0, 0.0), (0.5, 0.05), (10.0, 0.3)),
                               flow_curve_at=((0.0, 0.0), (0.5, 0.05), (10.0, 0.28)))
     model = leg_model(at_null, p_rest, np.array([[100.0]]))
