@@ -392,7 +392,7 @@ def test_a_curve_read_from_flows_is_inverted_without_corners_near_null_where_bot
     far = np.abs(model.u) > 0.6
     np.testing.assert_array_equal(model.velocity[:, far], curve[:, far])
     # an edge that rises steeply right where the smoothing ends (a read curve's kink at 0.5 V): still a curve whose
-    # inverse is unique (unguarded, the smoothed part dipped below it at -0.495 V and the model was refused)
+    # inverse is unique (unguarded, the curve fell at -0.5 V, where the smoothing ends, and the model was refused)
     steep = ((-0.3, 0.0), (-0.06, 0.0024), (0.4, 0.0128), (0.499, 0.01281), (0.502, 0.06), (10.0, 0.3))
     model = leg_model(HydraulicParams(flow_area="curve", flow_curve_pa=steep, flow_curve_at=steep), p_rest,
                       np.array([[100.0]]))
